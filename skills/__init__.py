@@ -1,0 +1,4 @@
+"""Skills: controllers that turn a subgoal into motor actions.
+
+Filled in by the modular-agent issue.
+"""
