@@ -1,0 +1,80 @@
+"""Named environments: ``envs.load(name, seed=None, **overrides)`` and ``envs.names()``.
+
+Every name is also registered with gymnasium under the same id when ``envs``
+is imported (``gymnasium.make("mujoban/level1")`` after ``import envs``, or
+``gymnasium.make("envs:mujoban/level1")`` without it).
+"""
+
+from __future__ import annotations
+
+import difflib
+import inspect
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+from envs.core import Environment
+
+
+@dataclass(frozen=True)
+class EnvEntry:
+    """A registered environment: a factory plus its fixed keyword arguments."""
+
+    name: str
+    factory: Callable[..., Environment]
+    kwargs: dict[str, Any] = field(default_factory=dict)
+    description: str = ""
+
+
+_REGISTRY: dict[str, EnvEntry] = {}
+
+
+def register(entry: EnvEntry) -> None:
+    if entry.name in _REGISTRY:
+        raise ValueError(f"environment {entry.name!r} is already registered")
+    _REGISTRY[entry.name] = entry
+
+
+def names() -> list[str]:
+    """All registered environment names, sorted."""
+    return sorted(_REGISTRY)
+
+
+def describe(name: str) -> str:
+    return _entry(name).description
+
+
+def overrides(name: str) -> list[str]:
+    """Keyword overrides that `load` accepts for `name`."""
+    entry = _entry(name)
+    params = inspect.signature(entry.factory).parameters
+    return sorted(p for p in params if p not in entry.kwargs and p != "seed")
+
+
+def load(name: str, seed: int | None = None, **kwargs) -> Environment:
+    """Builds the named environment as a dm_env ``Environment``.
+
+    Args:
+      name: one of `names()`, e.g. ``"mujoban/level5-pegs"``.
+      seed: seed of the environment's random generator.
+      **kwargs: overrides of the environment's settings, e.g.
+        ``levels="file.txt"``, ``top_camera=None``; `overrides(name)` lists them.
+
+    Raises:
+      KeyError: unknown name (the message lists the known ones).
+      TypeError: an override the environment does not have.
+    """
+    entry = _entry(name)
+    valid = overrides(name)
+    unknown = sorted(set(kwargs) - set(valid))
+    if unknown:
+        raise TypeError(f"{name}: unknown override(s) {unknown}; valid overrides: {valid}")
+    return entry.factory(seed=seed, **entry.kwargs, **kwargs)
+
+
+def _entry(name: str) -> EnvEntry:
+    try:
+        return _REGISTRY[name]
+    except KeyError:
+        close = difflib.get_close_matches(str(name), _REGISTRY, n=3)
+        hint = f" Did you mean {close}?" if close else ""
+        raise KeyError(f"unknown environment {name!r}.{hint} Known environments: {names()}") from None
