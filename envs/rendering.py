@@ -13,6 +13,9 @@ multisampling off in their ``<visual>`` settings.
 
 from __future__ import annotations
 
+import atexit
+import os
+import weakref
 from dataclasses import dataclass
 
 from envs import _gl  # noqa: F401  (sets MUJOCO_GL before mujoco renders)
@@ -46,6 +49,27 @@ class CameraConfig:
                 raise ValueError(f"camera {self.camera!r}: {name} must be a positive int, got {value!r}")
 
 
+_LIVE: "weakref.WeakSet[Cameras]" = weakref.WeakSet()
+_EXIT_HOOK_REGISTERED = False
+
+
+def _close_all() -> None:
+    # Free GL contexts while EGL is still initialised; at interpreter teardown
+    # their finalizers would otherwise fail noisily.
+    for cameras in list(_LIVE):
+        cameras.close()
+
+
+def _register_exit_hook() -> None:
+    # atexit runs handlers last-in first-out: registering after MuJoCo's EGL
+    # module (imported with the first context) makes ours run before its
+    # eglTerminate.
+    global _EXIT_HOOK_REGISTERED
+    if not _EXIT_HOOK_REGISTERED:
+        atexit.register(_close_all)
+        _EXIT_HOOK_REGISTERED = True
+
+
 class Cameras:
     """Renders RGB images from cameras of one compiled model."""
 
@@ -53,6 +77,7 @@ class Cameras:
         self._model = model
         self._renderers: dict[tuple[int, int], mujoco.Renderer] = {}
         self._option = mujoco.MjvOption()
+        _LIVE.add(self)
 
     def camera_id(self, name: str) -> int:
         cam_id = mujoco.mj_name2id(self._model, mujoco.mjtObj.mjOBJ_CAMERA, name)
@@ -70,11 +95,12 @@ class Cameras:
             except Exception as exc:  # GL errors come in many types
                 raise RenderError(
                     f"could not create a {width}x{height} offscreen OpenGL context "
-                    f"(MUJOCO_GL={__import__('os').environ.get('MUJOCO_GL')!r}): {exc}. "
+                    f"(MUJOCO_GL={os.environ.get('MUJOCO_GL')!r}): {exc}. "
                     "On a headless Linux machine install Mesa's EGL (libegl1, libgl1-mesa-dri) "
                     "or switch the cameras off."
                 ) from exc
             self._renderers[key] = renderer
+            _register_exit_hook()
         return renderer
 
     def prepare(self, height: int, width: int) -> None:
@@ -92,6 +118,12 @@ class Cameras:
     def close(self) -> None:
         for renderer in self._renderers.values():
             try:
+                # MjrContext.free deletes GL objects in the *current* context:
+                # make this renderer's context current first, or it would
+                # delete another live renderer's framebuffers (garbage frames).
+                gl_context = getattr(renderer, "_gl_context", None)
+                if gl_context is not None:
+                    gl_context.make_current()
                 renderer.close()
             except Exception:  # the context may already be gone at interpreter exit
                 pass
