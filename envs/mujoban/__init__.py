@@ -1,0 +1,116 @@
+"""MuJoBan: Sokoban in MuJoCo, pushed by a rolling ball (Mirza et al. 2020).
+
+Names registered with `envs.load` and gymnasium:
+
+* ``mujoban/level1`` ... ``mujoban/level5``: generated levels of the paper's
+  difficulty table (5x5/1 box ... 10x10/4 boxes), shown in a 10x10 arena;
+* the same with ``-pegs``: pegs at every interior grid intersection;
+* ``mujoban/curriculum`` and ``mujoban/curriculum-pegs``: difficulties drawn
+  with the paper's training ratios 0.25/0.25/0.2/0.2/0.1.
+
+Any of them takes ``levels="path/to/boxoban.txt"`` to play a file's levels in
+order instead.
+"""
+
+from __future__ import annotations
+
+import os
+
+from envs.core import Environment
+from envs.mujoban import sources
+from envs.mujoban.levels import Level, LevelError
+from envs.mujoban.task import Mujoban
+from envs.registry import EnvEntry, register
+
+
+def make(*, difficulty: int | None = None, pegs: bool = False, seed: int | None = None,
+         levels: str | os.PathLike | None = None, level_order: str = "sequential",
+         grid_shape=sources.ARENA_SHAPE, top_camera=(96, 96), egocentric_camera=(96, 96),
+         randomize_appearance: bool = True, time_limit: float = 45.0,
+         control_timestep: float = 0.05, physics_timestep: float = 0.005,
+         pad_tolerance: float = 0.3, render_size=(256, 256),
+         raise_on_physics_error: bool = True) -> Environment:
+    """Builds a MuJoBan environment.
+
+    Args:
+      difficulty: 1-5 for one paper difficulty, None for the curriculum.
+      pegs: grid pegs that block diagonal box motion.
+      seed: random seed (levels, colours, initial heading).
+      levels: a Boxoban-format file whose levels are played instead of
+        generated ones.
+      level_order: ``"sequential"`` (file order, from the first level again
+        after the last) or ``"shuffle"`` (uniformly at random) for `levels`.
+      grid_shape: arena size in cells; smaller levels are padded with walls.
+      top_camera, egocentric_camera: ``(height, width)`` or None to switch off.
+      randomize_appearance: new wall/floor textures and colours every episode.
+      time_limit: seconds (45 s = 900 control steps of 0.05 s).
+    """
+    if levels is not None:
+        if level_order not in ("sequential", "shuffle"):
+            raise ValueError(f"level_order must be 'sequential' or 'shuffle', got {level_order!r}")
+        source = sources.FileLevels(levels, shuffle=level_order == "shuffle")
+        _check_file_fits(source, tuple(grid_shape))
+    elif difficulty is None:
+        source = sources.CurriculumLevels()
+    else:
+        source = sources.GeneratedLevels(difficulty)
+    task = Mujoban(source, grid_shape=grid_shape, max_boxes=source.max_boxes, pegs=pegs,
+                   top_camera=top_camera, egocentric_camera=egocentric_camera,
+                   randomize_appearance=randomize_appearance, time_limit=time_limit,
+                   control_timestep=control_timestep, physics_timestep=physics_timestep,
+                   pad_tolerance=pad_tolerance, render_size=render_size)
+    return Environment(task, seed=seed, raise_on_physics_error=raise_on_physics_error)
+
+
+def _check_file_fits(source: sources.FileLevels, grid_shape: tuple[int, int]) -> None:
+    """Raises LevelError, with file, level, line and column, for a level too large."""
+    first_rows = _first_row_lines(source.path)
+    for position, level in enumerate(source.levels):
+        if level.height <= grid_shape[0] and level.width <= grid_shape[1]:
+            continue
+        first = first_rows[position] if position < len(first_rows) else None
+        if level.width > grid_shape[1]:  # the first cell outside the arena
+            line, column = first, grid_shape[1] + 1
+        else:
+            line, column = (first + grid_shape[0] if first else None), 1
+        try:
+            index = int(level.name)
+        except (TypeError, ValueError):
+            index = position
+        raise LevelError(
+            f"level is {level.height}x{level.width}, larger than the arena's "
+            f"{grid_shape[0]}x{grid_shape[1]} (pass grid_shape=(rows, cols) to enlarge it)",
+            path=str(source.path), index=index, line=line, column=column)
+
+
+def _first_row_lines(path) -> list[int]:
+    """1-based line number of each level's first row in a level file."""
+    starts, inside = [], False
+    with open(path) as f:
+        for number, text in enumerate(f, start=1):
+            row = text.rstrip("\r\n")
+            if not row.strip() or row.startswith(";"):
+                inside = False
+            elif not inside:
+                starts.append(number)
+                inside = True
+    return starts
+
+
+def _register() -> None:
+    for pegs in (False, True):
+        suffix = "-pegs" if pegs else ""
+        peg_text = " with grid pegs" if pegs else ""
+        for difficulty in range(1, 6):
+            register(EnvEntry(
+                f"mujoban/level{difficulty}{suffix}", make,
+                {"difficulty": difficulty, "pegs": pegs},
+                f"MuJoBan, generated difficulty-{difficulty} levels{peg_text}"))
+        register(EnvEntry(
+            f"mujoban/curriculum{suffix}", make, {"difficulty": None, "pegs": pegs},
+            f"MuJoBan, the paper's 5-level training curriculum{peg_text}"))
+
+
+_register()
+
+__all__ = ["Level", "LevelError", "Mujoban", "make", "sources"]

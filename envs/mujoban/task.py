@@ -1,0 +1,528 @@
+"""The MuJoBan task: Sokoban played by a rolling ball in a 3D maze.
+
+Rules (Mirza et al. 2020, section "MuJoBan"):
+
+* reward +1 at the control step a box comes to cover a target pad, -1 when a
+  box leaves one, 0 otherwise; when every pad is covered the episode ends and
+  that step's reward additionally carries a +10 bonus (so it is 11 when the
+  last box arrives, the +1 shaping for that box plus the bonus);
+* a pad counts as covered while some box centre lies within ``pad_tolerance``
+  (default 0.3 cells) of the pad centre along both axes; the pad turns green;
+* episodes last 45 s (900 control steps of 0.05 s), and end early with
+  discount 0 if the walker falls over (its head tilts past 60 degrees or it
+  leaves the floor);
+* the abstract state (``full_entity_layer``) rounds every box to its nearest
+  cell first, then the walker; if the walker's cell holds a box, the walker
+  keeps its previous cell (the paper's appendix).
+"""
+
+from __future__ import annotations
+
+from typing import Callable, Mapping
+
+import numpy as np
+from dm_control.locomotion.walkers import jumping_ball
+from dm_env import specs
+
+from envs.core import PhysicsTask
+from envs.mujoban import arena as arena_lib
+from envs.mujoban.levels import Level, LevelError
+from envs.mujoban.props import Box
+from envs.rendering import CameraConfig
+
+#: Channels of ``full_entity_layer``.
+ENTITY_CHANNELS = ("wall", "target", "player", "box")
+WALL, TARGET, PLAYER, BOX = range(4)
+
+#: Colours of ``pixel_layer``, one pixel per grid cell.
+PIXEL_COLOURS = {
+    "floor": (0, 0, 0),
+    "wall": (120, 120, 120),
+    "target": (254, 126, 125),
+    "box": (142, 121, 56),
+    "box_on_target": (254, 95, 56),
+    "player": (160, 212, 56),
+    "player_on_target": (219, 212, 56),
+}
+
+LevelSource = Callable[[np.random.Generator], Level]
+
+_PARKED_Z = -20.0
+
+
+class Mujoban(PhysicsTask):
+    """MuJoBan as a composer task.
+
+    Args:
+      level_source: called with the environment's random generator at every
+        reset; returns the next `Level`. See `envs.mujoban.sources`.
+      grid_shape: arena capacity in cells; smaller levels are padded with walls
+        (centred), larger ones raise `LevelError`.
+      max_boxes: how many boxes (and pads) the arena holds.
+      pegs: add pegs at every interior grid intersection (block diagonal box
+        motion; the walker rolls through them).
+      top_camera: ``(height, width)`` of the top-down RGB camera, or None.
+      egocentric_camera: ``(height, width)`` of the walker's camera, or None.
+      randomize_appearance: sample wall and floor textures/colours every episode.
+      control_timestep, physics_timestep, time_limit: seconds.
+      pad_tolerance: see the module docstring, in cells.
+      wall_slabs: size of the pool of render-only wall rectangles (levels
+        needing more are drawn cell by cell).
+      walker: a locomotion walker to use instead of the rolling ball (advanced;
+        must expose ``create_root_joints`` and an egocentric camera).
+    """
+
+    def __init__(self, level_source: LevelSource, *, grid_shape=(10, 10), max_boxes=4,
+                 pegs=False, top_camera=(96, 96), egocentric_camera=(96, 96),
+                 randomize_appearance=True, control_timestep=0.05, physics_timestep=0.005,
+                 time_limit=45.0, pad_tolerance=0.3, cell_size=1.0, render_size=(256, 256),
+                 wall_slabs=32, walker=None):
+        if not callable(level_source):
+            raise TypeError("level_source must be callable as level_source(rng) -> Level")
+        grid_shape = tuple(int(v) for v in grid_shape)
+        if len(grid_shape) != 2 or min(grid_shape) < 3:
+            raise ValueError(f"grid_shape must be (rows, cols) with both >= 3, got {grid_shape}")
+        if int(max_boxes) < 1:
+            raise ValueError(f"max_boxes must be >= 1, got {max_boxes}")
+        if not 0 < pad_tolerance <= 0.5:
+            raise ValueError(f"pad_tolerance must be in (0, 0.5] cells, got {pad_tolerance}")
+        if time_limit <= 0:
+            raise ValueError(f"time_limit must be positive seconds, got {time_limit}")
+        self._level_source = level_source
+        self._randomize_appearance = bool(randomize_appearance)
+        self._pad_tolerance = float(pad_tolerance) * cell_size
+
+        sizes = [tuple(s) for s in (top_camera, egocentric_camera, render_size) if s]
+        offscreen = (max(s[0] for s in sizes), max(s[1] for s in sizes))
+        self._arena = arena_lib.MujobanArena(
+            grid_shape=grid_shape, max_boxes=max_boxes, cell_size=cell_size, pegs=pegs,
+            offscreen_size=offscreen, wall_slabs=wall_slabs)
+        self._walker = walker or jumping_ball.RollingBallWithHead(
+            name="walker", add_ears=True, camera_height=0.25)
+        self._add_walker_touch_sensor()
+        self._walker.create_root_joints(self._arena.attach(self._walker))
+
+        self._boxes = []
+        self._box_joints = []
+        for i in range(max_boxes):
+            box = Box(name=f"box_{i}")
+            frame = self._arena.attach(box)
+            frame.pos = (0, 0, box.half_height + 0.005)
+            joints = [frame.add("joint", name=f"box_{i}_{axis}", type="slide", axis=vec,
+                                frictionloss=40.0, damping=20.0, armature=0.0)
+                      for axis, vec in (("x", (1, 0, 0)), ("y", (0, 1, 0)))]
+            self._boxes.append(box)
+            self._box_joints.append(joints)
+
+        self._cameras: dict[str, CameraConfig] = {}
+        if top_camera:
+            self._cameras["top_camera"] = CameraConfig("top_camera", *top_camera)
+        if egocentric_camera:
+            self._cameras["walker/egocentric_camera"] = CameraConfig(
+                self._walker.egocentric_camera.full_identifier, *egocentric_camera)
+
+        self.set_timesteps(control_timestep=control_timestep, physics_timestep=physics_timestep)
+        self.time_limit_steps = int(round(time_limit / control_timestep))
+        self.level: Level | None = None
+
+    # -- construction helpers ----------------------------------------------
+
+    def _add_walker_touch_sensor(self) -> None:
+        model = self._walker.mjcf_model
+        shell_body = model.find("geom", "shell").parent
+        site = shell_body.add("site", name="touch_site", type="sphere", size=(0.21,),
+                              group=arena_lib.HIDDEN_GROUP, rgba=(0, 0, 0, 0))
+        model.sensor.add("touch", name="sensor_touch", site=site)
+
+    @property
+    def root_entity(self):
+        return self._arena
+
+    @property
+    def arena(self) -> arena_lib.MujobanArena:
+        return self._arena
+
+    @property
+    def walker(self):
+        return self._walker
+
+    @property
+    def boxes(self) -> list[Box]:
+        return self._boxes
+
+    @property
+    def camera_configs(self) -> Mapping[str, CameraConfig]:
+        return self._cameras
+
+    @property
+    def grid_shape(self) -> tuple[int, int]:
+        return self._arena.grid_shape
+
+    @property
+    def cell_size(self) -> float:
+        return self._arena.cell_size
+
+    # -- composer hooks -----------------------------------------------------
+
+    def after_compile(self, physics, random_state):
+        bind = physics.bind
+        arena = self._arena
+        self._model = physics.model.ptr
+        self._data = physics.data.ptr
+        height, width = arena.grid_shape
+        self._wall_ids = np.array([[bind(g).element_id for g in row] for row in arena.wall_cells])
+        self._slab_ids = np.array([bind(g).element_id for g in arena.wall_slabs])
+        self._pad_ids = np.array([bind(g).element_id for g in arena.pads])
+        self._floor_id = bind(arena.floor).element_id
+        self._floor_mat_ids = np.array([bind(m).element_id for m in arena.floor_materials])
+        self._wall_mat_ids = np.array([bind(m).element_id for m in arena.wall_materials])
+        self._box_geom_ids = np.array([bind(b.geom).element_id for b in self._boxes])
+        self._box_qpos = np.array([[bind(j).qposadr for j in js] for js in self._box_joints])
+        self._box_qpos = self._box_qpos.reshape(len(self._boxes), 2)
+        self._box_dof = np.array([[bind(j).dofadr for j in js] for js in self._box_joints])
+        self._box_dof = self._box_dof.reshape(len(self._boxes), 2)
+
+        walker_model = self._walker.mjcf_model
+        root_joints = self._walker._root_joints  # pylint: disable=protected-access
+        self._walker_root_qpos = [int(a) for a in np.ravel([bind(j).qposadr for j in root_joints])]
+        self._walker_root_dof = np.array([bind(j).dofadr for j in root_joints]).ravel()
+        all_joints = walker_model.find_all("joint")
+        self._walker_joint_qpos = np.array([bind(j).qposadr for j in all_joints]).ravel()
+        self._walker_joint_dof = np.array([bind(j).dofadr for j in all_joints]).ravel()
+        self._steer_qpos = int(bind(walker_model.find("joint", "steer")).qposadr)
+        actuators = self._walker.actuators
+        self._act_ids = np.array([bind(a).element_id for a in actuators])
+        act_joints = [walker_model.find("joint", a.joint.name if hasattr(a.joint, "name") else a.joint)
+                      for a in actuators]
+        self._act_qpos = np.array([bind(j).qposadr for j in act_joints]).ravel()
+        self._act_dof = np.array([bind(j).dofadr for j in act_joints]).ravel()
+        self._head_body = int(bind(self._walker.root_body).element_id)
+
+        def sensor_slice(name):
+            sensor = bind(walker_model.find("sensor", name))
+            adr, dim = int(sensor.adr), int(sensor.dim)
+            return slice(adr, adr + dim)
+
+        self._sensor_slices = {
+            "walker/sensors_touch": sensor_slice("sensor_touch"),
+            "walker/sensors_accelerometer": sensor_slice("sensor_torso_accel"),
+            "walker/sensors_gyro": sensor_slice("sensor_torso_gyro"),
+            "walker/sensors_velocimeter": sensor_slice("sensor_torso_vel"),
+        }
+        self._box_qpos_list = [tuple(map(int, row)) for row in self._box_qpos]
+        self._active_box_qpos = []
+        self._box_reference = []
+        # Views of MjData's arrays (mj_resetData keeps the buffers), so the
+        # per-step code skips the attribute lookups.
+        d = self._data
+        self._qpos, self._qvel, self._qfrc_actuator = d.qpos, d.qvel, d.qfrc_actuator
+        self._xpos, self._xmat, self._sensordata, self._ctrl = d.xpos, d.xmat, d.sensordata, d.ctrl
+        # Constants of world -> cell rounding, for the per-step estimate.
+        self._rounding = (1.0 / self.cell_size, (width - 1) / 2, (height - 1) / 2,
+                          height - 1, width - 1)
+        self._static_layer = np.zeros((height, width, 4), bool)
+        self._targets: list[tuple[int, int]] = []
+        self._target_xy: list[tuple[float, float]] = []
+        self._player_cell = (0, 0)
+        self._box_cells: tuple[tuple[int, int], ...] = ()
+        self._covered: tuple[bool, ...] = ()
+        self._set_layers((), (0, 0))
+        self._num_boxes = 0
+        self._reward = 0.0
+        self._solved = False
+        self._fell = False
+
+    def initialize_episode(self, physics, random_state):
+        level = self._level_source(random_state)
+        if not isinstance(level, Level):
+            raise TypeError(f"level_source returned {type(level).__name__}, expected Level")
+        self._set_level(level)
+        if self._randomize_appearance:
+            self._randomize_colours(random_state)
+        m, d = self._model, self._data
+        d.qpos[self._walker_joint_qpos] = 0.0
+        px, py = self._arena.cell_centre(*self.level.player)
+        d.qpos[self._walker_root_qpos[0]], d.qpos[self._walker_root_qpos[1]] = px, py
+        d.qpos[self._steer_qpos] = random_state.uniform(-np.pi, np.pi)
+        for i in range(len(self._boxes)):
+            if i < self._num_boxes:
+                r, c = self._initial_box_cells[i]
+                d.qpos[self._box_qpos[i]] = self._arena.cell_centre(r, c)
+                m.geom_group[self._box_geom_ids[i]] = 0
+            else:  # parked far outside the arena, undrawn
+                d.qpos[self._box_qpos[i]] = (1000.0 + 10 * i, 1000.0)
+                m.geom_group[self._box_geom_ids[i]] = arena_lib.HIDDEN_GROUP
+        self._box_reference = self._box_xy()
+        self._covered = self._pads_covered(self._box_reference)
+        self._paint_pads()
+        self._set_layers(self._box_cells, self.level.player)
+        self._reward = 0.0
+        self._solved = False
+        self._fell = False
+
+    def on_seed(self) -> None:
+        restart = getattr(self._level_source, "restart", None)
+        if restart is not None:
+            restart()
+
+    def before_step(self, physics, action, random_state):
+        self._ctrl[self._act_ids] = action
+
+    def after_step(self, physics, random_state):
+        # Runs every control step, right after MuJoCo has filled the caches
+        # with its own data: plain Python on a handful of floats, one read of
+        # qpos, and arrays rebuilt only when the abstract state changes.
+        q = self._qpos.tolist()
+        entered = left = 0
+        box_cells = self._box_cells
+        inv, cx, cy, rmax, cmax = self._rounding
+        # Resting boxes creep by ~1e-11 m per step under joint friction loss;
+        # pads and box cells are only re-evaluated once a box has moved 0.1 mm.
+        boxes = [(q[ix], q[iy]) for ix, iy in self._active_box_qpos]
+        if any(abs(bx - ox) > 1e-4 or abs(by - oy) > 1e-4
+               for (bx, by), (ox, oy) in zip(boxes, self._box_reference)):
+            self._box_reference = boxes
+            covered = self._pads_covered(boxes)
+            previous = self._covered
+            if covered != previous:
+                entered = sum(now and not before for now, before in zip(covered, previous))
+                left = sum(before and not now for now, before in zip(covered, previous))
+                self._covered = covered
+                self._paint_pads()
+            # The paper's estimate: boxes first, then the walker unless it overlaps a box.
+            box_cells = tuple((min(max(round(cy - y * inv), 0), rmax),
+                               min(max(round(x * inv + cx), 0), cmax)) for x, y in boxes)
+        self._solved = all(self._covered)
+        self._reward = float(entered - left) + (10.0 if self._solved else 0.0)
+
+        rx, ry, rz = self._walker_root_qpos
+        hx, hy, hz = q[rx], q[ry], q[rz]  # the root slides move the head body
+        player = (min(max(round(cy - hy * inv), 0), rmax), min(max(round(hx * inv + cx), 0), cmax))
+        if player in box_cells:
+            player = self._player_cell
+        if box_cells != self._box_cells or player != self._player_cell:
+            self._set_layers(box_cells, player)
+        self._fell = bool(self._xmat[self._head_body, 8] < 0.5 or not -0.5 < hz < 3.0)
+
+    def get_reward(self, physics):
+        return self._reward
+
+    def should_terminate_episode(self, physics):
+        return self._solved or self._fell
+
+    def get_discount(self, physics):
+        return 0.0 if (self._solved or self._fell) else 1.0
+
+    def action_spec(self, physics):
+        ranges = self._model.actuator_ctrlrange[self._act_ids]
+        names = ",".join(a.name for a in self._walker.actuators)
+        return specs.BoundedArray((len(self._act_ids),), np.float64, ranges[:, 0], ranges[:, 1],
+                                  name=names)
+
+    # -- observations -------------------------------------------------------
+
+    def observation_spec(self):
+        height, width = self.grid_shape
+        n_act = len(self._act_ids)
+        spec = {
+            "walker/joints_pos": specs.Array((n_act,), np.float64, "walker/joints_pos"),
+            "walker/joints_vel": specs.Array((n_act,), np.float64, "walker/joints_vel"),
+            "walker/joints_torque": specs.Array((n_act,), np.float64, "walker/joints_torque"),
+            "walker/orientation": specs.Array((9,), np.float64, "walker/orientation"),
+        }
+        for name, sl in self._sensor_slices.items():
+            spec[name] = specs.Array((sl.stop - sl.start,), np.float64, name)
+        spec["full_entity_layer"] = specs.Array((height, width, 4), bool, "full_entity_layer")
+        spec["pixel_layer"] = specs.BoundedArray((height, width, 3), np.uint8, 0, 255, "pixel_layer")
+        return spec
+
+    def observe(self, physics):
+        obs = {
+            "walker/joints_pos": self._qpos[self._act_qpos],
+            "walker/joints_vel": self._qvel[self._act_dof],
+            "walker/joints_torque": self._qfrc_actuator[self._act_dof],
+            "walker/orientation": self._xmat[self._head_body].copy(),
+        }
+        sensordata = self._sensordata.copy()
+        for name, sl in self._sensor_slices.items():
+            obs[name] = sensordata[sl]
+        # Rebuilt only when the abstract state changes; every observation
+        # gets its own copy (users keep observations, e.g. in replay buffers).
+        obs["full_entity_layer"] = self._entity_layer.copy()
+        obs["pixel_layer"] = self._pixel_layer.copy()
+        return obs
+
+    # -- state accessors (used by estimators, skills and tests) -------------
+
+    def box_positions(self, physics=None) -> np.ndarray:
+        """World (x, y) of the level's boxes, shape (num_boxes, 2)."""
+        return self._data.qpos[self._box_qpos[: self._num_boxes]].copy()
+
+    def walker_position(self, physics=None) -> np.ndarray:
+        """World (x, y) of the walker (its root joints' position)."""
+        return self._qpos[self._walker_root_qpos[:2]]
+
+    def walker_velocity(self, physics=None) -> np.ndarray:
+        """World (vx, vy) of the walker's root."""
+        return self._data.qvel[self._walker_root_dof[:2]].copy()
+
+    def walker_heading(self, physics=None) -> float:
+        """Heading of the walker's face in the world frame, radians from +x."""
+        xmat = self._data.xmat[self._head_body]
+        # The face sits on the head body's local +y axis (column 1 of xmat).
+        return float(np.arctan2(xmat[4], xmat[1]))
+
+    def world_to_cell(self, xy) -> tuple[int, int]:
+        """Nearest grid cell (row, col) to a world point, clipped to the grid."""
+        inv, cx, cy, rmax, cmax = self._rounding
+        x, y = float(xy[0]), float(xy[1])
+        return min(max(round(cy - y * inv), 0), rmax), min(max(round(x * inv + cx), 0), cmax)
+
+    @property
+    def abstract_cells(self) -> tuple[tuple[tuple[int, int], ...], tuple[int, int]]:
+        """The current estimate: (box cells in box order, player cell)."""
+        return self._box_cells, self._player_cell
+
+    def cell_to_world(self, row: int, col: int) -> tuple[float, float]:
+        return self._arena.cell_centre(row, col)
+
+    @property
+    def pads_covered(self) -> np.ndarray:
+        """Per target pad (in `level.targets` sorted order), covered or not."""
+        return np.array(self._covered, bool)
+
+    @property
+    def solved(self) -> bool:
+        return self._solved
+
+    def set_box_position(self, physics, index: int, xy) -> None:
+        """Moves box `index` to world `xy` at rest (for tests and disturbances)."""
+        if not 0 <= index < self._num_boxes:
+            raise IndexError(f"box index {index} out of range for {self._num_boxes} boxes")
+        self._data.qpos[self._box_qpos[index]] = xy
+        self._data.qvel[self._box_dof[index]] = 0.0
+        physics.forward()
+
+    # -- internals ----------------------------------------------------------
+
+    def _set_level(self, level: Level) -> None:
+        height, width = self.grid_shape
+        if level.height > height or level.width > width:
+            raise LevelError(f"level is {level.height}x{level.width}, larger than the arena's "
+                             f"{height}x{width} (raise grid_shape)", path=None, index=None)
+        if len(level.boxes) > len(self._boxes):
+            raise LevelError(f"level has {len(level.boxes)} boxes, the arena holds at most "
+                             f"{len(self._boxes)} (raise max_boxes)", path=None, index=None)
+        if (level.height, level.width) != (height, width):
+            level = level.padded(height, width)
+        self.level = level
+        m = self._model
+        walls = np.zeros((height, width), bool)
+        for r, c in level.walls:
+            walls[r, c] = True
+        ids = self._wall_ids.ravel()
+        m.geom_contype[ids] = np.where(walls.ravel(), arena_lib.WALKER_BIT, 0)
+        m.geom_conaffinity[ids] = np.where(walls.ravel(),
+                                           arena_lib.WALKER_BIT | arena_lib.BOX_BIT, 0)
+        cell = self.cell_size
+        rects = arena_lib.wall_rectangles(walls)
+        self._walls_drawn_per_cell = len(rects) > len(self._slab_ids)
+        if self._walls_drawn_per_cell:
+            rects = []
+            m.geom_group[ids] = np.where(walls.ravel(), 0, arena_lib.HIDDEN_GROUP)
+        else:
+            m.geom_group[ids] = arena_lib.HIDDEN_GROUP
+        for k, slab in enumerate(self._slab_ids):
+            if k < len(rects):
+                r0, c0, r1, c1 = rects[k]
+                x0, y0 = self._arena.cell_centre(r0, c0)
+                x1, y1 = self._arena.cell_centre(r1 - 1, c1 - 1)
+                m.geom_pos[slab] = ((x0 + x1) / 2, (y0 + y1) / 2, arena_lib.WALL_HEIGHT / 2)
+                m.geom_size[slab] = ((c1 - c0) * cell / 2, (r1 - r0) * cell / 2,
+                                     arena_lib.WALL_HEIGHT / 2)
+                m.geom_group[slab] = 0
+            else:
+                m.geom_pos[slab] = (0, 0, _PARKED_Z)
+                m.geom_group[slab] = arena_lib.HIDDEN_GROUP
+        self._targets = sorted(level.targets)
+        self._num_boxes = len(level.boxes)
+        self._initial_box_cells = sorted(level.boxes)
+        self._active_box_qpos = self._box_qpos_list[: self._num_boxes]
+        self._box_cells = tuple(self._initial_box_cells)
+        self._target_xy = [self._arena.cell_centre(r, c) for r, c in self._targets]
+        for k, pad in enumerate(self._pad_ids):
+            if k < len(self._targets):
+                m.geom_pos[pad] = (*self._target_xy[k], 0.004)
+                m.geom_group[pad] = 0
+            else:
+                m.geom_pos[pad] = (0, 0, _PARKED_Z)
+                m.geom_group[pad] = arena_lib.HIDDEN_GROUP
+        layer = np.zeros((height, width, 4), bool)
+        layer[..., WALL] = walls
+        for r, c in self._targets:
+            layer[r, c, TARGET] = True
+        self._static_layer = layer
+
+    def _randomize_colours(self, rng: np.random.Generator) -> None:
+        m = self._model
+        floor_mat = int(rng.choice(self._floor_mat_ids))
+        wall_mat = int(rng.choice(self._wall_mat_ids))
+        m.geom_matid[self._floor_id] = floor_mat
+        m.geom_matid[self._slab_ids] = wall_mat
+        m.geom_matid[self._wall_ids.ravel()] = wall_mat
+        m.mat_rgba[floor_mat, :3] = rng.uniform(0.3, 1.0, size=3)
+        m.mat_rgba[wall_mat, :3] = rng.uniform(0.3, 1.0, size=3)
+
+    def _box_xy(self) -> list[tuple[float, float]]:
+        qpos = self._qpos.tolist()
+        return [(qpos[ix], qpos[iy]) for ix, iy in self._active_box_qpos]
+
+    def _pads_covered(self, boxes) -> tuple[bool, ...]:
+        tol = self._pad_tolerance
+        return tuple(any(abs(tx - bx) <= tol and abs(ty - by) <= tol for bx, by in boxes)
+                     for tx, ty in self._target_xy)
+
+    def _paint_pads(self) -> None:
+        rgba = self._model.geom_rgba
+        for k, covered in enumerate(self._covered):
+            rgba[self._pad_ids[k]] = arena_lib.PAD_COVERED_RGBA if covered else arena_lib.PAD_RGBA
+
+    def _set_layers(self, box_cells, player) -> None:
+        self._box_cells = tuple(box_cells)
+        self._player_cell = tuple(player)
+        layer = self._static_layer.copy()
+        for r, c in box_cells:
+            layer[r, c, BOX] = True
+        layer[player[0], player[1], PLAYER] = True
+        pixels = entity_layer_to_pixels(layer)
+        layer.flags.writeable = False
+        pixels.flags.writeable = False
+        self._entity_layer, self._pixel_layer = layer, pixels
+
+
+_COLOUR_TABLE = np.zeros((16, 3), np.uint8)
+
+
+def _build_colour_table() -> None:
+    for code in range(16):
+        wall, target, player, box = (bool(code >> k & 1) for k in range(4))
+        if wall:
+            name = "wall"
+        elif box:
+            name = "box_on_target" if target else "box"
+        elif player:
+            name = "player_on_target" if target else "player"
+        elif target:
+            name = "target"
+        else:
+            name = "floor"
+        _COLOUR_TABLE[code] = PIXEL_COLOURS[name]
+
+
+_build_colour_table()
+_CHANNEL_WEIGHTS = np.array([1, 2, 4, 8], np.uint8)
+
+
+def entity_layer_to_pixels(layer: np.ndarray) -> np.ndarray:
+    """``pixel_layer`` from ``full_entity_layer``: one RGB pixel per cell."""
+    return _COLOUR_TABLE[layer.astype(np.uint8) @ _CHANNEL_WEIGHTS]
