@@ -1,0 +1,19 @@
+"""Physically embedded planning environments (Mirza et al. 2020).
+
+    import envs
+    env = envs.load("mujoban/level5-pegs", seed=0)       # a dm_env.Environment
+    gym_env = gymnasium.make("mujoban/level5-pegs")       # the same, as gymnasium
+
+`envs.names()` lists every environment; `envs.overrides(name)` its settings.
+"""
+
+from envs import _gl  # noqa: F401  (must run before mujoco picks a GL backend)
+
+from envs.core import Environment, PhysicsTask
+from envs.registry import describe, load, names, overrides
+from envs import mujoban  # noqa: F401  (registers the MuJoBan names)
+from envs.gymnasium_env import GymnasiumEnv, register_all as _register_gymnasium
+
+_register_gymnasium()
+
+__all__ = ["Environment", "GymnasiumEnv", "PhysicsTask", "describe", "load", "names", "overrides"]
