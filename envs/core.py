@@ -37,6 +37,8 @@ from dm_env import specs
 from envs.rendering import CameraConfig, Cameras
 
 _BADQACC = int(mujoco.mjtWarning.mjWARN_BADQACC)
+_MID = dm_env.StepType.MID
+_FLOAT64 = np.dtype(np.float64)
 
 
 class PhysicsTask(composer.Task, abc.ABC):
@@ -142,7 +144,7 @@ class Environment(dm_env.Environment):
         if self._step_count >= task.time_limit_steps:
             self._reset_next_step = True
             return dm_env.truncation(reward, observation, task.truncated_discount())
-        return dm_env.transition(reward, observation, task.get_discount(physics))
+        return dm_env.TimeStep(_MID, reward, task.get_discount(physics), observation)
 
     def observation_spec(self) -> dict[str, specs.Array]:
         spec = dict(self._task.observation_spec())
@@ -220,11 +222,14 @@ class Environment(dm_env.Environment):
         return True
 
     def _check_action(self, action: Any) -> np.ndarray:
-        action = np.asarray(action, dtype=np.float64)
+        if type(action) is not np.ndarray or action.dtype is not _FLOAT64:
+            action = np.asarray(action, dtype=np.float64)
         if action.shape != self._action_spec.shape:
             raise ValueError(f"action must have shape {self._action_spec.shape}, "
                              f"got {action.shape}")
-        if not math.isfinite(action.sum()):  # one C reduction; NaN and inf propagate
+        # A Python sum of a few floats is several times cheaper than a numpy
+        # reduction; NaN and inf propagate through it.
+        if not math.isfinite(sum(action.tolist())):
             raise ValueError(f"action must be finite, got {action}")
         return action
 

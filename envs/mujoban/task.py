@@ -50,6 +50,16 @@ LevelSource = Callable[[np.random.Generator], Level]
 _PARKED_Z = -20.0
 
 
+def _as_slice(index: np.ndarray):
+    """``index`` as an equivalent slice when it is a run of step +1 or -1."""
+    index = [int(i) for i in index]
+    if len(index) >= 2 and all(b - a == index[1] - index[0] for a, b in zip(index, index[1:])) \
+            and abs(index[1] - index[0]) == 1:
+        stop = index[-1] + (index[1] - index[0])
+        return slice(index[0], None if stop < 0 else stop, index[1] - index[0])
+    return np.asarray(index)
+
+
 class Mujoban(PhysicsTask):
     """MuJoBan as a composer task.
 
@@ -194,8 +204,10 @@ class Mujoban(PhysicsTask):
         self._act_ids = np.array([bind(a).element_id for a in actuators])
         act_joints = [walker_model.find("joint", a.joint.name if hasattr(a.joint, "name") else a.joint)
                       for a in actuators]
-        self._act_qpos = np.array([bind(j).qposadr for j in act_joints]).ravel()
-        self._act_dof = np.array([bind(j).dofadr for j in act_joints]).ravel()
+        # Slices where the addresses are consecutive: a view and a copy are
+        # cheaper than fancy indexing, and observe() runs every step.
+        self._act_qpos = _as_slice(np.array([bind(j).qposadr for j in act_joints]).ravel())
+        self._act_dof = _as_slice(np.array([bind(j).dofadr for j in act_joints]).ravel())
         self._head_body = int(bind(self._walker.root_body).element_id)
 
         def sensor_slice(name):
@@ -278,9 +290,13 @@ class Mujoban(PhysicsTask):
         inv, cx, cy, rmax, cmax = self._rounding
         # Resting boxes creep by ~1e-11 m per step under joint friction loss;
         # pads and box cells are only re-evaluated once a box has moved 0.1 mm.
-        boxes = [(q[ix], q[iy]) for ix, iy in self._active_box_qpos]
-        if any(abs(bx - ox) > 1e-4 or abs(by - oy) > 1e-4
-               for (bx, by), (ox, oy) in zip(boxes, self._box_reference)):
+        moved = False
+        for (ix, iy), (ox, oy) in zip(self._active_box_qpos, self._box_reference):
+            if abs(q[ix] - ox) > 1e-4 or abs(q[iy] - oy) > 1e-4:
+                moved = True
+                break
+        if moved:
+            boxes = [(q[ix], q[iy]) for ix, iy in self._active_box_qpos]
             self._box_reference = boxes
             covered = self._pads_covered(boxes)
             previous = self._covered
@@ -338,9 +354,9 @@ class Mujoban(PhysicsTask):
 
     def observe(self, physics):
         obs = {
-            "walker/joints_pos": self._qpos[self._act_qpos],
-            "walker/joints_vel": self._qvel[self._act_dof],
-            "walker/joints_torque": self._qfrc_actuator[self._act_dof],
+            "walker/joints_pos": self._qpos[self._act_qpos].copy(),
+            "walker/joints_vel": self._qvel[self._act_dof].copy(),
+            "walker/joints_torque": self._qfrc_actuator[self._act_dof].copy(),
             "walker/orientation": self._xmat[self._head_body].copy(),
         }
         sensordata = self._sensordata.copy()
