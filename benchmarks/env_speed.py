@@ -35,12 +35,26 @@ import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
 MUJOBAN = [f"mujoban/level{d}{p}" for p in ("", "-pegs") for d in range(1, 6)]
+BOARDS = ["mujoxo/mixture", "mujoxo/optimal", "mujoxo/random", "mujogo/7x7",
+          "mujogo/7x7-mixture", "mujogo/9x9"]
+#: Camera settings per environment family; a row is measured for each
+#: requested setting its family has.
 CAMERA_SETTINGS = {
-    "none": dict(top_camera=None, egocentric_camera=None),
-    "top_camera": dict(top_camera=(96, 96), egocentric_camera=None),
-    # The default observation set: both 96x96 cameras.
-    "top_camera+egocentric": dict(top_camera=(96, 96), egocentric_camera=(96, 96)),
+    "mujoban": {
+        "none": dict(top_camera=None, egocentric_camera=None),
+        "top_camera": dict(top_camera=(96, 96), egocentric_camera=None),
+        # The default observation set: both 96x96 cameras.
+        "top_camera+egocentric": dict(top_camera=(96, 96), egocentric_camera=(96, 96)),
+    },
+    "boards": {
+        "none": dict(front_camera=None),
+        "front_camera": dict(front_camera=(84, 84)),
+    },
 }
+
+
+def _family(name: str) -> str:
+    return "mujoban" if name.startswith("mujoban/") else "boards"
 
 
 def _actions(n: int, dim: int, seed: int) -> np.ndarray:
@@ -51,7 +65,7 @@ def _actions(n: int, dim: int, seed: int) -> np.ndarray:
 
 def measure(name: str, cameras: str, steps: int, seed: int = 0) -> dict:
     t0 = time.perf_counter()
-    env = envs.load(name, seed=seed, **CAMERA_SETTINGS[cameras])
+    env = envs.load(name, seed=seed, **CAMERA_SETTINGS[_family(name)][cameras])
     build_s = time.perf_counter() - t0
     actions = _actions(steps, env.action_spec().shape[0], seed)
     model, data = env.physics.model.ptr, env.physics.data.ptr
@@ -97,7 +111,8 @@ def measure(name: str, cameras: str, steps: int, seed: int = 0) -> dict:
     limit_per_s = steps / raw_time
     return {
         "env": name,
-        "cameras": [] if cameras == "none" else cameras.replace("egocentric", "walker/egocentric_camera").split("+"),
+        "cameras": ([] if cameras == "none"
+                    else cameras.replace("egocentric", "walker/egocentric_camera").split("+")),
         "steps_per_s": round(steps_per_s, 1),
         "physics_limit_steps_per_s": round(limit_per_s, 1),
         "ratio": round(steps_per_s / limit_per_s, 3),
@@ -112,9 +127,11 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--json", type=Path, help="write the rows here")
     parser.add_argument("--steps", type=int, default=2000, help="control steps per row")
-    parser.add_argument("--envs", nargs="*", default=MUJOBAN, help="environment names")
-    parser.add_argument("--cameras", nargs="*", default=["none", "top_camera"],
-                        choices=list(CAMERA_SETTINGS))
+    parser.add_argument("--envs", nargs="*", default=MUJOBAN + BOARDS,
+                        help="environment names")
+    all_settings = sorted({k for family in CAMERA_SETTINGS.values() for k in family})
+    parser.add_argument("--cameras", nargs="*", default=["none", "top_camera", "front_camera"],
+                        choices=all_settings)
     args = parser.parse_args(argv)
     unknown = [n for n in args.envs if n not in envs.names()]
     if unknown:
@@ -126,6 +143,8 @@ def main(argv=None) -> int:
     rows = []
     for name in args.envs:
         for cameras in args.cameras:
+            if cameras not in CAMERA_SETTINGS[_family(name)]:
+                continue
             row = measure(name, cameras, args.steps)
             rows.append(row)
             print(f"{name:<24} {cameras:<22} {row['steps_per_s']:>9.1f} "

@@ -3,6 +3,8 @@
     import envs
     env = envs.load("mujoban/level5-pegs", seed=0)       # a dm_env.Environment
     gym_env = gymnasium.make("mujoban/level5-pegs")       # the same, as gymnasium
+    xo = envs.load("mujoxo/mixture")                     # tic-tac-toe with a Jaco arm
+    go = envs.load("mujogo/7x7")                         # 7x7 Go against GNU Go
 
 `envs.names()` lists every environment; `envs.overrides(name)` its settings.
 """
@@ -12,6 +14,7 @@ from envs import _gl  # noqa: F401  (must run before mujoco picks a GL backend)
 from envs.core import Environment, PhysicsTask
 from envs.registry import describe, load, names, overrides
 from envs import mujoban  # noqa: F401  (registers the MuJoBan names)
+from envs import boards  # noqa: F401  (registers the MuJoXO and MuJoGo names)
 from envs.gymnasium_env import GymnasiumEnv, register_all as _register_gymnasium
 
 _register_gymnasium()

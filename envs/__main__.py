@@ -24,7 +24,7 @@ import envs
 
 
 def rollout(name: str, episodes: int, seed: int, cameras: bool) -> list[dict]:
-    overrides = {} if cameras else {"top_camera": None, "egocentric_camera": None}
+    overrides = {} if cameras else {k: None for k in envs.overrides(name) if k.endswith("_camera")}
     env = envs.load(name, seed=seed, **overrides)
     spec = env.action_spec()
     rng = np.random.default_rng(seed)
@@ -44,7 +44,9 @@ def rollout(name: str, episodes: int, seed: int, cameras: bool) -> list[dict]:
                 bar.update(1)
             wall = time.perf_counter() - start
             rows.append({"episode": episode, "return": ret, "steps": steps,
-                         "solved": bool(timestep.discount == 0.0 and ret > 0),
+                         # Solved (MuJoBan) or won (board games): a terminal
+                         # step paying at least 1.
+                         "solved": bool(timestep.discount == 0.0 and timestep.reward >= 1.0),
                          "steps_per_s": steps / wall})
             bar.total -= env.task.time_limit_steps - steps
             bar.refresh()
@@ -71,12 +73,12 @@ def main(argv=None) -> int:
         parser.error("--episodes must be >= 1")
     rows = rollout(args.env, args.episodes, args.seed, not args.no_cameras)
     print(f"\n{args.env}, random policy, seed {args.seed}")
-    print(f"{'episode':>7} {'return':>8} {'steps':>6} {'solved':>7} {'steps/s':>8}")
+    print(f"{'episode':>7} {'return':>8} {'steps':>6} {'success':>7} {'steps/s':>8}")
     for r in rows:
         print(f"{r['episode']:>7} {r['return']:>8.1f} {r['steps']:>6} {str(r['solved']):>7} "
               f"{r['steps_per_s']:>8.0f}")
     solved = sum(r["solved"] for r in rows)
-    print(f"solved {solved}/{len(rows)}, mean return {np.mean([r['return'] for r in rows]):.2f}")
+    print(f"solved or won {solved}/{len(rows)}, mean return {np.mean([r['return'] for r in rows]):.2f}")
     if args.json:
         with open(args.json, "w") as f:
             json.dump({"env": args.env, "seed": args.seed, "episodes": rows}, f, indent=2)

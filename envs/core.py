@@ -55,6 +55,8 @@ class PhysicsTask(composer.Task, abc.ABC):
 
     #: Episode length in control steps (the time limit).
     time_limit_steps: int = 1000
+    #: Camera that `render()` and gymnasium's rgb_array frames show by default.
+    main_camera: str = "top_camera"
 
     @property
     def camera_configs(self) -> Mapping[str, CameraConfig]:
@@ -78,6 +80,9 @@ class PhysicsTask(composer.Task, abc.ABC):
     def truncated_discount(self) -> float:
         """Discount on the last step of an episode cut by the time limit."""
         return 1.0
+
+    def close(self) -> None:
+        """Frees the task's external resources (e.g. an opponent's subprocess)."""
 
 
 class Environment(dm_env.Environment):
@@ -163,6 +168,7 @@ class Environment(dm_env.Environment):
 
     def close(self) -> None:
         self._cameras.close()
+        self._task.close()
 
     # -- extras -------------------------------------------------------------
 

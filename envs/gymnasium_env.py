@@ -4,8 +4,8 @@
 `GymnasiumEnv`: Dict observation space from the dm_env specs, a float32 Box
 action space, ``terminated`` for task ends (discount 0) and ``truncated`` for
 the time limit, and ``render_mode="rgb_array"`` frames from the task's main
-camera (the top-down camera for MuJoBan) whether or not that camera is
-observed.
+camera (MuJoBan's top-down camera, the board games' front camera) whether or
+not that camera is observed.
 """
 
 from __future__ import annotations
@@ -43,7 +43,8 @@ class GymnasiumEnv(gymnasium.Env):
       env_name: a name from `envs.names()` (ignored when `env` is given).
       env: an already built environment to wrap.
       render_mode: None or ``"rgb_array"``.
-      render_camera: camera for `render()`; defaults to the task's top camera.
+      render_camera: camera for `render()`; defaults to the task's main camera
+        (MuJoBan's top-down camera, the board games' front camera).
       render_size: (height, width) of rendered frames.
       **overrides: passed to `envs.load`.
     """
@@ -51,7 +52,7 @@ class GymnasiumEnv(gymnasium.Env):
     metadata = {"render_modes": ["rgb_array"], "render_fps": 20}
 
     def __init__(self, env_name: str | None = None, *, env: Environment | None = None,
-                 render_mode: str | None = None, render_camera: str = "top_camera",
+                 render_mode: str | None = None, render_camera: str | None = None,
                  render_size: tuple[int, int] = (256, 256), **overrides):
         if render_mode not in (None, *self.metadata["render_modes"]):
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, "
@@ -62,7 +63,7 @@ class GymnasiumEnv(gymnasium.Env):
             env = load(env_name, **overrides)
         self._env = env
         self.render_mode = render_mode
-        self._render_camera = render_camera
+        self._render_camera = render_camera or env.task.main_camera
         self._render_size = tuple(render_size)
         self.observation_space = spaces.Dict(
             {k: spec_to_space(s) for k, s in env.observation_spec().items()})

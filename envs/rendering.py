@@ -90,6 +90,12 @@ class Cameras:
         key = (height, width)
         renderer = self._renderers.get(key)
         if renderer is None:
+            max_h, max_w = self._model.vis.global_.offheight, self._model.vis.global_.offwidth
+            if height > max_h or width > max_w:
+                raise ValueError(
+                    f"a {height}x{width} frame is larger than the model's offscreen buffer "
+                    f"({max_h}x{max_w}); build the environment with "
+                    f"render_size=({height}, {width}) or larger")
             try:
                 renderer = mujoco.Renderer(self._model, height=height, width=width)
             except Exception as exc:  # GL errors come in many types

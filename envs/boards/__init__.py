@@ -1,0 +1,107 @@
+"""MuJoXO and MuJoGo: tic-tac-toe and Go touched with a Jaco arm (Mirza et al. 2020).
+
+Names registered with `envs.load` and gymnasium:
+
+* ``mujoxo/mixture`` (opponent: minimax with random moves at epsilon 0.25,
+  the paper's), ``mujoxo/optimal`` (epsilon 0), ``mujoxo/random`` (epsilon 1);
+* ``mujogo/7x7`` (GNU Go level 10, epsilon 0, the paper's),
+  ``mujogo/7x7-mixture`` (epsilon 0.2), ``mujogo/7x7-eval`` (60 s limit),
+  ``mujogo/9x9``.
+
+See `envs.boards.task` for the physical rules.
+"""
+
+from __future__ import annotations
+
+import numbers
+
+from abstract_planners.epsilon_greedy import EpsilonGreedy
+from abstract_planners.go import GnuGoPlanner
+from abstract_planners.tictactoe import MinimaxPlanner
+from envs.boards.games import BoardGame
+from envs.boards.task import BoardTask
+from envs.core import Environment
+from envs.registry import EnvEntry, register
+
+
+def _check_epsilon(epsilon) -> float:
+    if (not isinstance(epsilon, numbers.Real) or isinstance(epsilon, bool)
+            or not 0.0 <= float(epsilon) <= 1.0):
+        raise ValueError(f"epsilon must be a number in [0, 1], got {epsilon!r}")
+    return float(epsilon)
+
+
+def _check_level(level) -> int:
+    if not isinstance(level, numbers.Integral) or isinstance(level, bool) or not 1 <= level <= 10:
+        raise ValueError(f"level (GNU Go strength) must be an integer in 1..10, got {level!r}")
+    return int(level)
+
+
+def make_mujoxo(*, epsilon: float = 0.25, seed: int | None = None, front_camera=(84, 84),
+                arm_reset: bool = True, time_limit: float = 30.0,
+                control_timestep: float = 0.05, physics_timestep: float = 0.005,
+                render_size=(256, 256), raise_on_physics_error: bool = True) -> Environment:
+    """MuJoXO: tic-tac-toe against minimax mixed with random moves at rate ``epsilon``.
+
+    Any arm or hand geom registers a move. Rewards at the game's end: 1 win,
+    0.5 draw, 0 loss. Time limit 30 s (600 control steps), then truncation.
+    """
+    epsilon = _check_epsilon(epsilon)
+    opponent = EpsilonGreedy(MinimaxPlanner(), epsilon)
+    task = BoardTask(BoardGame("tic_tac_toe", 3, draw_reward=0.5), opponent, registering="arm",
+                     arm_reset=arm_reset, front_camera=front_camera, time_limit=time_limit,
+                     control_timestep=control_timestep, physics_timestep=physics_timestep,
+                     render_size=render_size)
+    return Environment(task, seed=seed, raise_on_physics_error=raise_on_physics_error)
+
+
+def make_mujogo(*, board_size: int = 7, level: int = 10, epsilon: float = 0.0,
+                komi: float = 5.5, seed: int | None = None, front_camera=(84, 84),
+                arm_reset: bool = True, time_limit: float = 45.0,
+                control_timestep: float = 0.05, physics_timestep: float = 0.005,
+                gnugo_timeout: float = 10.0, gnugo_command=None, render_size=(256, 256),
+                raise_on_physics_error: bool = True) -> Environment:
+    """MuJoGo: Go (Tromp-Taylor, komi 5.5) against GNU Go at ``level``, random at ``epsilon``.
+
+    Only the fingertips register a move; large pads left and right of the
+    board pass. Reward 1 for a win, 0 for a loss; a game still running at the
+    time limit (45 s; 60 s for evaluation) is a loss. ``gnugo_command`` runs
+    another GTP engine (a list of arguments); ``gnugo_timeout`` bounds every
+    GTP reply (seconds): a hung engine raises ``GTPError``, a dead one is
+    restarted and replays the game.
+    """
+    game = BoardGame("go", board_size, komi=float(komi), draw_reward=0.0)
+    epsilon = _check_epsilon(epsilon)
+    level = _check_level(level)
+    opponent = EpsilonGreedy(GnuGoPlanner(level, board_size=int(board_size), komi=float(komi),
+                                          timeout=gnugo_timeout, command=gnugo_command),
+                             epsilon)
+    try:
+        task = BoardTask(game, opponent, registering="fingertips", arm_reset=arm_reset,
+                         front_camera=front_camera, time_limit=time_limit, timeout_is_loss=True,
+                         control_timestep=control_timestep, physics_timestep=physics_timestep,
+                         render_size=render_size)
+        return Environment(task, seed=seed, raise_on_physics_error=raise_on_physics_error)
+    except BaseException:
+        opponent.close()
+        raise
+
+
+def _register() -> None:
+    for name, eps, text in (("mixture", 0.25, "random moves at rate 0.25 (the paper's)"),
+                            ("optimal", 0.0, "always optimal"), ("random", 1.0, "always random")):
+        register(EnvEntry(f"mujoxo/{name}", make_mujoxo, {"epsilon": eps},
+                          f"MuJoXO, tic-tac-toe with a Jaco arm; minimax opponent {text}"))
+    register(EnvEntry("mujogo/7x7", make_mujogo, {"board_size": 7},
+                      "MuJoGo, 7x7 Go with a Jaco arm against GNU Go level 10 (the paper's)"))
+    register(EnvEntry("mujogo/7x7-mixture", make_mujogo, {"board_size": 7, "epsilon": 0.2},
+                      "MuJoGo 7x7, GNU Go level 10 with random moves at rate 0.2"))
+    register(EnvEntry("mujogo/7x7-eval", make_mujogo, {"board_size": 7, "time_limit": 60.0},
+                      "MuJoGo 7x7 with the paper's 60 s evaluation time limit"))
+    register(EnvEntry("mujogo/9x9", make_mujogo, {"board_size": 9},
+                      "MuJoGo, 9x9 Go against GNU Go level 10"))
+
+
+_register()
+
+__all__ = ["BoardGame", "BoardTask", "make_mujogo", "make_mujoxo"]
