@@ -1,0 +1,241 @@
+"""Solve rate of the Sokoban solver + MuJoBan ball skill, per environment.
+
+    python benchmarks/ball_skill.py [--envs NAME ...] [--episodes N] [--seed S]
+                                    [--t-abs T] [--json PATH]
+
+Each episode runs the modular agent's loop with the physical walker:
+
+1. estimate the abstract state: `SokobanState` of ``env.task.level`` with
+   the boxes and player of ``env.task.abstract_cells`` (the paper's rounding);
+2. plan: ``SokobanSolverPlanner.next_push(state)`` (the walk to the next box
+   and its push; the solver caches its solution, so replanning along it is
+   free, and it re-solves after a deviation); when the estimate is already
+   solved but the episode is not (a box rounds onto its pad without covering
+   it), the empty subgoal ``Subgoal(action=(), state=state)``, on which the
+   skill centres the boxes;
+3. run `skills.ball.BallSkill` on the subgoal until it reports success or
+   failure or ``--t-abs`` (50) control steps passed, then go back to 1.
+
+An episode is solved when the environment reports every pad covered within
+its 900-step (45 s) limit.
+
+Environment names: the registry's ``mujoban/level1`` ... ``mujoban/level5``
+and ``-pegs`` variants (generated levels, a fresh one per episode from
+``--seed``), and ``boxoban/<file>`` or ``boxoban/<file>-pegs`` for a shipped
+Boxoban file (``envs/mujoban/data/boxoban/<file>.txt``) played in file
+order from its first level (shown in MuJoBan's level-5 arena).
+
+Per environment the table shows: episodes; solved %; its 95% Wilson score
+interval; mean and 95th percentile of the control steps of the solved
+episodes (of the 900 allowed); the subgoal success rate (subgoals the skill
+reported reached / subgoals that ended: reached, failed or cut off at
+T_abs); wall-clock seconds per episode; the most frequent skill failure
+kinds. ``--json`` writes a list of rows with keys env, episodes, solved,
+solved_pct, wilson_low, wilson_high, mean_steps_solved, p95_steps_solved,
+subgoals, subgoals_reached, subgoals_failed, subgoals_cut,
+subgoal_success_rate, failures (kind -> count), no_plan (reason -> count),
+mean_plan_moves (moves of the first solution), wall_s_per_episode.
+
+The planner runs with its default 10 s budget per solve; the wall time
+includes solving. The default run (12 rows of 100 episodes) takes ~2 min.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from collections import Counter
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+import numpy as np  # noqa: E402
+from tqdm import tqdm  # noqa: E402
+
+import envs  # noqa: E402
+from abstract_planners.base import NoPlanError, Subgoal  # noqa: E402
+from abstract_planners.sokoban import SokobanState  # noqa: E402
+from abstract_planners.sokoban_solver import SokobanSolverPlanner  # noqa: E402
+from envs.mujoban.levels import BOXOBAN_DIR  # noqa: E402
+from skills.ball import BallSkill  # noqa: E402
+from skills.base import Status  # noqa: E402
+
+MUJOBAN = [f"mujoban/level{d}{p}" for p in ("", "-pegs") for d in range(1, 6)]
+BOXOBAN = ["boxoban/unfiltered-valid-000", "boxoban/unfiltered-valid-000-pegs"]
+NO_CAMERAS = dict(top_camera=None, egocentric_camera=None)
+
+
+def make_env(name: str, seed: int):
+    """The environment of a benchmark name (see the module docstring)."""
+    if name.startswith("boxoban/"):
+        stem = name[len("boxoban/"):]
+        pegs = stem.endswith("-pegs")
+        if pegs:
+            stem = stem[: -len("-pegs")]
+        path = BOXOBAN_DIR / f"{stem}.txt"
+        if not path.exists():
+            raise ValueError(f"{name}: no level file {path}")
+        base = "mujoban/level5-pegs" if pegs else "mujoban/level5"
+        return envs.load(base, seed=seed, levels=str(path), **NO_CAMERAS)
+    return envs.load(name, seed=seed, **NO_CAMERAS)
+
+
+def estimate(task) -> SokobanState:
+    """The paper's abstract state: the level's walls and targets, rounded boxes and player."""
+    level = task.level
+    boxes, player = task.abstract_cells
+    return SokobanState(level.walls, level.targets, boxes, player, level.height, level.width)
+
+
+def run_episode(env, skill, planner, *, t_abs: int = 50) -> dict:
+    """One episode of estimate -> plan -> skill; returns its counters."""
+    timestep = env.reset()
+    planner.reset()
+    task = env.task
+    steps = reached = failed = cut = issued = 0
+    failures: Counter = Counter()
+    no_plan = None
+    plan_moves = None
+    subgoal = None
+    option_steps = 0
+    while not timestep.last():
+        if subgoal is not None:
+            if skill.status is Status.SUCCESS:
+                reached += 1
+                subgoal = None
+            elif skill.status is Status.FAILURE:
+                failed += 1
+                failures[(skill.failure_reason or "unknown").split(":")[0]] += 1
+                subgoal = None
+            elif option_steps >= t_abs:
+                cut += 1
+                subgoal = None
+        if subgoal is None:
+            state = estimate(task)
+            if state.is_solved():
+                # Rounded onto the pads but not covering them (a push cut off
+                # at T_abs): an empty subgoal makes the skill centre the boxes.
+                subgoal = Subgoal(action=(), state=state)
+            else:
+                try:
+                    subgoal = planner.next_push(state)
+                except NoPlanError as error:
+                    no_plan = error.reason
+                    break
+            if plan_moves is None:
+                plan_moves = len(subgoal.action) + len(subgoal.plan)
+            issued += 1
+            option_steps = 0
+            skill.reset(env, subgoal, state)
+        timestep = env.step(skill.act(timestep))
+        option_steps += 1
+        steps += 1
+    if subgoal is not None:  # the episode ended while a skill ran
+        if skill.status is Status.SUCCESS or task.solved:
+            reached += 1
+        elif skill.status is Status.FAILURE:
+            failed += 1
+            failures[(skill.failure_reason or "unknown").split(":")[0]] += 1
+        else:
+            cut += 1
+    return {"solved": bool(task.solved), "steps": steps, "issued": issued,
+            "reached": reached, "failed": failed, "cut": cut, "failures": failures,
+            "no_plan": no_plan, "plan_moves": plan_moves}
+
+
+def wilson(successes: int, n: int, z: float = 1.959964) -> tuple[float, float]:
+    """95% Wilson score interval of a proportion, in percent."""
+    if n == 0:
+        return 0.0, 100.0
+    p = successes / n
+    denom = 1 + z * z / n
+    centre = (p + z * z / (2 * n)) / denom
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / denom
+    return 100.0 * max(0.0, centre - half), 100.0 * min(1.0, centre + half)
+
+
+def measure(name: str, episodes: int, seed: int, t_abs: int) -> dict:
+    env = make_env(name, seed)
+    skill = BallSkill()
+    planner = SokobanSolverPlanner()
+    results = []
+    t0 = time.perf_counter()
+    for _ in tqdm(range(episodes), desc=name, unit="ep", leave=False):
+        results.append(run_episode(env, skill, planner, t_abs=t_abs))
+    wall = time.perf_counter() - t0
+    solved = sum(r["solved"] for r in results)
+    low, high = wilson(solved, len(results))
+    reached = sum(r["reached"] for r in results)
+    failed = sum(r["failed"] for r in results)
+    cut = sum(r["cut"] for r in results)
+    failures: Counter = Counter()
+    for r in results:
+        failures.update(r["failures"])
+    no_plan = Counter(r["no_plan"] for r in results if r["no_plan"])
+    solved_steps = [r["steps"] for r in results if r["solved"]]
+    moves = [r["plan_moves"] for r in results if r["plan_moves"] is not None]
+    return {
+        "env": name,
+        "episodes": len(results),
+        "solved": solved,
+        "solved_pct": 100.0 * solved / len(results),
+        "wilson_low": round(low, 2),
+        "wilson_high": round(high, 2),
+        "mean_steps_solved": round(float(np.mean(solved_steps)), 1) if solved_steps else None,
+        "p95_steps_solved": (round(float(np.percentile(solved_steps, 95)), 1)
+                             if solved_steps else None),
+        "subgoals": sum(r["issued"] for r in results),
+        "subgoals_reached": reached,
+        "subgoals_failed": failed,
+        "subgoals_cut": cut,
+        "subgoal_success_rate": round(reached / max(1, reached + failed + cut), 4),
+        "failures": dict(failures.most_common()),
+        "no_plan": dict(no_plan),
+        "mean_plan_moves": round(float(np.mean(moves)), 1) if moves else None,
+        "wall_s_per_episode": round(wall / len(results), 3),
+    }
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--envs", nargs="*", default=MUJOBAN + BOXOBAN,
+                        help="environment names (see the module docstring)")
+    parser.add_argument("--episodes", type=int, default=100, help="episodes per environment")
+    parser.add_argument("--seed", type=int, default=0, help="environment seed")
+    parser.add_argument("--t-abs", type=int, default=50,
+                        help="control steps before the agent re-estimates and replans")
+    parser.add_argument("--json", type=Path, help="write the rows here")
+    args = parser.parse_args(argv)
+    for name in args.envs:
+        if not name.startswith("boxoban/") and name not in envs.names():
+            parser.error(f"unknown environment {name!r}; known: {envs.names()} "
+                         f"or boxoban/<file>[-pegs]")
+    header = (f"{'env':<34} {'eps':>4} {'solved%':>8} {'95% CI':>13} {'steps':>6} "
+              f"{'p95':>5} {'subgoal%':>9} {'s/ep':>6}  failures")
+    print(header)
+    print("-" * len(header))
+    rows = []
+    for name in args.envs:
+        row = measure(name, args.episodes, args.seed, args.t_abs)
+        rows.append(row)
+        steps = "-" if row["mean_steps_solved"] is None else f"{row['mean_steps_solved']:.0f}"
+        p95 = "-" if row["p95_steps_solved"] is None else f"{row['p95_steps_solved']:.0f}"
+        top = ", ".join(f"{k} {v}" for k, v in list(row["failures"].items())[:3])
+        if row["no_plan"]:
+            top += "; no plan: " + ", ".join(f"{k} {v}" for k, v in row["no_plan"].items())
+        print(f"{name:<34} {row['episodes']:>4} {row['solved_pct']:>7.1f}% "
+              f"[{row['wilson_low']:>5.1f},{row['wilson_high']:>5.1f}] {steps:>6} {p95:>5} "
+              f"{100 * row['subgoal_success_rate']:>8.1f}% {row['wall_s_per_episode']:>6.2f}  "
+              f"{top}", flush=True)
+    if args.json:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(json.dumps(rows, indent=2) + "\n")
+        print(f"wrote {args.json}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

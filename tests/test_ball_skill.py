@@ -1,0 +1,358 @@
+"""The MuJoBan ball skill: pushes, walks, whole levels with the solver, failures."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import envs
+from abstract_planners.base import Subgoal
+from abstract_planners.sokoban import SokobanState, replay
+from abstract_planners.sokoban_solver import SokobanSolverPlanner
+from envs.core import Environment
+from envs.mujoban import sources
+from envs.mujoban.levels import Level
+from envs.mujoban.task import Mujoban
+from skills.ball import BallSkill
+from skills.base import Skill, Status
+
+NO_CAMERAS = dict(top_camera=None, egocentric_camera=None)
+LIMIT = 900  # MuJoBan's 45 s episode
+T_ABS = 50
+
+
+def make_env(text: str, *, pegs=False, seed=0) -> Environment:
+    level = Level.from_text(text)
+    task = Mujoban(sources.FixedLevels([level]), pegs=pegs, max_boxes=len(level.boxes),
+                   randomize_appearance=False, **NO_CAMERAS)
+    return Environment(task, seed=seed)
+
+
+def estimate(task) -> SokobanState:
+    level = task.level
+    boxes, player = task.abstract_cells
+    return SokobanState(level.walls, level.targets, boxes, player, level.height, level.width)
+
+
+def run_subgoal(env, skill, timestep, moves, *, state=None, plan=(), max_steps=300):
+    """Runs the skill on ``moves`` from the estimate (or ``state``) until it
+    stops or the episode ends; returns the timesteps seen."""
+    state = state or estimate(env.task)
+    goal = replay(state, moves) if moves else state
+    skill.reset(env, Subgoal(action=tuple(moves), state=goal, plan=tuple(plan)), state)
+    seen = []
+    while skill.status is Status.RUNNING and len(seen) < max_steps:
+        timestep = env.step(skill.act(timestep))
+        seen.append(timestep)
+        if timestep.last():
+            break
+    return seen
+
+
+def run_episode(env, skill, planner, *, pushes=True):
+    """The modular agent's loop: estimate, plan (the next push, or the next
+    move), run the skill for <= T_abs steps."""
+    timestep = env.reset()
+    planner.reset()
+    steps = 0
+    subgoal = None
+    option_steps = 0
+    while not timestep.last():
+        if subgoal is None or skill.status is not Status.RUNNING or option_steps >= T_ABS:
+            state = estimate(env.task)
+            if state.is_solved():
+                subgoal = Subgoal(action=(), state=state)
+            else:
+                subgoal = planner.next_push(state) if pushes else planner.plan(state)
+            skill.reset(env, subgoal, state)
+            option_steps = 0
+        timestep = env.step(skill.act(timestep))
+        option_steps += 1
+        steps += 1
+    return steps, env.task.solved
+
+
+def box_offsets(task):
+    """Per box: distance (m) from its estimated cell centre, in box order."""
+    out = []
+    for xy, cell in zip(task.box_positions(), task.abstract_cells[0]):
+        cx, cy = task.cell_to_world(*cell)
+        out.append(max(abs(xy[0] - cx), abs(xy[1] - cy)))
+    return out
+
+
+ONE_PUSH = """\
+#######
+#     #
+# @$. #
+#     #
+#######"""
+
+
+@pytest.mark.parametrize("pegs", [False, True])
+def test_one_push_onto_a_pad_succeeds_gives_reward_and_ends_the_episode(pegs):
+    env = make_env(ONE_PUSH, pegs=pegs)
+    timestep = env.reset()
+    skill = BallSkill()
+    assert isinstance(skill, Skill) and skill.name == "ball"
+    seen = run_subgoal(env, skill, timestep, ("R",))
+    rewards = [ts.reward for ts in seen if ts.reward]
+    # The pad's +1 and the all-pads +10 arrive together and end the episode.
+    assert rewards == [11.0]
+    assert seen[-1].last() and env.task.solved
+    assert len(seen) < 100  # 5 s of simulated time for one push
+
+
+PAD_AHEAD = """\
+#######
+#     #
+# @$. #
+#     #
+# $ . #
+#     #
+#######"""
+
+
+@pytest.mark.parametrize("pegs", [False, True])
+def test_one_push_onto_a_pad_succeeds_with_plus_one_and_the_pad_covered(pegs):
+    env = make_env(PAD_AHEAD, pegs=pegs)
+    timestep = env.reset()
+    skill = BallSkill()
+    seen = run_subgoal(env, skill, timestep, ("R",))
+    assert skill.status is Status.SUCCESS, skill.failure_reason
+    assert [ts.reward for ts in seen if ts.reward] == [1.0]
+    assert not seen[-1].last()
+    assert env.task.pads_covered.tolist().count(True) == 1
+    assert max(box_offsets(env.task)) < 0.15
+
+
+TWO_PUSHES = """\
+########
+#      #
+# @$  .#
+#      #
+#  $ . #
+#      #
+########"""
+
+
+@pytest.mark.parametrize("pegs", [False, True])
+def test_push_stops_the_box_centred_in_its_cell(pegs):
+    env = make_env(TWO_PUSHES, pegs=pegs)
+    timestep = env.reset()
+    skill = BallSkill()
+    before = estimate(env.task)
+    seen = run_subgoal(env, skill, timestep, ("R",))
+    assert skill.status is Status.SUCCESS, skill.failure_reason
+    state = estimate(env.task)
+    assert state.boxes == replay(before, "R").boxes
+    assert max(box_offsets(env.task)) < 0.15
+    assert not any(ts.reward for ts in seen)
+
+
+WALL_BETWEEN = """\
+#######
+#     #
+# ### #
+#@# #.#
+# ### #
+#    $#
+#######"""
+
+
+def test_walk_around_a_wall_reaches_the_cell_without_touching_the_box():
+    env = make_env(WALL_BETWEEN)
+    timestep = env.reset()
+    state = estimate(env.task)
+    r, c = state.player
+    # Round the block of walls: up, right along the top row, down the right column.
+    moves = ("U", "U", "R", "R", "R", "R", "D", "D")
+    goal = replay(state, moves)
+    assert goal.player == (r, c + 4) and goal.boxes == state.boxes
+    boxes_before = env.task.box_positions()
+    skill = BallSkill()
+    seen = run_subgoal(env, skill, timestep, moves)
+    assert skill.status is Status.SUCCESS, skill.failure_reason
+    assert env.task.abstract_cells[1] == goal.player
+    np.testing.assert_allclose(env.task.box_positions(), boxes_before, atol=1e-3)
+    assert len(seen) < 150
+
+
+def test_walk_ending_without_look_ahead_stops_near_the_cell_centre():
+    env = make_env(WALL_BETWEEN)
+    timestep = env.reset()
+    skill = BallSkill()
+    run_subgoal(env, skill, timestep, ("U", "U", "R", "R"))
+    assert skill.status is Status.SUCCESS, skill.failure_reason
+    x, y = env.task.walker_position()
+    cx, cy = env.task.cell_to_world(*env.task.abstract_cells[1])
+    assert math.hypot(x - cx, y - cy) < 0.3
+
+
+CHAIN = """\
+#########
+#       #
+#@$    .#
+#       #
+#########"""
+
+
+def test_consecutive_pushes_in_one_direction_do_not_stop_the_box():
+    """With the rest of the plan as look-ahead, the first subgoal succeeds as soon
+    as the box rounds into the next cell, still moving."""
+    env = make_env(CHAIN)
+    timestep = env.reset()
+    skill = BallSkill()
+    state = estimate(env.task)
+    run_subgoal(env, skill, timestep, ("R",), plan=("R", "R", "R", "R"))
+    assert skill.status is Status.SUCCESS, skill.failure_reason
+    assert np.linalg.norm(env.task.walker_velocity()) > 0.3
+    assert estimate(env.task).boxes == replay(state, "R").boxes
+
+
+@pytest.mark.parametrize("name", ["mujoban/level1", "mujoban/level1-pegs",
+                                  "mujoban/level3", "mujoban/level3-pegs"])
+def test_generated_levels_solved_end_to_end_with_the_solver(name):
+    env = envs.load(name, seed=3, **NO_CAMERAS)
+    skill, planner = BallSkill(), SokobanSolverPlanner()
+    for _ in range(4):
+        steps, solved = run_episode(env, skill, planner)
+        assert solved and steps < LIMIT, (env.task.level.to_text(), steps)
+
+
+def test_single_move_subgoals_also_solve_a_level():
+    """``planner.plan`` subgoals (one move each, the rest as look-ahead)."""
+    env = envs.load("mujoban/level3-pegs", seed=5, **NO_CAMERAS)
+    skill, planner = BallSkill(), SokobanSolverPlanner()
+    for _ in range(2):
+        steps, solved = run_episode(env, skill, planner, pushes=False)
+        assert solved and steps < LIMIT, (env.task.level.to_text(), steps)
+
+
+def test_level5_with_pegs_solved_end_to_end_with_the_solver():
+    env = envs.load("mujoban/level5-pegs", seed=11, **NO_CAMERAS)
+    skill, planner = BallSkill(), SokobanSolverPlanner()
+    for _ in range(2):
+        steps, solved = run_episode(env, skill, planner)
+        assert solved and steps < LIMIT, (env.task.level.to_text(), steps)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["mujoban/level5", "mujoban/level5-pegs"])
+def test_level5_solve_rate_over_many_seeds(name):
+    env = envs.load(name, seed=123, **NO_CAMERAS)
+    skill, planner = BallSkill(), SokobanSolverPlanner()
+    solved = sum(run_episode(env, skill, planner)[1] for _ in range(100))
+    assert solved >= 97
+
+
+BOX_BEFORE_WALL = """\
+#######
+#  .  #
+# @$ ##
+#     #
+#######"""
+
+
+def test_illegal_subgoal_fails_at_once():
+    env = make_env(BOX_BEFORE_WALL)
+    env.reset()
+    state = estimate(env.task)
+    skill = BallSkill()
+    # The second push would move the box into the wall.
+    skill.reset(env, Subgoal(action=("R", "R"), state=state), state)
+    assert skill.status is Status.FAILURE
+    assert skill.failure_reason.startswith("illegal move")
+    assert np.all(skill.act(None) == 0.0)
+
+
+def test_box_pushed_into_a_wall_the_state_left_out_is_reported_stuck_not_hung():
+    env = make_env(BOX_BEFORE_WALL)
+    timestep = env.reset()
+    true_state = estimate(env.task)
+    (r, c), = true_state.boxes
+    wall = (r, c + 2)
+    assert wall in true_state.walls
+    # A wrong subgoal, planned from a state without that wall: two pushes
+    # right, the second one into the wall.
+    wrong = SokobanState(true_state.walls - {wall}, true_state.targets, true_state.boxes,
+                         true_state.player, true_state.height, true_state.width)
+    skill = BallSkill()
+    seen = run_subgoal(env, skill, timestep, ("R", "R"), state=wrong, max_steps=400)
+    assert skill.status is Status.FAILURE
+    assert skill.failure_reason.startswith("stuck")
+    assert len(seen) < 150
+    assert estimate(env.task).boxes == {(r, c + 1)}
+
+
+def test_pushing_into_an_unexpected_box_is_reported():
+    env = make_env("""\
+#########
+#       #
+#@$ $  .#
+#      .#
+#########""")
+    timestep = env.reset()
+    true_state = estimate(env.task)
+    _, second = sorted(true_state.boxes)
+    # A wrong subgoal planned from a state that misses the second box.
+    wrong = SokobanState(true_state.walls, true_state.targets - {max(true_state.targets)},
+                         true_state.boxes - {second}, true_state.player,
+                         true_state.height, true_state.width)
+    skill = BallSkill()
+    run_subgoal(env, skill, timestep, ("R", "R", "R"), state=wrong)
+    assert skill.status is Status.FAILURE
+    assert skill.failure_reason.split(":")[0] in ("box disturbed", "estimate deviates")
+
+
+def test_empty_subgoal_centres_a_box_left_short_and_succeeds():
+    env = make_env(TWO_PUSHES)
+    timestep = env.reset()
+    task = env.task
+    state = estimate(task)
+    box = min(state.boxes)  # the box right of the player
+    index = task.abstract_cells[0].index(box)
+    bx, by = task.cell_to_world(*box)
+    task.set_box_position(env.physics, index, (bx - 0.3, by))  # still rounds to its cell
+    skill = BallSkill()
+    run_subgoal(env, skill, timestep, ())
+    assert skill.status is Status.SUCCESS, skill.failure_reason
+    x, y = task.box_positions()[index]
+    assert abs(x - bx) < 0.1 and abs(y - by) < 0.05
+
+
+def test_box_left_short_by_a_cut_off_push_is_centred_before_the_next_subgoal():
+    env = make_env(TWO_PUSHES)
+    timestep = env.reset()
+    task = env.task
+    state = estimate(task)
+    box = min(state.boxes)  # right of the player; the other box is two rows down
+    index = task.abstract_cells[0].index(box)
+    bx, by = task.cell_to_world(*box)
+    task.set_box_position(env.physics, index, (bx - 0.3, by))
+    skill = BallSkill()
+    run_subgoal(env, skill, timestep, ("D", "D", "R"))
+    assert skill.status is Status.SUCCESS, skill.failure_reason
+    x, y = task.box_positions()[index]
+    assert abs(x - bx) < 0.1 and abs(y - by) < 0.05
+    assert estimate(task).boxes == replay(state, "DDR").boxes
+
+
+def test_reset_mid_push_continues_without_stopping():
+    """The option layer re-plans every T_abs steps: a reset on the same plan
+    from wherever the walker is must not undo progress."""
+    env = make_env(CHAIN)
+    timestep = env.reset()
+    planner = SokobanSolverPlanner()
+    skill = BallSkill()
+    steps = 0
+    while not timestep.last() and steps < 300:
+        if steps % 7 == 0 or skill.status is not Status.RUNNING:  # replan often
+            state = estimate(env.task)
+            skill.reset(env, planner.next_push(state), state)
+        timestep = env.step(skill.act(timestep))
+        steps += 1
+    assert env.task.solved
+    assert steps < 120
