@@ -56,7 +56,11 @@ class MinimaxPlanner(Planner):
 
     Ties between equally optimal moves are broken with
     ``np.random.default_rng(seed)`` (reseeded by ``reset(seed)``), so the
-    planner is perfect but not predictable.
+    planner is perfect but not predictable. The choice is drawn once per
+    position and episode: asking again about the same position before the
+    next ``reset`` (as the option layer does when a touch is cut off at
+    ``T_abs`` and re-planned) returns the same move, so a physical agent plays
+    the same move distribution as the abstract one.
 
     Subgoal info: ``"value"`` (game value for the mover, +1/0/-1) and
     ``"optimal_actions"`` (the tied best actions, sorted).
@@ -69,8 +73,10 @@ class MinimaxPlanner(Planner):
 
     def __init__(self, seed: int | None = None):
         self._rng = np.random.default_rng(seed)
+        self._chosen: dict[str, int] = {}
 
     def reset(self, seed: int | None = None) -> None:
+        self._chosen.clear()
         if seed is not None:
             self._rng = np.random.default_rng(seed)
 
@@ -79,7 +85,10 @@ class MinimaxPlanner(Planner):
         values = action_values(state)
         best = max(values.values())
         optimal = sorted(a for a, v in values.items() if v == best)
-        action = optimal[int(self._rng.integers(len(optimal)))]
+        key = str(state)
+        action = self._chosen.get(key)
+        if action is None:
+            action = self._chosen[key] = optimal[int(self._rng.integers(len(optimal)))]
         return Subgoal(action, state.child(action),
                        info={"value": best, "optimal_actions": tuple(optimal)})
 

@@ -41,7 +41,6 @@ planning), mean_plan_ms (the abstract planner), wall_s_per_game.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 import time
@@ -49,6 +48,8 @@ from collections import Counter
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from _common import write_json  # noqa: E402
 
 import numpy as np  # noqa: E402
 from tqdm import tqdm  # noqa: E402
@@ -258,8 +259,7 @@ def main(argv=None) -> int:
                   f"{rates['games']} games): win {_rate(rates, 'win')}  "
                   f"draw {_rate(rates, 'draw')}  loss {_rate(rates, 'loss')}")
     if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps({"rows": rows, "abstract": abstract}, indent=2) + "\n")
+        write_json(args.json, {"rows": rows, "abstract": abstract})
     return 0
 
 

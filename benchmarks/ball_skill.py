@@ -43,7 +43,6 @@ includes solving. The default run (12 rows of 100 episodes) takes ~2 min.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 import time
@@ -51,6 +50,8 @@ from collections import Counter
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from _common import write_json  # noqa: E402
 
 import numpy as np  # noqa: E402
 from tqdm import tqdm  # noqa: E402
@@ -231,9 +232,7 @@ def main(argv=None) -> int:
               f"{100 * row['subgoal_success_rate']:>8.1f}% {row['wall_s_per_episode']:>6.2f}  "
               f"{top}", flush=True)
     if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(rows, indent=2) + "\n")
-        print(f"wrote {args.json}")
+        write_json(args.json, rows)
     return 0
 
 

@@ -23,12 +23,13 @@ steps, build_s).
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from _common import write_json  # noqa: E402
 
 import envs  # noqa: E402
 import mujoco  # noqa: E402
@@ -151,9 +152,7 @@ def main(argv=None) -> int:
                   f"{row['physics_limit_steps_per_s']:>9.1f} {row['ratio']:>6.2f} "
                   f"{row['reset_s'] * 1e3:>9.2f}", flush=True)
     if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(rows, indent=2) + "\n")
-        print(f"wrote {args.json}")
+        write_json(args.json, rows)
     return 0
 
 

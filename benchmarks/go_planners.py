@@ -31,13 +31,14 @@ smallest N reaching a win rate >= 50% and >= 90% (or that none did).
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from _common import write_json  # noqa: E402
 
 import numpy as np  # noqa: E402
 from tqdm import tqdm  # noqa: E402
@@ -190,9 +191,7 @@ def main(argv=None) -> int:
                       f"{max(sweep)} simulations (best: "
                       f"{max(row['win_rate'] for row in sweep_rows):.0%})")
     if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(rows, indent=2) + "\n")
-        print(f"wrote {args.json}")
+        write_json(args.json, rows)
     return 0
 
 

@@ -23,13 +23,14 @@ shipped ``medium-valid-000.txt`` is the harder set.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import statistics
 import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from _common import write_json  # noqa: E402
 
 from tqdm import tqdm  # noqa: E402
 
@@ -105,9 +106,7 @@ def main(argv: list[str] | None = None) -> int:
     summary = run(args.levels, args.time_limit, args.limit)
     print_summary(summary)
     if args.json is not None:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(summary, indent=1) + "\n")
-        print(f"wrote {args.json}")
+        write_json(args.json, summary, indent=1)
     return 0 if summary["solved"] == summary["total"] else 1
 
 

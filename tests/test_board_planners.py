@@ -85,9 +85,22 @@ def test_minimax_breaks_ties_uniformly_and_seeded():
     firsts = {MinimaxPlanner(seed=s).plan(empty).action for s in range(40)}
     assert len(firsts) > 3
     planner = MinimaxPlanner(seed=11)
-    a = [planner.plan(empty).action for _ in range(5)]
+    a = [planner.plan(empty).action]
+    for seed in range(12, 16):
+        planner.reset(seed)  # a new episode draws again
+        a.append(planner.plan(empty).action)
+    assert len(set(a)) > 1
     planner.reset(11)
-    assert [planner.plan(empty).action for _ in range(5)] == a
+    assert planner.plan(empty).action == a[0]
+
+
+def test_minimax_asked_twice_in_one_episode_repeats_its_choice():
+    empty = TTT.new_initial_state()
+    planner = MinimaxPlanner(seed=3)
+    first = planner.plan(empty).action
+    assert all(planner.plan(empty).action == first for _ in range(20))
+    later = ttt_state([first, 4 if first != 4 else 0])
+    assert planner.plan(later).action == planner.plan(later).action
 
 
 @pytest.mark.parametrize("minimax_player", [0, 1])
