@@ -5,6 +5,7 @@
     python -m hier_agents.run mujoxo/mixture --episodes 50
     python -m hier_agents.run mujogo/7x7 --episodes 20 --video go.mp4
     python -m hier_agents.run mujoban/level5 --planner random      # swap a part
+    python -m hier_agents.run mujoban/level1 --agent checkpoint:runs/impala   # a trained agent
 
 MuJoBan rows report the solved fraction; board games win/draw/loss rates. All
 rates carry 95% Wilson intervals. JSON keys: env, episodes, success_rate,
@@ -37,9 +38,15 @@ def _camera_overrides(name: str) -> dict:
 
 def run(env_name: str, episodes: int, seed: int = 0, *, planner: str | None = None,
         skill: str | None = None, estimator: str | None = None, levels: str | None = None,
-        video: str | None = None, progress: bool = True) -> dict:
-    """Plays ``episodes`` episodes; returns the JSON-able summary."""
+        video: str | None = None, progress: bool = True, agent: str = "modular") -> dict:
+    """Plays ``episodes`` episodes; returns the JSON-able summary.
+
+    ``agent`` is ``"modular"`` (estimator + planner + skill) or
+    ``"checkpoint:PATH"``: a trained end-to-end agent (`hier_agents.train`).
+    """
     fam = family(env_name)
+    if agent != "modular":
+        return _run_checkpoint(env_name, fam, episodes, seed, agent, levels, video, progress)
     overrides = _camera_overrides(env_name)
     if levels is not None:
         if fam != "mujoban":
@@ -91,6 +98,25 @@ def run(env_name: str, episodes: int, seed: int = 0, *, planner: str | None = No
     return _summary(env_name, fam, rows, totals, seed, planner, skill)
 
 
+def _run_checkpoint(env_name, fam, episodes, seed, agent, levels, video, progress) -> dict:
+    from hier_agents.impala.evaluate import parse_agent, play_checkpoint
+
+    if levels is not None:
+        raise ValueError("--levels is not supported with a checkpoint agent")
+    path = parse_agent(agent)
+    rows, info = play_checkpoint(env_name, path, episodes, seed, video=video,
+                                 progress=progress)
+    totals = OptionStats()
+    for row in rows:  # auxiliary sub-episodes: reached, or not within T_abs
+        totals.issued += row["subgoals_issued"]
+        totals.reached += row["subgoals_reached"]
+    totals.unfinished = totals.issued - totals.reached
+    summary = _summary(env_name, fam, rows, totals, seed, "-", agent)
+    summary["agent"] = agent
+    summary.update(info)
+    return summary
+
+
 def _postfix(rows, fam) -> dict:
     if fam == "mujoban":
         return {"solved": f"{sum(r['solved'] for r in rows)}/{len(rows)}"}
@@ -99,7 +125,7 @@ def _postfix(rows, fam) -> dict:
 
 def _summary(env_name, fam, rows, totals: OptionStats, seed, planner, skill) -> dict:
     n = len(rows)
-    out = {"env": env_name, "episodes": n, "seed": seed,
+    out = {"env": env_name, "episodes": n, "seed": seed, "agent": "modular",
            "planner": planner or next(iter(PLANNERS[fam])),
            "skill": skill or next(iter(SKILLS[fam]))}
     if fam == "mujoban":
@@ -131,8 +157,12 @@ def _pct(rate, interval) -> str:
 
 
 def format_table(summary: dict) -> str:
-    lines = [f"{summary['env']}: planner {summary['planner']}, skill {summary['skill']}, "
-             f"{summary['episodes']} episodes, seed {summary['seed']}"]
+    if summary.get("agent", "modular") == "modular":
+        who = f"planner {summary['planner']}, skill {summary['skill']}"
+    else:
+        who = (f"{summary['agent']} ({summary['condition']}, trained "
+               f"{summary['training_frames']:,} frames on {summary['trained_env']})")
+    lines = [f"{summary['env']}: {who}, {summary['episodes']} episodes, seed {summary['seed']}"]
     if "win_rate" in summary:
         lines.append(f"  win   {_pct(summary['win_rate'], summary['win_interval'])}")
         lines.append(f"  draw  {_pct(summary['draw_rate'], summary['draw_interval'])}")
@@ -154,6 +184,9 @@ def main(argv=None) -> int:
                         help=f"environment name (default: {DEFAULT_ENV}, {DEFAULT_EPISODES} episodes)")
     parser.add_argument("--episodes", type=int, default=None)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--agent", default="modular",
+                        help="modular (default) or checkpoint:PATH (a hier_agents.train run "
+                             "directory or checkpoint file)")
     parser.add_argument("--planner", help="planner name (see --list)")
     parser.add_argument("--skill", help="skill name (see --list)")
     parser.add_argument("--estimator", help="estimator name (see --list)")
@@ -184,8 +217,21 @@ def main(argv=None) -> int:
             parser.error(f"unknown {kind} {name!r} for {fam}; valid: {sorted(table[fam])}")
     if args.levels is not None and fam != "mujoban":
         parser.error("--levels only applies to mujoban environments")
-    summary = run(env_name, episodes, args.seed, planner=args.planner, skill=args.skill,
-                  estimator=args.estimator, levels=args.levels, video=args.video)
+    if args.agent != "modular":
+        if not args.agent.startswith("checkpoint:") or args.agent == "checkpoint:":
+            parser.error(f"--agent must be modular or checkpoint:PATH, got {args.agent!r}")
+        for flag, value in (("--planner", args.planner), ("--skill", args.skill),
+                            ("--estimator", args.estimator), ("--levels", args.levels)):
+            if value is not None:
+                parser.error(f"{flag} applies to the modular agent, not to {args.agent}")
+    try:
+        summary = run(env_name, episodes, args.seed, planner=args.planner, skill=args.skill,
+                      estimator=args.estimator, levels=args.levels, video=args.video,
+                      agent=args.agent)
+    except (FileNotFoundError, ValueError) as exc:
+        if args.agent == "modular":
+            raise
+        parser.error(str(exc))
     print(format_table(summary))
     if args.json:
         with open(args.json, "w") as f:

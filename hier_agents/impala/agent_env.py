@@ -1,0 +1,455 @@
+"""An `envs` environment as a learning agent sees it, with the paper's auxiliary task.
+
+    env = AgentEnv("mujoban/level3", "expert-planner", seed=1, cameras=False)
+    obs = env.reset()
+    while True:
+        result = env.step(policy(obs))            # action in [-1, 1]^A
+        obs = result.obs
+        if result.last:
+            print(result.info["episode_return"], result.info["subgoals_reached"])
+            obs = env.reset()
+
+Conditions (Mirza et al. 2020, "Experimental conditions"):
+
+* ``"vanilla"``: cameras and proprioception only; no planner, no auxiliary
+  reward (``reward_abs`` and ``discount_abs`` are always 0).
+* ``"expert-planner"``: the family's default planner of
+  `hier_agents.components.PLANNERS` (the Sokoban solver, minimax, GNU Go
+  level 10) proposes targets for the auxiliary task.
+* ``"random-planner"``: the family's ``"random"`` planner (a uniformly random
+  legal next state).
+
+Observations (``obs``, a dict of fresh numpy arrays):
+
+* ``"proprio"`` float32, in this order: MuJoBan ``walker/joints_pos``,
+  ``joints_vel``, ``joints_torque`` (2 each), ``walker/orientation`` (9),
+  ``sensors_touch`` (1), ``sensors_accelerometer``, ``sensors_gyro``,
+  ``sensors_velocimeter`` (3 each): 25 values; board games ``arm/joints_pos``,
+  ``joints_vel``, ``joints_torque`` (9 each), ``arm/pinch_site_pos`` (3),
+  ``arm/pinch_site_rmat`` (9): 39 values (`PROPRIO_KEYS`).
+* one uint8 ``(3, H, W)`` image per enabled camera, under the environment's
+  observation name: MuJoBan ``top_camera`` and ``walker/egocentric_camera``,
+  board games ``front_camera`` (``cameras=True``: ``image_size`` squared, the
+  paper's 96; ``cameras=False``: none, nothing is rendered).
+* planner conditions: ``"planner"`` float32 ``(C, H, W)``, the current
+  abstract state's planes stacked with the target's. MuJoBan: the entity
+  planes wall, target, player, box (``full_entity_layer``) of each, C = 8,
+  H x W the arena grid; board games: the empty, own, opponent planes of
+  ``board_state`` of each, C = 6, N x N. MuJoBan also gets
+  ``"planner_action"``, a float32 one-hot over the target move in the order
+  of `PLANNER_ACTIONS` (``U, D, L, R`` = north, south, west, east; rows grow
+  southwards); the board games infer the move from the planes (the paper).
+  Without an active target the target planes repeat the current ones and the
+  one-hot is all zeros.
+
+Actions: ``step`` clips the policy's action to [-1, 1] and maps it affinely
+onto the environment's action bounds (MuJoBan [-1, 1]^2, the arm's joint
+velocity limits).
+
+Rewards and discounts (`StepResult`):
+
+* ``reward_env``: the environment's reward. ``discount_env`` is ``gamma_env``
+  times the timestep's discount on ordinary steps and **0 on the step that
+  ends the episode, whatever ended it** (termination, time limit, diverged
+  physics): the actors reset the environment then, so the next observation
+  belongs to a new episode and there is nothing to bootstrap from.
+* The auxiliary task runs in sub-episodes. At a sub-episode's start the
+  family's estimator (`hier_agents.components.ESTIMATORS`, the first entry)
+  estimates the abstract state and the planner proposes ONE transition
+  (``planner.plan(state)``: one Sokoban move, one board move); the current
+  state and the target stay fixed for the sub-episode (the paper's appendix).
+  The sub-episode ends
+
+  - when the target is reached: ``reward_abs = abs_reward``,
+    ``discount_abs = 0``. MuJoBan: the estimated abstract state (the task's
+    rounded cells, exactly what ``full_entity_layer`` shows) has the target's
+    player cell and box cells. Board games: the agent's next registered move
+    is the target's action (the estimated state after the step already holds
+    the opponent's reply, so the task's move record is compared instead);
+  - board games only: when the agent registers a *different* move (moves are
+    irreversible, the target can no longer be reached): reward 0, discount 0;
+  - after ``t_abs`` control steps: reward 0, ``discount_abs = 0``;
+
+  otherwise ``reward_abs = 0`` and ``discount_abs = gamma_abs``. The next
+  sub-episode starts with the observation returned by the step that ended
+  the last one. ``discount_abs`` is also 0 on the episode's last step.
+* No target: a solved or terminal abstract state, an estimate no Sokoban
+  board can have (the walker rounded onto a box's cell, two boxes in one
+  cell: physics allows it, the rules do not), or a planner that finds no
+  plan (``NoPlanError``: a deadlocked Sokoban state, the solver's budget; or
+  ``ValueError``), gives a sub-episode without a target (reward 0, target
+  planes = current planes, zero one-hot) that ends after ``t_abs`` steps or
+  as soon as the abstract state changes, when planning is tried again.
+
+``info`` is empty except on the last step: ``episode_return`` (sum of
+``reward_env``), ``episode_steps``, ``success`` (MuJoBan solved, board game
+won), ``truncated`` (ended by the time limit, not by the task) and, for the
+planner conditions, ``subgoals_issued``, ``subgoals_reached`` (targets
+proposed and reached in the episode) and ``subgoals_unplanned`` (sub-episodes
+the planner had no target for).
+
+Reproducibility: the environment is built with ``envs.load(env_name,
+seed=seed)``; the planner is reset at every episode with a seed derived from
+``seed`` and the episode's index, so equal seeds and actions give equal
+observations. ``raise_on_physics_error`` defaults to False here: a diverging
+simulation ends the episode (reward 0) instead of killing an actor.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+import envs
+from abstract_planners.base import NoPlanError, Subgoal
+from abstract_planners.sokoban import MOVES
+from hier_agents.estimators import EstimationError
+
+__all__ = ["AgentEnv", "CONDITIONS", "DISCOUNTS", "InputSpec", "PLANNER_ACTIONS",
+           "PROPRIO_KEYS", "StepResult"]
+
+CONDITIONS = ("vanilla", "random-planner", "expert-planner")
+
+#: Default (gamma_env, gamma_abs) per family (the paper's table).
+DISCOUNTS = {"mujoban": (0.99, 0.9), "mujoxo": (0.99, 0.98), "mujogo": (0.99, 0.98)}
+
+#: Order of the MuJoBan ``planner_action`` one-hot.
+PLANNER_ACTIONS = MOVES
+
+_MUJOBAN_PROPRIO = ("walker/joints_pos", "walker/joints_vel", "walker/joints_torque",
+                    "walker/orientation", "walker/sensors_touch",
+                    "walker/sensors_accelerometer", "walker/sensors_gyro",
+                    "walker/sensors_velocimeter")
+_BOARD_PROPRIO = ("arm/joints_pos", "arm/joints_vel", "arm/joints_torque",
+                  "arm/pinch_site_pos", "arm/pinch_site_rmat")
+#: Proprioceptive observations concatenated into ``"proprio"``, per family, in order.
+PROPRIO_KEYS = {"mujoban": _MUJOBAN_PROPRIO, "mujoxo": _BOARD_PROPRIO, "mujogo": _BOARD_PROPRIO}
+
+_FAMILIES = tuple(DISCOUNTS)
+_PLAYER, _BOX = 2, 3  # full_entity_layer channels (envs.mujoban.task)
+
+
+@dataclass(frozen=True)
+class InputSpec:
+    """What the network gets (see the module docstring).
+
+    Attributes:
+      images: ``(camera name, (3, H, W))`` per uint8 image, possibly empty.
+      proprio_dim: length of ``"proprio"``.
+      planner_shape: ``(C, H, W)`` of ``"planner"``, None without a planner.
+      planner_action_dim: length of the ``"planner_action"`` one-hot, 0 if absent.
+      action_dim: action size A.
+    """
+
+    images: tuple[tuple[str, tuple[int, int, int]], ...]
+    proprio_dim: int
+    planner_shape: tuple[int, int, int] | None
+    planner_action_dim: int
+    action_dim: int
+
+
+class StepResult(NamedTuple):
+    """One `AgentEnv.step` (see the module docstring for the semantics)."""
+
+    obs: dict[str, np.ndarray]
+    reward_env: float
+    discount_env: float
+    reward_abs: float
+    discount_abs: float
+    last: bool
+    info: dict
+
+
+def _family(env_name: str) -> str:
+    prefix = str(env_name).split("/", 1)[0]
+    if prefix not in _FAMILIES:
+        raise ValueError(f"unknown environment family of {env_name!r}; valid families: "
+                         f"{', '.join(f + '/*' for f in _FAMILIES)}")
+    return prefix
+
+
+def _gamma(value, default: float, name: str) -> float:
+    value = default if value is None else float(value)
+    if not 0.0 <= value <= 1.0:
+        raise ValueError(f"{name} must be in [0, 1], got {value!r}")
+    return value
+
+
+class AgentEnv:
+    """An `envs` environment for an end-to-end agent (see the module docstring).
+
+    Args:
+      env_name: an `envs.names()` name (``mujoban/*``, ``mujoxo/*``, ``mujogo/*``).
+      condition: one of `CONDITIONS`.
+      seed: seed of the environment and, per episode, of the planner.
+      cameras: observe the paper's cameras (True) or render nothing (False).
+        An explicit ``*_camera`` override in ``overrides`` wins either way.
+      image_size: side of the square camera images.
+      t_abs: control steps of an auxiliary sub-episode (the paper's 50).
+      abs_reward: auxiliary reward for reaching a target.
+      gamma_env, gamma_abs: discounts; None takes the family's `DISCOUNTS`.
+      **overrides: passed to ``envs.load`` (``envs.overrides(env_name)``).
+
+    Attributes:
+      env: the underlying ``envs`` environment. family: ``"mujoban"``,
+      ``"mujoxo"`` or ``"mujogo"``. input_spec: `InputSpec`. gamma_env,
+      gamma_abs. planner, estimator: the auxiliary task's parts (None for
+      vanilla). subgoal: the current target (`Subgoal`) or None.
+      abstract_state: the abstract state the current sub-episode started
+      from. timestep: the environment's last ``dm_env.TimeStep``.
+    """
+
+    def __init__(self, env_name: str, condition: str = "vanilla", *, seed: int | None = 0,
+                 cameras: bool = True, image_size: int = 96, t_abs: int = 50,
+                 abs_reward: float = 1.0, gamma_env: float | None = None,
+                 gamma_abs: float | None = None, **overrides):
+        if condition not in CONDITIONS:
+            raise ValueError(f"unknown condition {condition!r}; valid conditions: "
+                             f"{', '.join(CONDITIONS)}")
+        fam = self.family = _family(env_name)
+        if int(t_abs) < 1:
+            raise ValueError(f"t_abs must be a positive number of control steps, got {t_abs!r}")
+        if int(image_size) < 1:
+            raise ValueError(f"image_size must be a positive number of pixels, got {image_size!r}")
+        self.env_name, self.condition = env_name, condition
+        self.seed = None if seed is None else int(seed)
+        self.t_abs, self.abs_reward = int(t_abs), float(abs_reward)
+        self.gamma_env = _gamma(gamma_env, DISCOUNTS[fam][0], "gamma_env")
+        self.gamma_abs = _gamma(gamma_abs, DISCOUNTS[fam][1], "gamma_abs")
+
+        valid = envs.overrides(env_name)  # KeyError for an unknown name
+        kwargs = dict(overrides)
+        for name in valid:
+            if name.endswith("_camera"):
+                kwargs.setdefault(name, (int(image_size), int(image_size)) if cameras else None)
+        if "raise_on_physics_error" in valid:
+            kwargs.setdefault("raise_on_physics_error", False)
+        self.env = envs.load(env_name, seed=self.seed, **kwargs)
+        task = self.env.task
+
+        try:
+            obs_spec = self.env.observation_spec()
+            self._cameras = tuple(task.camera_configs)
+            images = tuple((name, (3, int(obs_spec[name].shape[0]), int(obs_spec[name].shape[1])))
+                           for name in self._cameras)
+            self._proprio_keys = PROPRIO_KEYS[fam]
+            proprio_dim = sum(int(np.prod(obs_spec[k].shape)) for k in self._proprio_keys)
+            action_spec = self.env.action_spec()
+            low = np.asarray(action_spec.minimum, np.float64) * np.ones(action_spec.shape)
+            high = np.asarray(action_spec.maximum, np.float64) * np.ones(action_spec.shape)
+            self._centre = ((high + low) / 2.0).ravel().tolist()
+            self._half = ((high - low) / 2.0).ravel().tolist()
+            self._action_shape = tuple(action_spec.shape)
+
+            self.planner = self.estimator = None
+            self._planning = condition != "vanilla"
+            planner_shape, planner_action_dim = None, 0
+            if self._planning:
+                from hier_agents.components import ESTIMATORS, PLANNERS
+
+                planners = PLANNERS[fam]
+                factory = (next(iter(planners.values())) if condition == "expert-planner"
+                           else planners["random"])
+                self.planner = factory(self.env, self.seed)
+                self.estimator = next(iter(ESTIMATORS[fam].values()))(self.env, self.seed)
+                if fam == "mujoban":
+                    h, w = task.grid_shape
+                    planner_shape, planner_action_dim = (8, int(h), int(w)), len(PLANNER_ACTIONS)
+                else:
+                    n = int(task.game.size)
+                    planner_shape = (6, n, n)
+                self._planes = np.zeros(planner_shape, np.float32)
+                self._onehot = np.zeros(planner_action_dim, np.float32)
+        except BaseException:
+            self.close()
+            raise
+        self.input_spec = InputSpec(images=images, proprio_dim=proprio_dim,
+                                    planner_shape=planner_shape,
+                                    planner_action_dim=planner_action_dim,
+                                    action_dim=int(np.prod(self._action_shape)))
+        self._mujoban = fam == "mujoban"
+        self._episode = -1
+        self._needs_reset = True
+        self.timestep = None
+        self.subgoal: Subgoal | None = None
+        self.abstract_state = None
+        self._closed = False
+
+    # -- API --------------------------------------------------------------------------------
+
+    def reset(self) -> dict[str, np.ndarray]:
+        """Starts a new episode; returns its first observation."""
+        timestep = self.timestep = self.env.reset()
+        self._episode += 1
+        self._return, self._steps = 0.0, 0
+        self._needs_reset = False
+        if self._planning:
+            self._issued = self._reached = self._unplanned = 0
+            seed = None
+            if self.seed is not None:
+                seed = int(np.random.SeedSequence([self.seed, self._episode]).generate_state(1)[0])
+            self.planner.reset(seed)
+            self.estimator.reset(self.env, timestep)
+            self._start_subepisode(timestep)
+        return self._observe(timestep.observation)
+
+    def step(self, action) -> StepResult:
+        """One control step with ``action`` in [-1, 1]^A (clipped, then mapped)."""
+        if self._needs_reset:
+            raise RuntimeError("call reset() first: no episode is running "
+                               "(before the first reset, or after the last step)")
+        a = np.asarray(action)
+        if a.shape != self._action_shape:
+            raise ValueError(f"action must have shape {self._action_shape}, got {a.shape}")
+        # Plain Python on a few floats beats numpy's per-call overhead; NaN
+        # passes through (the environment rejects non-finite actions).
+        timestep = self.timestep = self.env.step(np.array(
+            [c + h * min(max(x, -1.0), 1.0)
+             for x, c, h in zip(a.ravel().tolist(), self._centre, self._half)]))
+        reward = float(timestep.reward)
+        self._return += reward
+        self._steps += 1
+        last = timestep.last()
+        discount_env = 0.0 if last else self.gamma_env * float(timestep.discount)
+
+        reward_abs = discount_abs = 0.0
+        if self._planning:
+            self._sub_steps += 1
+            reached, over = self._check()
+            if reached:
+                self._reached += 1
+                reward_abs = self.abs_reward
+            ended = reached or over or self._sub_steps >= self.t_abs
+            if last:
+                pass  # discount_abs stays 0; reset() starts the next sub-episode
+            elif ended:  # the next sub-episode starts with this step's observation
+                self._start_subepisode(timestep)
+            else:
+                discount_abs = self.gamma_abs
+
+        info = {}
+        if last:
+            self._needs_reset = True
+            info = self._episode_info()
+        return StepResult(self._observe(timestep.observation), reward, discount_env,
+                          reward_abs, discount_abs, last, info)
+
+    def close(self) -> None:
+        """Frees the environment and the planner (GNU Go subprocesses). Idempotent."""
+        if getattr(self, "_closed", False):
+            return
+        self._closed = True
+        planner = getattr(self, "planner", None)
+        if planner is not None:
+            planner.close()
+        env = getattr(self, "env", None)
+        if env is not None:
+            env.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        return (f"AgentEnv({self.env_name!r}, {self.condition!r}, seed={self.seed}, "
+                f"images={[name for name, _ in self.input_spec.images]})")
+
+    # -- internals ------------------------------------------------------------------------------
+
+    def _observe(self, observation) -> dict[str, np.ndarray]:
+        obs = {"proprio": np.concatenate([observation[k] for k in self._proprio_keys],
+                                         dtype=np.float32)}
+        for name in self._cameras:
+            obs[name] = np.ascontiguousarray(observation[name].transpose(2, 0, 1))
+        if self._planning:
+            obs["planner"] = self._planes.copy()
+            if self._mujoban:
+                obs["planner_action"] = self._onehot.copy()
+        return obs
+
+    def _check(self) -> tuple[bool, bool]:
+        """(target reached, sub-episode over for another reason) after a step."""
+        task = self.env.task
+        if self._mujoban:
+            cells, player = task.abstract_cells
+            if self.subgoal is not None:
+                target = self.subgoal.state
+                return (player == target.player and frozenset(cells) == target.boxes), False
+            # No target: try again once the abstract state changes.
+            return False, (cells, player) != self._start_cells
+        if task.moves_registered == self._start_registered:
+            return False, False
+        if self.subgoal is None:
+            return False, True
+        moves = task.moves
+        move = moves[self._start_moves] if len(moves) > self._start_moves else None
+        reached = move == int(self.subgoal.action)
+        return reached, not reached
+
+    def _start_subepisode(self, timestep) -> None:
+        """Estimates the abstract state, asks for a target and builds the planner inputs."""
+        task = self.env.task
+        self._sub_steps = 0
+        try:
+            state = self.estimator.estimate(self.env, timestep)
+        except (EstimationError, ValueError):
+            # Physics can put the rounded cells in a state no Sokoban board has
+            # (two boxes in one cell, the walker on a box after a diagonal
+            # shove): no target until the next sub-episode.
+            state = None
+        self.abstract_state = state
+        subgoal = None
+        if state is not None and not (state.is_solved() if self._mujoban
+                                      else state.is_terminal()):
+            try:
+                subgoal = self.planner.plan(state)
+            except (NoPlanError, ValueError):
+                subgoal = None
+        self.subgoal = subgoal
+        if subgoal is None:
+            self._unplanned += 1
+        else:
+            self._issued += 1
+        planes, onehot = self._planes, self._onehot
+        observation = timestep.observation
+        if self._mujoban:
+            self._start_cells = task.abstract_cells
+            c = planes.shape[0] // 2
+            planes[:c] = observation["full_entity_layer"].transpose(2, 0, 1)
+            planes[c:] = planes[:c]
+            onehot[:] = 0.0
+            if subgoal is not None:
+                target = subgoal.state
+                planes[c + _PLAYER] = 0.0
+                planes[c + _BOX] = 0.0
+                planes[c + _PLAYER][target.player] = 1.0
+                for cell in target.boxes:
+                    planes[c + _BOX][cell] = 1.0
+                onehot[PLANNER_ACTIONS.index(subgoal.action)] = 1.0
+        else:
+            self._start_registered = task.moves_registered
+            self._start_moves = len(task.moves)
+            planes[:3] = observation["board_state"].transpose(2, 0, 1)
+            if subgoal is None:
+                planes[3:] = planes[:3]
+            else:
+                planes[3:] = task.game.board_planes(subgoal.state).transpose(2, 0, 1)
+
+    def _episode_info(self) -> dict:
+        task, physics = self.env.task, self.env.physics
+        terminated = bool(task.should_terminate_episode(physics))
+        if self._mujoban:
+            success = bool(task.solved)
+        else:
+            success = bool(task.game_over and task.state.returns()[0] > 0)
+        info = {"episode_return": self._return, "episode_steps": self._steps,
+                "success": success,
+                "truncated": not terminated and self.env.step_count >= task.time_limit_steps}
+        if self._planning:
+            info.update(subgoals_issued=self._issued, subgoals_reached=self._reached,
+                        subgoals_unplanned=self._unplanned)
+        return info

@@ -1,0 +1,387 @@
+"""The learner: batches actors' unrolls, V-trace loss, RMSProp, checkpoints, logs.
+
+`train(config)` is the whole loop:
+
+1. start the actors (`LocalActors` processes or `RayActors`) with the
+   learner's current weights;
+2. take unrolls as they arrive until ``batch_size`` of them are gathered,
+   stack them ``[T + 1, B, ...]`` and replay them through the network from
+   the actors' recorded core states;
+3. one RMSProp step on `impala_loss` (V-trace; two value heads and the sum of
+   both advantage terms for the planner conditions), gradient norm clipped;
+4. publish the new weights; log scalars to TensorBoard and ``progress.jsonl``;
+   save ``checkpoint.pt`` every ``checkpoint_every_s`` seconds and at the end.
+
+Frames are environment control steps consumed by the learner. A run whose
+logdir holds a checkpoint of the same environment and condition resumes from
+it: weights, optimiser, frame and update counts, episode statistics.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import os
+import signal
+import sys
+import time
+from collections import deque
+from pathlib import Path
+
+import numpy as np
+
+from hier_agents.impala.actors import ActorConfig, LocalActors, RayActors, stack_states
+
+#: Paper's batch sizes (unrolls per update): board games 64, MuJoBan 128.
+PAPER_BATCH = {"mujoban": 128, "mujoxo": 64, "mujogo": 64}
+CHECKPOINT = "checkpoint.pt"
+
+
+@dataclasses.dataclass
+class TrainConfig:
+    """Everything a training run depends on (saved in its checkpoint)."""
+
+    env: str
+    condition: str = "vanilla"
+    steps: int = 1_000_000
+    actors: int = 2
+    envs_per_actor: int = 16
+    backend: str = "local"
+    ray_address: str | None = None
+    logdir: str = "runs/impala"
+    unroll_length: int = 100
+    batch_size: int | None = None  # None: the paper's (64 board games, 128 MuJoBan)
+    learning_rate: float = 3e-4
+    rmsprop_alpha: float = 0.99
+    rmsprop_eps: float = 1e-5
+    rmsprop_momentum: float = 0.0
+    grad_clip: float = 40.0
+    baseline_cost: float = 0.5
+    entropy_cost: float = 1e-3
+    cameras: bool = False
+    image_size: int = 96
+    t_abs: int = 50
+    abs_reward: float = 1.0
+    seed: int = 0
+    checkpoint_every_s: float = 300.0
+    log_every_s: float = 10.0
+    progress: bool = True
+    env_overrides: dict = dataclasses.field(default_factory=dict)
+
+    def validate(self) -> None:
+        from hier_agents.impala.agent_env import CONDITIONS
+
+        if self.condition not in CONDITIONS:
+            raise ValueError(f"unknown agent {self.condition!r}; valid: {list(CONDITIONS)}")
+        if self.backend not in ("local", "ray"):
+            raise ValueError(f"unknown backend {self.backend!r}; valid: ['local', 'ray']")
+        for name in ("steps", "actors", "envs_per_actor", "unroll_length"):
+            if int(getattr(self, name)) < 1:
+                raise ValueError(f"{name} must be >= 1, got {getattr(self, name)!r}")
+        if self.batch_size is not None and self.batch_size < 1:
+            raise ValueError(f"batch_size must be >= 1, got {self.batch_size!r}")
+
+    def resolved_batch(self, family: str) -> int:
+        return int(self.batch_size or PAPER_BATCH[family])
+
+
+def _family(env_name: str) -> str:
+    from hier_agents.components import family
+
+    return family(env_name)
+
+
+# -- batching ---------------------------------------------------------------------------------
+
+
+def make_batch(unrolls: list[dict], net, value_states: dict | None = None):
+    """Stacks unrolls into time-major tensors for one learner step.
+
+    ``value_states`` maps a stream to the value core's (h, c) after its last
+    unroll; those rows replace the actors' (zero) value-core rows. A stream's
+    first unroll starts at an episode start, where zeros are exact.
+    """
+    import torch
+
+    obs = {k: torch.from_numpy(np.stack([u["obs"][k] for u in unrolls], axis=1))
+           for k in unrolls[0]["obs"]}
+    batch = {"obs": obs,
+             "first": torch.from_numpy(np.stack([u["first"] for u in unrolls], axis=1))}
+    for key in ("actions", "log_probs", "rewards_env", "discounts_env", "rewards_abs",
+                "discounts_abs"):
+        batch[key] = torch.from_numpy(np.stack([u[key] for u in unrolls], axis=1))
+    state = list(stack_states([u["state"] for u in unrolls], net.initial_state(1)))
+    streams = [tuple(u.get("stream", ())) for u in unrolls]
+    # A stream may have several (consecutive, in arrival order) unrolls in one
+    # batch: the later ones start from the earlier one's value state.
+    chain, last_column = [], {}
+    for j, stream in enumerate(streams):
+        chain.append(last_column.get(stream, -1) if stream else -1)
+        if stream:
+            last_column[stream] = j
+        carried = (value_states or {}).get(stream) if chain[j] < 0 else None
+        if carried is not None:
+            state[0][j], state[1][j] = carried
+    batch["state"] = tuple(state)
+    batch["streams"] = streams
+    batch["value_chain"] = chain
+    return batch
+
+
+def learner_step(net, optimizer, batch, config: TrainConfig,
+                 value_states: dict | None = None) -> dict:
+    """One gradient step on ``batch``; returns float statistics.
+
+    When ``value_states`` is given, the value core's state after each
+    unroll's last step is stored there for the stream's next unroll.
+    """
+    import torch
+
+    from hier_agents.impala.vtrace import impala_loss
+
+    T = batch["actions"].shape[0]
+    out, new_state = net(batch["obs"], batch["first"], batch["state"],
+                         value_state_after=T - 1, value_chain=batch.get("value_chain"))
+    if value_states is not None:
+        hv, cv = new_state[0].detach(), new_state[1].detach()
+        for j, stream in enumerate(batch["streams"]):  # the stream's last column wins
+            if stream:
+                value_states[stream] = (hv[j].clone(), cv[j].clone())
+    steps = type(out)(*(None if x is None else x[:-1] for x in out))
+    bootstrap = type(out)(*(None if x is None else x[-1] for x in out))
+    loss, stats = impala_loss(steps, bootstrap, batch["actions"], batch["log_probs"],
+                              batch["rewards_env"], batch["discounts_env"],
+                              batch["rewards_abs"], batch["discounts_abs"],
+                              baseline_cost=config.baseline_cost,
+                              entropy_cost=config.entropy_cost)
+    optimizer.zero_grad(set_to_none=True)
+    loss.backward()
+    grad_norm = torch.nn.utils.clip_grad_norm_(net.parameters(), config.grad_clip)
+    optimizer.step()
+    stats = dict(stats)
+    stats["loss"] = float(loss.detach())
+    stats["grad_norm"] = float(grad_norm)
+    return stats
+
+
+# -- checkpoints ------------------------------------------------------------------------------
+
+
+def save_checkpoint(path: Path, net, optimizer, config: TrainConfig, counters: dict,
+                    spec) -> None:
+    """Writes atomically (temporary file, then rename): a crash never leaves half a file."""
+    import torch
+
+    tmp = path.with_suffix(".tmp")
+    torch.save({"format": 1, "model": net.state_dict(), "optimizer": optimizer.state_dict(),
+                "config": dataclasses.asdict(config), "counters": dict(counters),
+                "input_spec": dataclasses.asdict(spec)}, tmp)
+    os.replace(tmp, path)
+
+
+def load_checkpoint(path: str | Path) -> dict:
+    import torch
+
+    path = Path(path)
+    if path.is_dir():
+        path = path / CHECKPOINT
+    if not path.exists():
+        raise FileNotFoundError(f"no checkpoint at {path}")
+    return torch.load(path, map_location="cpu", weights_only=False)
+
+
+def _spec_from_dict(d: dict):
+    from hier_agents.impala.agent_env import InputSpec
+
+    d = dict(d)
+    d["images"] = tuple((name, tuple(shape)) for name, shape in d["images"])
+    if d.get("planner_shape") is not None:
+        d["planner_shape"] = tuple(d["planner_shape"])
+    return InputSpec(**d)
+
+
+def net_from_checkpoint(ckpt: dict):
+    """The trained `ImpalaNet` (eval mode) and its `InputSpec` from a checkpoint."""
+    from hier_agents.impala.network import ImpalaNet
+
+    spec = _spec_from_dict(ckpt["input_spec"])
+    net = ImpalaNet(spec, two_values=ckpt["config"]["condition"] != "vanilla")
+    net.load_state_dict(ckpt["model"])
+    net.eval()
+    return net, spec
+
+
+# -- the loop ---------------------------------------------------------------------------------
+
+
+class _Log:
+    """TensorBoard scalars plus a JSON-lines copy (easy to plot or diff)."""
+
+    def __init__(self, logdir: Path):
+        self._jsonl = open(logdir / "progress.jsonl", "a")
+        try:
+            from torch.utils.tensorboard import SummaryWriter
+            self._tb = SummaryWriter(str(logdir))
+        except ImportError:  # pragma: no cover - tensorboard is a dependency
+            print("tensorboard not installed: logging to progress.jsonl only", file=sys.stderr)
+            self._tb = None
+
+    def write(self, frames: int, scalars: dict) -> None:
+        if self._tb is not None:
+            for k, v in scalars.items():
+                if v is not None and math.isfinite(v):
+                    self._tb.add_scalar(k, v, frames)
+        self._jsonl.write(json.dumps({"frames": frames, **scalars}) + "\n")
+        self._jsonl.flush()
+
+    def close(self) -> None:
+        if self._tb is not None:
+            self._tb.close()
+        self._jsonl.close()
+
+
+def train(config: TrainConfig) -> dict:
+    """Runs (or resumes) a training run; returns its final counters."""
+    import torch
+    from tqdm import tqdm
+
+    from hier_agents.impala.agent_env import AgentEnv
+    from hier_agents.impala.network import ImpalaNet
+
+    config.validate()
+    family = _family(config.env)
+    batch_size = config.resolved_batch(family)
+    logdir = Path(config.logdir)
+    logdir.mkdir(parents=True, exist_ok=True)
+    ckpt_path = logdir / CHECKPOINT
+    torch.manual_seed(config.seed)
+    torch.set_num_threads(1)
+
+    # The input spec comes from one environment built here (closed at once).
+    probe = AgentEnv(config.env, config.condition, seed=config.seed, cameras=config.cameras,
+                     image_size=config.image_size, t_abs=config.t_abs,
+                     abs_reward=config.abs_reward, **config.env_overrides)
+    spec = probe.input_spec
+    probe.close()
+
+    net = ImpalaNet(spec, two_values=config.condition != "vanilla")
+    optimizer = torch.optim.RMSprop(net.parameters(), lr=config.learning_rate,
+                                    alpha=config.rmsprop_alpha, eps=config.rmsprop_eps,
+                                    momentum=config.rmsprop_momentum)
+    counters = {"frames": 0, "updates": 0, "episodes": 0, "wall_s": 0.0}
+    recent: deque = deque(maxlen=100)
+    if ckpt_path.exists():
+        ckpt = load_checkpoint(ckpt_path)
+        saved = ckpt["config"]
+        for key in ("env", "condition", "cameras", "image_size"):
+            if saved[key] != getattr(config, key):
+                raise ValueError(f"{ckpt_path} was trained with {key}={saved[key]!r}, not "
+                                 f"{getattr(config, key)!r}; use another --logdir")
+        net.load_state_dict(ckpt["model"])
+        optimizer.load_state_dict(ckpt["optimizer"])
+        counters.update(ckpt["counters"])
+        recent.extend(ckpt["counters"].get("recent_episodes", []))
+        print(f"resuming {ckpt_path} at {counters['frames']:,} frames, "
+              f"{counters['updates']:,} updates", file=sys.stderr)
+    counters.pop("recent_episodes", None)
+    if counters["frames"] >= config.steps:
+        print(f"{ckpt_path} already has {counters['frames']:,} >= {config.steps:,} frames",
+              file=sys.stderr)
+        return counters
+
+    actor_config = ActorConfig(env=config.env, condition=config.condition,
+                               unroll_length=config.unroll_length,
+                               envs_per_actor=config.envs_per_actor, cameras=config.cameras,
+                               image_size=config.image_size, t_abs=config.t_abs,
+                               abs_reward=config.abs_reward,
+                               seed=config.seed * 1000 + counters["updates"],
+                               env_overrides=dict(config.env_overrides))
+    if config.backend == "ray":
+        actors = RayActors(actor_config, config.actors, net, address=config.ray_address)
+    else:
+        actors = LocalActors(actor_config, config.actors, net)
+        actors.publish(net)
+    log = _Log(logdir)
+
+    interrupted = []
+
+    def _on_signal(signum, frame):  # finish the update, checkpoint, stop
+        interrupted.append(signum)
+
+    old_handlers = {s: signal.signal(s, _on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    bar = tqdm(total=config.steps, initial=counters["frames"], unit="frame", unit_scale=True,
+               desc=f"{config.env} {config.condition}", file=sys.stderr,
+               disable=not config.progress, smoothing=0.1)
+    start = time.perf_counter()
+    wall0 = counters["wall_s"]
+    last_ckpt = last_log = start
+    frames_at_log = counters["frames"]
+    pending: list[dict] = []
+    value_states: dict = {}  # stream -> value-core (h, c) after its last unroll
+    stats: dict = {}
+    lags: list[int] = []
+    try:
+        while counters["frames"] < config.steps and not interrupted:
+            while len(pending) < batch_size:
+                for u in actors.get():
+                    for ep in u.pop("episodes"):
+                        counters["episodes"] += 1
+                        recent.append({"return": float(ep.get("episode_return", 0.0)),
+                                       "success": float(bool(ep.get("success", False))),
+                                       "steps": int(ep.get("episode_steps", 0)),
+                                       "subgoals": int(ep.get("subgoals_reached", 0))})
+                    pending.append(u)
+            batch_unrolls, pending = pending[:batch_size], pending[batch_size:]
+            lags.extend(counters["updates"] - int(u.get("policy_version", 0))
+                        for u in batch_unrolls)
+            batch = make_batch(batch_unrolls, net, value_states)
+            stats = learner_step(net, optimizer, batch, config, value_states)
+            actors.publish(net)
+            counters["updates"] += 1
+            new_frames = config.unroll_length * len(batch_unrolls)
+            counters["frames"] += new_frames
+            bar.update(new_frames)
+            now = time.perf_counter()
+            counters["wall_s"] = wall0 + (now - start)
+            if recent:
+                bar.set_postfix(success=f"{np.mean([e['success'] for e in recent]):.2f}",
+                                ret=f"{np.mean([e['return'] for e in recent]):.2f}",
+                                refresh=False)
+            if now - last_log >= config.log_every_s or counters["frames"] >= config.steps:
+                fps = (counters["frames"] - frames_at_log) / max(now - last_log, 1e-9)
+                scalars = {f"loss/{k}": float(v) for k, v in stats.items()}
+                scalars.update({"perf/frames_per_s": fps, "perf/updates": counters["updates"],
+                                "perf/policy_lag": float(np.mean(lags)) if lags else 0.0,
+                                "episodes/count": counters["episodes"],
+                                "wall_s": counters["wall_s"]})
+                if recent:
+                    scalars.update({
+                        "episodes/success_rate": float(np.mean([e["success"] for e in recent])),
+                        "episodes/return": float(np.mean([e["return"] for e in recent])),
+                        "episodes/steps": float(np.mean([e["steps"] for e in recent])),
+                        "episodes/subgoals_reached": float(np.mean(
+                            [e.get("subgoals", 0) for e in recent]))})
+                log.write(counters["frames"], scalars)
+                last_log, frames_at_log, lags = now, counters["frames"], []
+            if now - last_ckpt >= config.checkpoint_every_s:
+                save_checkpoint(ckpt_path, net, optimizer, config,
+                                dict(counters, recent_episodes=list(recent)), spec)
+                last_ckpt = now
+    finally:
+        bar.close()
+        actors.close()
+        counters["wall_s"] = wall0 + (time.perf_counter() - start)
+        save_checkpoint(ckpt_path, net, optimizer, config,
+                        dict(counters, recent_episodes=list(recent)), spec)
+        log.close()
+        for s, h in old_handlers.items():
+            signal.signal(s, h)
+    if interrupted:
+        print(f"interrupted: checkpoint saved at {counters['frames']:,} frames; run the same "
+              f"command to resume", file=sys.stderr)
+    if recent:
+        counters["success_rate_last_100"] = float(np.mean([e["success"] for e in recent]))
+        counters["return_last_100"] = float(np.mean([e["return"] for e in recent]))
+    counters["last_stats"] = stats
+    return counters

@@ -1,0 +1,464 @@
+"""The paper's actor-critic network (appendix "Other experimental details").
+
+`ImpalaNet(spec, two_values=...)` maps a time-major batch of observations to
+a diagonal Gaussian policy and one or two value estimates:
+
+* **images** (one encoder per camera, uint8 ``(3, H, W)`` scaled to [0, 1]):
+  the simplified residual network of the paper's table "residual network
+  architecture" -- three groups of [conv 3x3 (16, 32, 32 channels, padding 1)
+  -> max-pool 3x3 stride 2 (padding 1, so 96 -> 48 -> 24 -> 12) -> two
+  residual blocks (ReLU, conv 3x3, ReLU, conv 3x3, plus the block's input)],
+  then a ReLU. No normalisation layers. The table stops at the 12x12 ReLU; to
+  feed the recurrent cores we flatten that map and add a linear layer with 256
+  units and a ReLU (the same width as the other encoders). The flat size is
+  found at construction by a dummy pass, so any image size works.
+* **proprioception** (float ``(P,)``): ``arcsinh`` (tames large magnitudes),
+  then one linear layer with 256 units and a ReLU.
+* **planner state** (float ``(C, H, W)`` planes, planner conditions only): one
+  4x4 convolution with 100 channels and a ReLU, flattened, then a linear layer
+  with 256 units and a ReLU. The paper does not give the padding. A 4x4
+  "valid" convolution would not fit a 3x3 tic-tac-toe board, so we use
+  "same" padding as TensorFlow defines it for an even kernel: 1 row/column of
+  zeros before and 2 after, so the output keeps the board's H x W.
+* **planner action** (float one-hot ``(K,)``, MuJoBan expert conditions):
+  concatenated as is.
+
+All encodings are concatenated and fed to two separate LSTM cores: a value
+core (256 units) and a policy core (128 units). The policy head turns the
+policy core's output into ``mean = tanh(linear)`` and ``variance = 0.1 + 0.9
+* sigmoid(linear)`` (so variance lies in [0.1, 1]); ``std = sqrt(variance)``.
+The value head(s) read the value core: ``value_env`` always, ``value_abs``
+(the auxiliary abstract-task value) when ``two_values``.
+
+Speed (CPU): the encoders and the cores' input projections run once over
+all ``T * B`` steps; only the recurrent part of the LSTMs loops over ``T``.
+Images go through the convolutions in channels-last memory (faster oneDNN
+kernels), and the planner encoder, the costliest part without cameras,
+encodes only the distinct planner inputs of a batch (they repeat for many
+steps); both are exact.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, NamedTuple
+
+import numpy as np
+import torch
+from torch import nn
+from torch.nn import functional as F
+
+if TYPE_CHECKING:  # the network needs only the spec's fields, not its module
+    from hier_agents.impala.agent_env import InputSpec
+
+ENCODING_SIZE = 256
+VALUE_CORE_SIZE = 256
+POLICY_CORE_SIZE = 128
+PLANNER_CHANNELS = 100
+MIN_VARIANCE = 0.1
+_LOG_2PI = math.log(2.0 * math.pi)
+
+
+class NetOutput(NamedTuple):
+    """Network outputs, time-major.
+
+    ``mean``, ``std``: ``[T, B, A]`` Gaussian policy parameters;
+    ``value_env``: ``[T, B]`` value of the environment reward stream;
+    ``value_abs``: ``[T, B]`` value of the auxiliary (abstract-task) reward
+    stream, or None for a single-value (vanilla) network.
+    """
+
+    mean: torch.Tensor
+    std: torch.Tensor
+    value_env: torch.Tensor
+    value_abs: torch.Tensor | None
+
+
+# -- encoders ---------------------------------------------------------------------------------
+
+
+class ResidualBlock(nn.Module):
+    """``x + conv(relu(conv(relu(x))))`` with 3x3 convolutions keeping the shape."""
+
+    def __init__(self, channels: int):
+        super().__init__()
+        self.conv0 = nn.Conv2d(channels, channels, 3, padding=1)
+        self.conv1 = nn.Conv2d(channels, channels, 3, padding=1)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        # The second ReLU may work in place: a convolution's backward needs its input, not
+        # its output. The first may not (x is also the residual).
+        return x + self.conv1(F.relu(self.conv0(F.relu(x)), inplace=True))
+
+
+class ResNetGroup(nn.Module):
+    """conv 3x3 (padding 1) -> max-pool 3x3 stride 2 (padding 1) -> 2 residual blocks.
+
+    Halves the spatial size (rounding up): 96 -> 48.
+    """
+
+    def __init__(self, in_channels: int, out_channels: int, num_blocks: int = 2):
+        super().__init__()
+        self.conv = nn.Conv2d(in_channels, out_channels, 3, padding=1)
+        self.pool = nn.MaxPool2d(3, stride=2, padding=1)
+        self.blocks = nn.Sequential(*(ResidualBlock(out_channels) for _ in range(num_blocks)))
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return self.blocks(self.pool(self.conv(x)))
+
+
+class ImageEncoder(nn.Module):
+    """One camera: the paper's residual network, then flatten + linear 256 + ReLU.
+
+    Input ``[N, 3, H, W]`` uint8 (or float already in [0, 1]); output
+    ``[N, 256]``. ``feature_shape`` is the residual network's output shape
+    (``(32, 12, 12)`` for 96x96 images).
+    """
+
+    def __init__(self, image_shape: tuple[int, int, int], channels=(16, 32, 32),
+                 out_size: int = ENCODING_SIZE):
+        super().__init__()
+        groups, c_in = [], int(image_shape[0])
+        for c_out in channels:
+            groups.append(ResNetGroup(c_in, c_out))
+            c_in = c_out
+        self.resnet = nn.Sequential(*groups)
+        with torch.no_grad():  # flat size for this image size
+            probe = self.resnet(torch.zeros(1, *(int(s) for s in image_shape)))
+        self.feature_shape = tuple(probe.shape[1:])
+        self.linear = nn.Linear(int(np.prod(self.feature_shape)), out_size)
+
+    def forward(self, images: torch.Tensor) -> torch.Tensor:
+        x = images.to(torch.float32)
+        if images.dtype == torch.uint8:
+            x = x * (1.0 / 255.0)
+        # Channels-last (NHWC) memory makes oneDNN's CPU convolutions about 1.5x faster
+        # here; the flatten below still reads the map in (C, H, W) order.
+        x = x.contiguous(memory_format=torch.channels_last)
+        x = F.relu(self.resnet(x))  # the table's final 12x12 ReLU
+        return F.relu(self.linear(x.flatten(1)))
+
+
+class PlannerEncoder(nn.Module):
+    """Abstract planes ``[N, C, H, W]`` -> conv 4x4 (100, "same") + ReLU -> linear 256 + ReLU.
+
+    "Same" padding for the even kernel: one zero row/column before and two
+    after (TensorFlow's convention), so a 3x3 board stays 3x3.
+
+    Speed: the flattened conv output is large (100 * H * W, 10,000 for a
+    10x10 MuJoBan grid), so the linear layer dominates the whole network's
+    cost without cameras. The planner planes stay the same for many steps
+    (the abstract state and target change rarely), so for ``N >= 64`` rows
+    the encoder runs on the distinct rows only and copies their encodings
+    back (``deduplicate``; exact: same outputs, gradients summed over the
+    copies).
+    """
+
+    min_rows_to_deduplicate = 64
+    #: Encodings kept for inference (see `forward`).
+    cache_size = 4096
+
+    def __init__(self, shape: tuple[int, int, int], out_size: int = ENCODING_SIZE):
+        super().__init__()
+        c, h, w = (int(s) for s in shape)
+        self.pad = nn.ZeroPad2d((1, 2, 1, 2))  # (left, right, top, bottom)
+        self.conv = nn.Conv2d(c, PLANNER_CHANNELS, 4)
+        self.linear = nn.Linear(PLANNER_CHANNELS * h * w, out_size)
+        self.deduplicate = True
+        self._cache: dict[bytes, torch.Tensor] = {}
+        self._cache_key: tuple = ()
+
+    def _weights_version(self) -> tuple:
+        # In-place changes (optimizer steps, load_state_dict) bump a tensor's _version.
+        return tuple((id(p), p._version) for p in self.parameters())
+
+    def _encode_cached(self, planes: torch.Tensor) -> torch.Tensor:
+        """Inference only: each distinct row is encoded once per weights version.
+
+        Actors see the same planner planes for a whole sub-episode (up to
+        T_abs steps), so almost every step is a cache hit and the 100 * H * W
+        -> 256 linear layer drops out of the actors' per-step cost.
+        """
+        version = self._weights_version()
+        if version != self._cache_key or len(self._cache) > self.cache_size:
+            self._cache, self._cache_key = {}, version
+        flat = planes.reshape(planes.shape[0], -1).contiguous()
+        keys = [row.numpy().tobytes() for row in flat]
+        missing = [i for i, k in enumerate(dict.fromkeys(keys)) if k not in self._cache]
+        if missing:
+            unique = list(dict.fromkeys(keys))
+            rows = torch.stack([flat[keys.index(unique[i])] for i in missing])
+            encoded = self._encode(rows.view(-1, *planes.shape[1:]))
+            for j, i in enumerate(missing):
+                self._cache[unique[i]] = encoded[j]
+        return torch.stack([self._cache[k] for k in keys])
+
+    def _encode(self, planes: torch.Tensor) -> torch.Tensor:
+        x = F.relu(self.conv(self.pad(planes)), inplace=True)
+        return F.relu(self.linear(x.flatten(1)))
+
+    def forward(self, planes: torch.Tensor) -> torch.Tensor:
+        planes = planes.to(torch.float32)
+        n = planes.shape[0]
+        if not torch.is_grad_enabled() and planes.device.type == "cpu":
+            return self._encode_cached(planes)
+        if self.deduplicate and n >= self.min_rows_to_deduplicate:
+            rows, inverse = torch.unique(planes.reshape(n, -1), dim=0, return_inverse=True)
+            if rows.shape[0] < n:
+                return self._encode(rows.view(-1, *planes.shape[1:]))[inverse]
+        return self._encode(planes)
+
+
+# -- recurrent cores --------------------------------------------------------------------------
+
+
+class LSTMCore(nn.Module):
+    """A single-layer LSTM that zeroes its state where an episode begins.
+
+    ``forward(x [T, B, in], first [T, B] bool, (h, c) [B, H] each) -> (out
+    [T, B, H], (h, c))``. Where ``first[t, b]`` is True, column ``b``'s state
+    is zeroed before step ``t``. The input projection ``W_ih x + b`` runs as one
+    matrix product over all ``T * B`` steps; only ``W_hh h`` loops over time.
+    Gate layout is (input, forget, output, cell) so one sigmoid covers three
+    gates. Initialisation: uniform(+-1/sqrt(H)) as for torch's LSTM.
+    """
+
+    def __init__(self, input_size: int, hidden_size: int):
+        super().__init__()
+        self.hidden_size = hidden_size
+        self.input_proj = nn.Linear(input_size, 4 * hidden_size)
+        self.weight_hh = nn.Parameter(torch.empty(4 * hidden_size, hidden_size))
+        bound = 1.0 / math.sqrt(hidden_size)
+        for p in (self.input_proj.weight, self.input_proj.bias, self.weight_hh):
+            nn.init.uniform_(p, -bound, bound)
+
+    def forward(self, x: torch.Tensor, first: torch.Tensor,
+                state: tuple[torch.Tensor, torch.Tensor], *, keep_state_after: int | None = None):
+        """See the class docstring. With ``keep_state_after=k`` the returned
+        state is the one after step ``k`` (not after the last step)."""
+        T, B = x.shape[:2]
+        H = self.hidden_size
+        gates_x = self.input_proj(x.reshape(T * B, -1)).view(T, B, 4 * H)
+        # unbind, not gates_x[t]: indexing would make autograd build a full-size zero
+        # gradient per step (T x slower backward); unbind stacks the step gradients once.
+        steps = gates_x.unbind(0)
+        keep = (~first).to(x.dtype).unsqueeze(-1).unbind(0)  # T x [B, 1]
+        w_hh = self.weight_hh.t()
+        h, c = state
+        outs = []
+        kept = None
+        for t in range(T):
+            h = h * keep[t]
+            c = c * keep[t]
+            gates = torch.addmm(steps[t], h, w_hh)
+            sig = torch.sigmoid(gates[:, :3 * H])
+            i, f, o = sig[:, :H], sig[:, H:2 * H], sig[:, 2 * H:]
+            c = f * c + i * torch.tanh(gates[:, 3 * H:])
+            h = o * torch.tanh(c)
+            outs.append(h)
+            if t == keep_state_after:
+                kept = (h, c)
+        return torch.stack(outs), (kept if kept is not None else (h, c))
+
+
+# -- the network ------------------------------------------------------------------------------
+
+
+def _writable(x):
+    """A read-only numpy array (e.g. from Ray's object store) copied, so torch does not warn."""
+    if isinstance(x, np.ndarray) and not x.flags.writeable:
+        return x.copy()
+    return x
+
+
+def _module_key(name: str) -> str:
+    """A camera name usable as a ModuleDict key (no dots)."""
+    return name.replace(".", "_")
+
+
+class ImpalaNet(nn.Module):
+    """The paper's actor-critic: encoders -> value LSTM (256) and policy LSTM (128) -> heads.
+
+    ``spec`` (`InputSpec`) says which inputs exist and their shapes;
+    ``two_values`` adds the auxiliary-task value head ``value_abs`` (planner
+    conditions). See the module docstring for the layers.
+
+    Core state: a tuple ``(h_value, c_value, h_policy, c_policy)`` of
+    ``[B, 256]``, ``[B, 256]``, ``[B, 128]``, ``[B, 128]`` float tensors.
+    """
+
+    def __init__(self, spec: "InputSpec", *, two_values: bool):
+        super().__init__()
+        self.spec = spec
+        self.two_values = bool(two_values)
+        self.action_dim = int(spec.action_dim)
+        if self.action_dim < 1:
+            raise ValueError(f"action_dim must be >= 1, got {spec.action_dim!r}")
+
+        size = 0
+        self.cameras = [(name, _module_key(name)) for name, _ in spec.images]
+        self.image_encoders = nn.ModuleDict(
+            {_module_key(name): ImageEncoder(tuple(shape)) for name, shape in spec.images})
+        size += ENCODING_SIZE * len(self.cameras)
+        self.proprio_encoder = None
+        if spec.proprio_dim > 0:
+            self.proprio_encoder = nn.Linear(int(spec.proprio_dim), ENCODING_SIZE)
+            size += ENCODING_SIZE
+        self.planner_encoder = None
+        if spec.planner_shape is not None:
+            self.planner_encoder = PlannerEncoder(tuple(spec.planner_shape))
+            size += ENCODING_SIZE
+        size += int(spec.planner_action_dim)
+        if size == 0:
+            raise ValueError(f"{spec} gives the network no input")
+        self.encoding_size = size
+
+        self.value_core = LSTMCore(size, VALUE_CORE_SIZE)
+        self.policy_core = LSTMCore(size, POLICY_CORE_SIZE)
+        self.mean_head = nn.Linear(POLICY_CORE_SIZE, self.action_dim)
+        self.variance_head = nn.Linear(POLICY_CORE_SIZE, self.action_dim)
+        self.value_env_head = nn.Linear(VALUE_CORE_SIZE, 1)
+        self.value_abs_head = nn.Linear(VALUE_CORE_SIZE, 1) if self.two_values else None
+
+    # -- state ------------------------------------------------------------------------------
+
+    def initial_state(self, batch_size: int) -> tuple[torch.Tensor, ...]:
+        """Zero core state for ``batch_size`` columns (see the class docstring)."""
+        device = self.mean_head.weight.device
+        z = lambda n: torch.zeros(batch_size, n, device=device)  # noqa: E731
+        return (z(VALUE_CORE_SIZE), z(VALUE_CORE_SIZE), z(POLICY_CORE_SIZE), z(POLICY_CORE_SIZE))
+
+    # -- forward ----------------------------------------------------------------------------
+
+    def encode(self, obs: dict[str, torch.Tensor], n: int) -> torch.Tensor:
+        """Concatenated encodings ``[n, encoding_size]`` of observations flattened to ``n`` rows."""
+        parts = []
+        for name, key in self.cameras:
+            img = obs[name]
+            parts.append(self.image_encoders[key](img.reshape(n, *img.shape[-3:])))
+        if self.proprio_encoder is not None:
+            x = obs["proprio"].reshape(n, -1).to(torch.float32)
+            parts.append(F.relu(self.proprio_encoder(torch.asinh(x))))
+        if self.planner_encoder is not None:
+            planes = obs["planner"]
+            parts.append(self.planner_encoder(planes.reshape(n, *planes.shape[-3:])))
+        if self.spec.planner_action_dim > 0:
+            parts.append(obs["planner_action"].reshape(n, -1).to(torch.float32))
+        return parts[0] if len(parts) == 1 else torch.cat(parts, dim=1)
+
+    def forward(self, obs: dict[str, torch.Tensor], first: torch.Tensor,
+                state: tuple[torch.Tensor, ...] | None = None, *, with_value: bool = True,
+                value_state_after: int | None = None, value_chain=None):
+        """Runs ``T`` steps for ``B`` columns.
+
+        ``obs``: dict of ``[T, B, ...]`` tensors (keys as in `InputSpec`);
+        ``first``: bool ``[T, B]``, True where the observation begins an
+        episode (that column's core state is zeroed before the step);
+        ``state``: core state before ``obs[0]`` (None: zeros).
+        Returns ``(NetOutput, new_state)`` with ``new_state`` after ``obs[T-1]``.
+
+        ``with_value=False`` skips the value core (actors only need the
+        policy): the values are None and the value-core state is returned
+        unchanged. ``value_state_after=k`` returns the value-core state after
+        step ``k`` instead (the learner carries it to the stream's next unroll).
+        ``value_chain[j] = i`` (with ``value_state_after``) starts column
+        ``j``'s value core from column ``i``'s state after step ``k`` instead
+        of ``state`` (``-1``: from ``state``): consecutive unrolls of one
+        stream in one batch. The value core then runs column group by column
+        group, in chain order.
+        """
+        T, B = first.shape
+        if state is None:
+            state = self.initial_state(B)
+        first = first.to(torch.bool)
+        x = self.encode(obs, T * B).view(T, B, -1)
+        p_out, (hp, cp) = self.policy_core(x, first, (state[2], state[3]))
+        mean = torch.tanh(self.mean_head(p_out))
+        variance = MIN_VARIANCE + (1.0 - MIN_VARIANCE) * torch.sigmoid(self.variance_head(p_out))
+        std = torch.sqrt(variance)
+        if not with_value:
+            return NetOutput(mean, std, None, None), (state[0], state[1], hp, cp)
+        if value_chain is None or all(int(i) < 0 for i in value_chain):
+            v_out, (hv, cv) = self.value_core(x, first, (state[0], state[1]),
+                                              keep_state_after=value_state_after)
+        else:
+            v_out, (hv, cv) = self._chained_value_core(x, first, state, value_state_after,
+                                                       [int(i) for i in value_chain])
+        value_env = self.value_env_head(v_out).squeeze(-1)
+        value_abs = self.value_abs_head(v_out).squeeze(-1) if self.two_values else None
+        return NetOutput(mean, std, value_env, value_abs), (hv, cv, hp, cp)
+
+    def _chained_value_core(self, x, first, state, after, chain):
+        if after is None:
+            raise ValueError("value_chain needs value_state_after")
+        B = x.shape[1]
+        depth = [0] * B
+        for j in range(B):
+            i, d = chain[j], 0
+            while i >= 0:
+                if d > B:
+                    raise ValueError(f"value_chain {chain} has a cycle")
+                d, i = d + 1, chain[i]
+            depth[j] = d
+        outs: list = [None] * B
+        hs: list = [None] * B
+        cs: list = [None] * B
+        for d in range(max(depth) + 1):
+            cols = [j for j in range(B) if depth[j] == d]
+            # Chained states are detached: each unroll is its own truncated-BPTT window.
+            h0 = torch.stack([state[0][j] if chain[j] < 0 else hs[chain[j]].detach()
+                              for j in cols])
+            c0 = torch.stack([state[1][j] if chain[j] < 0 else cs[chain[j]].detach()
+                              for j in cols])
+            out, (h, c) = self.value_core(x[:, cols], first[:, cols], (h0, c0),
+                                          keep_state_after=after)
+            for n, j in enumerate(cols):
+                outs[j], hs[j], cs[j] = out[:, n], h[n], c[n]
+        return torch.stack(outs, dim=1), (torch.stack(hs), torch.stack(cs))
+
+    @torch.no_grad()
+    def act(self, obs: dict, first, state: tuple[torch.Tensor, ...], *,
+            deterministic: bool = False, generator: torch.Generator | None = None,
+            policy_only: bool = False):
+        """One step for ``B`` environments, for actors and evaluation (no gradients).
+
+        ``obs``: dict of numpy arrays or tensors with leading batch ``B``;
+        ``first``: bool ``[B]``; ``state``: core state. Samples ``a ~ N(mean,
+        std)`` with ``generator`` (or returns ``mean`` when ``deterministic``).
+        Returns ``(actions float32 [B, A], log_probs float32 [B], new_state)``;
+        actions are unclipped (the environment clips) and ``log_probs`` are
+        those of the returned actions under the policy. ``policy_only`` skips
+        the value core (its state is passed through unchanged).
+        """
+        device = self.mean_head.weight.device
+        batch = {k: torch.as_tensor(_writable(v), device=device).unsqueeze(0)
+                 for k, v in obs.items()}
+        first_t = torch.as_tensor(np.asarray(first), dtype=torch.bool, device=device).view(1, -1)
+        out, new_state = self.forward(batch, first_t, state, with_value=not policy_only)
+        mean, std = out.mean[0], out.std[0]
+        if deterministic:
+            actions = mean
+        else:
+            noise = torch.randn(mean.shape, generator=generator, dtype=mean.dtype,
+                                device=mean.device)
+            actions = mean + std * noise
+        log_probs = gaussian_log_prob(mean, std, actions)
+        return (actions.cpu().numpy().astype(np.float32, copy=False),
+                log_probs.cpu().numpy().astype(np.float32, copy=False), new_state)
+
+
+# -- Gaussian helpers -------------------------------------------------------------------------
+
+
+def gaussian_log_prob(mean: torch.Tensor, std: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
+    """Log density of ``actions`` under the diagonal Gaussian, summed over the last (action) dim.
+
+    ``[..., A]`` inputs -> ``[...]`` (e.g. ``[T, B]``).
+    """
+    z = (actions - mean) / std
+    return (-0.5 * z.square() - torch.log(std) - 0.5 * _LOG_2PI).sum(-1)
+
+
+def gaussian_entropy(std: torch.Tensor) -> torch.Tensor:
+    """Entropy of the diagonal Gaussian, summed over the last dim: ``[..., A] -> [...]``."""
+    return (0.5 + 0.5 * _LOG_2PI + torch.log(std)).sum(-1)

@@ -1,0 +1,96 @@
+"""The actor-learner loop: updates, checkpoints and resumption, Ray actors, CLI, evaluation."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from hier_agents import run as run_lib
+from hier_agents import train as train_cli
+from hier_agents.impala.learner import TrainConfig, load_checkpoint, net_from_checkpoint, train
+
+TINY = dict(env="mujoban/level1", unroll_length=5, batch_size=2, actors=1, envs_per_actor=2,
+            checkpoint_every_s=1e9, log_every_s=0.0, progress=False)
+
+
+def test_a_tiny_run_updates_logs_and_checkpoints(tmp_path):
+    counters = train(TrainConfig(condition="expert-planner", steps=30, logdir=str(tmp_path),
+                                 **TINY))
+    # 30 frames at 2 unrolls x 5 steps per update: 3 updates.
+    assert counters["updates"] == 3 and counters["frames"] == 30
+    ckpt = load_checkpoint(tmp_path)
+    assert ckpt["counters"]["frames"] == 30 and ckpt["config"]["condition"] == "expert-planner"
+    net, spec = net_from_checkpoint(ckpt)
+    assert spec.planner_shape is not None
+    for name, tensor in net.state_dict().items():
+        assert torch.equal(tensor, ckpt["model"][name]), name
+    lines = [json.loads(line) for line in open(tmp_path / "progress.jsonl")]
+    assert [line["frames"] for line in lines] == [10, 20, 30]
+    assert all(np.isfinite(line["loss/loss"]) for line in lines)
+    assert list(tmp_path.glob("events.out.tfevents.*")), "no TensorBoard event file"
+
+
+def test_a_resumed_run_continues_from_its_step_count(tmp_path):
+    train(TrainConfig(condition="vanilla", steps=20, logdir=str(tmp_path), **TINY))
+    first = load_checkpoint(tmp_path)
+    assert first["counters"]["frames"] == 20 and first["counters"]["updates"] == 2
+    counters = train(TrainConfig(condition="vanilla", steps=40, logdir=str(tmp_path), **TINY))
+    assert counters["frames"] == 40 and counters["updates"] == 4
+    frames = [json.loads(line)["frames"] for line in open(tmp_path / "progress.jsonl")]
+    assert frames == [10, 20, 30, 40]
+    # The resumed weights are the saved ones, trained further.
+    second = load_checkpoint(tmp_path)
+    assert any(not torch.equal(first["model"][k], second["model"][k]) for k in first["model"])
+    # A finished run is not run again; another condition in the same logdir is refused.
+    assert train(TrainConfig(condition="vanilla", steps=40, logdir=str(tmp_path),
+                             **TINY))["updates"] == 4
+    with pytest.raises(ValueError, match="condition"):
+        train(TrainConfig(condition="expert-planner", steps=60, logdir=str(tmp_path), **TINY))
+
+
+def test_ray_actors_feed_the_learner(tmp_path):
+    ray = pytest.importorskip("ray")
+    try:
+        counters = train(TrainConfig(condition="random-planner", steps=40, backend="ray",
+                                     logdir=str(tmp_path), **dict(TINY, actors=2)))
+    finally:
+        ray.shutdown()
+    assert counters["updates"] == 4 and counters["frames"] == 40
+
+
+def test_the_checkpoint_plays_through_hier_agents_run(tmp_path, capsys):
+    train(TrainConfig(condition="expert-planner", steps=10, logdir=str(tmp_path / "run"),
+                      **TINY))
+    out = tmp_path / "eval.json"
+    assert run_lib.main(["mujoban/level1", "--agent", f"checkpoint:{tmp_path / 'run'}",
+                         "--episodes", "1", "--json", str(out)]) == 0
+    summary = json.loads(out.read_text())
+    for key in ("env", "episodes", "success_rate", "mean_return", "mean_steps",
+                "subgoal_success_rate", "wall_s"):
+        assert key in summary, key
+    assert summary["training_frames"] == 10 and summary["condition"] == "expert-planner"
+    assert "checkpoint:" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["mujoban/level1", "--agent", "cheater"], "vanilla"),
+    (["mujoban/nope"], "mujoban/level1"),
+    (["mujoban/level1", "--backend", "mpi"], "ray"),
+    (["mujoban/level1", "--steps", "0"], "steps"),
+])
+def test_train_cli_rejects_bad_arguments(argv, message, capsys):
+    with pytest.raises(SystemExit) as exc:
+        train_cli.main(argv)
+    assert exc.value.code == 2 and message in capsys.readouterr().err
+
+
+def test_run_cli_rejects_a_missing_checkpoint_and_modular_flags(tmp_path, capsys):
+    with pytest.raises(SystemExit):
+        run_lib.main(["mujoban/level1", "--agent", f"checkpoint:{tmp_path / 'none'}"])
+    assert "no checkpoint" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        run_lib.main(["mujoban/level1", "--agent", "checkpoint:x", "--planner", "random"])
+    assert "--planner" in capsys.readouterr().err
