@@ -302,6 +302,7 @@ def train(config: TrainConfig) -> dict:
     else:
         actors = LocalActors(actor_config, config.actors, net)
         actors.publish(net)
+    published = 1  # weights versions published to the actors in this process
     log = _Log(logdir)
 
     interrupted = []
@@ -333,11 +334,12 @@ def train(config: TrainConfig) -> dict:
                                        "subgoals": int(ep.get("subgoals_reached", 0))})
                     pending.append(u)
             batch_unrolls, pending = pending[:batch_size], pending[batch_size:]
-            lags.extend(counters["updates"] - int(u.get("policy_version", 0))
-                        for u in batch_unrolls)
+            # Updates between the weights an unroll was acted with and now.
+            lags.extend(published - int(u.get("policy_version", 0)) for u in batch_unrolls)
             batch = make_batch(batch_unrolls, net, value_states)
             stats = learner_step(net, optimizer, batch, config, value_states)
             actors.publish(net)
+            published += 1
             counters["updates"] += 1
             new_frames = config.unroll_length * len(batch_unrolls)
             counters["frames"] += new_frames
