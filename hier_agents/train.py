@@ -55,6 +55,8 @@ def main(argv=None) -> int:
     parser.add_argument("--cameras", action="store_true", help="feed 96x96 camera images")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--checkpoint-every", type=float, default=300.0, help="seconds")
+    parser.add_argument("--log-every", type=float, default=10.0,
+                        help="seconds between TensorBoard / progress.jsonl rows")
     parser.add_argument("--no-progress", action="store_true")
     args = parser.parse_args(argv)
 
@@ -73,7 +75,7 @@ def main(argv=None) -> int:
                          batch_size=args.batch_size, learning_rate=args.learning_rate,
                          entropy_cost=args.entropy_cost, abs_reward=args.abs_reward,
                          cameras=args.cameras, seed=args.seed,
-                         checkpoint_every_s=args.checkpoint_every,
+                         checkpoint_every_s=args.checkpoint_every, log_every_s=args.log_every,
                          progress=not args.no_progress)
     try:
         config.validate()

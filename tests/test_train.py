@@ -176,3 +176,45 @@ def test_every_environment_observation_goes_through_the_network(name, condition,
                                net.initial_state(1))
         result = env.step(action[0])
         assert set(result.obs) == set(obs)
+
+
+def test_ctrl_c_saves_a_checkpoint_and_the_run_resumes_from_it(tmp_path):
+    """SIGINT to the whole process group (what Ctrl-C does): the actors must
+    not die under the learner; it finishes, checkpoints and exits."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    logdir = tmp_path / "run"
+    cmd = [sys.executable, "-m", "hier_agents.train", "mujoban/level1", "--agent", "vanilla",
+           "--steps", "100000000", "--unroll-length", "5", "--batch-size", "2", "--actors", "1",
+           "--envs-per-actor", "2", "--log-every", "0", "--logdir", str(logdir),
+           "--no-progress"]
+    proc = subprocess.Popen(cmd, start_new_session=True, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True,
+                            cwd=os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    try:
+        progress = logdir / "progress.jsonl"
+        for _ in range(600):  # the first update (start-up takes a few seconds)
+            if progress.exists() and progress.read_text().count("\n") >= 2:
+                break
+            assert proc.poll() is None, proc.communicate()
+            time.sleep(0.2)
+        os.killpg(proc.pid, signal.SIGINT)
+        out, err = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == 0, err
+    assert "interrupted: checkpoint saved" in err and "Traceback" not in err, err
+    saved = load_checkpoint(logdir)["counters"]
+    assert saved["frames"] == json.loads(out)["frames"] >= 20
+    assert saved["frames"] == 10 * saved["updates"]
+    logged = [json.loads(line)["frames"] for line in open(logdir / "progress.jsonl")]
+    assert logged[-1] == saved["frames"]
+    counters = train(TrainConfig(condition="vanilla", steps=saved["frames"] + 10,
+                                 logdir=str(logdir), **TINY))
+    assert counters["frames"] == saved["frames"] + 10
+    assert counters["updates"] == saved["updates"] + 1

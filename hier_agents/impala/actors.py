@@ -24,7 +24,11 @@ Backends: `LocalActors` runs each actor in its own process (``spawn``),
 reading the learner's weights from shared memory whenever the learner
 publishes a new version; `RayActors` runs the same `Actor` class as Ray
 actors and sends weights through Ray's object store. Both offer ``get()``,
-which blocks until some actor's unrolls are ready, and ``close()``.
+which blocks until some actor's unrolls are ready (or returns None as soon
+as its ``should_stop`` callback says so: the learner was interrupted), and
+``close()``. Actor processes ignore SIGINT: Ctrl-C in a terminal reaches the
+whole process group, and the learner, not each actor, decides how to stop
+(finish the update, save a checkpoint, then stop the actors).
 """
 
 from __future__ import annotations
@@ -32,8 +36,10 @@ from __future__ import annotations
 import dataclasses
 import os
 import queue
+import signal
+import time
 import traceback
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -55,6 +61,7 @@ class ActorConfig:
 
 
 _BINARY_KEYS = frozenset({"planner", "planner_action"})
+_POLL_S = 0.5  # how often a waiting learner checks for a stop request or a dead actor
 
 
 def _state_rows(state, index: int) -> list[np.ndarray]:
@@ -176,6 +183,8 @@ class Actor:
 def _local_worker(config: ActorConfig, actor_id: int, shared_net, version, out_queue,
                   stop_event) -> None:
     """Process body: copy the shared weights when they change, unroll, queue."""
+    # Ctrl-C signals the whole process group; the learner stops us through stop_event.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     os.environ.setdefault("MUJOCO_GL", "egl")
     actor = None
     try:
@@ -228,14 +237,30 @@ class LocalActors:
         with self._version.get_lock():
             self._version.value += 1
 
-    def get(self, timeout: float = 600.0) -> list[dict]:
-        """The next actor's unrolls; raises if an actor failed or none answers."""
-        deadline_msg = (f"no unroll from any actor within {timeout:.0f} s "
-                        f"(actors alive: {[p.is_alive() for p in self._procs]})")
-        try:
-            kind, actor_id, payload = self._queue.get(timeout=timeout)
-        except queue.Empty:
-            raise RuntimeError(deadline_msg) from None
+    def get(self, timeout: float = 600.0,
+            should_stop: Callable[[], bool] | None = None) -> list[dict] | None:
+        """The next actor's unrolls, or None once ``should_stop()`` is true.
+
+        Raises RuntimeError with the actor's traceback if one failed, at once
+        if an actor process died without a word (killed, out of memory), and
+        after ``timeout`` seconds without any unroll.
+        """
+        deadline = time.monotonic() + timeout
+        while True:
+            if should_stop is not None and should_stop():
+                return None
+            try:
+                kind, actor_id, payload = self._queue.get(timeout=_POLL_S)
+                break
+            except queue.Empty:
+                pass
+            dead = [(i, p.exitcode) for i, p in enumerate(self._procs) if not p.is_alive()]
+            if dead and self._queue.empty():
+                raise RuntimeError("actor process(es) exited without reporting an error "
+                                   "(actor id, exit code): " + repr(dead))
+            if time.monotonic() > deadline:
+                raise RuntimeError(f"no unroll from any actor within {timeout:.0f} s "
+                                   f"(actors alive: {[p.is_alive() for p in self._procs]})")
         if kind == "error":
             raise RuntimeError(f"actor {actor_id} failed:\n{payload}")
         return payload
@@ -299,11 +324,19 @@ class RayActors:
         self._weights_ref = self._ray.put(weights)
         self._version += 1
 
-    def get(self, timeout: float = 600.0) -> list[dict]:
+    def get(self, timeout: float = 600.0,
+            should_stop: Callable[[], bool] | None = None) -> list[dict] | None:
+        """As `LocalActors.get`; an actor's exception is re-raised with its traceback."""
         ray = self._ray
-        ready, _ = ray.wait(list(self._pending), num_returns=1, timeout=timeout)
-        if not ready:
-            raise RuntimeError(f"no unroll from any Ray actor within {timeout:.0f} s")
+        deadline = time.monotonic() + timeout
+        while True:
+            if should_stop is not None and should_stop():
+                return None
+            ready, _ = ray.wait(list(self._pending), num_returns=1, timeout=_POLL_S)
+            if ready:
+                break
+            if time.monotonic() > deadline:
+                raise RuntimeError(f"no unroll from any Ray actor within {timeout:.0f} s")
         ref = ready[0]
         actor = self._pending.pop(ref)
         unrolls = ray.get(ref)  # re-raises the actor's exception with its traceback

@@ -324,8 +324,9 @@ def train(config: TrainConfig) -> dict:
     lags: list[int] = []
     try:
         while counters["frames"] < config.steps and not interrupted:
-            while len(pending) < batch_size:
-                for u in actors.get():
+            while len(pending) < batch_size and not interrupted:
+                unrolls = actors.get(should_stop=lambda: bool(interrupted))
+                for u in unrolls or ():
                     for ep in u.pop("episodes"):
                         counters["episodes"] += 1
                         recent.append({"return": float(ep.get("episode_return", 0.0)),
@@ -333,6 +334,8 @@ def train(config: TrainConfig) -> dict:
                                        "steps": int(ep.get("episode_steps", 0)),
                                        "subgoals": int(ep.get("subgoals_reached", 0))})
                     pending.append(u)
+            if interrupted:  # the partial batch is dropped; the checkpoint is the last update
+                break
             batch_unrolls, pending = pending[:batch_size], pending[batch_size:]
             # Updates between the weights an unroll was acted with and now.
             lags.extend(published - int(u.get("policy_version", 0)) for u in batch_unrolls)
