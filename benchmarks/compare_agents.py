@@ -1,9 +1,13 @@
 """The modular agent and trained end-to-end agents side by side, same seeds.
 
     python benchmarks/compare_agents.py ENV [--episodes N] [--seed S]
-                                        [--checkpoint PATH ...] [--json PATH]
+                                        [--checkpoint PATH ...] [--random HOLD ...]
+                                        [--stochastic] [--json PATH]
 
-Every agent plays ``--episodes`` episodes in an environment built with the
+Agents: the modular agent (unless ``--no-modular``), every ``--checkpoint``
+(its policy's mean; ``--stochastic`` samples instead) and uniformly random
+actions held for each ``--random`` HOLD control steps (default 1 and 10: the
+floor a trained agent must clear). Every agent plays ``--episodes`` episodes in an environment built with the
 same ``--seed`` (the same level or opening sequence as long as the
 environment's random draws do not depend on the agent's play). One row per agent: success
 rate (MuJoBan: solved; board games: won) with its 95% Wilson interval, draw
@@ -34,16 +38,26 @@ def main(argv=None) -> int:
     parser.add_argument("--checkpoint", nargs="*", default=[],
                         help="hier_agents.train run directories or checkpoint files")
     parser.add_argument("--no-modular", action="store_true", help="leave the modular agent out")
+    parser.add_argument("--random", type=int, nargs="*", default=[1, 10], metavar="HOLD",
+                        help="random-action rows, one per hold (control steps per draw); "
+                             "give the flag alone for none")
+    parser.add_argument("--stochastic", action="store_true",
+                        help="checkpoints sample from their policy instead of taking its mean")
     parser.add_argument("--json", type=Path)
     args = parser.parse_args(argv)
     if args.env not in envs.names():
         parser.error(f"unknown environment {args.env!r}; known: {', '.join(envs.names())}")
-    agents = ([] if args.no_modular else ["modular"]) + [f"checkpoint:{p}" for p in args.checkpoint]
+    if any(h < 1 for h in args.random):
+        parser.error(f"--random holds must be >= 1, got {args.random}")
+    agents = (([] if args.no_modular else ["modular"])
+              + [f"checkpoint:{p}" for p in args.checkpoint]
+              + [f"random:{h}" for h in args.random])
     if not agents:
         parser.error("nothing to compare: give --checkpoint PATH or drop --no-modular")
     rows = []
     for agent in agents:
-        summary = run(args.env, args.episodes, args.seed, agent=agent)
+        summary = run(args.env, args.episodes, args.seed, agent=agent,
+                      stochastic=args.stochastic and agent.startswith("checkpoint:"))
         summary.pop("rows", None)
         summary.setdefault("training_frames", 0)
         rows.append(summary)
@@ -55,7 +69,8 @@ def main(argv=None) -> int:
     print("-" * len(head))
     for r in rows:
         lo, hi = r.get("success_interval") or r.get("win_interval")
-        name = r["agent"] if r["agent"] == "modular" else f"{r['agent']} ({r['condition']})"
+        name = (r["agent"] if r["agent"] == "modular" or r["agent"].startswith("random")
+                else f"{r['agent']} ({r['condition']})")
         line = (f"{name[-44:]:<44} {100 * r['success_rate']:>6.1f} [{100 * lo:5.1f},{100 * hi:5.1f}]"
                 f"{'':>4} ")
         if board:

@@ -6,6 +6,8 @@
     python -m hier_agents.run mujogo/7x7 --episodes 20 --video go.mp4
     python -m hier_agents.run mujoban/level5 --planner random      # swap a part
     python -m hier_agents.run mujoban/level1 --agent checkpoint:runs/impala   # a trained agent
+    python -m hier_agents.run mujoban/level1 --agent random        # uniform random actions
+    python -m hier_agents.run mujoban/level1 --agent random:10     # ... each held 10 steps
 
 MuJoBan rows report the solved fraction; board games win/draw/loss rates. All
 rates carry 95% Wilson intervals. JSON keys: env, episodes, success_rate,
@@ -38,15 +40,19 @@ def _camera_overrides(name: str) -> dict:
 
 def run(env_name: str, episodes: int, seed: int = 0, *, planner: str | None = None,
         skill: str | None = None, estimator: str | None = None, levels: str | None = None,
-        video: str | None = None, progress: bool = True, agent: str = "modular") -> dict:
+        video: str | None = None, progress: bool = True, agent: str = "modular",
+        stochastic: bool = False) -> dict:
     """Plays ``episodes`` episodes; returns the JSON-able summary.
 
-    ``agent`` is ``"modular"`` (estimator + planner + skill) or
-    ``"checkpoint:PATH"``: a trained end-to-end agent (`hier_agents.train`).
+    ``agent`` is ``"modular"`` (estimator + planner + skill),
+    ``"checkpoint:PATH"`` (a trained end-to-end agent, `hier_agents.train`;
+    its policy's mean, or samples with ``stochastic``) or ``"random"``
+    (uniformly random actions).
     """
     fam = family(env_name)
     if agent != "modular":
-        return _run_checkpoint(env_name, fam, episodes, seed, agent, levels, video, progress)
+        return _run_policy(env_name, fam, episodes, seed, agent, levels, video, progress,
+                           stochastic)
     overrides = _camera_overrides(env_name)
     if levels is not None:
         if fam != "mujoban":
@@ -98,14 +104,20 @@ def run(env_name: str, episodes: int, seed: int = 0, *, planner: str | None = No
     return _summary(env_name, fam, rows, totals, seed, planner, skill)
 
 
-def _run_checkpoint(env_name, fam, episodes, seed, agent, levels, video, progress) -> dict:
-    from hier_agents.impala.evaluate import parse_agent, play_checkpoint
+def _run_policy(env_name, fam, episodes, seed, agent, levels, video, progress,
+                stochastic) -> dict:
+    from hier_agents.impala.evaluate import parse_agent, parse_random, play_checkpoint, play_random
 
     if levels is not None:
-        raise ValueError("--levels is not supported with a checkpoint agent")
-    path = parse_agent(agent)
-    rows, info = play_checkpoint(env_name, path, episodes, seed, video=video,
-                                 progress=progress)
+        raise ValueError(f"--levels is not supported with --agent {agent}")
+    if agent.startswith("random"):
+        hold = parse_random(agent)
+        if video:
+            raise ValueError(f"--video is not supported with --agent {agent}")
+        rows, info = play_random(env_name, episodes, seed, hold=hold, progress=progress)
+    else:
+        rows, info = play_checkpoint(env_name, parse_agent(agent), episodes, seed,
+                                     video=video, progress=progress, stochastic=stochastic)
     totals = OptionStats()
     for row in rows:  # auxiliary sub-episodes: reached, or not within T_abs
         totals.issued += row["subgoals_issued"]
@@ -142,7 +154,8 @@ def _summary(env_name, fam, rows, totals: OptionStats, seed, planner, skill) -> 
         out["success_rate"] = out["win_rate"]
     out["mean_return"] = float(np.mean([r["return"] for r in rows]))
     out["mean_steps"] = float(np.mean([r["steps"] for r in rows]))
-    out["subgoal_success_rate"] = totals.success_rate
+    rate = totals.success_rate
+    out["subgoal_success_rate"] = None if rate != rate else rate  # NaN is not JSON
     out["subgoals"] = {"issued": totals.issued, "reached": totals.reached,
                        "failed": totals.failed, "cut_off": totals.cut_off,
                        "unfinished": totals.unfinished,
@@ -159,6 +172,8 @@ def _pct(rate, interval) -> str:
 def format_table(summary: dict) -> str:
     if summary.get("agent", "modular") == "modular":
         who = f"planner {summary['planner']}, skill {summary['skill']}"
+    elif summary["agent"].startswith("random"):
+        who = summary["condition"]
     else:
         who = (f"{summary['agent']} ({summary['condition']}, trained "
                f"{summary['training_frames']:,} frames on {summary['trained_env']})")
@@ -171,8 +186,11 @@ def format_table(summary: dict) -> str:
         lines.append(f"  solved            {_pct(summary['success_rate'], summary['success_interval'])}")
     lines.append(f"  mean return       {summary['mean_return']:.2f}")
     lines.append(f"  mean steps        {summary['mean_steps']:.1f}")
-    lines.append(f"  subgoal success   {100 * summary['subgoal_success_rate']:.1f}% "
-                 f"({summary['subgoals']['reached']}/{summary['subgoals']['issued']} issued)")
+    if summary["subgoal_success_rate"] is not None:
+        lines.append(f"  subgoal success   {100 * summary['subgoal_success_rate']:.1f}% "
+                     f"({summary['subgoals']['reached']}/{summary['subgoals']['issued']} issued)")
+    else:
+        lines.append("  subgoal success   - (no subgoals)")
     lines.append(f"  wall s / episode  {summary['wall_s']:.2f}")
     return "\n".join(lines)
 
@@ -185,8 +203,12 @@ def main(argv=None) -> int:
     parser.add_argument("--episodes", type=int, default=None)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--agent", default="modular",
-                        help="modular (default) or checkpoint:PATH (a hier_agents.train run "
-                             "directory or checkpoint file)")
+                        help="modular (default), checkpoint:PATH (a hier_agents.train run "
+                             "directory or checkpoint file), random or random:HOLD (uniform random "
+                             "actions, each held HOLD control steps)")
+    parser.add_argument("--stochastic", action="store_true",
+                        help="checkpoint agents: sample actions from the policy instead of "
+                             "taking its mean")
     parser.add_argument("--planner", help="planner name (see --list)")
     parser.add_argument("--skill", help="skill name (see --list)")
     parser.add_argument("--estimator", help="estimator name (see --list)")
@@ -217,9 +239,18 @@ def main(argv=None) -> int:
             parser.error(f"unknown {kind} {name!r} for {fam}; valid: {sorted(table[fam])}")
     if args.levels is not None and fam != "mujoban":
         parser.error("--levels only applies to mujoban environments")
+    if args.stochastic and not args.agent.startswith("checkpoint:"):
+        parser.error("--stochastic applies to checkpoint:PATH agents")
     if args.agent != "modular":
-        if not args.agent.startswith("checkpoint:") or args.agent == "checkpoint:":
-            parser.error(f"--agent must be modular or checkpoint:PATH, got {args.agent!r}")
+        if args.agent.startswith("random"):
+            from hier_agents.impala.evaluate import parse_random
+            try:
+                parse_random(args.agent)
+            except ValueError as exc:
+                parser.error(str(exc))
+        elif not args.agent.startswith("checkpoint:") or args.agent == "checkpoint:":
+            parser.error(f"--agent must be modular, random[:HOLD] or checkpoint:PATH, "
+                         f"got {args.agent!r}")
         for flag, value in (("--planner", args.planner), ("--skill", args.skill),
                             ("--estimator", args.estimator), ("--levels", args.levels)):
             if value is not None:
@@ -227,7 +258,7 @@ def main(argv=None) -> int:
     try:
         summary = run(env_name, episodes, args.seed, planner=args.planner, skill=args.skill,
                       estimator=args.estimator, levels=args.levels, video=args.video,
-                      agent=args.agent)
+                      agent=args.agent, stochastic=args.stochastic)
     except (FileNotFoundError, ValueError) as exc:
         if args.agent == "modular":
             raise

@@ -55,6 +55,9 @@ def main(argv=None) -> int:
     parser.add_argument("--cameras", action="store_true", help="feed 96x96 camera images")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--checkpoint-every", type=float, default=300.0, help="seconds")
+    parser.add_argument("--keep-checkpoints", action="store_true",
+                        help="also keep every checkpoint as LOGDIR/checkpoints/frames-N.pt "
+                             "(for benchmarks/learning_curve.py)")
     parser.add_argument("--log-every", type=float, default=10.0,
                         help="seconds between TensorBoard / progress.jsonl rows")
     parser.add_argument("--no-progress", action="store_true")
@@ -76,6 +79,7 @@ def main(argv=None) -> int:
                          entropy_cost=args.entropy_cost, abs_reward=args.abs_reward,
                          cameras=args.cameras, seed=args.seed,
                          checkpoint_every_s=args.checkpoint_every, log_every_s=args.log_every,
+                         keep_checkpoints=args.keep_checkpoints,
                          progress=not args.no_progress)
     try:
         config.validate()

@@ -218,3 +218,53 @@ def test_ctrl_c_saves_a_checkpoint_and_the_run_resumes_from_it(tmp_path):
                                  logdir=str(logdir), **TINY))
     assert counters["frames"] == saved["frames"] + 10
     assert counters["updates"] == saved["updates"] + 1
+
+
+def test_kept_checkpoints_give_a_learning_curve_and_a_comparison(tmp_path, capsys):
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    run_dir = tmp_path / "run"
+    config = dict(TINY, checkpoint_every_s=0.0)  # a checkpoint after every update
+    train(TrainConfig(condition="expert-planner", steps=20, logdir=str(run_dir),
+                      keep_checkpoints=True, **config))
+    kept = sorted(p.name for p in (run_dir / "checkpoints").glob("*.pt"))
+    assert kept == ["frames-10.pt", "frames-20.pt"]
+    root = Path(__file__).resolve().parents[1]
+    out = tmp_path / "curve.json"
+    subprocess.run([sys.executable, str(root / "benchmarks" / "learning_curve.py"), str(run_dir),
+                    "--every-frames", "10", "--eval-episodes", "1", "--json", str(out)],
+                   check=True, capture_output=True, cwd=root)
+    curve = json.loads(out.read_text())["runs"][0]
+    assert curve["condition"] == "expert-planner"
+    assert [r["frames"] for r in curve["training"]] == [10, 20]
+    assert [r["frames"] for r in curve["evaluation"]] == [10, 20]
+    assert all(0.0 <= r["success_rate"] <= 1.0 for r in curve["evaluation"])
+
+    out = tmp_path / "compare.json"
+    subprocess.run([sys.executable, str(root / "benchmarks" / "compare_agents.py"),
+                    "mujoban/level1", "--episodes", "2", "--checkpoint", str(run_dir),
+                    "--random", "10", "--json", str(out)], check=True, capture_output=True,
+                   cwd=root)
+    rows = json.loads(out.read_text())["rows"]
+    assert [r["agent"] for r in rows] == ["modular", f"checkpoint:{run_dir}", "random:10"]
+    assert [r["training_frames"] for r in rows] == [0, 20, 0]
+    assert rows[0]["success_rate"] == 1.0  # the modular agent solves level 1
+
+
+def test_random_agents_play_through_hier_agents_run(tmp_path, capsys):
+    out = tmp_path / "random.json"
+    assert run_lib.main(["mujoban/level1", "--agent", "random:10", "--episodes", "2",
+                         "--json", str(out)]) == 0
+    summary = json.loads(out.read_text())
+    assert summary["agent"] == "random:10" and summary["episodes"] == 2
+    assert summary["subgoal_success_rate"] is None
+    assert [r["steps"] for r in summary["rows"]] == [
+        r["steps"] for r in run_lib.run("mujoban/level1", 2, agent="random:10",
+                                        progress=False)["rows"]]  # seeded
+    assert "held 10 steps" in capsys.readouterr().out
+    for bad in ("random:0", "random:x", "randomly"):
+        with pytest.raises(SystemExit):
+            run_lib.main(["mujoban/level1", "--agent", bad])
+        assert "random" in capsys.readouterr().err

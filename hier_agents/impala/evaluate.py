@@ -1,4 +1,4 @@
-"""Evaluate a trained checkpoint with the same rows as the modular agent.
+"""Evaluate a trained checkpoint, or random actions, with the same rows as the modular agent.
 
 `play_checkpoint` runs the checkpoint's policy (the Gaussian's mean by
 default, or samples with ``stochastic=True``) in the environment it was
@@ -6,6 +6,12 @@ trained on, built the same way (same condition, cameras, abstract inputs),
 and returns per-episode rows that `hier_agents.run` turns into its table and
 JSON: ``return``, ``steps``, ``wall_s``, ``solved`` (MuJoBan) or ``outcome``
 (board games), and the auxiliary subgoal counts for planner conditions.
+
+`play_random` gives the same rows for uniformly random actions (each action
+component drawn independently from its bounds, a new draw every ``hold``
+control steps): the floor every trained agent must clear. In MuJoBan,
+holding a draw for a while rolls the ball further and solves more levels than
+drawing at every step; compare against the better of the two.
 """
 
 from __future__ import annotations
@@ -21,6 +27,68 @@ def parse_agent(spec: str) -> str:
     if not spec.startswith("checkpoint:") or not spec[len("checkpoint:"):]:
         raise ValueError(f"--agent must be 'modular' or 'checkpoint:PATH', got {spec!r}")
     return spec[len("checkpoint:"):]
+
+
+def _outcome_row(row: dict, task, fam: str) -> dict:
+    if fam == "mujoban":
+        row["solved"] = bool(task.solved)
+    else:
+        value = task.state.returns()[0] if task.state.is_terminal() else -1.0
+        row["outcome"] = "win" if value > 0 else ("draw" if value == 0 else "loss")
+    return row
+
+
+def parse_random(spec: str) -> int:
+    """The hold (control steps per draw) of an ``--agent random[:HOLD]`` value."""
+    name, _, hold = spec.partition(":")
+    try:
+        value = int(hold) if hold else 1
+    except ValueError:
+        value = 0
+    if name != "random" or value < 1:
+        raise ValueError(f"a random agent is 'random' or 'random:HOLD' with HOLD >= 1 control "
+                         f"steps per draw, got {spec!r}")
+    return value
+
+
+def play_random(env_name: str, episodes: int, seed: int = 0, *, hold: int = 1,
+                progress: bool = True) -> tuple[list[dict], dict]:
+    """Uniformly random actions, a new draw every ``hold`` steps (cameras off)."""
+    from tqdm import tqdm
+
+    import envs
+    from hier_agents.components import family
+
+    fam = family(env_name)
+    env = envs.load(env_name, seed=seed,
+                    **{k: None for k in envs.overrides(env_name) if k.endswith("_camera")})
+    spec = env.action_spec()
+    low, high = np.broadcast_to(spec.minimum, spec.shape), np.broadcast_to(spec.maximum, spec.shape)
+    rng = np.random.default_rng(seed)
+    rows = []
+    bar = tqdm(total=episodes, unit="episode", desc=f"{env_name} random", file=sys.stderr,
+               disable=not progress)
+    try:
+        for episode in range(episodes):
+            start = time.perf_counter()
+            timestep = env.reset()
+            ret, steps = 0.0, 0
+            while not timestep.last():
+                if steps % hold == 0:
+                    action = rng.uniform(low, high)
+                timestep = env.step(action)
+                ret += float(timestep.reward)
+                steps += 1
+            rows.append(_outcome_row({"episode": episode, "return": ret, "steps": steps,
+                                      "wall_s": time.perf_counter() - start,
+                                      "subgoals_issued": 0, "subgoals_reached": 0},
+                                     env.task, fam))
+            bar.update(1)
+    finally:
+        bar.close()
+        env.close()
+    return rows, {"condition": f"uniform random actions, held {hold} steps", "trained_env": "-",
+                  "training_frames": 0, "training_updates": 0}
 
 
 def play_checkpoint(env_name: str, path: str, episodes: int, seed: int = 0, *,
@@ -78,13 +146,7 @@ def play_checkpoint(env_name: str, path: str, episodes: int, seed: int = 0, *,
                    "wall_s": time.perf_counter() - start,
                    "subgoals_issued": int(info.get("subgoals_issued", 0)),
                    "subgoals_reached": int(info.get("subgoals_reached", 0))}
-            task = env.env.task
-            if fam == "mujoban":
-                row["solved"] = bool(task.solved)
-            else:
-                value = task.state.returns()[0] if task.state.is_terminal() else -1.0
-                row["outcome"] = "win" if value > 0 else ("draw" if value == 0 else "loss")
-            rows.append(row)
+            rows.append(_outcome_row(row, env.env.task, fam))
             bar.update(1)
     finally:
         bar.close()
@@ -92,7 +154,8 @@ def play_checkpoint(env_name: str, path: str, episodes: int, seed: int = 0, *,
     if video and frames:
         import imageio.v2 as imageio
         imageio.mimwrite(video, frames, fps=20, macro_block_size=1)
-    info = {"condition": config["condition"], "trained_env": config["env"],
+    info = {"condition": config["condition"] + (" (sampled)" if stochastic else ""),
+            "trained_env": config["env"],
             "training_frames": int(ckpt["counters"].get("frames", 0)),
             "training_updates": int(ckpt["counters"].get("updates", 0))}
     return rows, info

@@ -10,7 +10,9 @@
 3. one RMSProp step on `impala_loss` (V-trace; two value heads and the sum of
    both advantage terms for the planner conditions), gradient norm clipped;
 4. publish the new weights; log scalars to TensorBoard and ``progress.jsonl``;
-   save ``checkpoint.pt`` every ``checkpoint_every_s`` seconds and at the end.
+   save ``checkpoint.pt`` every ``checkpoint_every_s`` seconds and at the end
+   (with ``keep_checkpoints``, also a copy ``checkpoints/frames-N.pt`` each
+   time, for learning curves: `benchmarks/learning_curve.py`).
 
 Frames are environment control steps consumed by the learner. A run whose
 logdir holds a checkpoint of the same environment and condition resumes from
@@ -23,6 +25,7 @@ import dataclasses
 import json
 import math
 import os
+import shutil
 import signal
 import sys
 import time
@@ -36,6 +39,7 @@ from hier_agents.impala.actors import ActorConfig, LocalActors, RayActors, stack
 #: Paper's batch sizes (unrolls per update): board games 64, MuJoBan 128.
 PAPER_BATCH = {"mujoban": 128, "mujoxo": 64, "mujogo": 64}
 CHECKPOINT = "checkpoint.pt"
+KEPT_CHECKPOINTS = "checkpoints"  # folder of `keep_checkpoints` copies, frames-N.pt
 
 
 @dataclasses.dataclass
@@ -65,6 +69,7 @@ class TrainConfig:
     abs_reward: float = 1.0
     seed: int = 0
     checkpoint_every_s: float = 300.0
+    keep_checkpoints: bool = False
     log_every_s: float = 10.0
     progress: bool = True
     env_overrides: dict = dataclasses.field(default_factory=dict)
@@ -178,6 +183,10 @@ def save_checkpoint(path: Path, net, optimizer, config: TrainConfig, counters: d
                 "config": dataclasses.asdict(config), "counters": dict(counters),
                 "input_spec": dataclasses.asdict(spec)}, tmp)
     os.replace(tmp, path)
+    if config.keep_checkpoints:
+        kept = path.parent / KEPT_CHECKPOINTS
+        kept.mkdir(exist_ok=True)
+        shutil.copyfile(path, kept / f"frames-{int(counters['frames'])}.pt")
 
 
 def load_checkpoint(path: str | Path) -> dict:

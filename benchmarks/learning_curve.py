@@ -1,0 +1,151 @@
+"""Learning curves of `hier_agents.train` runs: training statistics and evaluations.
+
+    python benchmarks/learning_curve.py RUN [RUN ...] [--every-frames 1000000]
+                                        [--eval-episodes N] [--stochastic] [--seed S]
+                                        [--json PATH]
+
+For each run directory (a ``--logdir`` of `hier_agents.train`):
+
+1. **Training curve**, from its ``progress.jsonl``: one row per
+   ``--every-frames`` frames (the last log line at or before each mark, and
+   the run's last line): wall minutes, the success rate and return of the
+   last 100 training episodes (actions sampled from the policy, as trained),
+   episode length and auxiliary subgoals reached per episode.
+2. **Evaluation curve** (``--eval-episodes N``): every kept checkpoint
+   (``checkpoints/frames-*.pt``, written by ``--keep-checkpoints``) and the
+   final ``checkpoint.pt`` play N episodes on the same seed through
+   `hier_agents.run` (the policy's mean; ``--stochastic`` samples), giving the
+   success rate with its 95% Wilson interval.
+
+Prints the tables and, with ``--json``, writes
+``{"runs": [{"logdir", "env", "condition", "training": [...], "evaluation": [...]}]}``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from _common import write_json  # noqa: E402
+
+
+def training_curve(logdir: Path, every: int) -> list[dict]:
+    path = logdir / "progress.jsonl"
+    if not path.exists():
+        raise SystemExit(f"{logdir}: no progress.jsonl (is it a hier_agents.train --logdir?)")
+    lines = [json.loads(line) for line in open(path) if line.strip()]
+    if not lines:
+        return []
+    picked, mark, i = [], every, 0
+    while mark < lines[-1]["frames"] + every:
+        while i + 1 < len(lines) and lines[i + 1]["frames"] <= mark:
+            i += 1
+        if lines[i]["frames"] <= mark and (not picked or picked[-1] is not lines[i]):
+            picked.append(lines[i])
+        mark += every
+    if picked[-1] is not lines[-1]:
+        picked.append(lines[-1])
+    return [{"frames": line["frames"], "wall_min": line.get("wall_s", 0.0) / 60.0,
+             "train_success_rate": line.get("episodes/success_rate"),
+             "train_return": line.get("episodes/return"),
+             "episode_steps": line.get("episodes/steps"),
+             "subgoals_reached": line.get("episodes/subgoals_reached"),
+             "episodes": line.get("episodes/count")} for line in picked]
+
+
+def evaluation_curve(logdir: Path, env: str, episodes: int, seed: int,
+                     stochastic: bool) -> list[dict]:
+    from hier_agents.impala.learner import CHECKPOINT, KEPT_CHECKPOINTS
+    from hier_agents.run import run
+
+    def frames_of(p: Path) -> int:
+        match = re.fullmatch(r"frames-(\d+)\.pt", p.name)
+        return int(match.group(1)) if match else -1
+
+    files = sorted((p for p in (logdir / KEPT_CHECKPOINTS).glob("frames-*.pt")
+                    if frames_of(p) >= 0), key=frames_of)
+    if (logdir / CHECKPOINT).exists():
+        files.append(logdir / CHECKPOINT)
+    rows, seen = [], set()
+    for path in files:
+        summary = run(env, episodes, seed, agent=f"checkpoint:{path}", stochastic=stochastic,
+                      progress=False)
+        if summary["training_frames"] in seen:  # the final checkpoint is also kept
+            continue
+        seen.add(summary["training_frames"])
+        lo, hi = summary.get("success_interval") or summary.get("win_interval")
+        rows.append({"frames": summary["training_frames"], "checkpoint": str(path),
+                     "success_rate": summary["success_rate"], "interval": [lo, hi],
+                     "mean_return": summary["mean_return"], "mean_steps": summary["mean_steps"],
+                     "subgoal_success_rate": summary["subgoal_success_rate"]})
+        print(f"  evaluated {path.name}: {100 * summary['success_rate']:.1f}% "
+              f"[{100 * lo:.1f}, {100 * hi:.1f}]", file=sys.stderr, flush=True)
+    return rows
+
+
+def _fmt(x, spec: str, scale: float = 1.0) -> str:
+    return "-" if x is None else format(scale * x, spec)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("runs", nargs="+", type=Path, help="hier_agents.train --logdir folders")
+    parser.add_argument("--every-frames", type=int, default=1_000_000)
+    parser.add_argument("--eval-episodes", type=int, default=0)
+    parser.add_argument("--stochastic", action="store_true")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--json", type=Path)
+    args = parser.parse_args(argv)
+    if args.every_frames < 1 or args.eval_episodes < 0:
+        parser.error("--every-frames must be >= 1 and --eval-episodes >= 0")
+
+    from hier_agents.impala.learner import load_checkpoint
+
+    out = []
+    for logdir in args.runs:
+        try:
+            config = load_checkpoint(logdir)["config"]
+        except FileNotFoundError:  # a run still before its first checkpoint
+            if args.eval_episodes:
+                raise SystemExit(f"{logdir}: no checkpoint.pt to evaluate yet")
+            config = {k: "?" for k in ("env", "condition", "batch_size", "learning_rate",
+                                       "actors", "envs_per_actor")}
+        result = {"logdir": str(logdir), "env": config["env"],
+                  "condition": config["condition"],
+                  "training": training_curve(logdir, args.every_frames), "evaluation": []}
+        print(f"\n{logdir}: {config['env']} {config['condition']} "
+              f"(batch {config['batch_size'] or 'paper'}, lr {config['learning_rate']}, "
+              f"{config['actors']} actors x {config['envs_per_actor']} envs)")
+        print(f"{'frames':>11} {'wall min':>8} {'train success':>13} {'return':>7} "
+              f"{'ep steps':>8} {'subgoals/ep':>11}")
+        for r in result["training"]:
+            print(f"{r['frames']:>11,} {r['wall_min']:>8.1f} "
+                  f"{_fmt(r['train_success_rate'], '>12.1f', 100)}% "
+                  f"{_fmt(r['train_return'], '>7.2f')} {_fmt(r['episode_steps'], '>8.0f')} "
+                  f"{_fmt(r['subgoals_reached'], '>11.2f')}")
+        if args.eval_episodes:
+            result["evaluation"] = evaluation_curve(logdir, config["env"], args.eval_episodes,
+                                                    args.seed, args.stochastic)
+            mode = "sampled" if args.stochastic else "mean action"
+            print(f"evaluation ({args.eval_episodes} episodes, seed {args.seed}, {mode}):")
+            print(f"{'frames':>11} {'success % [95% CI]':>22} {'return':>7} {'steps':>7}")
+            for r in result["evaluation"]:
+                lo, hi = r["interval"]
+                print(f"{r['frames']:>11,} {100 * r['success_rate']:>6.1f} "
+                      f"[{100 * lo:5.1f},{100 * hi:5.1f}]   {r['mean_return']:>7.2f} "
+                      f"{r['mean_steps']:>7.1f}")
+        out.append(result)
+    if args.json:
+        write_json(args.json, {"every_frames": args.every_frames,
+                               "eval_episodes": args.eval_episodes, "seed": args.seed,
+                               "stochastic": args.stochastic, "runs": out})
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
