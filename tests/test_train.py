@@ -268,3 +268,33 @@ def test_random_agents_play_through_hier_agents_run(tmp_path, capsys):
         with pytest.raises(SystemExit):
             run_lib.main(["mujoban/level1", "--agent", bad])
         assert "random" in capsys.readouterr().err
+
+
+def test_a_dead_or_failing_actor_stops_the_learner_with_a_clear_error():
+    import os
+    import signal
+
+    from hier_agents.impala.actors import ActorConfig, LocalActors
+    from hier_agents.impala.agent_env import AgentEnv
+    from hier_agents.impala.network import ImpalaNet
+
+    with AgentEnv("mujoban/level1", "vanilla", cameras=False) as env:
+        net = ImpalaNet(env.input_spec, two_values=False)
+    actors = LocalActors(ActorConfig("mujoban/level1", "vanilla", unroll_length=5,
+                                     envs_per_actor=1), 2, net)
+    try:
+        assert len(actors.get(timeout=300)) == 1  # working
+        os.kill(actors._procs[1].pid, signal.SIGKILL)
+        actors._procs[1].join(timeout=30)
+        with pytest.raises(RuntimeError, match="exited without reporting"):
+            for _ in range(1000):
+                actors.get(timeout=300)
+    finally:
+        actors.close()
+    bad = LocalActors(ActorConfig("mujoban/level1", "vanilla", envs_per_actor=1,
+                                  env_overrides={"no_such_option": 1}), 1, net)
+    try:
+        with pytest.raises(RuntimeError, match="(?s)actor 0 failed.*no_such_option"):
+            bad.get(timeout=300)
+    finally:
+        bad.close()

@@ -249,21 +249,34 @@ class LocalActors:
         while True:
             if should_stop is not None and should_stop():
                 return None
+            self._check_alive()
             try:
                 kind, actor_id, payload = self._queue.get(timeout=_POLL_S)
                 break
             except queue.Empty:
                 pass
-            dead = [(i, p.exitcode) for i, p in enumerate(self._procs) if not p.is_alive()]
-            if dead and self._queue.empty():
-                raise RuntimeError("actor process(es) exited without reporting an error "
-                                   "(actor id, exit code): " + repr(dead))
             if time.monotonic() > deadline:
                 raise RuntimeError(f"no unroll from any actor within {timeout:.0f} s "
                                    f"(actors alive: {[p.is_alive() for p in self._procs]})")
         if kind == "error":
             raise RuntimeError(f"actor {actor_id} failed:\n{payload}")
         return payload
+
+    def _check_alive(self) -> None:
+        """Raises if an actor process has exited (the learner would starve or skew)."""
+        dead = [(i, p.exitcode) for i, p in enumerate(self._procs) if not p.is_alive()]
+        if not dead:
+            return
+        # A failing actor queues its traceback before it exits: report that first.
+        for _ in range(4 * len(self._procs) + 8):  # what the queue holds, not a live stream
+            try:
+                kind, actor_id, payload = self._queue.get(timeout=_POLL_S)
+            except queue.Empty:
+                break
+            if kind == "error":
+                raise RuntimeError(f"actor {actor_id} failed:\n{payload}")
+        raise RuntimeError("actor process(es) exited without reporting an error "
+                           "(actor id, exit code): " + repr(dead))
 
     def close(self) -> None:
         self._stop.set()
