@@ -15,7 +15,13 @@ For each run directory (a ``--logdir`` of `hier_agents.train`):
    (``checkpoints/frames-*.pt``, written by ``--keep-checkpoints``) and the
    final ``checkpoint.pt`` play N episodes on the same seed through
    `hier_agents.run` (the policy's mean; ``--stochastic`` samples), giving the
-   success rate with its 95% Wilson interval.
+   success rate with its 95% Wilson interval. For MuJoBan planner
+   conditions it also measures the **target sensitivity**: along one
+   greedy episode, the policy's mean action is computed for each of the four
+   possible target moves (the ``planner_action`` one-hot) from the same
+   observation and core state; the spread (standard deviation across the
+   four, averaged over actions and steps) is ~0 for a policy that ignores
+   the planner's target.
 
 Prints the tables and, with ``--json``, writes
 ``{"runs": [{"logdir", "env", "condition", "training": [...], "evaluation": [...]}]}``.
@@ -58,6 +64,41 @@ def training_curve(logdir: Path, every: int) -> list[dict]:
              "episodes": line.get("episodes/count")} for line in picked]
 
 
+def target_sensitivity(path: Path, seed: int, steps: int = 300) -> float | None:
+    """Spread of the greedy action across the four MuJoBan target moves (see above)."""
+    import numpy as np
+    import torch
+
+    from hier_agents.impala.agent_env import AgentEnv
+    from hier_agents.impala.learner import load_checkpoint, net_from_checkpoint
+
+    ckpt = load_checkpoint(path)
+    config = ckpt["config"]
+    net, spec = net_from_checkpoint(ckpt)
+    if spec.planner_action_dim == 0:
+        return None
+    k = spec.planner_action_dim
+    with AgentEnv(config["env"], config["condition"], seed=seed, cameras=config["cameras"],
+                  image_size=config["image_size"], t_abs=config["t_abs"],
+                  abs_reward=config["abs_reward"], **config.get("env_overrides", {})) as env:
+        obs = env.reset()
+        state, first, spreads = net.initial_state(k), np.ones(k, bool), []
+        for _ in range(steps):
+            batch = {name: np.repeat(v[None], k, axis=0) for name, v in obs.items()}
+            batch["planner_action"] = np.eye(k, dtype=np.float32)
+            with torch.no_grad():
+                actions, _, state = net.act(batch, first, state, deterministic=True)
+            first[:] = False
+            spreads.append(float(actions.std(axis=0).mean()))
+            target = obs["planner_action"]
+            # Step with the action of the actual target (the first move's without one).
+            result = env.step(actions[int(target.argmax()) if target.any() else 0])
+            if result.last:
+                break
+            obs = result.obs
+    return float(np.mean(spreads))
+
+
 def evaluation_curve(logdir: Path, env: str, episodes: int, seed: int,
                      stochastic: bool) -> list[dict]:
     from hier_agents.impala.learner import CHECKPOINT, KEPT_CHECKPOINTS
@@ -79,7 +120,8 @@ def evaluation_curve(logdir: Path, env: str, episodes: int, seed: int,
             continue
         seen.add(summary["training_frames"])
         lo, hi = summary.get("success_interval") or summary.get("win_interval")
-        rows.append({"frames": summary["training_frames"], "checkpoint": str(path),
+        sensitivity = target_sensitivity(path, seed)
+        rows.append({"target_sensitivity": sensitivity,"frames": summary["training_frames"], "checkpoint": str(path),
                      "success_rate": summary["success_rate"], "interval": [lo, hi],
                      "mean_return": summary["mean_return"], "mean_steps": summary["mean_steps"],
                      "subgoal_success_rate": summary["subgoal_success_rate"]})
@@ -133,12 +175,14 @@ def main(argv=None) -> int:
                                                     args.seed, args.stochastic)
             mode = "sampled" if args.stochastic else "mean action"
             print(f"evaluation ({args.eval_episodes} episodes, seed {args.seed}, {mode}):")
-            print(f"{'frames':>11} {'success % [95% CI]':>22} {'return':>7} {'steps':>7}")
+            print(f"{'frames':>11} {'success % [95% CI]':>22} {'return':>7} {'steps':>7} "
+                  f"{'subgoal %':>9} {'target sensitivity':>18}")
             for r in result["evaluation"]:
                 lo, hi = r["interval"]
                 print(f"{r['frames']:>11,} {100 * r['success_rate']:>6.1f} "
                       f"[{100 * lo:5.1f},{100 * hi:5.1f}]   {r['mean_return']:>7.2f} "
-                      f"{r['mean_steps']:>7.1f}")
+                      f"{r['mean_steps']:>7.1f} {_fmt(r['subgoal_success_rate'], '>8.1f', 100)}% "
+                      f"{_fmt(r['target_sensitivity'], '>18.4f')}")
         out.append(result)
     if args.json:
         write_json(args.json, {"every_frames": args.every_frames,
