@@ -62,16 +62,17 @@ def main(argv=None) -> int:
         summary.setdefault("training_frames", 0)
         rows.append(summary)
     board = "win_rate" in rows[0]
-    head = (f"{'agent':<44} {'success % [95% CI]':>22} "
+    names = [r["agent"] if r["agent"] == "modular" or r["agent"].startswith("random")
+             else f"{r['agent']} ({r['condition']})" for r in rows]
+    width = max(20, *map(len, names))
+    head = (f"{'agent':<{width}} {'success % [95% CI]':>22} "
             + (f"{'draw %':>7} {'loss %':>7} " if board else "")
             + f"{'steps':>7} {'return':>7} {'s/ep':>6} {'train frames':>13}")
     print(head)
     print("-" * len(head))
-    for r in rows:
+    for name, r in zip(names, rows):
         lo, hi = r.get("success_interval") or r.get("win_interval")
-        name = (r["agent"] if r["agent"] == "modular" or r["agent"].startswith("random")
-                else f"{r['agent']} ({r['condition']})")
-        line = (f"{name[-44:]:<44} {100 * r['success_rate']:>6.1f} [{100 * lo:5.1f},{100 * hi:5.1f}]"
+        line = (f"{name:<{width}} {100 * r['success_rate']:>6.1f} [{100 * lo:5.1f},{100 * hi:5.1f}]"
                 f"{'':>4} ")
         if board:
             line += f"{100 * r['draw_rate']:>7.1f} {100 * r['loss_rate']:>7.1f} "

@@ -131,7 +131,11 @@ def evaluation_curve(logdir: Path, env: str, episodes: int, seed: int,
 
 
 def _fmt(x, spec: str, scale: float = 1.0) -> str:
-    return "-" if x is None else format(scale * x, spec)
+    return format("-", spec.split(".")[0]) if x is None else format(scale * x, spec)
+
+
+def _pct_or_dash(x, width: int) -> str:
+    return f"{'-':>{width}}" if x is None else f"{100 * x:>{width - 1}.1f}%"
 
 
 def main(argv=None) -> int:
@@ -160,6 +164,9 @@ def main(argv=None) -> int:
         result = {"logdir": str(logdir), "env": config["env"],
                   "condition": config["condition"],
                   "training": training_curve(logdir, args.every_frames), "evaluation": []}
+        if config["condition"] == "vanilla":  # no planner, no subgoals
+            for row in result["training"]:
+                row["subgoals_reached"] = None
         print(f"\n{logdir}: {config['env']} {config['condition']} "
               f"(batch {config['batch_size'] or 'paper'}, lr {config['learning_rate']}, "
               f"{config['actors']} actors x {config['envs_per_actor']} envs)")
@@ -167,7 +174,7 @@ def main(argv=None) -> int:
               f"{'ep steps':>8} {'subgoals/ep':>11}")
         for r in result["training"]:
             print(f"{r['frames']:>11,} {r['wall_min']:>8.1f} "
-                  f"{_fmt(r['train_success_rate'], '>12.1f', 100)}% "
+                  f"{_pct_or_dash(r['train_success_rate'], 13)} "
                   f"{_fmt(r['train_return'], '>7.2f')} {_fmt(r['episode_steps'], '>8.0f')} "
                   f"{_fmt(r['subgoals_reached'], '>11.2f')}")
         if args.eval_episodes:
@@ -181,7 +188,7 @@ def main(argv=None) -> int:
                 lo, hi = r["interval"]
                 print(f"{r['frames']:>11,} {100 * r['success_rate']:>6.1f} "
                       f"[{100 * lo:5.1f},{100 * hi:5.1f}]   {r['mean_return']:>7.2f} "
-                      f"{r['mean_steps']:>7.1f} {_fmt(r['subgoal_success_rate'], '>8.1f', 100)}% "
+                      f"{r['mean_steps']:>7.1f} {_pct_or_dash(r['subgoal_success_rate'], 9)} "
                       f"{_fmt(r['target_sensitivity'], '>18.4f')}")
         out.append(result)
     if args.json:
