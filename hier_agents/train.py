@@ -40,7 +40,8 @@ def main(argv=None) -> int:
     parser.add_argument("--steps", type=int, default=1_000_000,
                         help="environment frames (control steps) to train for, in total")
     parser.add_argument("--actors", type=int, default=2, help="actor processes / Ray actors")
-    parser.add_argument("--envs-per-actor", type=int, default=16)
+    parser.add_argument("--envs-per-actor", type=int, default=32,
+                        help="environments stepped together by one actor (one batched policy call)")
     parser.add_argument("--backend", default="local", help="local or ray")
     parser.add_argument("--ray-address", default=None,
                         help="join a running Ray cluster (e.g. auto); default: start one")

@@ -298,3 +298,24 @@ def test_a_dead_or_failing_actor_stops_the_learner_with_a_clear_error():
             bad.get(timeout=300)
     finally:
         bad.close()
+
+
+def test_learner_speed_benchmark_writes_its_row(tmp_path):
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    out = tmp_path / "speed.json"
+    subprocess.run([sys.executable, str(root / "benchmarks" / "learner_speed.py"),
+                    "--frames", "10000", "--actors", "1", "--envs-per-actor", "2",
+                    "--batch-size", "2", "--bare-steps", "200", "--json", str(out)],
+                   check=True, capture_output=True, cwd=root)
+    row = json.loads(out.read_text())
+    assert row["env"] == "mujoban/level1" and row["actors"] == 1
+    assert row["frames"] >= 10000 and row["updates"] == row["frames"] // 200
+    for key in ("learner_frames_per_s", "env_steps_per_s", "parallel_env_steps_per_s"):
+        assert row[key] > 0, key
+    assert row["ratio"] == pytest.approx(row["learner_frames_per_s"] / row["env_steps_per_s"])
+    assert row["ratio_to_parallel"] == pytest.approx(
+        row["learner_frames_per_s"] / row["parallel_env_steps_per_s"])
