@@ -11,9 +11,10 @@ floor a trained agent must clear). Every agent plays ``--episodes`` episodes
 in an environment built with the same ``--seed`` (the same level or opening
 sequence as long as the environment's random draws do not depend on the
 agent's play). One row per agent: success rate (MuJoBan: solved; board
-games: won) with its 95% Wilson interval, draw and loss rates for board games, mean control steps, mean return, wall
-seconds per episode and the training frames the agent used (0 for the
-modular agent, which is not trained).
+games: won) with its 95% Wilson interval, draw and loss rates for board
+games, mean control steps, mean return, wall seconds per episode and the
+training frames the agent used (0 for the modular agent, which is not
+trained).
 """
 
 from __future__ import annotations

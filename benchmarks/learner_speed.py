@@ -42,9 +42,7 @@ import envs  # noqa: E402
 
 
 def _make_env(name: str, cameras: bool, seed: int):
-    overrides = {} if cameras else {k: None for k in envs.overrides(name)
-                                    if k.endswith("_camera")}
-    return envs.load(name, seed=seed, **overrides)
+    return envs.load(name, seed=seed, **({} if cameras else envs.no_cameras(name)))
 
 
 def _random_steps(env, steps: int, rng) -> float:

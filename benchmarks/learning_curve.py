@@ -120,11 +120,11 @@ def evaluation_curve(logdir: Path, env: str, episodes: int, seed: int,
             continue
         seen.add(summary["training_frames"])
         lo, hi = summary.get("success_interval") or summary.get("win_interval")
-        sensitivity = target_sensitivity(path, seed)
-        rows.append({"target_sensitivity": sensitivity,"frames": summary["training_frames"], "checkpoint": str(path),
+        rows.append({"frames": summary["training_frames"], "checkpoint": str(path),
                      "success_rate": summary["success_rate"], "interval": [lo, hi],
                      "mean_return": summary["mean_return"], "mean_steps": summary["mean_steps"],
-                     "subgoal_success_rate": summary["subgoal_success_rate"]})
+                     "subgoal_success_rate": summary["subgoal_success_rate"],
+                     "target_sensitivity": target_sensitivity(path, seed)})
         print(f"  evaluated {path.name}: {100 * summary['success_rate']:.1f}% "
               f"[{100 * lo:.1f}, {100 * hi:.1f}]", file=sys.stderr, flush=True)
     return rows

@@ -24,8 +24,7 @@ import envs
 
 
 def rollout(name: str, episodes: int, seed: int, cameras: bool) -> list[dict]:
-    overrides = {} if cameras else {k: None for k in envs.overrides(name) if k.endswith("_camera")}
-    env = envs.load(name, seed=seed, **overrides)
+    env = envs.load(name, seed=seed, **({} if cameras else envs.no_cameras(name)))
     spec = env.action_spec()
     rng = np.random.default_rng(seed)
     rows = []

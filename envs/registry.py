@@ -50,6 +50,12 @@ def overrides(name: str) -> list[str]:
     return sorted(p for p in params if p not in entry.kwargs and p != "seed")
 
 
+def no_cameras(name: str) -> dict[str, None]:
+    """The overrides that turn off every camera of `name` (nothing is rendered):
+    ``envs.load(name, **envs.no_cameras(name))``."""
+    return {k: None for k in overrides(name) if k.endswith("_camera")}
+
+
 def load(name: str, seed: int | None = None, **kwargs) -> Environment:
     """Builds the named environment as a dm_env ``Environment``.
 

@@ -34,10 +34,6 @@ DEFAULT_ENV = "mujoban/level3"
 DEFAULT_EPISODES = 5
 
 
-def _camera_overrides(name: str) -> dict:
-    return {k: None for k in envs.overrides(name) if k.endswith("_camera")}
-
-
 def run(env_name: str, episodes: int, seed: int = 0, *, planner: str | None = None,
         skill: str | None = None, estimator: str | None = None, levels: str | None = None,
         video: str | None = None, progress: bool = True, agent: str = "modular",
@@ -53,7 +49,7 @@ def run(env_name: str, episodes: int, seed: int = 0, *, planner: str | None = No
     if agent != "modular":
         return _run_policy(env_name, fam, episodes, seed, agent, levels, video, progress,
                            stochastic)
-    overrides = _camera_overrides(env_name)
+    overrides = envs.no_cameras(env_name)
     if levels is not None:
         if fam != "mujoban":
             raise ValueError("--levels only applies to mujoban environments")

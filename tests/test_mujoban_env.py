@@ -199,6 +199,8 @@ def test_cameras_are_observed_at_their_size_and_can_be_switched_off():
     assert obs["top_camera"].std() > 5  # an image, not a blank buffer
     off = envs.load("mujoban/level2", seed=1, **NO_CAMERAS).reset().observation
     assert "top_camera" not in off and "walker/egocentric_camera" not in off
+    assert envs.no_cameras("mujoban/level2") == NO_CAMERAS
+    assert envs.no_cameras("mujoxo/mixture") == {"front_camera": None}
     for key in ("walker/joints_pos", "walker/joints_vel", "walker/sensors_touch",
                 "walker/sensors_accelerometer", "walker/sensors_gyro",
                 "walker/sensors_velocimeter", "walker/orientation", "full_entity_layer",

@@ -60,8 +60,7 @@ def play_random(env_name: str, episodes: int, seed: int = 0, *, hold: int = 1,
     from hier_agents.components import family
 
     fam = family(env_name)
-    env = envs.load(env_name, seed=seed,
-                    **{k: None for k in envs.overrides(env_name) if k.endswith("_camera")})
+    env = envs.load(env_name, seed=seed, **envs.no_cameras(env_name))
     spec = env.action_spec()
     low, high = np.broadcast_to(spec.minimum, spec.shape), np.broadcast_to(spec.maximum, spec.shape)
     rng = np.random.default_rng(seed)
