@@ -143,7 +143,8 @@ class GnuGoPlanner(Planner):
       board_size, komi: the game GNU Go is set up for; `plan` raises
         ValueError for a state of another board size or komi.
       timeout: seconds per GTP command (see `GTPClient`).
-      command: the engine command line (default ``gnugo --mode gtp``).
+      command: the engine command line (default ``gnugo --mode gtp
+        --chinese-rules --capture-all-dead``, `gtp.GNUGO_FLAGS`).
       seed: GNU Go's random seed (``set_random_seed``); None keeps GNU Go's
         default. ``reset(seed)`` sets it too.
       cleanup: ask with ``kgs-genmove_cleanup`` (default True): GNU Go then

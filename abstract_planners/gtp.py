@@ -108,9 +108,15 @@ def find_gnugo() -> str:
     )
 
 
+#: GNU Go's flags as the original MuJoGo ran it: area (Chinese) scoring, which
+#: agrees with the Tromp-Taylor scoring of the game, and dead stones captured
+#: before the engine passes.
+GNUGO_FLAGS = ("--mode", "gtp", "--chinese-rules", "--capture-all-dead")
+
+
 def default_gnugo_command() -> list[str]:
-    """``[<gnugo>, "--mode", "gtp"]`` with the executable resolved by `find_gnugo`."""
-    return [find_gnugo(), "--mode", "gtp"]
+    """``[<gnugo>, *GNUGO_FLAGS]`` with the executable resolved by `find_gnugo`."""
+    return [find_gnugo(), *GNUGO_FLAGS]
 
 
 class _EngineDied(Exception):
@@ -127,7 +133,8 @@ class GTPClient:
 
     Args:
       command: the engine command line (a list of strings, or a string split
-        on whitespace); default ``gnugo --mode gtp`` (see `find_gnugo`).
+        on whitespace); default ``gnugo --mode gtp --chinese-rules
+        --capture-all-dead`` (see `find_gnugo`, `GNUGO_FLAGS`).
       timeout: seconds to wait for each reply (> 0). A command that times out
         kills the engine and raises `GTPError`.
       name: a label used in error messages.

@@ -210,13 +210,22 @@ def test_gnugo_passes_when_pass_is_the_only_legal_move():
 
 
 @needs_gnugo
-def test_gnugo_passes_at_a_settled_position():
-    # Black owns columns A-C, White D-E: nothing left to play.
+def test_default_gnugo_plays_the_original_rules():
+    # The original MuJoGo ran GNU Go with area scoring and dead-stone capture.
+    assert gtp.default_gnugo_command()[1:] == ["--mode", "gtp", "--chinese-rules",
+                                               "--capture-all-dead"]
+
+
+@needs_gnugo
+def test_gnugo_with_territory_scoring_passes_at_a_settled_position():
+    # Black owns columns A-C, White D-E: nothing left to play. (Under area
+    # scoring, the default, GNU Go may also fill its own area at no cost.)
     walls = []
     for row in range(1, 6):
         walls += [f"C{row}", f"D{row}"]
     state = state_after(go_game(5, 5.5), walls)
-    with GnuGoPlanner(board_size=5, cleanup=False) as gnugo:
+    territory = [gtp.find_gnugo(), "--mode", "gtp"]
+    with GnuGoPlanner(board_size=5, cleanup=False, command=territory) as gnugo:
         assert gnugo.plan(state).action == 25
         after_pass = state.child(25)
         assert gnugo.plan(after_pass).action == 25  # and White passes back
