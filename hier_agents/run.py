@@ -261,6 +261,8 @@ def main(argv=None) -> int:
         parser.error(str(exc))
     print(format_table(summary))
     if args.json:
+        from hier_agents.provenance import provenance
+        summary["provenance"] = provenance()
         with open(args.json, "w") as f:
             json.dump(summary, f, indent=2)
         print(f"wrote {args.json}")

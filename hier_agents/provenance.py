@@ -1,0 +1,85 @@
+"""Where a result came from: command, commit, date and machine.
+
+Every result JSON the library writes (``hier_agents.run --json``, the
+benchmarks) carries this record under ``"provenance"``, so that a reader can
+rerun the command on the same commit and compare machines.
+"""
+
+from __future__ import annotations
+
+import datetime
+import os
+import platform
+import shlex
+import subprocess
+import sys
+from pathlib import Path
+
+_ROOT = Path(__file__).resolve().parents[1]
+
+
+def _git(*args: str) -> str | None:
+    try:
+        out = subprocess.run(["git", *args], cwd=_ROOT, capture_output=True, text=True,
+                             timeout=10, check=True)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return out.stdout.strip()
+
+
+def _cpu_model() -> str:
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def _memory_gib() -> float | None:
+    try:
+        return round(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") / 2**30, 1)
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def provenance(command: str | None = None) -> dict:
+    """The record of this process: ``command``, ``commit``, ``date``, ``machine``.
+
+    Args:
+      command: the command line to record; defaults to ``python`` followed by
+        this process's arguments (``python -m pkg.mod`` for modules run with -m).
+
+    ``commit`` is the checkout's HEAD with ``+dirty`` appended when tracked
+    files differ from it, or None outside a git checkout.
+    """
+    if command is None:
+        argv = list(sys.argv)
+        main = sys.modules.get("__main__")
+        spec = getattr(main, "__spec__", None)
+        if spec is not None and spec.name and not spec.name.startswith("pytest"):
+            argv[0:1] = ["-m", spec.name.removesuffix(".__main__")]
+        elif argv and Path(argv[0]).is_absolute():
+            try:
+                argv[0] = str(Path(argv[0]).resolve().relative_to(_ROOT))
+            except ValueError:
+                pass
+        command = "python " + " ".join(shlex.quote(a) for a in argv)
+    commit = _git("rev-parse", "HEAD")
+    if commit is not None and _git("status", "--porcelain", "--untracked-files=no"):
+        commit += "+dirty"
+    import mujoco  # the simulator version matters for every physics number
+    return {
+        "command": command,
+        "commit": commit,
+        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "machine": {
+            "cpu": _cpu_model(),
+            "cores": os.cpu_count(),
+            "memory_gib": _memory_gib(),
+            "python": platform.python_version(),
+            "mujoco": mujoco.__version__,
+        },
+    }
