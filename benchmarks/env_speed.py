@@ -11,18 +11,34 @@ For each environment and camera setting this measures
   stepping alternate in chunks of 50 steps so both see the same machine load;
 * ``ratio`` = steps_per_s / physics_limit_steps_per_s;
 * ``reset_s``: mean wall time of ``env.reset()`` after the first one (the
-  first also creates the GL contexts and is reported as ``first_reset_s``).
+  first also creates the GL contexts and is reported as ``first_reset_s``);
+* ``x_original``: steps_per_s over the original implementation's figure for
+  the same setting (DeepMind's physics_planning_games on a machine like ours:
+  MuJoBan ~53 control steps/s without cameras and ~40 with the 96x96 top
+  camera, the board games ~8 with two 84x84 cameras), given only when the
+  row runs at the original's physics timestep (1 ms MuJoBan, 2 ms board
+  games); at any other timestep it is None, as the work per step differs.
+
+Environments run at their defaults, which are the original's physics
+timesteps; ``--physics-timestep`` measures another (e.g. 0.005) on purpose.
+The board games observe one 84x84 front camera (the paper's); the original
+code renders two, so the ``front_camera+second_view`` setting renders a
+second 84x84 view of the same camera per step (``env.render``) to compare
+like for like with its ~8 steps/s.
 
     python benchmarks/env_speed.py [--json PATH] [--steps N] [--envs NAME ...]
+        [--cameras SETTING ...] [--physics-timestep S]
 
-Prints a table and, with --json, writes a list of rows with keys env, cameras,
-steps_per_s, physics_limit_steps_per_s, ratio, reset_s (plus first_reset_s,
+Prints a table and, with --json, writes ``{"provenance": {...}, "rows": [...]}``;
+each row has env, cameras, physics_timestep, steps_per_s,
+physics_limit_steps_per_s, ratio, x_original, reset_s (plus first_reset_s,
 steps, build_s).
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
 from pathlib import Path
@@ -30,6 +46,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from _common import write_json  # noqa: E402
+from hier_agents.provenance import provenance  # noqa: E402
 
 import envs  # noqa: E402
 import mujoco  # noqa: E402
@@ -50,7 +67,18 @@ CAMERA_SETTINGS = {
     "boards": {
         "none": dict(front_camera=None),
         "front_camera": dict(front_camera=(84, 84)),
+        # The original code's observation set: two 84x84 views.
+        "front_camera+second_view": dict(front_camera=(84, 84)),
     },
+}
+#: The original implementation's physics timestep per family (seconds).
+ORIGINAL_TIMESTEP = {"mujoban": 0.001, "boards": 0.002}
+#: The original implementation's control steps/s on a 2-core machine like
+#: ours, per (family, camera setting) it was measured with.
+ORIGINAL_STEPS_PER_S = {
+    ("mujoban", "none"): 53.0,
+    ("mujoban", "top_camera"): 40.0,
+    ("boards", "front_camera+second_view"): 8.0,
 }
 
 
@@ -64,10 +92,17 @@ def _actions(n: int, dim: int, seed: int) -> np.ndarray:
     return np.repeat(held, 10, axis=0)[:n]
 
 
-def measure(name: str, cameras: str, steps: int, seed: int = 0) -> dict:
+def measure(name: str, cameras: str, steps: int, seed: int = 0,
+            physics_timestep: float | None = None) -> dict:
+    family = _family(name)
+    overrides = dict(CAMERA_SETTINGS[family][cameras])
+    if physics_timestep is not None:
+        overrides["physics_timestep"] = physics_timestep
+    second_view = cameras.endswith("+second_view")
     t0 = time.perf_counter()
-    env = envs.load(name, seed=seed, **CAMERA_SETTINGS[_family(name)][cameras])
+    env = envs.load(name, seed=seed, **overrides)
     build_s = time.perf_counter() - t0
+    timestep_s = float(env.task.physics_timestep)
     actions = _actions(steps, env.action_spec().shape[0], seed)
     model, data = env.physics.model.ptr, env.physics.data.ptr
     n_sub = env.task.physics_steps_per_control_step
@@ -93,6 +128,8 @@ def measure(name: str, cameras: str, steps: int, seed: int = 0) -> dict:
         t = time.perf_counter()
         for i in range(done, done + n):
             timestep = env.step(actions[i])
+            if second_view:
+                env.render("front_camera", 84, 84)
             if timestep.last():
                 n = i - done + 1
                 break
@@ -110,13 +147,18 @@ def measure(name: str, cameras: str, steps: int, seed: int = 0) -> dict:
     env.close()
     steps_per_s = steps / env_time
     limit_per_s = steps / raw_time
+    original = ORIGINAL_STEPS_PER_S.get((family, cameras))
+    same_timestep = math.isclose(timestep_s, ORIGINAL_TIMESTEP[family])
     return {
         "env": name,
         "cameras": ([] if cameras == "none"
                     else cameras.replace("egocentric", "walker/egocentric_camera").split("+")),
+        "physics_timestep": timestep_s,
         "steps_per_s": round(steps_per_s, 1),
         "physics_limit_steps_per_s": round(limit_per_s, 1),
         "ratio": round(steps_per_s / limit_per_s, 3),
+        "x_original": (round(steps_per_s / original, 1)
+                       if original is not None and same_timestep else None),
         "reset_s": round(float(np.mean(reset_times)), 5),
         "first_reset_s": round(first_reset_s, 4),
         "build_s": round(build_s, 3),
@@ -131,14 +173,21 @@ def main(argv=None) -> int:
     parser.add_argument("--envs", nargs="*", default=MUJOBAN + BOARDS,
                         help="environment names")
     all_settings = sorted({k for family in CAMERA_SETTINGS.values() for k in family})
-    parser.add_argument("--cameras", nargs="*", default=["none", "top_camera", "front_camera"],
+    parser.add_argument("--cameras", nargs="*",
+                        default=["none", "top_camera", "front_camera", "front_camera+second_view"],
                         choices=all_settings)
+    parser.add_argument("--physics-timestep", type=float, default=None,
+                        help="physics timestep in seconds (default: each environment's own, "
+                             "the original's); x_original is only given at the original's")
     args = parser.parse_args(argv)
+    if args.physics_timestep is not None and not args.physics_timestep > 0:
+        parser.error(f"--physics-timestep must be positive, got {args.physics_timestep}")
     unknown = [n for n in args.envs if n not in envs.names()]
     if unknown:
         parser.error(f"unknown environments {unknown}; known: {envs.names()}")
 
-    header = f"{'env':<24} {'cameras':<22} {'steps/s':>9} {'limit/s':>9} {'ratio':>6} {'reset ms':>9}"
+    header = (f"{'env':<22} {'cameras':<26} {'dt ms':>5} {'steps/s':>9} {'limit/s':>9} "
+              f"{'ratio':>6} {'x orig':>7} {'reset ms':>9}")
     print(header)
     print("-" * len(header))
     rows = []
@@ -146,13 +195,14 @@ def main(argv=None) -> int:
         for cameras in args.cameras:
             if cameras not in CAMERA_SETTINGS[_family(name)]:
                 continue
-            row = measure(name, cameras, args.steps)
+            row = measure(name, cameras, args.steps, physics_timestep=args.physics_timestep)
             rows.append(row)
-            print(f"{name:<24} {cameras:<22} {row['steps_per_s']:>9.1f} "
-                  f"{row['physics_limit_steps_per_s']:>9.1f} {row['ratio']:>6.2f} "
-                  f"{row['reset_s'] * 1e3:>9.2f}", flush=True)
+            x_orig = "-" if row["x_original"] is None else f"{row['x_original']:.1f}"
+            print(f"{name:<22} {cameras:<26} {row['physics_timestep'] * 1e3:>5.1f} "
+                  f"{row['steps_per_s']:>9.1f} {row['physics_limit_steps_per_s']:>9.1f} "
+                  f"{row['ratio']:>6.2f} {x_orig:>7} {row['reset_s'] * 1e3:>9.2f}", flush=True)
     if args.json:
-        write_json(args.json, rows)
+        write_json(args.json, {"provenance": provenance(), "rows": rows})
     return 0
 
 
