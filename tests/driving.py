@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 CELL = 1.0
-BOX_HALF = 0.38
+BOX_HALF = 0.4
 BALL_RADIUS = 0.2
 
 

@@ -27,14 +27,20 @@ def make(*, difficulty: int | None = None, pegs: bool = False, seed: int | None 
          levels: str | os.PathLike | None = None, level_order: str = "sequential",
          grid_shape=sources.ARENA_SHAPE, top_camera=(96, 96), egocentric_camera=(96, 96),
          randomize_appearance: bool = True, time_limit: float = 45.0,
-         control_timestep: float = 0.05, physics_timestep: float = 0.005,
-         pad_tolerance: float = 0.3, render_size=(256, 256),
+         control_timestep: float = 0.05, physics_timestep: float = 0.001,
+         pad_tolerance: float = 0.1, render_size=(256, 256),
          raise_on_physics_error: bool = True) -> Environment:
     """Builds a MuJoBan environment.
 
+    The defaults are the original task (physics_planning_games' MuJoBan, with
+    the paper's 0.05 s control step): 1 ms physics steps, boxes of half-size
+    0.4 m sliding on floor friction, pegs that block boxes and walker, and a
+    pad covered while a box centre is within 0.1 cells of it along both axes.
+    See `envs.mujoban.task` for the full list.
+
     Args:
       difficulty: 1-5 for one paper difficulty, None for the curriculum.
-      pegs: grid pegs that block diagonal box motion.
+      pegs: grid pegs that block diagonal box motion (and the walker).
       seed: random seed (levels, colours, initial heading).
       levels: a Boxoban-format file whose levels are played instead of
         generated ones.
@@ -44,6 +50,16 @@ def make(*, difficulty: int | None = None, pegs: bool = False, seed: int | None 
       top_camera, egocentric_camera: ``(height, width)`` or None to switch off.
       randomize_appearance: new wall/floor textures and colours every episode.
       time_limit: seconds (45 s = 900 control steps of 0.05 s).
+      control_timestep: seconds per agent action (the paper's 0.05).
+      physics_timestep: seconds per MuJoCo step; default 0.001 (the
+        original's). ``0.005`` is a documented deviation: 5x cheaper physics,
+        slightly different contact dynamics.
+      pad_tolerance: cells (along both axes) a box centre may be from a pad
+        centre while covering it; default 0.1 (the original's full-cell pad
+        and 0.4 m box). ``0.3`` is the more lenient deviation.
+      render_size: largest ``(height, width)`` of `Environment.render` frames.
+      raise_on_physics_error: raise on a diverging simulation (else the
+        episode ends with discount 0).
     """
     if levels is not None:
         if level_order not in ("sequential", "shuffle"):

@@ -12,9 +12,10 @@ step or frame, never anything that would need a recompile:
   shows its collision cells instead);
 * **pads**: render-only flat geoms, moved onto the level's targets; the task
   recolours them while a box covers them;
-* **pegs** (optional): one hidden collision cylinder at every interior grid
-  intersection, colliding with boxes only (the walker rolls through), drawn by
-  a single mesh;
+* **pegs** (optional): as in the original task, a square post (0.05 m from
+  its centre to each corner, 0.25 m tall) turned 45 degrees at every interior
+  grid intersection, colliding with the walker and the boxes; the collision
+  geoms are hidden and all pegs are drawn by a single mesh;
 * wall and floor appearance: several textured materials compiled in; each
   episode picks one for the walls and one for the floor and tints it.
 
@@ -39,8 +40,17 @@ FLOOR_BIT = 4
 HIDDEN_GROUP = 5  # not drawn by default scene options (groups 0-2 are)
 
 WALL_HEIGHT = 1.0
+#: Pegs (the original's ``_PEG_SIZE``, ``_PEG_HEIGHT``, ``_PEG_ANGLE``): a box
+#: geom of half-sizes PEG_RADIUS/sqrt(2) x PEG_RADIUS/sqrt(2) x PEG_HEIGHT/2
+#: turned 45 degrees about z, so its corners lie PEG_RADIUS from its axis,
+#: pointing along the grid lines.
 PEG_RADIUS = 0.05
-PEG_HEIGHT = 0.15
+PEG_HEIGHT = 0.25
+PEG_RGBA = (0.5, 0.5, 0.5, 1.0)
+#: Top camera as dm_control's ``MazeWithTargets``: 100 m above the centre,
+#: looking down, its field of view fitting 1.1 times the larger grid side.
+TOP_CAMERA_DISTANCE = 100.0
+TOP_CAMERA_PADDING = 1.1
 PAD_RGBA = (0.8, 0.2, 0.2, 1.0)          # a target pad with no box on it
 PAD_COVERED_RGBA = (0.2, 0.8, 0.2, 1.0)  # a target pad covered by a box
 
@@ -104,7 +114,7 @@ class MujobanArena(composer.Arena):
     """The maze arena. See the module docstring for what changes per episode."""
 
     def _build(self, grid_shape=(10, 10), max_boxes=4, cell_size=1.0, pegs=False,
-               top_camera_fovy=45.0, offscreen_size=(256, 256), wall_slabs=32,
+               offscreen_size=(256, 256), wall_slabs=32,
                name="mujoban"):
         self._mjcf_root = mjcf.RootElement(model=name)
         height, width = grid_shape
@@ -156,13 +166,16 @@ class MujobanArena(composer.Arena):
         self.floor = root.worldbody.add(
             "geom", name="floor", type="plane", size=(half_w + 2, half_h + 2, 0.5),
             material=self.floor_materials[0], contype=FLOOR_BIT, conaffinity=WALKER_BIT,
-            condim=3, friction=(1.0, 0.02, 0.01))
+            # MuJoCo's default geom friction, as dm_control's maze floor; the
+            # boxes touch the floor only through the task's contact pairs.
+            condim=3, friction=(1.0, 0.005, 0.0001))
 
-        extent = max(height, width) * cell_size / 2 + 0.1 * cell_size
-        cam_z = extent / np.tan(np.deg2rad(top_camera_fovy) / 2)
+        maze_size = max(height, width) * cell_size
+        fovy = float(np.rad2deg(2 * np.arctan2(TOP_CAMERA_PADDING * maze_size / 2,
+                                               TOP_CAMERA_DISTANCE)))
         self.top_camera = root.worldbody.add(
-            "camera", name="top_camera", pos=(0, 0, cam_z), xyaxes=(1, 0, 0, 0, 1, 0),
-            fovy=top_camera_fovy)
+            "camera", name="top_camera", pos=(0, 0, TOP_CAMERA_DISTANCE),
+            xyaxes=(1, 0, 0, 0, 1, 0), fovy=fovy)
 
         hc = cell_size / 2
         self.wall_cells = []  # [row][col] collision geoms
@@ -190,7 +203,7 @@ class MujobanArena(composer.Arena):
             for i in range(min(int(wall_slabs), height * width))]
         self.pads = [
             root.worldbody.add("geom", name=f"pad_{i}", type="box",
-                               size=(0.45 * cell_size, 0.45 * cell_size, 0.004),
+                               size=(0.5 * cell_size, 0.5 * cell_size, 0.004),
                                pos=(0, 0, -10), group=HIDDEN_GROUP, contype=0, conaffinity=0,
                                rgba=PAD_RGBA)
             for i in range(self.max_boxes)]
@@ -203,15 +216,18 @@ class MujobanArena(composer.Arena):
                     x, y = self.cell_centre(r, c)
                     x, y = x - hc, y + hc  # top-left corner of cell (r, c)
                     centres.append((x, y))
+                    half = PEG_RADIUS / np.sqrt(2)
                     self.pegs.append(root.worldbody.add(
-                        "geom", name=f"peg_{r}_{c}", type="cylinder",
-                        size=(PEG_RADIUS, PEG_HEIGHT / 2), pos=(x, y, PEG_HEIGHT / 2),
+                        "geom", name=f"peg_{r}_{c}", type="box",
+                        size=(half, half, PEG_HEIGHT / 2), pos=(x, y, PEG_HEIGHT / 2),
+                        quat=(np.cos(np.pi / 8), 0, 0, np.sin(np.pi / 8)),
                         group=HIDDEN_GROUP, rgba=(0, 0, 0, 0),
-                        contype=0, conaffinity=BOX_BIT))
-            vert, face = _peg_mesh(np.asarray(centres), PEG_RADIUS, PEG_HEIGHT)
+                        contype=0, conaffinity=WALKER_BIT | BOX_BIT, condim=3))
+            # Four sides with corners on the grid lines: the turned square.
+            vert, face = _peg_mesh(np.asarray(centres), PEG_RADIUS, PEG_HEIGHT, sides=4)
             root.asset.add("mesh", name="pegs_mesh", vertex=vert, face=face)
             root.worldbody.add("geom", name="pegs_visual", type="mesh", mesh="pegs_mesh",
-                               contype=0, conaffinity=0, rgba=(0.25, 0.25, 0.3, 1),
+                               contype=0, conaffinity=0, rgba=PEG_RGBA,
                                mass=0, density=0)
 
     def cell_centre(self, row: int, col: int) -> tuple[float, float]:

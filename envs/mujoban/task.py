@@ -1,19 +1,42 @@
 """The MuJoBan task: Sokoban played by a rolling ball in a 3D maze.
 
-Rules (Mirza et al. 2020, section "MuJoBan"):
+Rules and physics are those of the original implementation
+(physics_planning_games' ``mujoban``), with the paper's 0.05 s control step
+(Mirza et al. 2020, section "MuJoBan" and appendix):
 
 * reward +1 at the control step a box comes to cover a target pad, -1 when a
   box leaves one, 0 otherwise; when every pad is covered the episode ends and
   that step's reward additionally carries a +10 bonus (so it is 11 when the
   last box arrives, the +1 shaping for that box plus the bonus);
 * a pad counts as covered while some box centre lies within ``pad_tolerance``
-  (default 0.3 cells) of the pad centre along both axes; the pad turns green;
-* episodes last 45 s (900 control steps of 0.05 s), and end early with
-  discount 0 if the walker falls over (its head tilts past 60 degrees or it
-  leaves the floor);
+  (default 0.1 cells) of the pad centre along both axes; the pad turns green.
+  The default is the original's rule: a full-cell pad (half-size 0.5) is
+  activated by a box (half-size 0.4) lying entirely on it, with detection
+  tolerance 0, i.e. within 0.5 - 0.4 = 0.1 m;
+* boxes (half-size 0.4 x 0.4, half-height 0.15 m, 2.5 kg) slide on three
+  slide joints without rotating, on floor friction 0.5 (a box-floor contact
+  pair, ``condim=6``); the walker meets them, walls and pegs with friction 1;
+* physics steps of 1 ms, 50 per control step of 0.05 s; episodes last 45 s
+  (900 control steps), then truncation (discount 1);
+* the episode terminates (discount 0) when solved, or when the walker's
+  ``aliveness`` drops below -0.5 (the original's rule; the rolling ball's
+  aliveness is always 0, so for it only solving ends an episode early);
+* the walker starts in the level's player cell with a heading drawn
+  uniformly in [-pi, pi);
 * the abstract state (``full_entity_layer``) rounds every box to its nearest
   cell first, then the walker; if the walker's cell holds a box, the walker
   keeps its previous cell (the paper's appendix).
+
+Pads are evaluated once per control step, after its last physics substep. The
+original updates pad activation after every substep, but its rewards, its
+solved test and its termination read only the activation left by the last
+substep (its ``after_step`` and ``get_reward``), so checking at the end of
+the control step gives the same rewards, discounts and episode ends.
+
+Deviations from the original are explicit options of `Mujoban` (and of
+`envs.mujoban.make`): ``physics_timestep=0.005`` (5x cheaper physics, the
+value used before this package followed the original), ``pad_tolerance=0.3``
+(a more lenient pad), ``control_timestep``.
 """
 
 from __future__ import annotations
@@ -21,13 +44,13 @@ from __future__ import annotations
 from typing import Callable, Mapping
 
 import numpy as np
-from dm_control.locomotion.walkers import jumping_ball
+from dm_control.locomotion.walkers import jumping_ball, legacy_base
 from dm_env import specs
 
 from envs.core import PhysicsTask
 from envs.mujoban import arena as arena_lib
 from envs.mujoban.levels import Level, LevelError
-from envs.mujoban.props import Box
+from envs.mujoban.props import BOX_FLOOR_FRICTION, Box
 from envs.rendering import CameraConfig
 
 #: Channels of ``full_entity_layer``.
@@ -48,6 +71,14 @@ PIXEL_COLOURS = {
 LevelSource = Callable[[np.random.Generator], Level]
 
 _PARKED_Z = -20.0
+#: Aliveness in [-1, 0] below which the walker counts as dead (the original's
+#: ``_ALIVE_THRESHOLD``).
+ALIVE_THRESHOLD = -0.5
+#: Damping (N s/m) of the joints of a box the level does not use: it stays
+#: parked in the air outside the arena (sinking ~1 mm per episode under
+#: MuJoCo's implicit damping) instead of resting on the floor, which would
+#: cost contacts.
+_PARKED_DAMPING = 1e6
 
 
 def _as_slice(index: np.ndarray):
@@ -70,12 +101,16 @@ class Mujoban(PhysicsTask):
         (centred), larger ones raise `LevelError`.
       max_boxes: how many boxes (and pads) the arena holds.
       pegs: add pegs at every interior grid intersection (block diagonal box
-        motion; the walker rolls through them).
+        motion, and block the walker too, as in the original).
       top_camera: ``(height, width)`` of the top-down RGB camera, or None.
       egocentric_camera: ``(height, width)`` of the walker's camera, or None.
       randomize_appearance: sample wall and floor textures/colours every episode.
-      control_timestep, physics_timestep, time_limit: seconds.
-      pad_tolerance: see the module docstring, in cells.
+      control_timestep, physics_timestep, time_limit: seconds. The
+        defaults are the paper's 0.05 s control step and the original's 1 ms
+        physics step; ``physics_timestep=0.005`` is the cheaper deviation.
+      pad_tolerance: how far (in cells, along both axes) a box centre may be
+        from a pad centre to cover it. Default 0.1, the original's; 0.3 is
+        the more lenient deviation.
       wall_slabs: size of the pool of render-only wall rectangles (levels
         needing more are drawn cell by cell).
       walker: a locomotion walker to use instead of the rolling ball (advanced;
@@ -84,8 +119,8 @@ class Mujoban(PhysicsTask):
 
     def __init__(self, level_source: LevelSource, *, grid_shape=(10, 10), max_boxes=4,
                  pegs=False, top_camera=(96, 96), egocentric_camera=(96, 96),
-                 randomize_appearance=True, control_timestep=0.05, physics_timestep=0.005,
-                 time_limit=45.0, pad_tolerance=0.3, cell_size=1.0, render_size=(256, 256),
+                 randomize_appearance=True, control_timestep=0.05, physics_timestep=0.001,
+                 time_limit=45.0, pad_tolerance=0.1, cell_size=1.0, render_size=(256, 256),
                  wall_slabs=32, walker=None):
         if not callable(level_source):
             raise TypeError("level_source must be callable as level_source(rng) -> Level")
@@ -114,13 +149,17 @@ class Mujoban(PhysicsTask):
 
         self._boxes = []
         self._box_joints = []
+        sliding, torsional, rolling = BOX_FLOOR_FRICTION
         for i in range(max_boxes):
             box = Box(name=f"box_{i}")
             frame = self._arena.attach(box)
-            frame.pos = (0, 0, box.half_height + 0.005)
+            frame.pos = (0, 0, box.half_height)  # resting on the floor at qpos z = 0
             joints = [frame.add("joint", name=f"box_{i}_{axis}", type="slide", axis=vec,
-                                frictionloss=40.0, damping=20.0, armature=0.0)
-                      for axis, vec in (("x", (1, 0, 0)), ("y", (0, 1, 0)))]
+                                frictionloss=0.0, damping=0.0, armature=0.0)
+                      for axis, vec in (("x", (1, 0, 0)), ("y", (0, 1, 0)), ("z", (0, 0, 1)))]
+            self._arena.mjcf_model.contact.add(
+                "pair", name=f"box_{i}_floor", geom1=box.geom, geom2=self._arena.floor,
+                condim=6, friction=(sliding, sliding, torsional, rolling, rolling))
             self._boxes.append(box)
             self._box_joints.append(joints)
 
@@ -187,10 +226,12 @@ class Mujoban(PhysicsTask):
         self._floor_mat_ids = np.array([bind(m).element_id for m in arena.floor_materials])
         self._wall_mat_ids = np.array([bind(m).element_id for m in arena.wall_materials])
         self._box_geom_ids = np.array([bind(b.geom).element_id for b in self._boxes])
-        self._box_qpos = np.array([[bind(j).qposadr for j in js] for js in self._box_joints])
-        self._box_qpos = self._box_qpos.reshape(len(self._boxes), 2)
-        self._box_dof = np.array([[bind(j).dofadr for j in js] for js in self._box_joints])
-        self._box_dof = self._box_dof.reshape(len(self._boxes), 2)
+        box_qpos = np.array([[bind(j).qposadr for j in js] for js in self._box_joints])
+        box_dof = np.array([[bind(j).dofadr for j in js] for js in self._box_joints])
+        box_qpos = box_qpos.reshape(len(self._boxes), 3)
+        box_dof = box_dof.reshape(len(self._boxes), 3)
+        self._box_qpos, self._box_dof = box_qpos[:, :2], box_dof[:, :2]  # x, y
+        self._box_z_qpos, self._box_all_dof = box_qpos[:, 2], box_dof
 
         walker_model = self._walker.mjcf_model
         root_joints = self._walker._root_joints  # pylint: disable=protected-access
@@ -209,6 +250,13 @@ class Mujoban(PhysicsTask):
         self._act_qpos = _as_slice(np.array([bind(j).qposadr for j in act_joints]).ravel())
         self._act_dof = _as_slice(np.array([bind(j).dofadr for j in act_joints]).ravel())
         self._head_body = int(bind(self._walker.root_body).element_id)
+        # The original's termination rule, walker aliveness < -0.5. dm_control's
+        # legacy walkers (the rolling ball among them) return a constant 0: then
+        # there is nothing to evaluate per step.
+        aliveness = getattr(type(self._walker), "aliveness", None)
+        self._aliveness = None
+        if aliveness is not None and aliveness is not legacy_base.Walker.aliveness:
+            self._aliveness = self._walker.aliveness
 
         def sensor_slice(name):
             sensor = bind(walker_model.find("sensor", name))
@@ -260,9 +308,13 @@ class Mujoban(PhysicsTask):
             if i < self._num_boxes:
                 r, c = self._initial_box_cells[i]
                 d.qpos[self._box_qpos[i]] = self._arena.cell_centre(r, c)
+                d.qpos[self._box_z_qpos[i]] = 0.0
+                m.dof_damping[self._box_all_dof[i]] = 0.0
                 m.geom_group[self._box_geom_ids[i]] = 0
-            else:  # parked far outside the arena, undrawn
+            else:  # parked in the air far outside the arena, undrawn
                 d.qpos[self._box_qpos[i]] = (1000.0 + 10 * i, 1000.0)
+                d.qpos[self._box_z_qpos[i]] = 10.0
+                m.dof_damping[self._box_all_dof[i]] = _PARKED_DAMPING
                 m.geom_group[self._box_geom_ids[i]] = arena_lib.HIDDEN_GROUP
         self._box_reference = self._box_xy()
         self._covered = self._pads_covered(self._box_reference)
@@ -288,8 +340,9 @@ class Mujoban(PhysicsTask):
         entered = left = 0
         box_cells = self._box_cells
         inv, cx, cy, rmax, cmax = self._rounding
-        # Resting boxes creep by ~1e-11 m per step under joint friction loss;
-        # pads and box cells are only re-evaluated once a box has moved 0.1 mm.
+        # Resting boxes creep by tiny amounts under soft contacts; pads and box
+        # cells are only re-evaluated once a box has moved 0.1 mm (a box that
+        # creeps 0.1 mm in all is then re-evaluated: nothing is missed).
         moved = False
         for (ix, iy), (ox, oy) in zip(self._active_box_qpos, self._box_reference):
             if abs(q[ix] - ox) > 1e-4 or abs(q[iy] - oy) > 1e-4:
@@ -311,14 +364,15 @@ class Mujoban(PhysicsTask):
         self._solved = all(self._covered)
         self._reward = float(entered - left) + (10.0 if self._solved else 0.0)
 
-        rx, ry, rz = self._walker_root_qpos
-        hx, hy, hz = q[rx], q[ry], q[rz]  # the root slides move the head body
+        rx, ry = self._walker_root_qpos[:2]
+        hx, hy = q[rx], q[ry]  # the root slides move the head body
         player = (min(max(round(cy - hy * inv), 0), rmax), min(max(round(hx * inv + cx), 0), cmax))
         if player in box_cells:
             player = self._player_cell
         if box_cells != self._box_cells or player != self._player_cell:
             self._set_layers(box_cells, player)
-        self._fell = bool(self._xmat[self._head_body, 8] < 0.5 or not -0.5 < hz < 3.0)
+        if self._aliveness is not None:
+            self._fell = bool(self._aliveness(physics) < ALIVE_THRESHOLD)
 
     def get_reward(self, physics):
         return self._reward
@@ -411,12 +465,17 @@ class Mujoban(PhysicsTask):
     def solved(self) -> bool:
         return self._solved
 
+    @property
+    def pad_tolerance(self) -> float:
+        """Cells (along both axes) a box centre may be from a pad centre to cover it."""
+        return self._pad_tolerance / self.cell_size
+
     def set_box_position(self, physics, index: int, xy) -> None:
         """Moves box `index` to world `xy` at rest (for tests and disturbances)."""
         if not 0 <= index < self._num_boxes:
             raise IndexError(f"box index {index} out of range for {self._num_boxes} boxes")
         self._data.qpos[self._box_qpos[index]] = xy
-        self._data.qvel[self._box_dof[index]] = 0.0
+        self._data.qvel[self._box_all_dof[index]] = 0.0
         physics.forward()
 
     # -- internals ----------------------------------------------------------
