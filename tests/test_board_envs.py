@@ -7,13 +7,15 @@ import signal
 import sys
 
 import gymnasium
+import mujoco
 import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
 import envs
 from abstract_planners.gtp import GTPError
-from arm_driving import touch_point
+from arm_driving import (hold_action, place_hand, press_from_above, substep_touches,
+                         touch_point)
 from envs.boards import arena as arena_lib
 from envs.boards import make_mujogo, make_mujoxo
 
@@ -75,12 +77,13 @@ def test_touching_an_occupied_point_changes_nothing():
 def test_an_illegal_go_point_changes_nothing():
     env = make_mujogo(seed=0, **NO_CAMERA)
     env.reset()
-    # White at 1 and 7 surround the empty corner 0: black playing there is suicide.
-    env.task.play_moves([20, 1, 30, 7])
-    assert 0 not in env.task.state.legal_actions()
-    touch_point(env, env.task.point_position(0))
-    assert env.task.moves == (20, 1, 30, 7) and env.task.moves_registered == 0
-    assert not piece_visible(env, 0)
+    # White at 44, 46 and 38 surround the empty edge point 45 (on the row
+    # nearest the arm): black playing there is suicide.
+    env.task.play_moves([20, 44, 30, 46, 10, 38])
+    assert 45 not in env.task.state.legal_actions()
+    touch_point(env, env.task.point_position(45))
+    assert env.task.moves == (20, 44, 30, 46, 10, 38) and env.task.moves_registered == 0
+    assert not piece_visible(env, 45)
     env.close()
 
 
@@ -101,13 +104,13 @@ def test_retaking_a_ko_at_once_changes_nothing():
 def test_a_captured_stone_disappears_from_the_board():
     env = make_mujogo(seed=0, **NO_CAMERA)
     env.reset()
-    env.task.play_moves([1, 0, 20, 40])  # white 0 in the corner, black 1 beside it
-    assert piece_visible(env, 0)
-    timestep = touch_point(env, env.task.point_position(7))  # black 7 captures white 0
-    assert env.task.moves[4] == 7
-    white_replied_at_0 = env.task.moves[5] == 0
-    assert white_replied_at_0 or not timestep.observation["board_state"][0, 0, 2]
-    assert white_replied_at_0 or not piece_visible(env, 0)
+    env.task.play_moves([23, 24, 25, 10, 17, 12])  # white 24 between black 23, 25 and 17
+    assert piece_visible(env, 24)
+    timestep = touch_point(env, env.task.point_position(31))  # black 31 captures white 24
+    assert env.task.moves[6] == 31
+    white_replied_at_24 = env.task.moves[7] == 24
+    assert white_replied_at_24 or not timestep.observation["board_state"][3, 3, 2]
+    assert white_replied_at_24 or not piece_visible(env, 24)
     assert_board_matches_openspiel(env, timestep)
     env.close()
 
@@ -143,16 +146,49 @@ def test_a_loss_gives_zero():
     assert sum(rewards) == 0.0 and timestep.discount == 0.0
 
 
-def test_holding_a_pass_pad_passes_once():
-    env = make_mujogo(seed=0, arm_reset=False, **NO_CAMERA)
+@pytest.mark.parametrize("allow_double_pass", [False, True])
+def test_holding_a_finger_on_the_pass_zone_passes_once_unless_double_passes_are_allowed(
+        allow_double_pass):
+    env = make_mujogo(seed=0, arm_reset=False, allow_double_pass=allow_double_pass, **NO_CAMERA)
     env.reset()
-    touch_point(env, env.task.pass_position("left"), steps=60)
-    # Keep pressing: the pad stays touched but must not register again.
     task = env.task
-    for _ in range(20):
-        env.step(np.zeros(env.action_spec().shape))
-    passes = [m for i, m in enumerate(task.moves) if i % 2 == 0]
-    assert task.moves_registered == 1 and passes == [task.game.pass_action]
+    press_from_above(env, task.pass_position("left"))
+    assert task.moves_registered == 1 and task.moves[0] == task.game.pass_action
+    # Keep the finger on the pass zone: it stays pressed ...
+    for _ in range(10):
+        env.step(hold_action(env))
+    readings, contacts = substep_touches(env, hold_action(env))
+    assert (readings[:, -1] > arena_lib.TOUCH_THRESHOLD).all()
+    assert any(geom.startswith("arm/hand/finger") for geom, zone in contacts[0] if zone == "pass")
+    for _ in range(10):
+        if env.step(hold_action(env)).last():  # GNU Go passed too: the game is over
+            break
+    agent_moves = task.moves[::2]
+    if allow_double_pass:  # ... and passes again at once
+        assert task.moves_registered >= 2 and agent_moves[:2] == (task.game.pass_action,) * 2
+    else:  # ... but a second consecutive pass is ignored
+        assert task.moves_registered == 1 and agent_moves == (task.game.pass_action,)
+    env.close()
+
+
+@pytest.mark.parametrize("allow_double_pass", [False, True])
+def test_go_refuses_a_second_consecutive_pass_by_the_agent(allow_double_pass):
+    env = make_mujogo(seed=0, allow_double_pass=allow_double_pass, **NO_CAMERA)
+    env.reset()
+    task = env.task
+    press_from_above(env, task.pass_position("left"))
+    assert task.moves_registered == 1 and len(task.moves) == 2  # the pass and GNU Go's reply
+    assert task.moves[0] == task.game.pass_action and task.moves[1] != task.game.pass_action
+    # The arm was reset away; press the pass zone again (a new press).
+    press_from_above(env, task.pass_position("left"))
+    if allow_double_pass:
+        assert task.moves_registered == 2 and task.moves[2] == task.game.pass_action
+    else:
+        pressed = substep_touches(env, hold_action(env))[0][:, -1]
+        assert pressed.max() > arena_lib.TOUCH_THRESHOLD  # the finger is on the pass zone
+        for _ in range(5):
+            env.step(hold_action(env))
+        assert task.moves_registered == 1 and len(task.moves) == 2
     env.close()
 
 
@@ -164,8 +200,9 @@ def test_killed_gnugo_is_restarted_and_the_game_continues():
     client = env.task.opponent.planner.client
     os.kill(client.pid, signal.SIGKILL)
     client._proc.wait()  # pylint: disable=protected-access
-    timestep = touch_point(env, env.task.point_position(0))
-    assert env.task.moves[:3] == before + (0,) and len(env.task.moves) == 4
+    free = 10 if 10 not in before else 12
+    timestep = touch_point(env, env.task.point_position(free))
+    assert env.task.moves[:3] == before + (free,) and len(env.task.moves) == 4
     assert_board_matches_openspiel(env, timestep)
     env.close()
 
@@ -226,4 +263,88 @@ def test_camera_is_observed_at_its_size():
 def test_every_board_name_passes_gymnasium_check_env(name):
     env = gymnasium.make(name, render_mode="rgb_array", front_camera=(32, 32))
     check_env(env.unwrapped, skip_render_check=False)
+    env.close()
+
+
+@pytest.mark.parametrize("make", [make_mujoxo, make_mujogo])
+def test_default_physics_timestep_is_the_originals(make):
+    env = make(seed=0, **NO_CAMERA)
+    assert env.physics.model.opt.timestep == 0.002
+    assert env.task.physics_steps_per_control_step == 25
+    env.close()
+
+
+def _arm_velocity_for(env, pinch_velocity):
+    """Arm joint velocities moving the pinch site at ``pinch_velocity`` (m/s)."""
+    task, model, data = env.task, env.physics.model.ptr, env.physics.data.ptr
+    jacp, jacr = np.zeros((3, model.nv)), np.zeros((3, model.nv))
+    mujoco.mj_jacSite(model, data, jacp, jacr, task._pinch_site)
+    jac = np.vstack([jacp, jacr])[:, task._joint_dof[:6]]
+    return np.linalg.pinv(jac) @ np.concatenate([pinch_velocity, np.zeros(3)])
+
+
+def test_a_touch_lasting_a_single_substep_registers_the_move():
+    env = make_mujoxo(epsilon=0.0, seed=0, arm_reset=False, **NO_CAMERA)
+    env.reset()
+    task = env.task
+    # A fingertip pressed 3 mm into square 4 and flicked upwards at 0.12 m/s:
+    # pressed in the first substep only (2 N), off the board for the other 24.
+    place_hand(env, task.point_position(4) + (0, 0, 0.002))
+    lift = _arm_velocity_for(env, [0.0, 0.0, 0.12])
+    env.physics.data.qvel[task._joint_dof[:6]] = lift
+    action = hold_action(env, lift)
+    readings, contacts = substep_touches(env, action)
+    pressed = np.flatnonzero(readings.max(axis=1) > arena_lib.TOUCH_THRESHOLD)
+    assert pressed.tolist() == [0]  # exactly one substep of 25, not the last
+    assert readings[0].argmax() == 4 and readings[-1].max() == 0.0
+    timestep = env.step(action)
+    assert task.moves_registered == 1 and task.moves[0] == 4
+    assert timestep.observation["board_state"][1, 1, 1]
+    assert timestep.observation["move_history"][0] == 4
+    env.close()
+
+
+@pytest.mark.parametrize("yaw", [1.57, 2.09])
+def test_when_two_squares_are_pressed_in_one_substep_the_harder_press_wins(yaw):
+    env = make_mujoxo(epsilon=0.0, seed=0, arm_reset=False, **NO_CAMERA)
+    env.reset()
+    task = env.task
+    # The half-open hand straddles squares 3 and 4, its fingers pressing both.
+    assert place_hand(env, (-0.05, 0.0, 0.06), yaw=yaw, fingers=np.full(3, 0.75))
+    action = hold_action(env)
+    action[6:] = 0.0
+    readings, contacts = substep_touches(env, action)
+    first = readings[0]
+    assert first[3] > arena_lib.TOUCH_THRESHOLD and first[4] > arena_lib.TOUCH_THRESHOLD
+    assert np.delete(first, [3, 4]).max() <= arena_lib.TOUCH_THRESHOLD
+    assert all(geom.startswith("arm/hand/finger") for geom, _ in contacts[0])
+    harder = 3 if first[3] > first[4] else 4
+    env.step(action)
+    assert task.moves_registered == 1 and task.moves[0] == harder
+    env.close()
+
+
+@pytest.mark.parametrize("make, noise", [(make_mujoxo, 1.0), (make_mujogo, 0.25)])
+def test_physics_timestep_option_and_the_opponents_piece_jitter(make, noise):
+    env = make(seed=0, physics_timestep=0.005, **NO_CAMERA)
+    assert env.physics.model.opt.timestep == 0.005
+    assert env.task.physics_steps_per_control_step == 10
+    env.close()
+    env = make(seed=0, **NO_CAMERA)
+    task = env.task
+    bound = noise * task.arena.pad_half
+    offsets = []
+    for _ in range(3):
+        env.reset()
+        free = [a for a in task.state.legal_actions() if a < task.game.num_points]
+        point = 4 if task.game.size == 3 else 24
+        press_from_above(env, task.point_position(point))
+        assert task.moves_registered == 1 and task.moves[0] == point
+        reply = task.moves[1]
+        x, y, _ = env.physics.model.geom_pos[task._piece_ids[reply]]
+        offsets.append(np.array([x, y]) - task.arena.point_xy[reply])
+        assert free
+    offsets = np.abs(offsets)
+    assert offsets.max() <= bound + 1e-12
+    assert offsets.max() > 0.2 * bound  # jittered, not at the centre
     env.close()

@@ -8,7 +8,14 @@ Names registered with `envs.load` and gymnasium:
   ``mujogo/7x7-mixture`` (epsilon 0.2), ``mujogo/7x7-eval`` (60 s limit),
   ``mujogo/9x9``.
 
-See `envs.boards.task` for the physical rules.
+See `envs.boards.task` for the physical rules. The defaults are the original
+task's (DeepMind's ``physics_planning_games``; where its code and the paper
+disagree, the paper's: komi 5.5, GNU Go level 10 without random moves, one
+84x84 front camera). Options that deviate from it: ``physics_timestep``
+(original 0.002 s; our earlier versions used 0.005), ``piece_noise``,
+``arm_reset=False``, MuJoGo's ``registering`` (``"fingertips"``: only the
+tips; ``"arm"``: any contact) and ``allow_double_pass``, and 9x9 Go (the
+original only has 7x7; larger boards shrink the squares to keep its width).
 """
 
 from __future__ import annotations
@@ -39,18 +46,21 @@ def _check_level(level) -> int:
 
 def make_mujoxo(*, epsilon: float = 0.25, seed: int | None = None, front_camera=(84, 84),
                 arm_reset: bool = True, time_limit: float = 30.0,
-                control_timestep: float = 0.05, physics_timestep: float = 0.005,
-                render_size=(256, 256), raise_on_physics_error: bool = True) -> Environment:
+                control_timestep: float = 0.05, physics_timestep: float = 0.002,
+                piece_noise: float | None = None, render_size=(256, 256),
+                raise_on_physics_error: bool = True) -> Environment:
     """MuJoXO: tic-tac-toe against minimax mixed with random moves at rate ``epsilon``.
 
-    Any arm or hand geom registers a move. Rewards at the game's end: 1 win,
-    0.5 draw, 0 loss. Time limit 30 s (600 control steps), then truncation.
+    Any contact pressing a square's touch sensor registers a move. Rewards at
+    the game's end: 1 win, 0.5 draw, 0 loss. Time limit 30 s (600 control
+    steps), then truncation. ``piece_noise``: the opponent's pieces land within
+    this fraction of the sensor half-size (None: the original's 1).
     """
     epsilon = _check_epsilon(epsilon)
     opponent = EpsilonGreedy(MinimaxPlanner(), epsilon)
     task = BoardTask(BoardGame("tic_tac_toe", 3, draw_reward=0.5), opponent, registering="arm",
                      arm_reset=arm_reset, front_camera=front_camera, time_limit=time_limit,
-                     control_timestep=control_timestep, physics_timestep=physics_timestep,
+                     piece_noise=piece_noise, control_timestep=control_timestep, physics_timestep=physics_timestep,
                      render_size=render_size)
     return Environment(task, seed=seed, raise_on_physics_error=raise_on_physics_error)
 
@@ -58,13 +68,19 @@ def make_mujoxo(*, epsilon: float = 0.25, seed: int | None = None, front_camera=
 def make_mujogo(*, board_size: int = 7, level: int = 10, epsilon: float = 0.0,
                 komi: float = 5.5, seed: int | None = None, front_camera=(84, 84),
                 arm_reset: bool = True, time_limit: float = 45.0,
-                control_timestep: float = 0.05, physics_timestep: float = 0.005,
+                control_timestep: float = 0.05, physics_timestep: float = 0.002,
+                registering: str = "fingers", allow_double_pass: bool = False,
+                piece_noise: float | None = None,
                 gnugo_timeout: float = 10.0, gnugo_command=None, render_size=(256, 256),
                 raise_on_physics_error: bool = True) -> Environment:
     """MuJoGo: Go (Tromp-Taylor, komi 5.5) against GNU Go at ``level``, random at ``epsilon``.
 
-    Only the fingertips register a move; large pads left and right of the
-    board pass. Reward 1 for a win, 0 for a loss; a game still running at the
+    A press registers only if a finger geom (knuckle or tip; ``registering=
+    "fingertips"``: tips only) touches the pressed square; the pass areas are
+    left and right of the board (at floor level); a second consecutive pass
+    by the agent is ignored unless ``allow_double_pass``. ``piece_noise``:
+    the opponent's stones land within this fraction of the sensor half-size
+    (None: the original's 0.25). Reward 1 for a win, 0 for a loss; a game still running at the
     time limit (45 s; 60 s for evaluation) is a loss. ``gnugo_command`` runs
     another GTP engine (a list of arguments); ``gnugo_timeout`` bounds every
     GTP reply (seconds): a hung engine raises ``GTPError``, a dead one is
@@ -77,8 +93,9 @@ def make_mujogo(*, board_size: int = 7, level: int = 10, epsilon: float = 0.0,
                                           timeout=gnugo_timeout, command=gnugo_command),
                              epsilon)
     try:
-        task = BoardTask(game, opponent, registering="fingertips", arm_reset=arm_reset,
+        task = BoardTask(game, opponent, registering=registering, arm_reset=arm_reset,
                          front_camera=front_camera, time_limit=time_limit, timeout_is_loss=True,
+                         allow_double_pass=allow_double_pass, piece_noise=piece_noise,
                          control_timestep=control_timestep, physics_timestep=physics_timestep,
                          render_size=render_size)
         return Environment(task, seed=seed, raise_on_physics_error=raise_on_physics_error)

@@ -1,153 +1,194 @@
-"""The board-game arena: a board on the floor before a Jaco arm, touch pads, pieces.
+"""The board-game arena of the original MuJoXO / MuJoGo (Mirza et al. 2020).
 
-Everything is compiled once; per move only geom colours, groups and positions
-change:
+The world frame is the original's: the board lies at the origin on the floor
+and the Jaco arm's base is attached at ``ARM_OFFSET = (0, 0.4, 0)``, so the
+arm reaches towards -y. Everything is compiled once; per move only the
+pieces' colours, groups and positions change.
 
-* **board**: a wooden box whose top is at `BOARD_TOP`; its centre is
-  `BOARD_CENTRE`, in front of the arm base at the origin (the arm faces +y);
-* **lines**: render-only thin boxes (a 3x3 grid of cells for tic-tac-toe,
-  N x N intersections for Go);
-* **touch pads**: one thin collision box per board point, invisible (group
-  `HIDDEN_GROUP`), lying on the board top; Go adds two large pass pads left and
-  right of the board. A contact between a pad and a registering arm geom is a
-  touch;
+* **board**: a static body ``board`` holding one box geom per square
+  (half-width ``SQUARE_HALF`` = 0.05 m, 0.02 m thick, top at ``BOARD_TOP``).
+  Tic-tac-toe's 3x3 squares are the board (a grey checkerboard) centred at
+  the origin; Go has one wooden box under 7x7 invisible square geoms centred
+  on the line intersections (0.10 m apart), the whole board shifted by
+  ``GO_Y_OFFSET`` = -0.08 m (its centre 0.48 m from the arm base);
+* **touch sensors**: a MuJoCo touch sensor on a box site of half-size
+  ``SENSOR_FRACTION`` (0.7) x ``SQUARE_HALF`` per square, at the board top,
+  so there are gaps between sensors. A touch sensor sums the normal force of
+  every contact of the board body whose point lies inside its site. Go adds
+  a *pass* geom and sensor at floor level under the board, half-size
+  (2 x 0.35, 0.35): the parts left and right of the board are the pass areas;
+* **contact sensors** (see `envs.boards.task`) record which square geoms the
+  fingers touch and where;
+* **lines** (Go): render-only thin boxes on the board;
 * **pieces**: one render-only cylinder per point, hidden while the point is
-  empty, coloured and moved when a piece appears. Pieces never collide.
+  empty. Pieces never collide.
 
 Point ``a`` of an N x N board sits at row ``a // N`` and column ``a % N``;
-rows grow away from the arm when ``rows_away`` (Go: GTP row 1 nearest the
-arm), towards it otherwise (tic-tac-toe: OpenSpiel's first printed row is the
-far one).
+column 0 is at -x, row 0 is the row farthest from the arm (-y) and rows grow
+towards the arm, in both games as in the original (tic-tac-toe: OpenSpiel's
+first printed row is the far one; Go: GTP row 1 is the far one).
+
+Physics options are composer's defaults, as in the original: timestep 2 ms,
+Euler integrator, elliptic friction cones, 5 noslip iterations; the floor has
+friction 0.4, solimp (0.95, 0.99, 0.001), solref (0.002, 1).
 """
 
 from __future__ import annotations
 
 import numpy as np
-from dm_control import composer, mjcf
+from dm_control import composer
 
 HIDDEN_GROUP = 5
-BOARD_CENTRE = (0.0, 0.5)
-BOARD_THICKNESS = 0.02
-BOARD_TOP = BOARD_THICKNESS
-PAD_HALF_HEIGHT = 0.002
-#: Largest span of the playing area (Go: first to last line; tic-tac-toe: 3 cells).
-MAX_SPAN = 0.36
-PASS_PAD_WIDTH = 0.08
+#: Where the arm's base is attached (the original's ``_ARM_Y_OFFSET``).
+ARM_OFFSET = (0.0, 0.4, 0.0)
+#: Half-width of a board square (the original's ``square_halfwidth``).
+SQUARE_HALF = 0.05
+#: Half-height of the square boxes; their top is at ``2 * SQUARE_HALF_HEIGHT``.
+SQUARE_HALF_HEIGHT = 0.01
+BOARD_TOP = 2 * SQUARE_HALF_HEIGHT
+#: Touch-sensor sites are this fraction of a square's half-width.
+SENSOR_FRACTION = 0.7
+#: The Go board's shift along y (towards the far side).
+GO_Y_OFFSET = -0.08
+#: Activation threshold of the touch sensors (N).
+TOUCH_THRESHOLD = 1e-3
+#: Original Go board size; other sizes shrink the squares to keep its width.
+GO_REFERENCE_SIZE = 7
 
 COLOURS = {
-    "tic_tac_toe": ((0.8, 0.15, 0.15, 1.0), (0.15, 0.3, 0.85, 1.0)),  # agent X red, O blue
-    "go": ((0.05, 0.05, 0.05, 1.0), (0.95, 0.95, 0.95, 1.0)),  # black, white
+    # The original's marker colours: agent red, opponent blue (alpha 0.5) ...
+    "tic_tac_toe": ((1.0, 0.0, 0.0, 0.5), (0.0, 0.0, 1.0, 0.5)),
+    # ... and black (agent), white at alpha 0.75.
+    "go": ((0.0, 0.0, 0.0, 0.75), (1.0, 1.0, 1.0, 0.75)),
 }
+#: Marker (cylinder) radius and half-height, as the original's.
+PIECE_SIZE = {"tic_tac_toe": (0.025, 0.01), "go": (0.04, 0.01)}
 
 
 class BoardArena(composer.Arena):
-    """Floor, board, lines, touch pads, piece pool, lights and the front camera."""
+    """Floor, board, squares with touch sensors, pieces, light and the front camera.
 
-    def _build(self, kind="go", size=7, offscreen_size=(256, 256), name="board_arena"):
-        self._mjcf_root = mjcf.RootElement(model=name)
+    Args:
+      kind: ``"tic_tac_toe"`` or ``"go"``.
+      size: board size (3 for tic-tac-toe).
+      offscreen_size: largest (height, width) rendered.
+      physics_timestep: seconds (the original's 0.002).
+    """
+
+    def _build(self, kind="go", size=7, offscreen_size=(256, 256), physics_timestep=0.002,
+               name="board_arena"):
+        # composer's base arena: timestep 2 ms, elliptic cones, noslip 5.
+        super()._build(name=name)
         root = self._mjcf_root
         self.kind, self.size = kind, int(size)
         n = self.size
         if kind == "tic_tac_toe":
-            self.spacing = MAX_SPAN / 3  # cell side
-            half_board = 1.5 * self.spacing + 0.03
-            pad_half = 0.45 * self.spacing
-            self.rows_away = False
+            half = SQUARE_HALF
+            self.centre = (0.0, 0.0)
         else:
-            self.spacing = min(0.05, MAX_SPAN / (n - 1))  # line spacing
-            half_board = (n - 1) / 2 * self.spacing + 0.6 * self.spacing
-            pad_half = 0.5 * self.spacing  # pads tile the board
-            self.rows_away = True
-        self.half_board = half_board
-        self.pad_half = pad_half
+            half = SQUARE_HALF * GO_REFERENCE_SIZE / n
+            self.centre = (0.0, GO_Y_OFFSET)
+        self.square_half = half
+        self.spacing = 2 * half
+        self.half_board = n * half
+        #: Half-size of a touch sensor's site: a press registers inside it.
+        self.pad_half = SENSOR_FRACTION * half
 
-        root.option.timestep = 0.005
-        root.option.integrator = "implicitfast"
-        root.compiler.boundmass = 1e-5
-        root.compiler.boundinertia = 1e-11
+        root.option.timestep = float(physics_timestep)
         root.visual.quality.shadowsize = 0
         root.visual.quality.offsamples = 0
         root.visual.__getattr__("global").offheight = int(offscreen_size[0])
         root.visual.__getattr__("global").offwidth = int(offscreen_size[1])
-        root.visual.headlight.ambient = (0.4, 0.4, 0.4)
-        root.visual.headlight.diffuse = (0.6, 0.6, 0.6)
-        root.visual.map.znear = 0.01
 
-        root.asset.add("texture", name="sky", type="skybox", builtin="gradient",
-                       rgb1=(0.4, 0.6, 0.8), rgb2=(0.1, 0.1, 0.15), width=64, height=64)
-        grid = root.asset.add("texture", name="floor_tex", type="2d", builtin="checker",
-                              rgb1=(0.45, 0.5, 0.45), rgb2=(0.4, 0.45, 0.4), width=64, height=64)
-        floor_mat = root.asset.add("material", name="floor_mat", texture=grid, texrepeat=(6, 6))
-        root.worldbody.add("light", name="sun", directional=True, castshadow=False,
-                           pos=(0, 0, 3), dir=(0.2, 0.3, -1), diffuse=(0.5, 0.5, 0.5))
-        self.floor = root.worldbody.add("geom", name="floor", type="plane", size=(2, 2, 0.1),
-                                        material=floor_mat, contype=1, conaffinity=1)
-        cx, cy = BOARD_CENTRE
-        board_rgba = (0.85, 0.65, 0.35, 1) if kind == "go" else (0.92, 0.92, 0.88, 1)
-        self.board = root.worldbody.add(
-            "geom", name="board", type="box", size=(half_board, half_board, BOARD_THICKNESS / 2),
-            pos=(cx, cy, BOARD_THICKNESS / 2), rgba=board_rgba, contype=1, conaffinity=1)
+        # The original's sky, ground and light (no shadows: they only cost time).
+        root.asset.add("texture", type="skybox", builtin="gradient", rgb1=(0.4, 0.6, 0.8),
+                       rgb2=(0.0, 0.0, 0.0), width=100, height=100)
+        ground_tex = root.asset.add("texture", name="groundplane", type="2d", builtin="checker",
+                                    rgb1=(0.2, 0.3, 0.4), rgb2=(0.1, 0.2, 0.3), width=300,
+                                    height=300, mark="edge", markrgb=(0.8, 0.8, 0.8))
+        ground_mat = root.asset.add("material", name="groundplane", texture=ground_tex,
+                                    texrepeat=(5, 5), texuniform=True, reflectance=0.2)
+        self.floor = root.worldbody.add(
+            "geom", name="ground", type="plane", material=ground_mat, size=(1, 1, 0.1),
+            friction=(0.4,), solimp=(0.95, 0.99, 0.001), solref=(0.002, 1))
+        root.worldbody.add("light", pos=(0, 0, 1.5), dir=(0, 0, -1), diffuse=(0.7, 0.7, 0.7),
+                           specular=(0.3, 0.3, 0.3), directional=False, castshadow=False)
+        root.statistic.center = (0.0, 0.0, 0.0)
 
-        line_rgba = (0.1, 0.08, 0.05, 1)
-        line_half = 0.0015
-        z = BOARD_TOP + 0.0005
-        if kind == "tic_tac_toe":
-            offsets = (-0.5 * self.spacing, 0.5 * self.spacing)
-            extent = 1.5 * self.spacing
-        else:
-            offsets = [(k - (n - 1) / 2) * self.spacing for k in range(n)]
-            extent = (n - 1) / 2 * self.spacing
-        for k, o in enumerate(offsets):
-            root.worldbody.add("geom", name=f"line_x_{k}", type="box", pos=(cx, cy + o, z),
-                               size=(extent + line_half, line_half, 0.0005), rgba=line_rgba,
-                               contype=0, conaffinity=0)
-            root.worldbody.add("geom", name=f"line_y_{k}", type="box", pos=(cx + o, cy, z),
-                               size=(line_half, extent + line_half, 0.0005), rgba=line_rgba,
-                               contype=0, conaffinity=0)
-
-        pad_z = BOARD_TOP + PAD_HALF_HEIGHT
-        self.pads = []
+        cx, cy = self.centre
+        board = root.worldbody.add("body", name="board")
+        self.board_body = board
+        dark = root.asset.add("material", name="square_dark", rgba=(0.2, 0.2, 0.2, 1))
+        light = root.asset.add("material", name="square_light", rgba=(0.8, 0.8, 0.8, 1))
+        sensor_mat = root.asset.add("material", name="sensor", rgba=(0, 1, 0, 0.3))
+        box = (half, half, SQUARE_HALF_HEIGHT)
+        site_size = (self.pad_half, self.pad_half, 0.5 * SQUARE_HALF_HEIGHT)
+        if kind == "go":
+            board.add("geom", name="goboard", type="box",
+                      size=(half * n, half * n, SQUARE_HALF_HEIGHT),
+                      pos=(cx, cy, SQUARE_HALF_HEIGHT), rgba=(0.85, 0.65, 0.35, 1))
+        self.squares, self.sensor_sites, self.touch_sensors = [], [], []
         self.point_xy = np.zeros((n * n, 2))
         for a in range(n * n):
+            row, col = divmod(a, n)
             x, y = self.point_position(a)
             self.point_xy[a] = (x, y)
-            self.pads.append(root.worldbody.add(
-                "geom", name=f"pad_{a}", type="box", pos=(x, y, pad_z),
-                size=(pad_half, pad_half, PAD_HALF_HEIGHT), group=HIDDEN_GROUP,
-                rgba=(0.2, 0.8, 0.2, 0.3), contype=1, conaffinity=1))
-        self.pass_pads = []
+            if kind == "go":  # invisible squares on the wooden board
+                style = dict(rgba=(0, 1, 0, 0), group=HIDDEN_GROUP)
+            else:
+                style = dict(material=dark if row % 2 == col % 2 else light)
+            self.squares.append(board.add("geom", name=f"square_{a}", type="box", size=box,
+                                          pos=(x, y, SQUARE_HALF_HEIGHT), **style))
+            site = board.add("site", name=f"sensor_{a}", type="box", size=site_size,
+                             pos=(x, y, BOARD_TOP), material=sensor_mat,
+                             group=composer.SENSOR_SITES_GROUP)
+            self.sensor_sites.append(site)
+        self.pass_geom = self.pass_site = None
         if kind == "go":
-            for side, sign in (("left", -1), ("right", 1)):
-                self.pass_pads.append(root.worldbody.add(
-                    "geom", name=f"pass_pad_{side}", type="box",
-                    pos=(cx + sign * (half_board + 0.01 + PASS_PAD_WIDTH / 2), cy, pad_z),
-                    size=(PASS_PAD_WIDTH / 2, half_board, PAD_HALF_HEIGHT),
-                    rgba=(0.3, 0.3, 0.3, 1), contype=1, conaffinity=1))
-        piece_radius = (0.4 if kind == "tic_tac_toe" else 0.45) * self.spacing
-        self.piece_radius = piece_radius
-        self.piece_half_height = 0.006
+            pass_size = (2 * half * n, half * n, 0.5 * SQUARE_HALF_HEIGHT)
+            self.pass_geom = board.add("geom", name="pass", type="box", size=pass_size,
+                                       pos=(cx, cy, 0.0), rgba=(0, 1, 0, 0),
+                                       group=HIDDEN_GROUP)
+            self.pass_site = board.add("site", name="pass", type="box", size=pass_size,
+                                       pos=(cx, cy, 0.0), material=sensor_mat,
+                                       group=composer.SENSOR_SITES_GROUP)
+            line_rgba = (0.1, 0.08, 0.05, 1)
+            line_half = 0.002
+            extent = (n - 1) * half
+            z = BOARD_TOP + 0.0005
+            for k in range(n):
+                o = (k - (n - 1) / 2) * self.spacing
+                board.add("geom", name=f"line_x_{k}", type="box", pos=(cx, cy + o, z),
+                          size=(extent + line_half, line_half, 0.0005), rgba=line_rgba,
+                          contype=0, conaffinity=0)
+                board.add("geom", name=f"line_y_{k}", type="box", pos=(cx + o, cy, z),
+                          size=(line_half, extent + line_half, 0.0005), rgba=line_rgba,
+                          contype=0, conaffinity=0)
+        radius, piece_half_height = PIECE_SIZE[kind]
+        if kind == "go" and n != GO_REFERENCE_SIZE:
+            radius *= GO_REFERENCE_SIZE / n
+        self.piece_radius, self.piece_half_height = radius, piece_half_height
         self.pieces = [
             root.worldbody.add("geom", name=f"piece_{a}", type="cylinder",
-                               size=(piece_radius, self.piece_half_height),
-                               pos=(0, 0, -1), group=HIDDEN_GROUP, contype=0, conaffinity=0,
+                               size=(radius, piece_half_height), pos=(0, 0, -1),
+                               group=HIDDEN_GROUP, contype=0, conaffinity=0,
                                rgba=COLOURS[kind][0])
             for a in range(n * n)]
-        # Facing the arm and the board from the far side of the board.
+        # The original's front camera, facing the arm and the board (fovy 45).
         self.front_camera = root.worldbody.add(
-            "camera", name="front_camera", pos=(cx, cy + 0.6, 0.6),
-            xyaxes=(-1, 0, 0, 0, -0.6, 0.8), fovy=60)
+            "camera", name="front_camera", pos=(0.0, -0.6, 0.75),
+            xyaxes=(1.0, 0.0, 0.0, 0.0, 0.7, 0.75))
 
     def point_position(self, action: int) -> tuple[float, float]:
         """World (x, y) of board point ``action``."""
         n = self.size
         row, col = divmod(int(action), n)
-        cx, cy = BOARD_CENTRE
-        step = self.spacing
-        x = cx + (col - (n - 1) / 2) * step
-        offset = (row - (n - 1) / 2) * step
-        y = cy + offset if self.rows_away else cy - offset
-        return x, y
+        cx, cy = self.centre
+        return (cx + (col - (n - 1) / 2) * self.spacing,
+                cy + (row - (n - 1) / 2) * self.spacing)
 
-    @property
-    def mjcf_model(self):
-        return self._mjcf_root
+    def attach_arm(self, arm):
+        """Attaches the arm's base at `ARM_OFFSET`."""
+        frame = self.attach(arm)
+        frame.pos = ARM_OFFSET
+        return frame

@@ -1,21 +1,43 @@
 """Board games played by touching a board with a 9-DoF Jaco arm (MuJoXO, MuJoGo).
 
-The agent controls dm_control's Kinova Jaco arm (6 joints) and three-finger
-hand (3 joints) with velocity actuators: the action is 9 joint-velocity
-targets. Touching a point's invisible pad with a registering geom (any arm or
-hand geom in MuJoXO, only the three fingertips in MuJoGo) plays that point if
-it is legal; a piece of the agent's colour appears where the touch was. The
-opponent (an `abstract_planners` planner, mixed with random moves) replies in
-the same control step; its piece lands at the chosen point with uniform noise
-inside the pad. After every move, and at episode start, the arm is put in a
-random pose above the board (IK with mink; ``arm_reset=False`` disables the
-reset after moves).
+By default this is the original task (Mirza et al. 2020, DeepMind's
+``physics_planning_games.board_games``). The agent controls dm_control's
+Kinova Jaco arm (6 joints) and three-finger hand (3 joints) with velocity
+actuators: the action is 9 joint-velocity targets. The arena is
+`envs.boards.arena` (the original world frame: board at the origin, arm base
+at (0, 0.4, 0)).
 
-Touches are read from MuJoCo's contacts once per control step (the contacts of
-the step's last substep) and register on their rising edge: a pad must stop
-being touched before it can register again, so a finger resting on a pass pad
-passes once. Touching an occupied or illegal point (Go suicide, ko) changes
-nothing.
+**Registration.** Every physics substep the original reads the board's touch
+sensors (threshold 1e-3 N) and, until a move has registered in the current
+control step, takes the most strongly pressed square as the touched point
+(Go: the pass sensor first, if it is pressed harder than every square and
+above the threshold). MuJoGo additionally requires a finger geom (any hand
+geom named ``finger*``: knuckles and tips) to be in contact with that
+square's geom (or the pass geom). A legal move is played; an illegal one
+changes nothing; in Go the agent cannot pass twice in a row (the second pass
+is ignored). The agent's piece appears where the square was touched (its
+first contact), the opponent (an `abstract_planners` planner) replies at
+once, its piece landing at the sensor's centre plus uniform jitter (tic-tac-
+toe: up to the sensor's half-size; Go: a quarter of it).
+
+Our runner steps all substeps in one ``mj_step`` call, so the sensors keep
+every substep's reading in MuJoCo's sensor history (``nsample`` = substeps
+per control step): touch sensors for the pressures, ``contact`` sensors
+(data ``found``) between each square and each finger's subtree for the
+finger rule, and ``contact`` sensors (``found pos``) for where a square was
+touched. `after_step` finds, vectorised over the recorded substeps, the
+first substep in which a legal move registers, exactly as the per-substep
+loop would. The one difference: the opponent's reply and the arm reset
+happen after the control step's last substep instead of right after the
+registering substep.
+
+**Arm reset.** At episode start and after every registered move (unless
+``arm_reset=False``) the arm is put, as by dm_control's
+``ToolCenterPointInitializer``, with its tool centre point (the hand's grip
+site) at a uniform random position in the box (-0.1..0.1, -0.1..0.1,
+0.2..0.4) pointing down with a uniform random yaw in (-pi, pi), by IK (mink);
+poses whose arm collides with itself or the board are rejected (10 tries).
+The fingers and the joint velocities are left as they are.
 
 Rewards are given at the end of the game: 1 for a win, 0 for a loss, the
 game's draw reward for a draw (MuJoXO 0.5). The episode terminates (discount
@@ -24,6 +46,8 @@ MuJoGo a game still running is a loss (reward 0, discount 0).
 """
 
 from __future__ import annotations
+
+import math
 
 import mink
 import mujoco
@@ -39,9 +63,25 @@ from envs.rendering import CameraConfig
 
 #: A known-good arm posture with the hand above the board pointing down; the
 #: IK for random poses starts from it and is regularised towards it.
-HOME_ARM_QPOS = np.array([1.24, 3.89, 2.13, 5.79, 1.64, 3.89])
-#: Orientation of the pinch site pointing straight down (w, x, y, z).
+HOME_ARM_QPOS = np.array([4.38, 3.89, 2.13, 5.79, 1.64, 3.89])
+#: Orientation of a Jaco site pointing straight down (w, x, y, z), as
+#: dm_control's ``manipulators.base.DOWN_QUATERNION``.
 DOWN_QUAT = np.array([0.0, 0.70710678118, 0.70710678118, 0.0])
+#: The original's box of tool-centre-point positions for the arm reset.
+TCP_LOW = np.array([-0.1, -0.1, 0.2])
+TCP_HIGH = np.array([0.1, 0.1, 0.4])
+#: Piece jitter as a fraction of the sensor's half-size (the original's).
+PIECE_NOISE = {"tic_tac_toe": 1.0, "go": 0.25}
+_REJECTION_SAMPLES = 10
+
+
+def _quat_mul(a, b):
+    w1, x1, y1, z1 = a
+    w2, x2, y2, z2 = b
+    return np.array([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
+                     w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+                     w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
+                     w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2])
 
 
 class BoardTask(PhysicsTask):
@@ -50,25 +90,32 @@ class BoardTask(PhysicsTask):
     Args:
       game: the `BoardGame` (tic-tac-toe or Go of some size).
       opponent: planner for the second player (gets OpenSpiel states).
-      registering: ``"arm"`` (any arm or hand geom registers a move) or
-        ``"fingertips"``.
-      arm_reset: put the arm in a random pose above the board after every move.
+      registering: which geoms register a move: ``"arm"`` (any contact on the
+        board; MuJoXO), ``"fingers"`` (a finger geom, knuckle or tip, must
+        touch the square; MuJoGo) or ``"fingertips"`` (only the tips).
+      arm_reset: reset the arm to a random pose after every registered move.
       front_camera: ``(height, width)`` of the RGB camera facing the arm, or None.
       time_limit: seconds; `timeout_is_loss` makes the last step terminal.
       piece_noise: the opponent's pieces land uniformly within this fraction
-        of the pad's half-width around the point.
+        of the touch sensor's half-size around the point (None: the
+        original's, 1 for tic-tac-toe, 0.25 for Go).
+      allow_double_pass: let the agent pass twice in a row (the original
+        ignores a second consecutive pass).
       control_timestep, physics_timestep: seconds.
       render_size: largest frame `Environment.render` will be asked for.
     """
 
     def __init__(self, game: BoardGame, opponent: Planner, *, registering="arm",
                  arm_reset=True, front_camera=(84, 84), time_limit=30.0,
-                 timeout_is_loss=False, piece_noise=0.6, control_timestep=0.05,
-                 physics_timestep=0.005, render_size=(256, 256)):
-        if registering not in ("arm", "fingertips"):
-            raise ValueError(f"registering must be 'arm' or 'fingertips', got {registering!r}")
+                 timeout_is_loss=False, piece_noise=None, allow_double_pass=False,
+                 control_timestep=0.05, physics_timestep=0.002, render_size=(256, 256)):
+        if registering not in ("arm", "fingers", "fingertips"):
+            raise ValueError(f"registering must be 'arm', 'fingers' or 'fingertips', "
+                             f"got {registering!r}")
         if time_limit <= 0:
             raise ValueError(f"time_limit must be positive seconds, got {time_limit}")
+        if piece_noise is None:
+            piece_noise = PIECE_NOISE[game.name]
         if not 0 <= piece_noise <= 1:
             raise ValueError(f"piece_noise must be in [0, 1], got {piece_noise}")
         if not isinstance(opponent, Planner):
@@ -81,22 +128,51 @@ class BoardTask(PhysicsTask):
         self._arm_reset = bool(arm_reset)
         self._timeout_is_loss = bool(timeout_is_loss)
         self._piece_noise = float(piece_noise)
+        self._allow_double_pass = bool(allow_double_pass)
         sizes = [tuple(s) for s in (front_camera, render_size) if s]
         offscreen = (max(s[0] for s in sizes), max(s[1] for s in sizes))
         self._arena = arena_lib.BoardArena(kind=game.name, size=game.size,
-                                           offscreen_size=offscreen)
+                                           offscreen_size=offscreen,
+                                           physics_timestep=physics_timestep)
         self._arm = kinova.JacoArm(name="arm")
-        self._hand = kinova.JacoHand(name="hand", use_pinch_site_as_tcp=True)
+        self._hand = kinova.JacoHand(name="hand")  # tool centre point: the grip site
         self._arm.attach(self._hand)
-        self._arena.attach(self._arm)
+        self._arena.attach_arm(self._arm)
         self._cameras = {}
         if front_camera:
             self._cameras["front_camera"] = CameraConfig("front_camera", *front_camera)
         self.set_timesteps(control_timestep=control_timestep, physics_timestep=physics_timestep)
+        self._add_sensors(self.physics_steps_per_control_step)
         self.time_limit_steps = int(round(time_limit / control_timestep))
         self.state = None  # the OpenSpiel state of the current game
         self.main_camera = "front_camera"
         self._ik = None
+        self._tcp_ik = None
+
+    def _add_sensors(self, nsample: int) -> None:
+        """Touch and contact sensors that keep every substep's reading."""
+        sensor = self._arena.mjcf_model.sensor
+        arena = self._arena
+        self._touch_sensors, self._pos_sensors, self._finger_sensors = [], [], []
+        zones = list(zip(arena.squares, arena.sensor_sites))
+        if arena.pass_geom is not None:
+            zones.append((arena.pass_geom, arena.pass_site))
+        if self._registering == "fingers":
+            prefix = "b_finger_"
+        else:
+            prefix = "b_finger_tip_"
+        finger_bodies = [b for b in self._hand.mjcf_model.find_all("body")
+                         if b.name and b.name.startswith(prefix)]
+        for k, (geom, site) in enumerate(zones):
+            self._touch_sensors.append(sensor.add("touch", name=f"touch_{k}", site=site,
+                                                  nsample=nsample))
+            self._pos_sensors.append(sensor.add("contact", name=f"contact_{k}", geom1=geom,
+                                                data="found pos", nsample=nsample))
+            if self._registering != "arm":
+                self._finger_sensors.append([
+                    sensor.add("contact", name=f"finger_{k}_{j}", geom1=geom, subtree2=body,
+                               data="found", nsample=nsample)
+                    for j, body in enumerate(finger_bodies)])
 
     # -- composer / PhysicsTask plumbing ------------------------------------
 
@@ -125,36 +201,56 @@ class BoardTask(PhysicsTask):
         m = physics.model.ptr
         self._model, self._data = m, physics.data.ptr
         arena = self._arena
-        n_points = self.game.num_points
-        # Geom id -> board action of its pad (-1: not a pad).
-        self._pad_action = np.full(m.ngeom, -1, np.int64)
-        for a, pad in enumerate(arena.pads):
-            self._pad_action[bind(pad).element_id] = a
-        for pad in arena.pass_pads:
-            self._pad_action[bind(pad).element_id] = self.game.pass_action
-        self._registers = np.zeros(m.ngeom, bool)
-        if self._registering == "arm":
-            for entity in (self._arm, self._hand):
-                for geom in entity.mjcf_model.find_all("geom"):
-                    self._registers[bind(geom).element_id] = True
+        n = self.physics_steps_per_control_step
+        self._nsample = n
+
+        def history(sensors):
+            """Index (len(sensors), nsample, dim) of the values in data.history."""
+            ids = np.array([bind(s).element_id for s in sensors])
+            dims = m.sensor_dim[ids]
+            if not (np.all(m.sensor_history[ids, 0] == n) and np.all(dims == dims[0])):
+                raise RuntimeError("sensor histories do not match the substeps")
+            start = m.sensor_historyadr[ids] + 2 + n
+            return start[:, None, None] + np.arange(n * dims[0]).reshape(n, dims[0])[None]
+
+        self._touch_idx = history(self._touch_sensors)[:, :, 0]  # (zones, n)
+        self._pos_idx = history(self._pos_sensors)  # (zones, n, 4)
+        if self._finger_sensors:
+            flat = [s for group in self._finger_sensors for s in group]
+            idx = history(flat)[:, :, 0]
+            self._finger_idx = idx.reshape(len(self._finger_sensors), -1, n)  # (zones, f, n)
         else:
-            for geom in self._hand.mjcf_model.find_all("geom"):
-                if geom.name and geom.name.startswith("finger_tip"):
-                    self._registers[bind(geom).element_id] = True
+            self._finger_idx = None
+        first = bind(self._touch_sensors[0]).element_id
+        self._cursor_adr = int(m.sensor_historyadr[first]) + 1
+        self._time_adr = int(m.sensor_historyadr[first]) + 2
+        self._arange = np.arange(n)
+        self._num_squares = self.game.num_points
+        self._has_pass = arena.pass_geom is not None
         self._piece_ids = np.array([bind(p).element_id for p in arena.pieces])
         self._point_xy = arena.point_xy
         joints = list(self._arm.joints) + list(self._hand.joints)
         self._joint_qpos = np.array([bind(j).qposadr for j in joints]).ravel()
         self._joint_dof = np.array([bind(j).dofadr for j in joints]).ravel()
         self._finger_range = np.array([bind(j).range for j in self._hand.joints])
+        arm_joints = [bind(j) for j in self._arm.joints]
+        self._arm_wrap = np.array([not j.limited for j in arm_joints])
         actuators = list(self._arm.actuators) + list(self._hand.actuators)
         self._act_ids = np.array([bind(a).element_id for a in actuators])
         self._pinch_site = bind(self._hand.pinch_site).element_id
         self._pinch_name = self._hand.pinch_site.full_identifier
+        self._tcp_name = self._hand.tool_center_point.full_identifier
         self._qpos, self._qvel = self._data.qpos, self._data.qvel
         self._ctrl = self._data.ctrl
         self._qfrc_actuator = self._data.qfrc_actuator
         self._max_moves = self._spiel_game.max_game_length()
+        # Robot geoms, for the arm reset's collision check.
+        self._is_arm = np.zeros(m.ngeom, bool)
+        self._is_hand = np.zeros(m.ngeom, bool)
+        for entity, mask in ((self._arm, self._is_arm), (self._hand, self._is_hand)):
+            for geom in entity.mjcf_model.find_all("geom"):
+                mask[bind(geom).element_id] = True
+        self._is_arm &= ~self._is_hand
 
     def action_spec(self, physics):
         ranges = self._model.actuator_ctrlrange[self._act_ids]
@@ -179,54 +275,72 @@ class BoardTask(PhysicsTask):
         self._planes = self.game.board_planes(self.state)
         m = self._model
         m.geom_group[self._piece_ids] = arena_lib.HIDDEN_GROUP
-        self._touched: frozenset = frozenset()
         self._reward = 0.0
         self._game_over = False
+        self._last_agent_move_passed = False
         self.moves_registered = 0
         self.ik_failures = 0
-        self._place_arm(random_state, forward=False)
+        self._place_arm(random_state)
 
     def before_step(self, physics, action, random_state):
         self._ctrl[self._act_ids] = action
 
     def after_step(self, physics, random_state):
         self._reward = 0.0
-        touched = self._touched_pads()
-        if not touched and not self._touched:
-            return
-        new = [a for a in touched if a not in self._touched]
-        self._touched = frozenset(touched)
         if self._game_over:
             return
-        for action in new:
-            if action in self.state.legal_actions():
-                self._play_agent_move(action, touched[action], random_state)
-                break
+        h = self._data.history
+        order = (int(h[self._cursor_adr]) + 1 + self._arange) % self._nsample
+        pressure = h[self._touch_idx[:, order]]  # (zones, substeps), oldest first
+        if not pressure.max() > arena_lib.TOUCH_THRESHOLD:
+            return
+        registered = self.registered_move(pressure, order)
+        if registered is not None:
+            self._play_agent_move(*registered, random_state)
 
-    def _touched_pads(self) -> dict[int, tuple[float, float]]:
-        """Pads in contact with a registering geom: action -> contact (x, y)."""
-        ncon = self._data.ncon
-        if not ncon:
-            return {}
-        contact = self._data.contact
-        geom = contact.geom
-        pad_action, registers = self._pad_action, self._registers
-        found: dict[int, tuple[float, float]] = {}
-        for i in range(ncon):
-            g1, g2 = int(geom[i, 0]), int(geom[i, 1])
-            if registers[g2] and pad_action[g1] >= 0:
-                action = int(pad_action[g1])
-            elif registers[g1] and pad_action[g2] >= 0:
-                action = int(pad_action[g2])
-            else:
-                continue
-            if action not in found:
-                pos = contact.pos[i]
-                found[action] = (float(pos[0]), float(pos[1]))
-        return found
+    def registered_move(self, pressure: np.ndarray, order: np.ndarray):
+        """The first substep's move that registers: (action, piece (x, y) or None), or None.
 
-    def _play_agent_move(self, action: int, touch_xy, rng) -> None:
-        self._apply(action, piece_xy=touch_xy)
+        ``pressure`` holds the zones' (squares, then pass) touch readings per
+        substep, oldest first; ``order`` maps those substeps to history slots.
+        """
+        n2, threshold = self._num_squares, arena_lib.TOUCH_THRESHOLD
+        squares = pressure[:n2]
+        best = squares.argmax(axis=0)
+        best_value = squares[best, self._arange]
+        candidate = np.where(best_value > threshold, best, -1)
+        if self._has_pass:
+            passing = pressure[n2]
+            candidate = np.where((passing > best_value) & (passing > threshold), n2, candidate)
+        steps = np.flatnonzero(candidate >= 0)
+        if not steps.size:
+            return None
+        zones = candidate[steps]
+        if self._finger_idx is not None:
+            # A finger geom in contact with that square's geom in that substep.
+            fingers = self._data.history[self._finger_idx[zones, :, order[steps]]]
+            keep = fingers.max(axis=1) > 0
+            steps, zones = steps[keep], zones[keep]
+        if not steps.size:
+            return None
+        legal = np.zeros(n2 + 1, bool)
+        legal[self.state.legal_actions()] = True
+        if self._has_pass and self._last_agent_move_passed and not self._allow_double_pass:
+            legal[n2] = False
+        keep = np.flatnonzero(legal[zones])
+        if not keep.size:
+            return None
+        step, zone = int(steps[keep[0]]), int(zones[keep[0]])
+        action = self.game.pass_action if zone == n2 else zone
+        piece_xy = None
+        if zone < n2:
+            found, x, y, _ = self._data.history[self._pos_idx[zone, order[step]]]
+            piece_xy = (float(x), float(y)) if found > 0 else tuple(self._point_xy[zone])
+        return action, piece_xy
+
+    def _play_agent_move(self, action: int, piece_xy, rng) -> None:
+        self._apply(action, piece_xy=piece_xy)
+        self._last_agent_move_passed = action == self.game.pass_action
         self.moves_registered += 1
         if not self.state.is_terminal():
             subgoal = self.opponent.plan(self.state)
@@ -235,8 +349,7 @@ class BoardTask(PhysicsTask):
             self._game_over = True
             self._reward = self.game.final_reward(self.state)
         elif self._arm_reset:
-            self._place_arm(rng, forward=True)
-            self._touched = frozenset()
+            self._place_arm(rng)
 
     def _apply(self, action: int, *, piece_xy, rng=None) -> None:
         """Plays ``action`` for the player to move and updates the pieces."""
@@ -257,13 +370,12 @@ class BoardTask(PhysicsTask):
                 continue
             px, py = self._point_xy[point]
             if point == action and player == AGENT and piece_xy is not None:
-                x = min(max(piece_xy[0], px - half), px + half)
-                y = min(max(piece_xy[1], py - half), py + half)
+                x, y = piece_xy
             else:
                 noise = (rng.uniform(-1, 1, 2) * self._piece_noise * half
                          if rng is not None else (0.0, 0.0))
                 x, y = px + noise[0], py + noise[1]
-            m.geom_pos[geom] = (x, y, arena_lib.BOARD_TOP + self._arena.piece_half_height)
+            m.geom_pos[geom] = (x, y, arena_lib.BOARD_TOP)
             m.geom_rgba[geom] = colours[owner]
             m.geom_group[geom] = 0
         self._owners = owners
@@ -271,53 +383,103 @@ class BoardTask(PhysicsTask):
 
     # -- the arm's random pose ----------------------------------------------
 
-    def _place_arm(self, rng, *, forward: bool) -> None:
-        """Puts the arm at rest in a random pose with the hand above the board."""
-        d = self._data
-        half = self._arena.half_board
-        cx, cy = arena_lib.BOARD_CENTRE
-        target = np.array([cx + rng.uniform(-0.8, 0.8) * half,
-                           cy + rng.uniform(-0.8, 0.8) * half,
-                           arena_lib.BOARD_TOP + rng.uniform(0.12, 0.3)])
-        arm_q = self.solve_ik(target)
-        if arm_q is None:
-            self.ik_failures += 1
-            arm_q = HOME_ARM_QPOS
-        fingers = self._finger_range[:, 0] + rng.uniform(0, 1, 3) * np.ptp(self._finger_range, 1)
-        d.qpos[self._joint_qpos] = np.concatenate([arm_q, fingers])
-        d.qvel[self._joint_dof] = 0.0
-        d.ctrl[self._act_ids] = 0.0
-        if forward:
-            mujoco.mj_forward(self._model, d)
+    def _place_arm(self, rng) -> None:
+        """The original's arm reset: the grip site at a random point of the
+        TCP box, pointing down with a random yaw; fingers and velocities kept."""
+        d, m = self._data, self._model
+        arm_qpos = self._joint_qpos[:6]
+        before = d.qpos[arm_qpos].copy()
+        for _ in range(_REJECTION_SAMPLES):
+            target = rng.uniform(TCP_LOW, TCP_HIGH)
+            yaw = rng.uniform(-math.pi, math.pi)
+            quat = _quat_mul([math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)], DOWN_QUAT)
+            arm_q = self._solve_tcp(target, quat)
+            if arm_q is None:
+                continue
+            d.qpos[arm_qpos] = arm_q
+            mujoco.mj_forward(m, d)
+            if not self._arm_collides():
+                return
+        self.ik_failures += 1
+        d.qpos[arm_qpos] = before
+        mujoco.mj_forward(m, d)
+
+    def _arm_collides(self) -> bool:
+        """Contacts of the arm with itself, the hand or the board (not hand-hand)."""
+        ncon = self._data.ncon
+        if not ncon:
+            return False
+        contact = self._data.contact
+        g = contact.geom[:ncon]
+        touching = contact.dist[:ncon] <= 0
+        arm, hand = self._is_arm[g], self._is_hand[g]
+        robot = arm | hand
+        relevant = ((arm[:, 0] & robot[:, 1]) | (robot[:, 0] & arm[:, 1])
+                    | (robot[:, 0] != robot[:, 1]))
+        return bool(np.any(relevant & touching))
+
+    def _solve_tcp(self, target, quat) -> np.ndarray | None:
+        """Arm joints putting the grip site at ``target`` with orientation ``quat``."""
+        if self._tcp_ik is None:
+            config = mink.Configuration(self._model)
+            frame = mink.FrameTask(self._tcp_name, "site", position_cost=1.0,
+                                   orientation_cost=1.0)
+            posture = mink.PostureTask(self._model, cost=1e-3)
+            home = config.q.copy()
+            home[self._joint_qpos[:6]] = HOME_ARM_QPOS
+            posture.set_target(home)
+            self._tcp_ik = (config, frame, posture, home)
+        config, frame, posture, home = self._tcp_ik
+        frame.set_target(mink.SE3.from_rotation_and_translation(mink.SO3(np.asarray(quat)),
+                                                                 np.asarray(target, float)))
+        q = home.copy()
+        q[self._joint_qpos[6:]] = self._data.qpos[self._joint_qpos[6:]]
+        config.update(q)
+        for _ in range(200):
+            velocity = mink.solve_ik(config, [frame, posture], 0.05, "daqp", damping=1e-3)
+            config.integrate_inplace(velocity, 0.05)
+            error = frame.compute_error(config)
+            if np.linalg.norm(error[:3]) < 1e-3 and np.linalg.norm(error[3:]) < 1e-2:
+                break
+        else:
+            return None
+        arm_q = config.q[self._joint_qpos[:6]].copy()
+        # Continuous joints in [0, 2 pi), as dm_control's IK canonicalises them.
+        arm_q[self._arm_wrap] = np.mod(arm_q[self._arm_wrap], 2 * np.pi)
+        return arm_q
 
     def solve_ik(self, target) -> np.ndarray | None:
         """Arm joint angles (6) putting the pinch site at ``target`` pointing down.
 
-        Starts from, and is regularised towards, a home posture above the
-        board; None if it does not converge to 2 mm.
+        Starts from a home posture above the board (then, failing that, from
+        the current posture) and is regularised towards it; None if it does
+        not converge to 2 mm. (For tests and scripts.)
         """
         target = np.asarray(target, dtype=np.float64)
         if self._ik is None:
             config = mink.Configuration(self._model)
             frame = mink.FrameTask(self._pinch_name, "site", position_cost=1.0,
-                                   orientation_cost=0.3)
+                                   orientation_cost=0.05)
             posture = mink.PostureTask(self._model, cost=1e-3)
             home = config.q.copy()
             home[self._joint_qpos[:6]] = HOME_ARM_QPOS
             home[self._joint_qpos[6:]] = self._finger_range[:, 0]
             posture.set_target(home)
-            self._ik = (config, frame, posture, home)
-        config, frame, posture, home = self._ik
+            limits = [mink.ConfigurationLimit(self._model)]
+            self._ik = (config, frame, posture, home, limits)
+        config, frame, posture, home, limits = self._ik
         frame.set_target(mink.SE3.from_rotation_and_translation(mink.SO3(DOWN_QUAT), target))
-        config.update(home)
-        for _ in range(100):
-            velocity = mink.solve_ik(config, [frame, posture], 0.05, "daqp", damping=1e-3)
-            config.integrate_inplace(velocity, 0.05)
-            if np.linalg.norm(frame.compute_error(config)[:3]) < 2e-3:
-                break
-        else:
-            return None
-        return config.q[self._joint_qpos[:6]].copy()
+        current = home.copy()
+        current[self._joint_qpos[:6]] = self._data.qpos[self._joint_qpos[:6]]
+        for start in (home, current):
+            config.update(start)
+            for _ in range(150):
+                velocity = mink.solve_ik(config, [frame, posture], 0.05, "daqp", damping=1e-3,
+                                         limits=limits)
+                config.integrate_inplace(velocity, 0.05)
+                if np.linalg.norm(frame.compute_error(config)[:3]) < 2e-3:
+                    return config.q[self._joint_qpos[:6]].copy()
+        return None
 
     # -- rewards and termination --------------------------------------------
 
@@ -393,17 +555,21 @@ class BoardTask(PhysicsTask):
         return self._game_over
 
     def point_position(self, action: int) -> np.ndarray:
-        """World (x, y, z) of the top of board point ``action``'s pad."""
+        """World (x, y, z) of board point ``action`` on the board's top."""
         x, y = self._arena.point_position(action)
-        return np.array([x, y, arena_lib.BOARD_TOP + 2 * arena_lib.PAD_HALF_HEIGHT])
+        return np.array([x, y, arena_lib.BOARD_TOP])
 
     def pass_position(self, side: str = "left") -> np.ndarray:
-        """World (x, y, z) of the centre of a pass pad (Go only)."""
-        if not self._arena.pass_pads:
-            raise ValueError("this game has no pass pads")
-        pad = self._arena.pass_pads[0 if side == "left" else 1]
-        x, y, _ = pad.pos
-        return np.array([x, y, arena_lib.BOARD_TOP + 2 * arena_lib.PAD_HALF_HEIGHT])
+        """World (x, y, z) of a point of a pass area (Go only), on the pass geom's
+        top 5 cm beside the board's ``side`` edge, level with the rows nearest
+        the arm (the easiest part of the area to reach)."""
+        arena = self._arena
+        if arena.pass_geom is None:
+            raise ValueError("this game has no pass areas")
+        cx, cy = arena.centre
+        sign = -1.0 if side == "left" else 1.0
+        return np.array([cx + sign * (arena.half_board + 0.05), cy + 0.75 * arena.half_board,
+                         0.5 * arena_lib.SQUARE_HALF_HEIGHT])
 
     def pinch_site_position(self) -> np.ndarray:
         return self._data.site_xpos[self._pinch_site].copy()
