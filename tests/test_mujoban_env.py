@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import mujoco
 import numpy as np
 import pytest
 
@@ -278,6 +279,12 @@ def test_walls_look_the_same_when_drawn_cell_by_cell():
     assert np.abs(frames[0] - frames[1]).max() < 40.0
 
 
+@pytest.mark.parametrize("bad", [-1, 2.5, "5", True])
+def test_bad_noslip_iterations_is_a_value_error_naming_it(bad):
+    with pytest.raises((ValueError, TypeError), match="noslip_iterations"):
+        envs.load("mujoban/level1", noslip_iterations=bad, **NO_CAMERAS)
+
+
 # -- the original task's values (physics_planning_games' MuJoBan) -----------------
 
 
@@ -286,10 +293,15 @@ def test_defaults_are_the_original_1ms_physics_and_0_1_cell_pad_tolerance():
     assert env.physics.model.opt.timestep == pytest.approx(0.001)
     assert env.task.physics_steps_per_control_step == 50
     assert env.task.pad_tolerance == pytest.approx(0.1)
+    # composer's base arena, which the original's maze arena inherits
+    assert env.physics.model.opt.noslip_iterations == 5
+    assert env.physics.model.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC
 
 
 def test_explicit_options_restore_5ms_physics_and_a_0_3_cell_pad_tolerance():
-    env = envs.load("mujoban/level1", physics_timestep=0.005, pad_tolerance=0.3, **NO_CAMERAS)
+    env = envs.load("mujoban/level1", physics_timestep=0.005, pad_tolerance=0.3,
+                    noslip_iterations=0, **NO_CAMERAS)
+    assert env.physics.model.opt.noslip_iterations == 0
     assert env.physics.model.opt.timestep == pytest.approx(0.005)
     assert env.task.physics_steps_per_control_step == 10
     assert env.task.pad_tolerance == pytest.approx(0.3)

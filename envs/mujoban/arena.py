@@ -114,7 +114,7 @@ class MujobanArena(composer.Arena):
     """The maze arena. See the module docstring for what changes per episode."""
 
     def _build(self, grid_shape=(10, 10), max_boxes=4, cell_size=1.0, pegs=False,
-               offscreen_size=(256, 256), wall_slabs=32,
+               offscreen_size=(256, 256), wall_slabs=32, noslip_iterations=5,
                name="mujoban"):
         self._mjcf_root = mjcf.RootElement(model=name)
         height, width = grid_shape
@@ -126,7 +126,12 @@ class MujobanArena(composer.Arena):
         # Bodies that only carry joints (attachment frames) get a tiny mass.
         root.compiler.boundmass = 1e-5
         root.compiler.boundinertia = 1e-11
+        # The solver options of dm_control composer's base arena, which the
+        # original MuJoBan arena inherits: elliptic friction cones and 5
+        # iterations of the noslip solver (no slip at sticking contacts).
         root.option.cone = "elliptic"
+        root.option.noslip_iterations = int(noslip_iterations)
+        root.option.noslip_tolerance = 0.0
 
         root.visual.quality.shadowsize = 0
         root.visual.quality.offsamples = 0
