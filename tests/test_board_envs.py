@@ -348,3 +348,35 @@ def test_physics_timestep_option_and_the_opponents_piece_jitter(make, noise):
     assert offsets.max() <= bound + 1e-12
     assert offsets.max() > 0.2 * bound  # jittered, not at the centre
     env.close()
+
+
+# The upper arm (its ring_3 geom) resting on a Go point in front of the base,
+# the hand well above the board: found by scanning shoulder and elbow angles
+# for a pose whose only robot-board contacts are non-finger arm geoms.
+_UPPER_ARM_ON_BOARD = {1: 5.26, 2: 4.54}
+
+
+@pytest.mark.parametrize("registering, registers", [(None, False), ("arm", True)])
+def test_a_press_by_a_non_finger_arm_geom_registers_only_when_any_contact_counts(
+        registering, registers):
+    # MuJoGo's default: a finger must touch the pressed point. registering="arm"
+    # is MuJoXO's rule (any contact), offered as a MuJoGo deviation.
+    overrides = {} if registering is None else {"registering": registering}
+    env = envs.load("mujogo/7x7", seed=0, front_camera=None, arm_reset=False, **overrides)
+    try:
+        env.reset()
+        task, data = env.task, env.physics.data
+        for joint, angle in _UPPER_ARM_ON_BOARD.items():
+            data.qpos[task._joint_qpos[joint]] = angle  # pylint: disable=protected-access
+        data.qvel[:] = 0.0
+        env.physics.forward()
+        action = hold_action(env, arm_velocity=np.zeros(6))
+        readings, contacts = substep_touches(env, action)
+        touched = set().union(*contacts)
+        # The board is pressed above the threshold, by arm geoms only.
+        assert readings.max() > arena_lib.TOUCH_THRESHOLD
+        assert touched and not any("finger" in robot for robot, _ in touched)
+        timestep = env.step(action)
+        assert (timestep.observation["move_history"][0] >= 0) == registers
+    finally:
+        env.close()
