@@ -1,8 +1,17 @@
-"""`ArmTouchSkill`: touch a board point (or a Go pass pad) with the Jaco's fingertips.
+"""`ArmTouchSkill`: touch a board point (or a Go pass area) with the Jaco's fingertips.
 
 The skill plays one move of MuJoXO / MuJoGo (`envs.boards`): the subgoal's
 ``action`` is an OpenSpiel action id, a board point ``row * N + col`` or, in
-Go, the pass action ``N * N`` (touched on the pass pad nearer the hand).
+Go, the pass action ``N * N`` (touched on the floor-level pass area beside
+the board on the hand's side, `_PASS_OFFSET` out from the board's edge).
+
+Geometry (the original's): the arm's base is at (0, 0.4, 0), the board at the
+origin; a touch registers where a touch sensor (a 0.7 x half-width square
+inside each board square: the target's ``pad_half``) is pressed hardest, in
+Go only by a finger geom. The far Go rows are 0.7-0.84 m from the base:
+beyond ``lean_start`` (0.7 m) the hand cannot point straight down there, so
+the planner *leans* the hand away from the base (fingertips ahead of the
+wrist) by about ``lean_rate`` degrees per metre beyond, up to ``max_lean``.
 
 What limits a touch is the arm's joints: the actuators are velocity servos
 whose ranges are 0.63 rad/s (shoulder, elbow) and 0.84 rad/s (wrist), and the
@@ -12,10 +21,12 @@ that asks the wrist to start and stop at will overshoots and oscillates, so
 the skill plans postures with mink at `reset` and moves in joint space:
 
 1. **Plan** (`reset`, ~30 ms). Candidate *pre-touch* postures put the closed
-   fingertips ``pre_height`` above the target: the hand pointing down (and
-   rolled by ±12° about its x axis, which lifts one side of the fingers), and
-   postures near the current one that let the hand tilt (up to ``max_tilt``)
-   where that saves joint travel -- mink IK (daqp) from the current posture.
+   fingertips ``pre_height`` above the target: the hand pointing down, or
+   leant outwards for far targets (`_lean`; and rolled by ±12° about its x
+   axis, which lifts one side of the fingers), and postures near the current
+   one pulled towards that direction with the heading free, which may tilt
+   (up to ``max_tilt`` from vertical) where that saves joint travel -- mink
+   IK (daqp) from the current posture.
    Candidates whose fingertip footprint would not land inside the target pad
    are dropped; of the rest, the one the joints reach first (trapezoidal
    profiles within each joint's speed and acceleration) is kept, raised if
@@ -38,13 +49,16 @@ the skill plans postures with mink at `reset` and moves in joint space:
 5. **Touch** (when the touch posture is reached without a move, e.g. the pad
    was already touched): a mink `FrameTask` on the pinch site, solved with
    daqp from the *current* joint angles each step, steers the tool point with
-   the wrist damped: it lifts and presses again, up to ``max_presses`` times.
+   the wrist damped and the hand pointing as planned: it lifts and presses
+   again, up to ``max_presses`` times.
 
 The *tool point* is the centre of the smallest circle around the leading
 fingertips' lowest points, at the lowest height; the fingers are closed
 throughout (finger velocity at its maximum), so the tips lead. In MuJoXO any
-arm geom registers, but only the fingertips come near the board (the hand is
-at most ``max_tilt`` from vertical, the knuckles 2.5 cm or more above the tips).
+arm geom registers, but every tic-tac-toe square is within ``lean_start``,
+so the hand points (nearly) down and only the fingertips come near the board;
+in MuJoGo only finger geoms register, and a leant hand still lands on its
+leading fingertip(s).
 
 Status: SUCCESS when the agent's next registered move is ``subgoal.action``;
 FAILURE (``failure_reason`` starts with the keyword) when another move
@@ -87,28 +101,51 @@ HOME_ARM_QPOS = np.array([1.24, 3.89, 2.13, 5.79, 1.64, 3.89])
 JOINT_ACCELERATION = np.array([6.5, 4.8, 5.8, 2.8, 2.8, 2.8])
 
 _TIP_NAMES = ("finger_tip_1", "finger_tip_2", "finger_tip_3")
-_PASS_PAD_HALF_WIDTH = 0.04  # envs.boards.arena.PASS_PAD_WIDTH / 2
+#: Where the skill touches a pass area (the floor-level zones beside the Go
+#: board): this far (m) out from the board's side edge, with this tolerance
+#: (m) around it, between these distances (m) from the board's centre line
+#: towards the arm.
+_PASS_OFFSET = 0.12
+_PASS_TOLERANCE = 0.07
+_PASS_Y_RANGE = (-0.02, 0.25)
 
 
-def _pointing_down(xmat, roll: float = 0.0) -> mink.SO3:
+_DOWN = np.array([0.0, 0.0, -1.0])
+
+
+def _skew(k: np.ndarray) -> np.ndarray:
+    return np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+
+
+def _pointing(xmat, direction: np.ndarray = _DOWN, roll: float = 0.0) -> mink.SO3:
     """The orientation nearest the site's (``xmat``) whose z axis -- first
-    rolled by ``roll`` radians about the site's x axis -- points straight down.
+    rolled by ``roll`` radians about the site's x axis -- points along the
+    unit vector ``direction`` (default straight down).
 
-    Keeps the hand's heading (rotation about the vertical): only the tilt is
-    corrected.
+    Only the smallest rotation is applied: for ``direction`` down the hand's
+    heading (rotation about the vertical) is kept.
     """
     rot = np.asarray(xmat, float).reshape(3, 3)
     z = rot @ np.array([0.0, -math.sin(roll), math.cos(roll)])  # (R Rx(roll)) e_z
-    # Rotation taking z onto (0, 0, -1): axis z x down = (-z_y, z_x, 0).
-    ax, ay = -float(z[1]), float(z[0])
-    sin, cos = math.hypot(ax, ay), -float(z[2])
+    axis = np.cross(z, direction)
+    sin, cos = float(np.linalg.norm(axis)), float(z @ direction)
     if sin < 1e-9:
-        align = np.eye(3) if cos > 0 else np.diag([1.0, -1.0, -1.0])
+        if cos > 0:
+            return mink.SO3.from_matrix(rot)
+        perpendicular = np.cross(z, [1.0, 0.0, 0.0] if abs(z[0]) < 0.9 else [0.0, 1.0, 0.0])
+        skew = _skew(perpendicular / np.linalg.norm(perpendicular))
+        align = np.eye(3) + 2 * (skew @ skew)  # half a turn
     else:
-        kx, ky = ax / sin, ay / sin
-        skew = np.array([[0.0, 0.0, ky], [0.0, 0.0, -kx], [-ky, kx, 0.0]])
+        skew = _skew(axis / sin)
         align = np.eye(3) + sin * skew + (1 - cos) * (skew @ skew)
     return mink.SO3.from_matrix(align @ rot)
+
+
+def _lean_direction(out_xy: np.ndarray, lean_degrees: float) -> np.ndarray:
+    """Straight down tilted by ``lean_degrees`` towards the horizontal unit
+    vector ``out_xy``."""
+    lean = math.radians(lean_degrees)
+    return np.array([math.sin(lean) * out_xy[0], math.sin(lean) * out_xy[1], -math.cos(lean)])
 
 
 def _enclosing_circle(points: np.ndarray) -> tuple[np.ndarray, float]:
@@ -162,6 +199,9 @@ class _ArmModel:
         finger_joints = model.dof_jntid[dof_ids[6:]]
         self.fingers_closed = model.jnt_range[finger_joints, 1].copy()
         self.limits = [mink.ConfigurationLimit(model)]
+        # The arm's base (the body of its first joint turns about the vertical).
+        first = int(model.dof_jntid[self.arm_dof[0]])
+        self.base_body = int(model.jnt_bodyid[first])
         # Per-step differential IK (touch phase): the pinch site's pose, the
         # wrist damped so the fast shoulder and elbow do the correcting.
         self.config = mink.Configuration(model)
@@ -303,18 +343,23 @@ class _ArmModel:
                       int(self.model.site_bodyid[self.site]))
         return jacp[2, self.arm_dof]
 
+    def base_xy(self) -> np.ndarray:
+        """World (x, y) of the arm's base."""
+        return self.data.xpos[self.base_body][:2].copy()
+
     def tilt(self, data) -> float:
         """Angle (degrees) between the pinch site's z axis and straight down."""
         return math.degrees(math.acos(float(np.clip(-data.site_xmat[self.site][8], -1, 1))))
 
     def solve_soft_posture(self, q_start: np.ndarray, tool_goal: np.ndarray,
                            orientation_cost: float, iterations: int, roll: float = 0.0,
-                           tolerance: float = 1e-3):
+                           tolerance: float = 1e-3, direction: np.ndarray = _DOWN):
         """Joint angles (full qpos) putting the closed fingers' tool point at
-        ``tool_goal``, near ``q_start``, the hand pulled towards pointing down
-        with weight ``orientation_cost``; with a ``roll`` (radians) the hand is
+        ``tool_goal``, near ``q_start``, the hand pulled towards pointing along
+        ``direction`` (default down; `_lean_direction` for far targets) with
+        weight ``orientation_cost``, its heading free; with a ``roll`` (radians) the hand is
         also held rolled by that much about its x axis, which lifts one side
-        of the closed fingers; (qpos, tilt in degrees) or None.
+        of the closed fingers; (qpos, tilt from vertical in degrees) or None.
 
         The first half of the iterations regularise towards ``q_start``, the
         rest only damp the steps, so the tool converges exactly.
@@ -334,7 +379,7 @@ class _ArmModel:
             if i == half:
                 posture.set_target(config.q)
             frame.set_target(mink.SE3.from_rotation_and_translation(
-                _pointing_down(data.site_xmat[self.site], roll),
+                _pointing(data.site_xmat[self.site], direction, roll),
                 data.site_xpos[self.site] + error))
             velocity = mink.solve_ik(config, [frame, posture], 1.0, "daqp", damping=1e-4,
                                      limits=self.limits)
@@ -408,9 +453,15 @@ class ArmTouchSkill(Skill):
         vertical and tilted by ``roll`` about the hand's x axis (which lowers
         one side of the closed fingers: a smaller footprint).
       tilt_costs, max_tilt: more candidates, (weight, roll) pairs: postures
-        near the start, pulled with that weight towards pointing down rolled by
-        ``roll`` degrees (so they may tilt towards the start), at most
-        ``max_tilt`` degrees from vertical.
+        near the start, pulled with that weight towards pointing down (or
+        leant, see below) rolled by ``roll`` degrees (so they may tilt towards
+        the start), at most ``max_tilt`` degrees from vertical (the near
+        Go rows, 0.2 m from the base, are reached fastest well tilted).
+      lean_start, lean_rate, lean_step, max_lean: targets beyond ``lean_start``
+        (m, horizontally from the arm's base) are tried with the hand leant
+        away from the base by ``lean_rate`` degrees per metre beyond, and
+        ``lean_step`` degrees more (more leans if none lands), at most
+        ``max_lean`` (+ ``lean_step`` in the fallback).
       switch_time: the descent starts when the pre-touch posture is this many
         seconds away at full joint speed.
       guard, lookahead: the skill recovers when, travelling, the tool is (or
@@ -451,7 +502,8 @@ class ArmTouchSkill(Skill):
     def __init__(self, *, pre_height: float = 0.025, press_depth: float = 0.012,
                  orientations=((0, 0), (0, 12), (0, -12)),
                  tilt_costs=((0.02, 0), (0.01, 12), (0.01, -12)),
-                 max_tilt: float = 30.0, switch_time: float = 0.1,
+                 max_tilt: float = 55.0, max_lean: float = 55.0, lean_start: float = 0.7,
+                 lean_rate: float = 250.0, lean_step: float = 8.0, switch_time: float = 0.1,
                  guard: float = 0.008, lookahead: float = 0.05, accel_margin: float = 0.85,
                  speed: float = 0.3, gain: float = 5.0, slope: float = 1.6,
                  clearance: float = 0.008,
@@ -467,6 +519,8 @@ class ArmTouchSkill(Skill):
         self.touch_speed, self.landing_decel = float(touch_speed), float(landing_decel)
         self.tilt_costs = tuple((float(c), float(r)) for c, r in tilt_costs)
         self.max_tilt = float(max_tilt)
+        self.lean_start, self.lean_rate = float(lean_start), float(lean_rate)
+        self.lean_step, self.max_lean = float(lean_step), float(max_lean)
         self.touch_tilt = math.nan
         self.switch_time, self.guard = float(switch_time), float(guard)
         self.lookahead = float(lookahead)
@@ -517,6 +571,7 @@ class ArmTouchSkill(Skill):
         self._extra_height, self._recoveries, self._recovering = 0.0, 0, False
         self._waits = 0
         self._landing_kind = None
+        self._touch_direction = _DOWN
         self._last_tool, self._tool_speed = None, np.zeros(3)
         self.plan_ms = 0.0
         self.planned_time = math.nan
@@ -529,7 +584,7 @@ class ArmTouchSkill(Skill):
         game = task.game
         if game.pass_action is not None and action == game.pass_action:
             self._pad_top = self._pass_point(task, tool)
-            self._tolerance = _PASS_PAD_HALF_WIDTH
+            self._tolerance = _PASS_TOLERANCE
         elif 0 <= action < game.num_points:
             self._pad_top = np.asarray(task.point_position(action), float)
             self._tolerance = float(task.arena.pad_half)
@@ -593,11 +648,15 @@ class ArmTouchSkill(Skill):
         """
         arm = self._arm
         pre_goal = self._pad_top + np.array([0.0, 0.0, self.pre_height + self._extra_height])
+        lean = self._lean(pre_goal)
+        orientations = [(h, r, t) for t in lean for h, r in self.orientations]
         landable = self._landable(
-            self._candidates(q, pre_goal, self.orientations, self.tilt_costs))
-        if not landable:  # a hard case: more orientations and iterations
+            self._candidates(q, pre_goal, orientations, self.tilt_costs))
+        if not landable:  # a hard case: more orientations, leans and iterations
+            leans = sorted({*lean, lean[-1] + self.lean_step, max(lean[0] - self.lean_step, 0.0)})
             landable = self._landable(self._candidates(
-                q, pre_goal, [(h, r) for h in range(-180, 180, 30) for r in (-15, 0, 15)], (),
+                q, pre_goal, [(h, r, t) for t in leans for h in range(-180, 180, 30)
+                              for r in (-15, 0, 15)], (),
                 iterations=4 * self.ik_iterations))
         timed = sorted(((float(np.max(_trapezoid_time(arm.joint_delta(q, q_pre), arm.vmax,
                                                       self.accel))), index, q_pre)
@@ -622,24 +681,63 @@ class ArmTouchSkill(Skill):
             if q_touch is not None:
                 self.planned_time = duration
                 self.touch_tilt = arm.tilt(arm.goal_config.data)
+                # The touch phase keeps the hand pointing as planned.
+                self._touch_direction = arm.goal_config.data.site_xmat[arm.site][[2, 5, 8]].copy()
                 return best, q_touch
         return None
 
+    def _lean(self, goal: np.ndarray) -> tuple[float, ...]:
+        """Outward leans (degrees) to try for a target at ``goal``.
+
+        With the hand pointing down the arm reaches about ``lean_start`` (m,
+        horizontally from its base); farther targets need the hand leaning
+        away from the base (the fingertips ahead of the wrist), by about
+        ``lean_rate`` degrees per metre beyond, up to ``max_lean``. Near
+        targets: only 0; far ones: the estimate and ``lean_step`` more.
+        """
+        reach = float(np.linalg.norm(goal[:2] - self._arm.base_xy()))
+        need = self.lean_rate * (reach - self.lean_start)
+        if need <= 0:
+            return (0.0,)
+        need = min(need, self.max_lean - self.lean_step)
+        return (need, need + self.lean_step)
+
+    def _rotation(self, goal: np.ndarray, heading: float, roll: float,
+                  lean: float) -> mink.SO3:
+        """The down orientation turned by ``heading`` about the vertical,
+        rolled by ``roll`` about the hand's x axis, and leant by ``lean``
+        (degrees) away from the arm's base (the hand's z axis tilted from
+        straight down towards the horizontal direction base -> ``goal``)."""
+        rotation = (mink.SO3.from_z_radians(math.radians(heading)) @ self._down
+                    @ mink.SO3.from_x_radians(math.radians(roll)))
+        if lean:
+            out = goal[:2] - self._arm.base_xy()
+            out /= max(float(np.linalg.norm(out)), 1e-9)
+            axis = np.array([out[1], -out[0], 0.0])  # turns -z towards `out`
+            rotation = mink.SO3.exp(axis * math.radians(lean)) @ rotation
+        return rotation
+
     def _candidates(self, q, goal, orientations, tilt_costs, iterations=None) -> list:
-        """Pre-touch postures: at ``orientations``, and tilted near ``q``."""
+        """Pre-touch postures: at ``orientations`` ((heading, roll, lean)
+        triples, `_rotation`), and tilted near ``q``."""
         arm = self._arm
         iterations = iterations or self.ik_iterations
         found = []
-        for heading, roll in orientations:
-            rotation = (mink.SO3.from_z_radians(math.radians(heading)) @ self._down
-                        @ mink.SO3.from_x_radians(math.radians(roll)))
+        for heading, roll, lean in orientations:
+            rotation = self._rotation(goal, heading, roll, lean)
             q_pre = arm.solve_posture(q, goal, rotation, iterations)
             if q_pre is not None:
                 found.append(q_pre)
-        for cost, roll in tilt_costs:
-            solved = arm.solve_soft_posture(q, goal, cost, 2 * iterations, math.radians(roll))
-            if solved is not None and solved[1] <= self.max_tilt:
-                found.append(solved[0])
+        leans = sorted({lean for _, _, lean in orientations})
+        out = goal[:2] - arm.base_xy()
+        out /= max(float(np.linalg.norm(out)), 1e-9)
+        for lean in leans:
+            direction = _lean_direction(out, lean)
+            for cost, roll in tilt_costs:
+                solved = arm.solve_soft_posture(q, goal, cost, 2 * iterations, math.radians(roll),
+                                                direction=direction)
+                if solved is not None and solved[1] <= self.max_tilt:
+                    found.append(solved[0])
         return found
 
     def _landable(self, postures: list) -> list:
@@ -802,7 +900,7 @@ class ArmTouchSkill(Skill):
         # closed) to move by velocity * dt at the target rotation.
         data = arm.config.data
         xmat = data.site_xmat[arm.site].reshape(3, 3)
-        rotation = _pointing_down(xmat)
+        rotation = _pointing(xmat, self._touch_direction)
         offset = xmat.T @ (tool - data.site_xpos[arm.site])
         pinch = tool + velocity * self._dt - rotation.as_matrix() @ offset
         arm.frame.set_target(mink.SE3.from_rotation_and_translation(rotation, pinch))
@@ -882,12 +980,16 @@ class ArmTouchSkill(Skill):
 
     @staticmethod
     def _pass_point(task, tool: np.ndarray) -> np.ndarray:
-        """The pad-top point on the pass pad nearer the tool, level with the tool."""
-        best = min((task.pass_position(side) for side in ("left", "right")),
-                   key=lambda centre: abs(centre[0] - tool[0]))
-        span = task.arena.half_board - 0.03  # the pad spans the board's depth
-        point = np.array(best, float)
-        point[1] = np.clip(tool[1], best[1] - span, best[1] + span)
+        """The point of the pass area on the tool's side of the board to touch:
+        `_PASS_OFFSET` beside the board's edge (well clear of its squares),
+        level with the tool within `_PASS_Y_RANGE` (where the arm reaches it
+        with the hand pointing down), at the pass geom's top."""
+        arena = task.arena
+        cx, cy = arena.centre
+        side = "left" if tool[0] < cx else "right"
+        point = np.array(task.pass_position(side), float)
+        point[0] = cx + math.copysign(arena.half_board + _PASS_OFFSET, point[0] - cx)
+        point[1] = np.clip(tool[1], cy + _PASS_Y_RANGE[0], cy + _PASS_Y_RANGE[1])
         return point
 
     def _check_outcome(self, task, timestep) -> None:

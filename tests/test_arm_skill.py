@@ -53,7 +53,7 @@ def run_skill(env, skill, action, timestep, max_steps=80):
     return timestep, steps
 
 
-@pytest.mark.parametrize("point", [0, 2, 4, 6, 8])
+@pytest.mark.parametrize("point", range(9))
 def test_mujoxo_touch_registers_the_planned_point(mujoxo, point):
     env = mujoxo
     timestep = env.reset()
@@ -66,16 +66,24 @@ def test_mujoxo_touch_registers_the_planned_point(mujoxo, point):
 
 
 @needs_gnugo
-@pytest.mark.parametrize("point", [0, 6, 24, 42, 48])
-def test_mujogo_touch_registers_the_planned_point(mujogo, point):
+def test_mujogo_every_point_and_the_pass_register(mujogo):
+    """Every point of the 7x7 board -- the far row, ~0.8 m from the arm's base,
+    needs the hand leant -- and the pass, each from a fresh random arm pose."""
     env = mujogo
-    timestep = env.reset()
-    skill = ArmTouchSkill()
-    _, steps = run_skill(env, skill, point, timestep)
-    assert skill.status is Status.SUCCESS, skill.failure_reason
-    assert env.task.moves_registered == 1
-    assert env.task.moves[0] == point
-    assert steps <= skill.max_steps
+    game = env.task.game
+    failures, leans = [], {}
+    for action in list(range(game.num_points)) + [game.pass_action]:
+        timestep = env.reset()
+        skill = ArmTouchSkill()
+        _, steps = run_skill(env, skill, action, timestep)
+        if (skill.status is not Status.SUCCESS or env.task.moves[:1] != (action,)
+                or steps > skill.max_steps):
+            failures.append((action, skill.failure_reason, env.task.moves[:1], steps))
+        leans[action] = skill.touch_tilt
+    assert not failures
+    # The far row (Go row 0, farthest from the arm) is touched with the hand
+    # leant well away from vertical.
+    assert min(leans[a] for a in range(game.size)) > 15
 
 
 @needs_gnugo
@@ -95,7 +103,7 @@ def test_mujogo_several_touches_in_a_row(mujogo):
 
 
 @needs_gnugo
-def test_mujogo_pass_on_the_pass_pad(mujogo):
+def test_mujogo_pass_on_the_pass_area(mujogo):
     env = mujogo
     timestep = env.reset()
     skill = ArmTouchSkill()
@@ -104,8 +112,11 @@ def test_mujogo_pass_on_the_pass_pad(mujogo):
     run_skill(env, skill, pass_action, timestep)
     assert skill.status is Status.SUCCESS, skill.failure_reason
     assert env.task.moves[0] == pass_action
-    # The skill went for the pass pad on the hand's side of the board.
+    # The skill went for the pass area on the hand's side of the board, clear
+    # of the board's squares.
     assert np.sign(skill.target[0]) == np.sign(tool_x) or abs(tool_x) < 1e-3
+    arena = env.task.arena
+    assert abs(skill.target[0] - arena.centre[0]) > arena.half_board + 0.05
 
 
 @pytest.mark.parametrize("seed", [0, 1])
