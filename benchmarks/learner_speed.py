@@ -20,7 +20,7 @@
 
 Prints a table and, with ``--json``, writes {"env", "agent",
 "learner_frames_per_s", "env_steps_per_s", "ratio",
-"parallel_env_steps_per_s", "ratio_to_parallel", ...}.
+"parallel_env_steps_per_s", "ratio_to_parallel", ..., "provenance"}.
 """
 
 from __future__ import annotations
@@ -35,6 +35,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from _common import write_json  # noqa: E402
+from hier_agents.provenance import provenance  # noqa: E402
 
 import numpy as np  # noqa: E402
 
@@ -154,7 +155,7 @@ def main(argv=None) -> int:
           f"{row['learner_frames_per_s']:>16,.0f} {row['ratio']:>6.2f} {row['updates']:>7} "
           f"{parallel:>20,.0f}")
     if args.json:
-        write_json(args.json, row)
+        write_json(args.json, {**row, "provenance": provenance()})
     return 0
 
 
