@@ -1,0 +1,40 @@
+"""The speed benchmark compares with the original only at the original's timestep."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _env_speed(tmp_path, *extra):
+    out = tmp_path / "speed.json"
+    subprocess.run([sys.executable, str(ROOT / "benchmarks" / "env_speed.py"), "--steps", "60",
+                    "--json", str(out), *extra], check=True, cwd=ROOT, capture_output=True)
+    return json.loads(out.read_text())
+
+
+def test_env_speed_compares_with_original_only_at_its_timestep(tmp_path):
+    result = _env_speed(tmp_path, "--envs", "mujoban/level1", "mujoxo/mixture",
+                        "--cameras", "none", "front_camera")
+    assert {"command", "commit", "date", "machine"} <= set(result["provenance"])
+    rows = {(r["env"], tuple(r["cameras"])): r for r in result["rows"]}
+    assert set(rows) == {("mujoban/level1", ()), ("mujoxo/mixture", ()),
+                         ("mujoxo/mixture", ("front_camera",))}
+    mujoban, board = rows[("mujoban/level1", ())], rows[("mujoxo/mixture", ())]
+    assert mujoban["physics_timestep"] == 0.001 and board["physics_timestep"] == 0.002
+    assert mujoban["x_original"] == round(mujoban["steps_per_s"] / 53.0, 1)
+    # The original has no camera-off board-game figure and no one-camera one.
+    assert board["x_original"] is None
+    assert rows[("mujoxo/mixture", ("front_camera",))]["x_original"] is None
+    for row in rows.values():
+        assert row["steps_per_s"] > 0 and row["physics_limit_steps_per_s"] > 0
+
+
+def test_env_speed_at_another_timestep_makes_no_original_comparison(tmp_path):
+    result = _env_speed(tmp_path, "--envs", "mujoban/level1", "--cameras", "none",
+                        "--physics-timestep", "0.005")
+    (row,) = result["rows"]
+    assert row["physics_timestep"] == 0.005
+    assert row["x_original"] is None
