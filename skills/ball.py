@@ -34,11 +34,16 @@ leg, so the box is never stopped in between; re-planning between subgoals
 trajectory from wherever the walker is.
 
 A walk's cell centres are first joined by straight lines wherever the ball
-keeps 0.3 cells (its radius plus 0.1) from every wall and box cell (so
-staircases become diagonals in open rooms, never in corridors), then every
-corner is rounded by the widest arc (radius <= 1 cell) that is just as
-clear and whose chord keeps the ball's radius from them (the pursuit cuts
-inside fast arcs). A turn into a push line keeps a straight run of 0.3 m before the
+keeps 0.3 cells (its radius plus 0.1) from every wall and box cell and, in
+levels with pegs (a 45-degree square post, 0.05 m from its axis to its
+corners, at every interior grid intersection, blocking the ball as well as
+the boxes), 0.35 cells (the ball's radius, the peg's and 0.1 m) from every
+grid intersection (so staircases become diagonals in open rooms without
+pegs, never in corridors, and with pegs the ball stays near the cell-centre
+lines), then every corner is rounded by the widest arc (radius <= 1 cell)
+that is just as clear and whose chord keeps the ball's radius from them (and
+the ball's plus the peg's radius from pegs: the pursuit cuts inside fast
+arcs). A turn into a push line keeps a straight run of 0.3 m before the
 contact. A box that the walker left short of its cell centre while standing
 behind it (its push was cut off) is first pushed on to the centre.
 
@@ -52,24 +57,40 @@ with hysteresis. A yaw-rate loop turns the head (feed-forward of the
 measured steer deadband and gain, rate feedback): the head is torque
 driven with a ~0.2 s lag, ~0.3 s per 90 degrees.
 
+*Pushing*: boxes (half-size 0.4 m, 2.5 kg) slide without rotating on floor
+friction 0.5 (~12 N; once not pushed they decelerate at ~4.9 m/s^2, from
+1 m/s they coast ~0.1 m), and the ball meets them with friction 1, so a ball
+moving sideways while in contact drags its box sideways. A box more than
+0.05 m off its cell's centre line catches on the pegs ahead of it. The ball
+meets the box on the push line through the box's actual centre (within
+``align_gap`` of it, a ball more than ``align_tol`` (``finish_align_tol``
+for the short push that centres a box left short) off that line backs off
+and comes in again, the tolerance widening by itself per back-off, also
+across re-plans of the same push) and, once touching, aims ``k_recentre`` times the box's
+offset from its cell's centre line on the other side of that line: its
+sideways motion drags the box back onto the line before the pegs can catch
+it.
+
 *Speed*: the minimum of the cruise speed and, for every constraint at path
 distance ``s`` ahead with speed ``v_c`` (arcs ``sqrt(a_lat r)``, sharp
 corners, the contact with the box, the end of a walk), ``sqrt(v_c^2 +
-2 a s)``; while pushing, the box's remaining distance ``r`` caps it at
-``sqrt(2 a_push (r - lead))``: boxes slide on joints with 40 N of friction
-loss and stop within ~1 cm once the ball brakes, so they end ~1-3 cm from
-their cell centre (pegs leave 7 cm of play). The target is scaled down with
-the heading error and tracked by a proportional roll command with
-feed-forward. A ball pushing a box accelerates at only ~2.6 m/s^2 and tops
-out near 1.9 m/s: one push takes ~1 s, each further cell of a straight push
-~0.55 s.
+2 a s)``; while pushing, at most ``push_speed`` (1.5 m/s), and the box's
+remaining distance ``r`` caps it at ``sqrt(2 a_push (r - lead))`` with
+``a_push`` = 3.5 m/s^2, below the box's own floor deceleration, so the ball
+stays in contact and steers the box to the end (faster pushes or planned
+decelerations near 4.9 m/s^2 let boxes run on and miss the pad's 0.1-cell
+tolerance). The box then stops within ``center_tol`` of its cell centre. The
+target is scaled down with the heading error and tracked by a proportional
+roll command with feed-forward. The ball meets the box at
+``contact_speed`` (0.8 m/s) and pushing accelerates at only ~2.6 m/s^2:
+one push takes ~1 s, each further cell of a straight push ~0.55 s.
 
 Status
 ======
 
 * SUCCESS when ``env.task.abstract_cells`` (boxes as a set, and the player)
   equals the subgoal's state and, if the trajectory ends with the subgoal,
-  the pushed box is settled (< 0.1 m/s) within ``center_tol`` (0.15 cells)
+  the pushed box is settled (< 0.1 m/s) within ``center_tol`` (0.08 cells)
   of its cell centre, or the walker stands near its last cell. When the plan
   goes on the same way (the next push continues in the same direction, the
   walk continues) reaching the abstract state is enough, so the ball does
@@ -101,8 +122,10 @@ from skills.base import Skill, Status
 __all__ = ["BallSkill", "BOX_HALF", "BALL_RADIUS", "CONTACT"]
 
 #: Half the side of a box and the ball's radius, metres (envs.mujoban.props).
-BOX_HALF = 0.38
+BOX_HALF = 0.4
 BALL_RADIUS = 0.2
+#: Distance from a peg's axis to its corners (envs.mujoban.arena).
+PEG_RADIUS = 0.05
 #: Distance between the walker's and the box's centres when they touch.
 CONTACT = BOX_HALF + BALL_RADIUS
 
@@ -130,7 +153,7 @@ class _Leg:
         leg before it ends).
     """
 
-    __slots__ = ("pts", "seg", "limits", "push", "total", "args")
+    __slots__ = ("pts", "seg", "limits", "push", "total", "args", "cell_lat")
 
 
 class BallSkill(Skill):
@@ -172,7 +195,7 @@ class BallSkill(Skill):
     steer_deadband = 0.13
     max_yaw_rate = 6.5
     #: Roll loop: command per m/s of speed error, feed-forward per m/s, extra
-    #: command while pushing (the box's friction loss).
+    #: command while pushing (the box's floor friction).
     k_speed = 2.0
     k_speed_ff = 0.2
     push_bias = 0.15
@@ -189,11 +212,25 @@ class BallSkill(Skill):
     #: A box further than this (cells) from its cell centre, with the walker
     #: behind it, is first pushed on to the centre.
     finish_tol = 0.08
+    #: Meeting a box: within ``align_gap`` metres of it, a ball more than
+    #: ``align_tol`` metres off the push line (``finish_align_tol`` when
+    #: centring a box left short: too short a push to steer the box back)
+    #: backs off and comes in again.
+    align_gap = 0.3
+    align_tol = 0.1
+    finish_align_tol = 0.04
+    #: While pushing, the carrot sits ``k_recentre`` times the box's offset
+    #: from its cell's centre line on the other side of it (at most
+    #: ``max_recentre`` m), so the ball's sideways motion drags it back.
+    k_recentre = 1.0
+    max_recentre = 0.3
+    #: Clearance (m) kept between the ball and a peg when cutting corners.
+    peg_margin = 0.1
 
     def __init__(self, *, cruise_speed: float = 3.5, corner_speed: float = 1.4,
-                 push_turn_speed: float = 0.5, contact_speed: float = 1.8,
-                 push_speed: float = 2.0, decel: float = 7.0, push_decel: float = 6.0,
-                 push_lead: float = 0.03, center_tol: float = 0.15, stuck_steps: int = 30,
+                 push_turn_speed: float = 0.5, contact_speed: float = 0.8,
+                 push_speed: float = 1.5, decel: float = 7.0, push_decel: float = 3.5,
+                 push_lead: float = 0.0, center_tol: float = 0.08, stuck_steps: int = 30,
                  disturb_tol: float = 0.15, lookahead: bool = True,
                  smooth: bool = True) -> None:
         super().__init__()
@@ -215,6 +252,8 @@ class BallSkill(Skill):
         self._prev_heading = None
         self._sign = 1.0
         self._legs: list[_Leg] = []
+        self._backing = False
+        self._backoffs = 0
         self._action = np.zeros(2)
         #: Set to a list to record per-step controller values (debugging):
         #: (step, leg, segment, x, y, heading, yaw rate, heading error, drive
@@ -229,6 +268,15 @@ class BallSkill(Skill):
 
     def reset(self, env, subgoal, state) -> None:
         """Starts executing ``subgoal`` (planned from ``state``) in ``env``."""
+        # Backing off from a box (see act) goes on across a re-plan that
+        # pushes the same box the same way: the option layer may re-plan
+        # every few steps, and the ball must not shuttle at the box.
+        was_backing = None
+        was_backing_now = self._backing
+        backoffs = self._backoffs
+        if self._legs and env is self._env and (self._backing or backoffs):
+            old_push = self._legs[self._leg].push
+            was_backing = old_push[:2] if old_push is not None else None
         self.status = Status.RUNNING
         self.failure_reason = None
         if env is not self._env:
@@ -249,6 +297,7 @@ class BallSkill(Skill):
         self._est_match = False
         self._prev_box = None
         self._touched = False
+        self._backing = False
 
         action = subgoal.action
         # A move letter, a string of letters, or a tuple/list of letters.
@@ -352,6 +401,11 @@ class BallSkill(Skill):
         self._needs_settle = n_sub == len(horizon)
         self._legs = legs
         self._pushed_boxes = {leg.push[0] for leg in legs if leg.push}
+        self._backoffs = 0
+        if was_backing is not None and legs[0].push is not None \
+                and legs[0].push[:2] == was_backing:
+            self._backing = was_backing_now
+            self._backoffs = backoffs
 
     @staticmethod
     def _box_index(cell, est_boxes, box_xy) -> int:
@@ -407,14 +461,20 @@ class BallSkill(Skill):
         def to_grid(q):
             return (oy - q[1] / size, q[0] / size + ox)
 
+        # Pegs stand at every interior grid intersection: cut no corner
+        # closer than the ball's radius, the peg's and a margin to one.
+        peg = peg_touch = 0.0
+        if getattr(getattr(task, "arena", None), "has_pegs", False):
+            peg_touch = (BALL_RADIUS + PEG_RADIUS) / size
+            peg = (BALL_RADIUS + PEG_RADIUS + self.peg_margin) / size
         grid = [(float(r), float(c)) for r, c in cells]
         if start is not None:
             here = (oy - start[1] / size, start[0] / size + ox)
             if (round(here[0]), round(here[1])) == tuple(cells[0]) \
-                    and _point_clear(here, blocked, _MARGIN):
+                    and _point_clear(here, blocked, _MARGIN, peg):
                 grid[0] = here
         if self.smooth:
-            grid = _string_pull(grid, blocked, keep)
+            grid = _string_pull(grid, blocked, keep, peg)
         pts = [to_world(p) for p in grid]
         leg = _Leg()
         leg.args = (cells, push, blocked, keep)
@@ -435,6 +495,7 @@ class BallSkill(Skill):
             tx, ty = (cx + ux * size * chain, by) if ux else (bx, cy + uy * size * chain)
             pts.append((tx - ux * CONTACT, ty - uy * CONTACT))
             leg.push = (index, (ux, uy), (tx, ty), lateral, chain)
+            leg.cell_lat = cy if ux else cx
         # Merge collinear vertices and drop zero-length segments.
         merged = [pts[0]]
         for p in pts[1:]:
@@ -484,9 +545,9 @@ class BallSkill(Skill):
                     arc = _arc((x1, y1), (ax, ay), (bx_, by_), theta, radius, turn)
                     # The pursuit cuts inside fast arcs: their chord must be
                     # clear of the ball too.
-                    if (all(_point_clear(to_grid(q), blocked, _MARGIN) for q in arc)
+                    if (all(_point_clear(to_grid(q), blocked, _MARGIN, peg) for q in arc)
                             and _segment_clear(to_grid(arc[0]), to_grid(arc[-1]), blocked,
-                                               BALL_RADIUS / size)):
+                                               BALL_RADIUS / size, peg=peg_touch)):
                         break
                     arc = None
                     radius *= 0.7
@@ -602,9 +663,44 @@ class BallSkill(Skill):
             if i == n - 1:
                 if gap < 0.02:
                     self._touched = True
+                elif not self._touched:
+                    # Boxes are light and slide on floor friction: a ball that
+                    # meets one off its line or askew drags it sideways. Near
+                    # the box, off the line: back off along the line first.
+                    ball_off = (py - lateral) if dx else (px - lateral)
+                    # A short push (centring a box left short) has no room
+                    # to steer the box back onto its line: meet it aligned.
+                    tol_align = self.finish_align_tol if chain == 0 else self.align_tol
+                    # Each back-off widens the tolerance (no endless shuttling).
+                    if gap < self.align_gap and \
+                            abs(ball_off) > tol_align * (1 + self._backoffs):
+                        if not self._backing:
+                            self._backoffs += 1
+                        self._backing = True
+                    elif gap > self.align_gap + 0.25 or abs(ball_off) < 0.5 * tol_align:
+                        self._backing = False
+                    if self._backing:
+                        back = CONTACT + self.align_gap + 0.35
+                        carrot_x, carrot_y = bx - dx * back, by - dy * back
+                        if dx:
+                            carrot_y = lateral
+                        else:
+                            carrot_x = lateral
+                        v_des = min(v_des, 0.6)
+                        self._since_best = 0  # backing off is progress
                 if self._touched:
                     if v_des > self.push_speed:
                         v_des = self.push_speed
+                    # The ball drags the box sideways (friction 1 on its
+                    # face): steer across the push line to bring the box
+                    # back onto its cell's centre line before pegs catch it.
+                    box_off = ((by if dx else bx) - leg.cell_lat)
+                    shift = max(-self.max_recentre, min(self.max_recentre,
+                                                        -self.k_recentre * box_off))
+                    if dx:
+                        carrot_y = leg.cell_lat + shift
+                    else:
+                        carrot_x = leg.cell_lat + shift
                 elif gap > 0.0:
                     v = math.sqrt(self.contact_speed ** 2 + two_a * gap)
                     if v < v_des:
@@ -703,6 +799,8 @@ class BallSkill(Skill):
             self._i = 0
             self._prev_box = None
             self._touched = False
+            self._backing = False
+            self._backoffs = 0
             self._best = math.inf
             self._since_best = 0
             return action.copy()
@@ -757,13 +855,16 @@ def _arc(vertex, a, b, theta, radius, turn, step=0.1) -> list:
              cy + radius * math.sin(phi + turn * theta * i / n)) for i in range(n + 1)]
 
 
-def _point_clear(p, blocked, margin) -> bool:
-    """Whether grid point ``p`` = (row, col) is at least ``margin`` from every blocked cell."""
+def _point_clear(p, blocked, margin, peg=0.0) -> bool:
+    """Whether grid point ``p`` = (row, col) is at least ``margin`` from every
+    blocked cell and ``peg`` from every grid intersection (when pegs stand there)."""
     r, c = p
     R, C = round(r), round(c)
     if (R, C) in blocked:
         return False
     dr, dc = r - R, c - C
+    if peg > 0.0 and (0.5 - abs(dr)) ** 2 + (0.5 - abs(dc)) ** 2 < peg * peg:
+        return False
     edge = 0.5 - margin
     sr = 1 if dr > 0 else -1
     sc = 1 if dc > 0 else -1
@@ -779,18 +880,18 @@ def _point_clear(p, blocked, margin) -> bool:
     return True
 
 
-def _segment_clear(a, b, blocked, margin=_MARGIN, step=0.05) -> bool:
+def _segment_clear(a, b, blocked, margin=_MARGIN, step=0.05, peg=0.0) -> bool:
     length = math.hypot(b[0] - a[0], b[1] - a[1])
     n = max(1, int(length / step) + 1)
     for k in range(n + 1):
         f = k / n
         if not _point_clear((a[0] + (b[0] - a[0]) * f, a[1] + (b[1] - a[1]) * f),
-                            blocked, margin):
+                            blocked, margin, peg):
             return False
     return True
 
 
-def _string_pull(points, blocked, keep=()) -> list:
+def _string_pull(points, blocked, keep=(), peg=0.0) -> list:
     """Fewer vertices: each vertex joined to the farthest later one in clear sight.
 
     Vertices whose index is in ``keep`` (and the last) are never skipped.
@@ -803,7 +904,7 @@ def _string_pull(points, blocked, keep=()) -> list:
         best = i + 1
         j = i + 2
         while j < n and best not in keep:
-            if _segment_clear(points[i], points[j], blocked):
+            if _segment_clear(points[i], points[j], blocked, peg=peg):
                 best = j
                 j += 1
             else:
