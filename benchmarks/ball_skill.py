@@ -30,7 +30,7 @@ interval; mean and 95th percentile of the control steps of the solved
 episodes (of the 900 allowed); the subgoal success rate (subgoals the skill
 reported reached / subgoals that ended: reached, failed or cut off at
 T_abs); wall-clock seconds per episode; the most frequent skill failure
-kinds. ``--json`` writes a list of rows with keys env, episodes, solved,
+kinds. ``--json`` writes ``{"provenance", "rows"}``, rows with keys env, episodes, solved,
 solved_pct, wilson_low, wilson_high, mean_steps_solved, p95_steps_solved,
 subgoals, subgoals_reached, subgoals_failed, subgoals_cut,
 subgoal_success_rate, failures (kind -> count), no_plan (reason -> count),

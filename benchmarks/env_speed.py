@@ -46,7 +46,6 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from _common import write_json  # noqa: E402
-from hier_agents.provenance import provenance  # noqa: E402
 
 import envs  # noqa: E402
 import mujoco  # noqa: E402
@@ -202,7 +201,7 @@ def main(argv=None) -> int:
                   f"{row['steps_per_s']:>9.1f} {row['physics_limit_steps_per_s']:>9.1f} "
                   f"{row['ratio']:>6.2f} {x_orig:>7} {row['reset_s'] * 1e3:>9.2f}", flush=True)
     if args.json:
-        write_json(args.json, {"provenance": provenance(), "rows": rows})
+        write_json(args.json, rows)
     return 0
 
 

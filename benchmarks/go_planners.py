@@ -19,7 +19,7 @@ For every Black spec (against the one White spec) it prints a row: games,
 Black wins, Black's win rate with a 95% Wilson interval, mean game length in
 moves, the median and 95th-percentile wall time of GNU Go's genmove (ms, over
 both colours' GNU Go moves) and of the other planners' moves. ``--json``
-writes these rows (keys: black, white, board_size, komi, games, black_wins,
+writes ``{"provenance", "rows"}`` with these rows (keys: black, white, board_size, komi, games, black_wins,
 win_rate, ci_low, ci_high, mean_moves, gnugo_ms_median, gnugo_ms_p95,
 black_ms_median, seconds).
 

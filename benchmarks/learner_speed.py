@@ -35,7 +35,6 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from _common import write_json  # noqa: E402
-from hier_agents.provenance import provenance  # noqa: E402
 
 import numpy as np  # noqa: E402
 
@@ -155,7 +154,7 @@ def main(argv=None) -> int:
           f"{row['learner_frames_per_s']:>16,.0f} {row['ratio']:>6.2f} {row['updates']:>7} "
           f"{parallel:>20,.0f}")
     if args.json:
-        write_json(args.json, {**row, "provenance": provenance()})
+        write_json(args.json, row)
     return 0
 
 
