@@ -217,7 +217,7 @@ class BallSkill(Skill):
     #: centring a box left short: too short a push to steer the box back)
     #: backs off and comes in again.
     align_gap = 0.3
-    align_tol = 0.1
+    align_tol = 0.125
     finish_align_tol = 0.04
     #: While pushing, the carrot sits ``k_recentre`` times the box's offset
     #: from its cell's centre line on the other side of it (at most
