@@ -222,6 +222,20 @@ def test_generated_levels_solved_end_to_end_with_the_solver(name):
         assert solved and steps < LIMIT, (env.task.level.to_text(), steps)
 
 
+def test_with_sleep_resting_boxes_sleep_and_the_ball_still_solves_levels():
+    # sleep=True (a deviation): boxes at rest stop being simulated; the ball's
+    # contact must wake them for every push.
+    env = envs.load("mujoban/level3-pegs", seed=3, sleep=True, **NO_CAMERAS)
+    skill, planner = BallSkill(), SokobanSolverPlanner()
+    env.reset()
+    for _ in range(20):
+        env.step([0.0, 0.0])
+    assert not env.physics.data.ptr.tree_awake[1:].any()  # every box (trees 1..) is asleep
+    for _ in range(3):
+        steps, solved = run_episode(env, skill, planner)
+        assert solved and steps < LIMIT, (env.task.level.to_text(), steps)
+
+
 def test_single_move_subgoals_also_solve_a_level():
     """``planner.plan`` subgoals (one move each, the rest as look-ahead)."""
     env = envs.load("mujoban/level3-pegs", seed=5, **NO_CAMERAS)

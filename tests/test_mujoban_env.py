@@ -279,6 +279,15 @@ def test_walls_look_the_same_when_drawn_cell_by_cell():
     assert np.abs(frames[0] - frames[1]).max() < 40.0
 
 
+def test_sleep_is_an_option_off_by_default():
+    sleep_bit = int(mujoco.mjtEnableBit.mjENBL_SLEEP)
+    assert not envs.load("mujoban/level1", **NO_CAMERAS).physics.model.opt.enableflags & sleep_bit
+    env = envs.load("mujoban/level1", sleep=True, **NO_CAMERAS)
+    assert env.physics.model.opt.enableflags & sleep_bit
+    with pytest.raises(TypeError, match="sleep"):
+        envs.load("mujoban/level1", sleep="yes", **NO_CAMERAS)
+
+
 @pytest.mark.parametrize("bad", [-1, 2.5, "5", True])
 def test_bad_noslip_iterations_is_a_value_error_naming_it(bad):
     with pytest.raises((ValueError, TypeError), match="noslip_iterations"):

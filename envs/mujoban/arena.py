@@ -115,7 +115,7 @@ class MujobanArena(composer.Arena):
 
     def _build(self, grid_shape=(10, 10), max_boxes=4, cell_size=1.0, pegs=False,
                offscreen_size=(256, 256), wall_slabs=32, noslip_iterations=5,
-               name="mujoban"):
+               sleep=False, name="mujoban"):
         self._mjcf_root = mjcf.RootElement(model=name)
         height, width = grid_shape
         self.grid_shape = (int(height), int(width))
@@ -132,6 +132,8 @@ class MujobanArena(composer.Arena):
         root.option.cone = "elliptic"
         root.option.noslip_iterations = int(noslip_iterations)
         root.option.noslip_tolerance = 0.0
+        if sleep:  # a deviation: resting bodies are frozen until touched
+            root.option.flag.sleep = "enable"
 
         root.visual.quality.shadowsize = 0
         root.visual.quality.offsamples = 0

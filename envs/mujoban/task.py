@@ -39,7 +39,8 @@ Deviations from the original are explicit options of `Mujoban` (and of
 `envs.mujoban.make`): ``physics_timestep=0.005`` (5x cheaper physics, the
 value used before this package followed the original), ``pad_tolerance=0.3``
 (a more lenient pad), ``noslip_iterations=0`` (no noslip solver: about
-2.5x cheaper physics), ``control_timestep``.
+2.5x cheaper physics), ``sleep=True`` (MuJoCo sleeps resting bodies: about
+4x faster on level 5), ``control_timestep``.
 """
 
 from __future__ import annotations
@@ -117,6 +118,9 @@ class Mujoban(PhysicsTask):
       noslip_iterations: MuJoCo noslip solver iterations; default 5, the
         original's (dm_control composer's base arena). ``0`` is the cheaper
         deviation (about 2.5x faster physics, contacts may slip slightly).
+      sleep: enable MuJoCo's sleeping of resting bodies (a deviation, off
+        by default): boxes and the walker at rest stop being simulated until
+        something touches them; about 4x faster physics on level 5.
       wall_slabs: size of the pool of render-only wall rectangles (levels
         needing more are drawn cell by cell).
       walker: a locomotion walker to use instead of the rolling ball (advanced;
@@ -127,7 +131,7 @@ class Mujoban(PhysicsTask):
                  pegs=False, top_camera=(96, 96), egocentric_camera=(96, 96),
                  randomize_appearance=True, control_timestep=0.05, physics_timestep=0.001,
                  time_limit=45.0, pad_tolerance=0.1, cell_size=1.0, render_size=(256, 256),
-                 wall_slabs=32, walker=None, noslip_iterations=5):
+                 wall_slabs=32, walker=None, noslip_iterations=5, sleep=False):
         if not callable(level_source):
             raise TypeError("level_source must be callable as level_source(rng) -> Level")
         grid_shape = tuple(int(v) for v in grid_shape)
@@ -139,6 +143,8 @@ class Mujoban(PhysicsTask):
             raise ValueError(f"pad_tolerance must be in (0, 0.5] cells, got {pad_tolerance}")
         if time_limit <= 0:
             raise ValueError(f"time_limit must be positive seconds, got {time_limit}")
+        if not isinstance(sleep, bool):
+            raise TypeError(f"sleep must be True or False, got {sleep!r}")
         if isinstance(noslip_iterations, bool) or int(noslip_iterations) != noslip_iterations \
                 or noslip_iterations < 0:
             raise ValueError(f"noslip_iterations must be an integer >= 0, got {noslip_iterations!r}")
@@ -150,7 +156,8 @@ class Mujoban(PhysicsTask):
         offscreen = (max(s[0] for s in sizes), max(s[1] for s in sizes))
         self._arena = arena_lib.MujobanArena(
             grid_shape=grid_shape, max_boxes=max_boxes, cell_size=cell_size, pegs=pegs,
-            offscreen_size=offscreen, wall_slabs=wall_slabs, noslip_iterations=noslip_iterations)
+            offscreen_size=offscreen, wall_slabs=wall_slabs, noslip_iterations=noslip_iterations,
+            sleep=sleep)
         self._walker = walker or jumping_ball.RollingBallWithHead(
             name="walker", add_ears=True, camera_height=0.25)
         self._add_walker_touch_sensor()
