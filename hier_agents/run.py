@@ -18,6 +18,7 @@ subgoal_success_rate, wall_s, plus planner, skill, seed and per-episode rows.
 from __future__ import annotations
 
 import argparse
+import ast
 import json
 import sys
 import time
@@ -37,19 +38,24 @@ DEFAULT_EPISODES = 5
 def run(env_name: str, episodes: int, seed: int = 0, *, planner: str | None = None,
         skill: str | None = None, estimator: str | None = None, levels: str | None = None,
         video: str | None = None, progress: bool = True, agent: str = "modular",
-        stochastic: bool = False) -> dict:
+        stochastic: bool = False, env_options: dict | None = None) -> dict:
     """Plays ``episodes`` episodes; returns the JSON-able summary.
 
     ``agent`` is ``"modular"`` (estimator + planner + skill),
     ``"checkpoint:PATH"`` (a trained end-to-end agent, `hier_agents.train`;
     its policy's mean, or samples with ``stochastic``) or ``"random"``
-    (uniformly random actions).
+    (uniformly random actions). ``env_options`` are extra `envs.load`
+    keyword overrides for the modular agent's environment (e.g.
+    ``{"physics_timestep": 0.005}``); the summary records them.
     """
     fam = family(env_name)
+    env_options = dict(env_options or {})
     if agent != "modular":
+        if env_options:
+            raise ValueError("env_options apply to the modular agent only")
         return _run_policy(env_name, fam, episodes, seed, agent, levels, video, progress,
                            stochastic)
-    overrides = envs.no_cameras(env_name)
+    overrides = {**envs.no_cameras(env_name), **env_options}
     if levels is not None:
         if fam != "mujoban":
             raise ValueError("--levels only applies to mujoban environments")
@@ -97,7 +103,9 @@ def run(env_name: str, episodes: int, seed: int = 0, *, planner: str | None = No
         import imageio.v2 as imageio
         imageio.mimwrite(video, frames, fps=int(round(1 / env.control_timestep)),
                          macro_block_size=1)
-    return _summary(env_name, fam, rows, totals, seed, planner, skill)
+    summary = _summary(env_name, fam, rows, totals, seed, planner, skill)
+    summary["env_options"] = env_options
+    return summary
 
 
 def _run_policy(env_name, fam, episodes, seed, agent, levels, video, progress,
@@ -209,6 +217,10 @@ def main(argv=None) -> int:
     parser.add_argument("--skill", help="skill name (see --list)")
     parser.add_argument("--estimator", help="estimator name (see --list)")
     parser.add_argument("--levels", help="MuJoBan: a Boxoban file to play in order")
+    parser.add_argument("--env-option", action="append", default=[], metavar="KEY=VALUE",
+                        help="an envs.load override for the modular agent's environment, e.g. "
+                             "physics_timestep=0.005 or sleep=True (repeatable; VALUE is a "
+                             "Python literal)")
     parser.add_argument("--video", help="write an MP4 of the first episode here")
     parser.add_argument("--json", help="write the summary here")
     parser.add_argument("--list", action="store_true", help="list planners and skills and exit")
@@ -235,6 +247,21 @@ def main(argv=None) -> int:
             parser.error(f"unknown {kind} {name!r} for {fam}; valid: {sorted(table[fam])}")
     if args.levels is not None and fam != "mujoban":
         parser.error("--levels only applies to mujoban environments")
+    env_options = {}
+    for item in args.env_option:
+        key, sep, text = item.partition("=")
+        if not sep or key not in envs.overrides(env_name) or key.endswith("_camera"):
+            valid = [k for k in envs.overrides(env_name) if not k.endswith("_camera")]
+            parser.error(f"--env-option must be KEY=VALUE with KEY one of {valid}, got {item!r}")
+        try:
+            env_options[key] = ast.literal_eval(text)
+        except (ValueError, SyntaxError):
+            env_options[key] = text
+    if env_options:
+        try:  # a bad value fails here, with the environment's own message
+            envs.load(env_name, **envs.no_cameras(env_name), **env_options).close()
+        except (TypeError, ValueError) as exc:
+            parser.error(f"--env-option: {exc}")
     if args.stochastic and not args.agent.startswith("checkpoint:"):
         parser.error("--stochastic applies to checkpoint:PATH agents")
     if args.agent != "modular":
@@ -248,13 +275,14 @@ def main(argv=None) -> int:
             parser.error(f"--agent must be modular, random[:HOLD] or checkpoint:PATH, "
                          f"got {args.agent!r}")
         for flag, value in (("--planner", args.planner), ("--skill", args.skill),
-                            ("--estimator", args.estimator), ("--levels", args.levels)):
+                            ("--estimator", args.estimator), ("--levels", args.levels),
+                            ("--env-option", args.env_option or None)):
             if value is not None:
                 parser.error(f"{flag} applies to the modular agent, not to {args.agent}")
     try:
         summary = run(env_name, episodes, args.seed, planner=args.planner, skill=args.skill,
                       estimator=args.estimator, levels=args.levels, video=args.video,
-                      agent=args.agent, stochastic=args.stochastic)
+                      agent=args.agent, stochastic=args.stochastic, env_options=env_options)
     except (FileNotFoundError, ValueError) as exc:
         if args.agent == "modular":
             raise

@@ -96,6 +96,21 @@ def test_mujogo_with_the_gnugo_planner_wins_and_every_touch_registers_the_plan()
     assert subgoals["failed"] == 0 and subgoals["reached"] == subgoals["issued"]
 
 
+def test_cli_env_options_reach_the_environment_and_the_json(tmp_path):
+    out = tmp_path / "out.json"
+    assert run_lib.main(["mujoban/level1", "--episodes", "1", "--json", str(out),
+                         "--env-option", "physics_timestep=0.005",
+                         "--env-option", "pad_tolerance=0.3"]) == 0
+    summary = json.loads(out.read_text())
+    assert summary["env_options"] == {"physics_timestep": 0.005, "pad_tolerance": 0.3}
+    assert {"command", "commit", "date", "machine"} <= set(summary["provenance"])
+    for bad in (["--env-option", "bogus=1"], ["--env-option", "pad_tolerance=2.0"],
+                ["--env-option", "sleep=maybe"]):
+        with pytest.raises(SystemExit) as exc:
+            run_lib.main(["mujoban/level1", "--episodes", "1", *bad])
+        assert exc.value.code == 2
+
+
 def test_cli_writes_the_table_json_and_video(tmp_path, capsys):
     out, video = tmp_path / "out.json", tmp_path / "first.mp4"
     assert run_lib.main(["mujoban/level1", "--episodes", "2", "--seed", "3",
