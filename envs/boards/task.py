@@ -418,17 +418,23 @@ class BoardTask(PhysicsTask):
                     | (robot[:, 0] != robot[:, 1]))
         return bool(np.any(relevant & touching))
 
+    def _ik_problem(self, site: str, *, orientation_cost: float, fingers=None):
+        """A mink problem for ``site``: (configuration, frame task, posture task
+        regularising towards the home posture, that home posture)."""
+        config = mink.Configuration(self._model)
+        frame = mink.FrameTask(site, "site", position_cost=1.0, orientation_cost=orientation_cost)
+        posture = mink.PostureTask(self._model, cost=1e-3)
+        home = config.q.copy()
+        home[self._joint_qpos[:6]] = HOME_ARM_QPOS
+        if fingers is not None:
+            home[self._joint_qpos[6:]] = fingers
+        posture.set_target(home)
+        return config, frame, posture, home
+
     def _solve_tcp(self, target, quat) -> np.ndarray | None:
         """Arm joints putting the grip site at ``target`` with orientation ``quat``."""
         if self._tcp_ik is None:
-            config = mink.Configuration(self._model)
-            frame = mink.FrameTask(self._tcp_name, "site", position_cost=1.0,
-                                   orientation_cost=1.0)
-            posture = mink.PostureTask(self._model, cost=1e-3)
-            home = config.q.copy()
-            home[self._joint_qpos[:6]] = HOME_ARM_QPOS
-            posture.set_target(home)
-            self._tcp_ik = (config, frame, posture, home)
+            self._tcp_ik = self._ik_problem(self._tcp_name, orientation_cost=1.0)
         config, frame, posture, home = self._tcp_ik
         frame.set_target(mink.SE3.from_rotation_and_translation(mink.SO3(np.asarray(quat)),
                                                                  np.asarray(target, float)))
@@ -457,16 +463,9 @@ class BoardTask(PhysicsTask):
         """
         target = np.asarray(target, dtype=np.float64)
         if self._ik is None:
-            config = mink.Configuration(self._model)
-            frame = mink.FrameTask(self._pinch_name, "site", position_cost=1.0,
-                                   orientation_cost=0.05)
-            posture = mink.PostureTask(self._model, cost=1e-3)
-            home = config.q.copy()
-            home[self._joint_qpos[:6]] = HOME_ARM_QPOS
-            home[self._joint_qpos[6:]] = self._finger_range[:, 0]
-            posture.set_target(home)
-            limits = [mink.ConfigurationLimit(self._model)]
-            self._ik = (config, frame, posture, home, limits)
+            problem = self._ik_problem(self._pinch_name, orientation_cost=0.05,
+                                       fingers=self._finger_range[:, 0])
+            self._ik = (*problem, [mink.ConfigurationLimit(self._model)])
         config, frame, posture, home, limits = self._ik
         frame.set_target(mink.SE3.from_rotation_and_translation(mink.SO3(DOWN_QUAT), target))
         current = home.copy()
