@@ -48,6 +48,7 @@ MuJoGo a game still running is a loss (reward 0, discount 0).
 from __future__ import annotations
 
 import math
+import re
 
 import mink
 import mujoco
@@ -157,12 +158,11 @@ class BoardTask(PhysicsTask):
         zones = list(zip(arena.squares, arena.sensor_sites))
         if arena.pass_geom is not None:
             zones.append((arena.pass_geom, arena.pass_site))
-        if self._registering == "fingers":
-            prefix = "b_finger_"
-        else:
-            prefix = "b_finger_tip_"
+        # One sensor per finger: a knuckle body's subtree holds its tip too.
+        pattern = re.compile(r"b_finger_\d+$" if self._registering == "fingers"
+                             else r"b_finger_tip_\d+$")
         finger_bodies = [b for b in self._hand.mjcf_model.find_all("body")
-                         if b.name and b.name.startswith(prefix)]
+                         if b.name and pattern.match(b.name)]
         for k, (geom, site) in enumerate(zones):
             self._touch_sensors.append(sensor.add("touch", name=f"touch_{k}", site=site,
                                                   nsample=nsample))
