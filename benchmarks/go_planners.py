@@ -19,9 +19,9 @@ For every Black spec (against the one White spec) it prints a row: games,
 Black wins, Black's win rate with a 95% Wilson interval, mean game length in
 moves, the median and 95th-percentile wall time of GNU Go's genmove (ms, over
 both colours' GNU Go moves) and of the other planners' moves. ``--json``
-writes ``{"provenance", "rows"}`` with these rows (keys: black, white, board_size, komi, games, black_wins,
-win_rate, ci_low, ci_high, mean_moves, gnugo_ms_median, gnugo_ms_p95,
-black_ms_median, seconds).
+writes ``{"provenance", "rows"}`` with these rows (keys: black, white,
+board_size, komi, games, black_wins, win_rate, ci_low, ci_high, mean_moves,
+gnugo_ms_median, gnugo_ms_p95, black_ms_median, seconds).
 
 ``--mcts-sweep 100,300,1000,...`` adds Black specs ``mcts:N`` for each N
 (against ``--white``, GNU Go level 10 by default) and then reports the

@@ -288,7 +288,7 @@ def test_sleep_is_an_option_off_by_default():
         envs.load("mujoban/level1", sleep="yes", **NO_CAMERAS)
 
 
-@pytest.mark.parametrize("bad", [-1, 2.5, "5", True])
+@pytest.mark.parametrize("bad", [-1, 2.5, "5", True, None])
 def test_bad_noslip_iterations_is_a_value_error_naming_it(bad):
     with pytest.raises((ValueError, TypeError), match="noslip_iterations"):
         envs.load("mujoban/level1", noslip_iterations=bad, **NO_CAMERAS)

@@ -60,8 +60,8 @@ def make_mujoxo(*, epsilon: float = 0.25, seed: int | None = None, front_camera=
     opponent = EpsilonGreedy(MinimaxPlanner(), epsilon)
     task = BoardTask(BoardGame("tic_tac_toe", 3, draw_reward=0.5), opponent, registering="arm",
                      arm_reset=arm_reset, front_camera=front_camera, time_limit=time_limit,
-                     piece_noise=piece_noise, control_timestep=control_timestep, physics_timestep=physics_timestep,
-                     render_size=render_size)
+                     piece_noise=piece_noise, control_timestep=control_timestep,
+                     physics_timestep=physics_timestep, render_size=render_size)
     return Environment(task, seed=seed, raise_on_physics_error=raise_on_physics_error)
 
 

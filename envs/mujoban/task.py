@@ -45,6 +45,7 @@ value used before this package followed the original), ``pad_tolerance=0.3``
 
 from __future__ import annotations
 
+import numbers
 from typing import Callable, Mapping
 
 import numpy as np
@@ -145,9 +146,10 @@ class Mujoban(PhysicsTask):
             raise ValueError(f"time_limit must be positive seconds, got {time_limit}")
         if not isinstance(sleep, bool):
             raise TypeError(f"sleep must be True or False, got {sleep!r}")
-        if isinstance(noslip_iterations, bool) or int(noslip_iterations) != noslip_iterations \
-                or noslip_iterations < 0:
-            raise ValueError(f"noslip_iterations must be an integer >= 0, got {noslip_iterations!r}")
+        if (not isinstance(noslip_iterations, numbers.Integral)
+                or isinstance(noslip_iterations, bool) or noslip_iterations < 0):
+            raise ValueError(f"noslip_iterations must be an integer >= 0, "
+                             f"got {noslip_iterations!r}")
         self._level_source = level_source
         self._randomize_appearance = bool(randomize_appearance)
         self._pad_tolerance = float(pad_tolerance) * cell_size
