@@ -27,10 +27,10 @@ second 84x84 view of the same camera per step (``env.render``) to compare
 like for like with its ~8 steps/s.
 
     python benchmarks/env_speed.py [--json PATH] [--steps N] [--envs NAME ...]
-        [--cameras SETTING ...] [--physics-timestep S]
+        [--cameras SETTING ...] [--physics-timestep S] [--env-option KEY=VALUE ...]
 
 Prints a table and, with --json, writes ``{"provenance": {...}, "rows": [...]}``;
-each row has env, cameras, physics_timestep, steps_per_s,
+each row has env, cameras, physics_timestep, env_options, steps_per_s,
 physics_limit_steps_per_s, ratio, x_original, reset_s (plus first_reset_s,
 steps, build_s).
 """
@@ -38,6 +38,7 @@ steps, build_s).
 from __future__ import annotations
 
 import argparse
+import ast
 import math
 import sys
 import time
@@ -92,9 +93,10 @@ def _actions(n: int, dim: int, seed: int) -> np.ndarray:
 
 
 def measure(name: str, cameras: str, steps: int, seed: int = 0,
-            physics_timestep: float | None = None) -> dict:
+            physics_timestep: float | None = None, env_options: dict | None = None) -> dict:
     family = _family(name)
-    overrides = dict(CAMERA_SETTINGS[family][cameras])
+    env_options = dict(env_options or {})
+    overrides = {**CAMERA_SETTINGS[family][cameras], **env_options}
     if physics_timestep is not None:
         overrides["physics_timestep"] = physics_timestep
     second_view = cameras.endswith("+second_view")
@@ -147,12 +149,14 @@ def measure(name: str, cameras: str, steps: int, seed: int = 0,
     steps_per_s = steps / env_time
     limit_per_s = steps / raw_time
     original = ORIGINAL_STEPS_PER_S.get((family, cameras))
-    same_timestep = math.isclose(timestep_s, ORIGINAL_TIMESTEP[family])
+    # Only the original task, at the original's timestep, is compared with it.
+    same_timestep = math.isclose(timestep_s, ORIGINAL_TIMESTEP[family]) and not env_options
     return {
         "env": name,
         "cameras": ([] if cameras == "none"
                     else cameras.replace("egocentric", "walker/egocentric_camera").split("+")),
         "physics_timestep": timestep_s,
+        "env_options": env_options,
         "steps_per_s": round(steps_per_s, 1),
         "physics_limit_steps_per_s": round(limit_per_s, 1),
         "ratio": round(steps_per_s / limit_per_s, 3),
@@ -178,7 +182,20 @@ def main(argv=None) -> int:
     parser.add_argument("--physics-timestep", type=float, default=None,
                         help="physics timestep in seconds (default: each environment's own, "
                              "the original's); x_original is only given at the original's")
+    parser.add_argument("--env-option", action="append", default=[], metavar="KEY=VALUE",
+                        help="an envs.load override, e.g. noslip_iterations=0 or sleep=True "
+                             "(repeatable; VALUE is a Python literal); rows measured with one "
+                             "get no x_original")
     args = parser.parse_args(argv)
+    env_options = {}
+    for item in args.env_option:
+        key, sep, text = item.partition("=")
+        if not sep or not key:
+            parser.error(f"--env-option must be KEY=VALUE, got {item!r}")
+        try:
+            env_options[key] = ast.literal_eval(text)
+        except (ValueError, SyntaxError):
+            env_options[key] = text
     if args.physics_timestep is not None and not args.physics_timestep > 0:
         parser.error(f"--physics-timestep must be positive, got {args.physics_timestep}")
     unknown = [n for n in args.envs if n not in envs.names()]
@@ -194,7 +211,8 @@ def main(argv=None) -> int:
         for cameras in args.cameras:
             if cameras not in CAMERA_SETTINGS[_family(name)]:
                 continue
-            row = measure(name, cameras, args.steps, physics_timestep=args.physics_timestep)
+            row = measure(name, cameras, args.steps, physics_timestep=args.physics_timestep,
+                          env_options=env_options)
             rows.append(row)
             x_orig = "-" if row["x_original"] is None else f"{row['x_original']:.1f}"
             print(f"{name:<22} {cameras:<26} {row['physics_timestep'] * 1e3:>5.1f} "

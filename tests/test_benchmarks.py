@@ -38,3 +38,11 @@ def test_env_speed_at_another_timestep_makes_no_original_comparison(tmp_path):
     (row,) = result["rows"]
     assert row["physics_timestep"] == 0.005
     assert row["x_original"] is None
+
+
+def test_env_speed_with_a_deviation_option_makes_no_original_comparison(tmp_path):
+    result = _env_speed(tmp_path, "--envs", "mujoban/level1", "--cameras", "none",
+                        "--env-option", "noslip_iterations=0")
+    (row,) = result["rows"]
+    assert row["physics_timestep"] == 0.001 and row["env_options"] == {"noslip_iterations": 0}
+    assert row["x_original"] is None
