@@ -59,9 +59,9 @@ def make(*, difficulty: int | None = None, pegs: bool = False, seed: int | None 
         centre while covering it; default 0.1 (the original's full-cell pad
         and 0.4 m box). ``0.3`` is the more lenient deviation.
       noslip_iterations: MuJoCo noslip solver iterations; default 5 (the
-        original's). ``0`` is a documented deviation: ~2.5x cheaper physics.
+        original's). ``0`` is a documented deviation: ~2x faster on level 5.
       sleep: MuJoCo's sleeping of resting bodies (a documented deviation, off
-        by default): ~4x faster physics on level 5 (see the README for how
+        by default): ~3.5x faster physics on level 5 (see the README for how
         far its results agree with the default).
       render_size: largest ``(height, width)`` of `Environment.render` frames.
       raise_on_physics_error: raise on a diverging simulation (else the

@@ -39,8 +39,8 @@ Deviations from the original are explicit options of `Mujoban` (and of
 `envs.mujoban.make`): ``physics_timestep=0.005`` (5x cheaper physics, the
 value used before this package followed the original), ``pad_tolerance=0.3``
 (a more lenient pad), ``noslip_iterations=0`` (no noslip solver: about
-2.5x cheaper physics), ``sleep=True`` (MuJoCo sleeps resting bodies: about
-4x faster on level 5), ``control_timestep``.
+2x faster on level 5), ``sleep=True`` (MuJoCo sleeps resting bodies: about
+3.5x faster on level 5), ``control_timestep``.
 """
 
 from __future__ import annotations
@@ -118,10 +118,10 @@ class Mujoban(PhysicsTask):
         the more lenient deviation.
       noslip_iterations: MuJoCo noslip solver iterations; default 5, the
         original's (dm_control composer's base arena). ``0`` is the cheaper
-        deviation (about 2.5x faster physics, contacts may slip slightly).
+        deviation (about 2x faster on level 5, contacts may slip slightly).
       sleep: enable MuJoCo's sleeping of resting bodies (a deviation, off
         by default): boxes and the walker at rest stop being simulated until
-        something touches them; about 4x faster physics on level 5.
+        something touches them; about 3.5x faster physics on level 5.
       wall_slabs: size of the pool of render-only wall rectangles (levels
         needing more are drawn cell by cell).
       walker: a locomotion walker to use instead of the rolling ball (advanced;
