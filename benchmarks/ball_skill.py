@@ -3,10 +3,13 @@
     python benchmarks/ball_skill.py [--envs NAME ...] [--episodes N] [--seed S]
                                     [--t-abs T] [--json PATH]
 
-Each episode runs the modular agent's loop with the physical walker:
+Each episode runs the option layer (`hier_agents.option_layer.ModularAgent`)
+with the physical walker:
 
-1. estimate the abstract state: `SokobanState` of ``env.task.level`` with
-   the boxes and player of ``env.task.abstract_cells`` (the paper's rounding);
+1. estimate the scene: by default with the privileged ``oracle`` (the
+   simulator's positions and the task's rounded cells), which isolates the
+   skill; ``--estimator camera`` for the observation-only agent (every row
+   says which, and ``privileged``);
 2. plan: ``SokobanSolverPlanner.next_push(state)`` (the walk to the next box
    and its push; the solver caches its solution, so replanning along it is
    free, and it re-solves after a deviation); when the estimate is already
@@ -30,7 +33,8 @@ interval; mean and 95th percentile of the control steps of the solved
 episodes (of the 900 allowed); the subgoal success rate (subgoals the skill
 reported reached / subgoals that ended: reached, failed or cut off at
 T_abs); wall-clock seconds per episode; the most frequent skill failure
-kinds. ``--json`` writes ``{"provenance", "rows"}``, rows with keys env, episodes, solved,
+kinds. ``--json`` writes ``{"provenance", "rows"}``, rows with keys env, estimator,
+privileged, episodes, solved,
 solved_pct, wilson_low, wilson_high, mean_steps_solved, p95_steps_solved,
 subgoals, subgoals_reached, subgoals_failed, subgoals_cut,
 subgoal_success_rate, failures (kind -> count), no_plan (reason -> count),
@@ -59,20 +63,18 @@ import numpy as np  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
 import envs  # noqa: E402
-from abstract_planners.base import NoPlanError, Subgoal  # noqa: E402
-from abstract_planners.sokoban import SokobanState  # noqa: E402
-from abstract_planners.sokoban_solver import SokobanSolverPlanner  # noqa: E402
 from envs.mujoban.levels import BOXOBAN_DIR  # noqa: E402
-from skills.ball import BallSkill  # noqa: E402
-from skills.base import Status  # noqa: E402
+from hier_agents.boundary import BoundaryEnv  # noqa: E402
+from hier_agents.components import env_overrides, is_privileged, make_agent  # noqa: E402
 
 MUJOBAN = [f"mujoban/level{d}{p}" for p in ("", "-pegs") for d in range(1, 6)]
 BOXOBAN = ["boxoban/unfiltered-valid-000", "boxoban/unfiltered-valid-000-pegs"]
-NO_CAMERAS = dict(top_camera=None, egocentric_camera=None)
 
 
-def make_env(name: str, seed: int):
-    """The environment of a benchmark name (see the module docstring)."""
+def make_env(name: str, seed: int, estimator: str = "oracle"):
+    """The environment of a benchmark name (see the module docstring), with
+    the cameras the estimator reads (none for the oracle)."""
+    cameras = env_overrides("mujoban/level1", estimator)
     if name.startswith("boxoban/"):
         stem = name[len("boxoban/"):]
         pegs = stem.endswith("-pegs")
@@ -82,71 +84,32 @@ def make_env(name: str, seed: int):
         if not path.exists():
             raise ValueError(f"{name}: no level file {path}")
         base = "mujoban/level5-pegs" if pegs else "mujoban/level5"
-        return envs.load(base, seed=seed, levels=str(path), **NO_CAMERAS)
-    return envs.load(name, seed=seed, **NO_CAMERAS)
+        return envs.load(base, seed=seed, levels=str(path), **cameras)
+    return envs.load(name, seed=seed, **cameras)
 
 
-def estimate(task) -> SokobanState:
-    """The paper's abstract state: the level's walls and targets, rounded boxes and player."""
-    level = task.level
-    boxes, player = task.abstract_cells
-    return SokobanState(level.walls, level.targets, boxes, player, level.height, level.width)
-
-
-def run_episode(env, skill, planner, *, t_abs: int = 50) -> dict:
-    """One episode of estimate -> plan -> skill; returns its counters."""
-    timestep = env.reset()
-    planner.reset()
-    task = env.task
-    steps = reached = failed = cut = issued = 0
-    failures: Counter = Counter()
-    no_plan = None
+def run_episode(view, agent) -> dict:
+    """One episode of the option layer (`hier_agents.option_layer.ModularAgent`:
+    estimate -> plan -> skill); returns its counters."""
+    timestep = view.reset()
+    agent.reset(view.description(), timestep)
+    steps = 0
     plan_moves = None
-    subgoal = None
-    option_steps = 0
     while not timestep.last():
-        if subgoal is not None:
-            if skill.status is Status.SUCCESS:
-                reached += 1
-                subgoal = None
-            elif skill.status is Status.FAILURE:
-                failed += 1
-                failures[(skill.failure_reason or "unknown").split(":")[0]] += 1
-                subgoal = None
-            elif option_steps >= t_abs:
-                cut += 1
-                subgoal = None
-        if subgoal is None:
-            state = estimate(task)
-            if state.is_solved():
-                # Rounded onto the pads but not covering them (a push cut off
-                # at T_abs): an empty subgoal makes the skill centre the boxes.
-                subgoal = Subgoal(action=(), state=state)
-            else:
-                try:
-                    subgoal = planner.next_push(state)
-                except NoPlanError as error:
-                    no_plan = error.reason
-                    break
-            if plan_moves is None:
-                plan_moves = len(subgoal.action) + len(subgoal.plan)
-            issued += 1
-            option_steps = 0
-            skill.reset(env, subgoal, state)
-        timestep = env.step(skill.act(timestep))
-        option_steps += 1
+        action = agent.act(timestep)
+        if agent.gave_up is not None:
+            break
+        if plan_moves is None and agent.subgoal is not None:
+            plan_moves = len(agent.subgoal.action) + len(agent.subgoal.plan)
+        timestep = view.step(action)
         steps += 1
-    if subgoal is not None:  # the episode ended while a skill ran
-        if skill.status is Status.SUCCESS or task.solved:
-            reached += 1
-        elif skill.status is Status.FAILURE:
-            failed += 1
-            failures[(skill.failure_reason or "unknown").split(":")[0]] += 1
-        else:
-            cut += 1
-    return {"solved": bool(task.solved), "steps": steps, "issued": issued,
-            "reached": reached, "failed": failed, "cut": cut, "failures": failures,
-            "no_plan": no_plan, "plan_moves": plan_moves}
+    if agent.gave_up is None:
+        agent.end_episode(timestep)
+    stats = agent.episode_stats
+    no_plan = agent.gave_up.split(":", 1)[0] if agent.gave_up else None
+    return {"steps": steps, "issued": stats.issued, "reached": stats.reached,
+            "failed": stats.failed, "cut": stats.cut_off + stats.unfinished,
+            "failures": Counter(stats.failures), "no_plan": no_plan, "plan_moves": plan_moves}
 
 
 def wilson(successes: int, n: int, z: float = 1.959964) -> tuple[float, float]:
@@ -160,14 +123,18 @@ def wilson(successes: int, n: int, z: float = 1.959964) -> tuple[float, float]:
     return 100.0 * max(0.0, centre - half), 100.0 * min(1.0, centre + half)
 
 
-def measure(name: str, episodes: int, seed: int, t_abs: int) -> dict:
-    env = make_env(name, seed)
-    skill = BallSkill()
-    planner = SokobanSolverPlanner()
+def measure(name: str, episodes: int, seed: int, t_abs: int, estimator: str = "oracle") -> dict:
+    env = make_env(name, seed, estimator)
+    privileged = is_privileged("mujoban", estimator)
+    view = env if privileged else BoundaryEnv(env)
+    agent = make_agent("mujoban/level1", view.description(), estimator=estimator,
+                       simulator=env if privileged else None, t_abs=t_abs)
     results = []
     t0 = time.perf_counter()
     for _ in tqdm(range(episodes), desc=name, unit="ep", leave=False):
-        results.append(run_episode(env, skill, planner, t_abs=t_abs))
+        row = run_episode(view, agent)
+        row["solved"] = bool(env.task.solved)
+        results.append(row)
     wall = time.perf_counter() - t0
     solved = sum(r["solved"] for r in results)
     low, high = wilson(solved, len(results))
@@ -182,6 +149,8 @@ def measure(name: str, episodes: int, seed: int, t_abs: int) -> dict:
     moves = [r["plan_moves"] for r in results if r["plan_moves"] is not None]
     return {
         "env": name,
+        "estimator": estimator,
+        "privileged": privileged,
         "episodes": len(results),
         "solved": solved,
         "solved_pct": 100.0 * solved / len(results),
@@ -210,8 +179,15 @@ def main(argv=None) -> int:
     parser.add_argument("--seed", type=int, default=0, help="environment seed")
     parser.add_argument("--t-abs", type=int, default=50,
                         help="control steps before the agent re-estimates and replans")
+    parser.add_argument("--estimator", default="oracle",
+                        help="oracle (default: privileged, isolates the skill), entity-layer "
+                             "(privileged) or camera (observation-only)")
     parser.add_argument("--json", type=Path, help="write the rows here")
     args = parser.parse_args(argv)
+    try:
+        is_privileged("mujoban", args.estimator)
+    except ValueError as exc:
+        parser.error(str(exc))
     for name in args.envs:
         if not name.startswith("boxoban/") and name not in envs.names():
             parser.error(f"unknown environment {name!r}; known: {envs.names()} "
@@ -222,7 +198,7 @@ def main(argv=None) -> int:
     print("-" * len(header))
     rows = []
     for name in args.envs:
-        row = measure(name, args.episodes, args.seed, args.t_abs)
+        row = measure(name, args.episodes, args.seed, args.t_abs, args.estimator)
         rows.append(row)
         steps = "-" if row["mean_steps_solved"] is None else f"{row['mean_steps_solved']:.0f}"
         p95 = "-" if row["p95_steps_solved"] is None else f"{row['p95_steps_solved']:.0f}"

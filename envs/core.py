@@ -199,6 +199,15 @@ class Environment(dm_env.Environment):
     def random_generator(self) -> np.random.Generator:
         return self._rng
 
+    def description(self):
+        """The task's public description (`envs.description`): what an agent
+        may know besides its observations. Raises `NotImplementedError` for
+        tasks that have none."""
+        describe = getattr(self._task, "description", None)
+        if describe is None:
+            raise NotImplementedError(f"{type(self._task).__name__} has no public description")
+        return describe()
+
     def render(self, camera: str, height: int = 256, width: int = 256) -> np.ndarray:
         """An RGB image of the current state from any camera of the model."""
         return self._cameras.render(self._physics.data.ptr, camera, height, width)

@@ -1,7 +1,13 @@
 """Which planners, skills and estimators fit which environment, by name.
 
-    agent = make_agent("mujoban/level5-pegs", env)                      # defaults
-    agent = make_agent("mujoban/level5-pegs", env, planner="random")    # swap one part
+    agent = make_agent("mujoban/level5-pegs", env.description())             # defaults
+    agent = make_agent("mujoban/level5-pegs", env.description(), planner="random")
+    agent = make_agent("mujoban/level5-pegs", env.description(), estimator="oracle",
+                       simulator=env)           # privileged: reads the simulator on purpose
+
+Agents are built from the task's public description only; the privileged
+estimators (``oracle``, ``entity-layer``) also need the simulator, given
+explicitly as ``simulator``. The first name in each table is the default.
 
 Families: ``mujoban`` (Sokoban states, the ball walker), ``mujoxo``
 (tic-tac-toe) and ``mujogo`` (Go), both with the Jaco arm. Unknown names
@@ -12,7 +18,7 @@ from __future__ import annotations
 
 from typing import Callable
 
-from hier_agents.estimators import BoardEstimator, EntityLayerEstimator, GridRoundingEstimator
+from hier_agents.estimators import BoardEstimator, EntityLayerEstimator, OracleEstimator
 from hier_agents.option_layer import ModularAgent
 
 
@@ -25,50 +31,49 @@ def family(env_name: str) -> str:
     return prefix
 
 
-def _sokoban_solver(env, seed):
+def _sokoban_solver(description, seed):
     from abstract_planners.sokoban_solver import SokobanSolverPlanner
     return SokobanSolverPlanner(time_limit=10.0)
 
 
-def _sokoban_random(env, seed):
+def _sokoban_random(description, seed):
     from abstract_planners.sokoban_random import RandomPlanner
     return RandomPlanner(seed=seed)
 
 
-def _minimax(env, seed):
+def _minimax(description, seed):
     from abstract_planners.tictactoe import MinimaxPlanner
     return MinimaxPlanner(seed=seed)
 
 
-def _board_random(env, seed):
+def _board_random(description, seed):
     from abstract_planners.board_random import RandomMovePlanner
     return RandomMovePlanner(seed=seed)
 
 
-def _gnugo(env, seed):
+def _gnugo(description, seed):
     from abstract_planners.go import GnuGoPlanner
-    game = env.task.game
-    return GnuGoPlanner(10, board_size=game.size, komi=game.komi, seed=seed)
+    return GnuGoPlanner(10, board_size=description.board_size, komi=description.komi, seed=seed)
 
 
-def _mcts(env, seed):
+def _mcts(description, seed):
     from abstract_planners.go import MCTSPlanner
     return MCTSPlanner(1000, seed=seed)
 
 
-def _ball(env, seed):
+def _ball(description, seed):
     from skills.ball import BallSkill
     return BallSkill()
 
 
-def _arm(env, seed):
+def _arm(description, seed):
     from skills.arm import ArmTouchSkill
     return ArmTouchSkill()
 
 
 Factory = Callable[..., object]
 
-#: family -> name -> factory(env, seed); the first entry is the default.
+#: family -> name -> factory(description, seed); the first entry is the default.
 PLANNERS: dict[str, dict[str, Factory]] = {
     "mujoban": {"sokoban-solver": _sokoban_solver, "random": _sokoban_random},
     "mujoxo": {"minimax": _minimax, "mcts": _mcts, "random": _board_random},
@@ -79,12 +84,50 @@ SKILLS: dict[str, dict[str, Factory]] = {
     "mujoxo": {"arm-touch": _arm},
     "mujogo": {"arm-touch": _arm},
 }
+def _camera(description, seed, simulator=None):
+    from hier_agents.estimators.camera import CameraEstimator
+    return CameraEstimator()
+
+
+def _privileged(cls):
+    def factory(description, seed, simulator=None):
+        if simulator is None:
+            raise ValueError(f"the {cls.name!r} estimator is privileged (it reads the "
+                             f"simulator): pass the environment as simulator=env")
+        return cls(simulator)
+    factory.privileged = True
+    return factory
+
+
+#: family -> name -> factory(description, seed, simulator=None).
 ESTIMATORS: dict[str, dict[str, Factory]] = {
-    "mujoban": {"entity-layer": lambda env, seed: EntityLayerEstimator(),
-                "grid-rounding": lambda env, seed: GridRoundingEstimator()},
-    "mujoxo": {"board": lambda env, seed: BoardEstimator()},
-    "mujogo": {"board": lambda env, seed: BoardEstimator()},
+    "mujoban": {"camera": _camera, "oracle": _privileged(OracleEstimator),
+                "entity-layer": _privileged(EntityLayerEstimator)},
+    "mujoxo": {"board": lambda description, seed, simulator=None: BoardEstimator()},
+    "mujogo": {"board": lambda description, seed, simulator=None: BoardEstimator()},
 }
+
+
+def is_privileged(fam: str, estimator: str | None) -> bool:
+    """Whether the named estimator (None: the default) reads the simulator."""
+    return bool(getattr(_pick(ESTIMATORS, "estimator", fam, estimator), "privileged", False))
+
+
+def estimator_name(fam: str, estimator: str | None) -> str:
+    """The estimator's name (the default's when None)."""
+    return estimator or next(iter(ESTIMATORS[fam]))
+
+
+def env_overrides(env_name: str, estimator: str | None = None) -> dict:
+    """`envs.load` overrides the estimator needs: every camera off except the
+    ones it reads, at the frame size it asks for."""
+    import envs
+    fam = family(env_name)
+    overrides = dict(envs.no_cameras(env_name))
+    if estimator_name(fam, estimator) == "camera":
+        from hier_agents.estimators.camera import CameraEstimator
+        overrides.update(CameraEstimator.env_overrides)
+    return overrides
 
 
 def _pick(table: dict[str, dict[str, Factory]], kind: str, fam: str, name: str | None):
@@ -96,11 +139,17 @@ def _pick(table: dict[str, dict[str, Factory]], kind: str, fam: str, name: str |
     return options[name]
 
 
-def make_agent(env_name: str, env, *, planner: str | None = None, skill: str | None = None,
-               estimator: str | None = None, seed: int | None = None,
-               t_abs: int = 50) -> ModularAgent:
-    """The modular agent for ``env`` (built from ``env_name``) with named parts."""
+def make_agent(env_name: str, description, *, planner: str | None = None,
+               skill: str | None = None, estimator: str | None = None,
+               seed: int | None = None, t_abs: int = 50, simulator=None) -> ModularAgent:
+    """The modular agent for an environment named ``env_name`` with the public
+    ``description`` (``env.description()``), with named parts.
+
+    ``simulator`` (the environment itself) is needed only by the privileged
+    estimators; nothing else receives it.
+    """
     fam = family(env_name)
-    return ModularAgent(_pick(ESTIMATORS, "estimator", fam, estimator)(env, seed),
-                        _pick(PLANNERS, "planner", fam, planner)(env, seed),
-                        _pick(SKILLS, "skill", fam, skill)(env, seed), t_abs=t_abs)
+    return ModularAgent(_pick(ESTIMATORS, "estimator", fam, estimator)(description, seed,
+                                                                       simulator),
+                        _pick(PLANNERS, "planner", fam, planner)(description, seed),
+                        _pick(SKILLS, "skill", fam, skill)(description, seed), t_abs=t_abs)

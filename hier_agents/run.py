@@ -5,14 +5,28 @@
     python -m hier_agents.run mujoxo/mixture --episodes 50
     python -m hier_agents.run mujogo/7x7 --episodes 20 --video go.mp4
     python -m hier_agents.run mujoban/level5 --planner random      # swap a part
+    python -m hier_agents.run mujoban/level5 --estimator oracle    # privileged upper bound
     python -m hier_agents.run mujoban/level1 --agent checkpoint:runs/impala   # a trained agent
     python -m hier_agents.run mujoban/level1 --agent random        # uniform random actions
     python -m hier_agents.run mujoban/level1 --agent random:10     # ... each held 10 steps
 
+The modular agent sits behind the observation boundary: it is given the
+task's public description (``env.description()``) and timesteps. The
+default estimators are observation-only (MuJoBan: ``camera``, the top
+camera and proprioception; board games: ``board``); ``--estimator oracle``
+or ``entity-layer`` read the simulator and every table and JSON says
+``privileged``.
+
+Runs never abort: an episode the agent gives up (the planner finds no plan,
+e.g. after a box was pushed into a deadlock) or an agent error ends that
+episode as a failure with its reason (``failure_reason`` in the episode's
+row); a diverging simulation ends its episode.
+
 MuJoBan rows report the solved fraction; board games win/draw/loss rates. All
-rates carry 95% Wilson intervals. JSON keys: env, episodes, success_rate,
-win_rate, draw_rate, loss_rate (board games), mean_return, mean_steps,
-subgoal_success_rate, wall_s, plus planner, skill, seed and per-episode rows.
+rates carry 95% Wilson intervals. JSON keys: env, episodes, estimator,
+privileged, success_rate, win_rate, draw_rate, loss_rate (board games),
+mean_return, mean_steps, subgoal_success_rate, episode_failures (reason ->
+count), wall_s, plus planner, skill, seed and per-episode rows.
 """
 
 from __future__ import annotations
@@ -27,7 +41,9 @@ import numpy as np
 from tqdm import tqdm
 
 import envs
-from hier_agents.components import ESTIMATORS, PLANNERS, SKILLS, family, make_agent
+from hier_agents.boundary import BoundaryEnv
+from hier_agents.components import (ESTIMATORS, PLANNERS, SKILLS, env_overrides,
+                                    estimator_name, family, is_privileged, make_agent)
 from hier_agents.option_layer import OptionStats
 from hier_agents.stats import wilson_interval
 
@@ -55,14 +71,23 @@ def run(env_name: str, episodes: int, seed: int = 0, *, planner: str | None = No
             raise ValueError("env_options apply to the modular agent only")
         return _run_policy(env_name, fam, episodes, seed, agent, levels, video, progress,
                            stochastic)
-    overrides = {**envs.no_cameras(env_name), **env_options}
+    # A diverging simulation ends its episode (reward 0) instead of the run.
+    overrides = {**env_overrides(env_name, estimator), "raise_on_physics_error": False,
+                 **env_options}
     if levels is not None:
         if fam != "mujoban":
             raise ValueError("--levels only applies to mujoban environments")
         overrides["levels"] = levels
     env = envs.load(env_name, seed=seed, **overrides)
-    agent = make_agent(env_name, env, planner=planner, skill=skill, estimator=estimator,
-                       seed=seed)
+    privileged = is_privileged(fam, estimator)
+    # An observation-only agent sees the environment through the boundary
+    # (no simulator, no ground-truth layers); the harness keeps `env` to judge.
+    view = env if privileged else BoundaryEnv(env)
+    description = view.description()
+    # The agent gets the public description and timesteps; only a privileged
+    # estimator is handed the simulator, on purpose.
+    agent = make_agent(env_name, description, planner=planner, skill=skill,
+                       estimator=estimator, seed=seed, simulator=env if privileged else None)
     totals = OptionStats()
     rows, frames = [], []
     bar = tqdm(total=episodes, unit="episode", desc=env_name, file=sys.stderr,
@@ -70,27 +95,40 @@ def run(env_name: str, episodes: int, seed: int = 0, *, planner: str | None = No
     try:
         for episode in range(episodes):
             start = time.perf_counter()
-            timestep = env.reset()
-            agent.reset(env, timestep, seed=seed * 100_003 + episode)
-            ret, steps = 0.0, 0
-            while not timestep.last():
-                if video and episode == 0:
-                    frames.append(env.render(env.task.main_camera, 256, 256))
-                timestep = env.step(agent.act(timestep))
-                ret += float(timestep.reward)
-                steps += 1
-            agent.end_episode(timestep)
+            timestep = view.reset()
+            ret, steps, reason = 0.0, 0, None
+            try:
+                agent.reset(description, timestep, seed=seed * 100_003 + episode)
+                while not timestep.last():
+                    if video and episode == 0:
+                        frames.append(env.render(env.task.main_camera, 256, 256))
+                    action = agent.act(timestep)
+                    if agent.gave_up is not None:
+                        reason = agent.gave_up
+                        break
+                    timestep = view.step(action)
+                    ret += float(timestep.reward)
+                    steps += 1
+                if reason is None:
+                    agent.end_episode(timestep)
+            except Exception as exc:  # an agent bug must not lose the other episodes
+                reason = f"error: {type(exc).__name__}: {exc}"
             row = {"episode": episode, "return": ret, "steps": steps,
                    "wall_s": time.perf_counter() - start,
                    "subgoals_issued": agent.episode_stats.issued,
-                   "subgoals_reached": agent.episode_stats.reached}
-            final = float(timestep.reward)
+                   "subgoals_reached": agent.episode_stats.reached,
+                   "estimation_failures": agent.episode_stats.estimation_failures}
             if fam == "mujoban":
                 row["solved"] = bool(env.task.solved)
+                if not row["solved"]:
+                    row["failure_reason"] = reason or "time limit"
             else:
-                value = env.task.state.returns()[0] if env.task.state.is_terminal() else -1.0
+                state = env.task.state
+                value = state.returns()[0] if state.is_terminal() else -1.0
                 row["outcome"] = "win" if value > 0 else ("draw" if value == 0 else "loss")
-                row["final_reward"] = final
+                row["final_reward"] = float(timestep.reward)
+                if row["outcome"] != "win" and (reason or not state.is_terminal()):
+                    row["failure_reason"] = reason or "time limit"
             rows.append(row)
             totals.add(agent.episode_stats)
             bar.update(1)
@@ -104,6 +142,8 @@ def run(env_name: str, episodes: int, seed: int = 0, *, planner: str | None = No
         imageio.mimwrite(video, frames, fps=int(round(1 / env.control_timestep)),
                          macro_block_size=1)
     summary = _summary(env_name, fam, rows, totals, seed, planner, skill)
+    summary["estimator"] = estimator_name(fam, estimator)
+    summary["privileged"] = privileged
     summary["env_options"] = env_options
     return summary
 
@@ -163,7 +203,14 @@ def _summary(env_name, fam, rows, totals: OptionStats, seed, planner, skill) -> 
     out["subgoals"] = {"issued": totals.issued, "reached": totals.reached,
                        "failed": totals.failed, "cut_off": totals.cut_off,
                        "unfinished": totals.unfinished,
-                       "failures": totals.failures}
+                       "failures": totals.failures,
+                       "estimation_failures": totals.estimation_failures}
+    reasons = {}
+    for row in rows:
+        if "failure_reason" in row:
+            kind = row["failure_reason"].split(":", 1)[0]
+            reasons[kind] = reasons.get(kind, 0) + 1
+    out["episode_failures"] = reasons
     out["wall_s"] = float(np.mean([r["wall_s"] for r in rows]))
     out["rows"] = rows
     return out
@@ -175,7 +222,9 @@ def _pct(rate, interval) -> str:
 
 def format_table(summary: dict) -> str:
     if summary.get("agent", "modular") == "modular":
-        who = f"planner {summary['planner']}, skill {summary['skill']}"
+        who = (f"estimator {summary.get('estimator', '?')}"
+               f"{' (PRIVILEGED: reads the simulator)' if summary.get('privileged') else ''}, "
+               f"planner {summary['planner']}, skill {summary['skill']}")
     elif summary["agent"].startswith("random"):
         who = summary["condition"]
     else:
@@ -195,6 +244,9 @@ def format_table(summary: dict) -> str:
                      f"({summary['subgoals']['reached']}/{summary['subgoals']['issued']} issued)")
     else:
         lines.append("  subgoal success   - (no subgoals)")
+    if summary.get("episode_failures"):
+        lines.append("  unsolved because  " + ", ".join(
+            f"{k} x{v}" for k, v in sorted(summary["episode_failures"].items())))
     lines.append(f"  wall s / episode  {summary['wall_s']:.2f}")
     return "\n".join(lines)
 
@@ -227,8 +279,10 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     if args.list:
         for fam in PLANNERS:
+            names = [f"{name} (privileged)" if getattr(factory, "privileged", False) else name
+                     for name, factory in ESTIMATORS[fam].items()]
             print(f"{fam}: planners {list(PLANNERS[fam])}, skills {list(SKILLS[fam])}, "
-                  f"estimators {list(ESTIMATORS[fam])}")
+                  f"estimators {names}")
         return 0
     env_name = args.env or DEFAULT_ENV
     episodes = args.episodes if args.episodes is not None else (

@@ -4,16 +4,21 @@
 `abstract_planners.sokoban_solver.SokobanSolverPlanner`: one move letter
 (``plan(state)``) or a tuple of letters, the walk to a box and its push
 (``next_push(state)``). It is a closed-loop controller on the walker's
-position, velocity and heading and on the box positions, read through the
-task's accessors every control step (~40 us of Python per ``act``; ~0.2 ms
-per ``reset``).
+position, velocity and heading and on the box positions, all read from the
+estimator's `skills.scene.BallScene` every control step (the observation
+boundary: the skill never reads the simulator; with the ``camera``
+estimator it acts on what the top camera and the walker's proprioception
+show). Grid geometry comes from the task's public
+`envs.description.MujobanDescription`. ~40 us of Python per ``act``; ~0.2 ms
+per ``reset``.
 
-Usage (the modular agent's loop; see ``benchmarks/ball_skill.py``)::
+Usage (the option layer's loop, `hier_agents.option_layer.run_option`)::
 
     skill = BallSkill()
-    skill.reset(env, subgoal, state)      # state: the SokobanState planned from
+    skill.reset(env.description(), subgoal, scene)   # scene: estimator.estimate(timestep)
     while skill.status is Status.RUNNING and steps < T_abs:
-        timestep = env.step(skill.act(timestep))
+        timestep = env.step(skill.act(timestep, scene))
+        scene = estimator.estimate(timestep)
 
 An empty subgoal, ``Subgoal(action=(), state=state)``, means "hold": centre
 any box the walker left short of its cell centre (e.g. a push cut off by the
@@ -88,7 +93,7 @@ one push takes ~1 s, each further cell of a straight push ~0.55 s.
 Status
 ======
 
-* SUCCESS when ``env.task.abstract_cells`` (boxes as a set, and the player)
+* SUCCESS when the scene's abstract cells (boxes as a set, and the player)
   equals the subgoal's state and, if the trajectory ends with the subgoal,
   the pushed box is settled (< 0.1 m/s) within ``center_tol`` (0.08 cells)
   of its cell centre, or the walker stands near its last cell. When the plan
@@ -247,7 +252,7 @@ class BallSkill(Skill):
         self.disturb_tol = float(disturb_tol)
         self.lookahead = bool(lookahead)
         self.smooth = bool(smooth)
-        self._env = None
+        self._description = None
         self._task = None
         self._prev_heading = None
         self._sign = 1.0
@@ -266,26 +271,29 @@ class BallSkill(Skill):
 
     # -- reset: the trajectory ------------------------------------------------------
 
-    def reset(self, env, subgoal, state) -> None:
-        """Starts executing ``subgoal`` (planned from ``state``) in ``env``."""
+    def reset(self, description, subgoal, scene) -> None:
+        """Starts executing ``subgoal`` (planned from ``scene``, a
+        `skills.scene.BallScene`) in the task ``description``
+        (`envs.description.MujobanDescription`)."""
+        state = scene.state
         # Backing off from a box (see act) goes on across a re-plan that
         # pushes the same box the same way: the option layer may re-plan
         # every few steps, and the ball must not shuttle at the box.
         was_backing = None
         was_backing_now = self._backing
         backoffs = self._backoffs
-        if self._legs and env is self._env and (self._backing or backoffs):
+        if self._legs and description is self._description and (self._backing or backoffs):
             old_push = self._legs[self._leg].push
             was_backing = old_push[:2] if old_push is not None else None
         self.status = Status.RUNNING
         self.failure_reason = None
-        if env is not self._env:
-            self._env = env
+        if description is not self._description:
+            self._description = description
             self._prev_heading = None
             self._sign = 1.0
-        task = self._task = env.task
+        task = self._task = description
         self._cell = float(task.cell_size)
-        self._dt = float(getattr(task, "control_timestep", 0.05))
+        self._dt = float(task.control_timestep)
         self._legs = []
         self._leg = 0
         self._i = 0
@@ -346,15 +354,15 @@ class BallSkill(Skill):
         # Box placements the trajectory passes through (estimate sanity check).
         self._expected = frozenset(s.boxes for s in states)
 
-        box_xy = task.box_positions().tolist()
-        est_boxes = task.abstract_cells[0]
+        box_xy = np.asarray(scene.box_xy, float).tolist()
+        est_boxes = scene.box_cells
         self._box_start = [tuple(b) for b in box_xy]
 
         # Split into legs: walks ending in a straight chain of pushes. A walk
         # subgoal's last cell stays a vertex (its estimate must pass there).
         cells_of = [s.player for s in states]
         walls = _walls_and_outside(state)
-        here = tuple(task.walker_position().tolist())
+        here = tuple(float(v) for v in scene.walker_xy)
 
         def _keep(lo, hi):
             end = n_sub
@@ -423,7 +431,7 @@ class BallSkill(Skill):
             if i >= len(est_boxes):
                 break
             cell = tuple(est_boxes[i])
-            cx, cy = map(float, task.cell_to_world(*cell))
+            cx, cy = map(float, task.cell_centre(*cell))
             ox, oy = bx - cx, by - cy
             if max(abs(ox), abs(oy)) <= tol:
                 continue
@@ -464,7 +472,7 @@ class BallSkill(Skill):
         # Pegs stand at every interior grid intersection: cut no corner
         # closer than the ball's radius, the peg's and a margin to one.
         peg = peg_touch = 0.0
-        if getattr(getattr(task, "arena", None), "has_pegs", False):
+        if task.pegs:
             peg_touch = (BALL_RADIUS + PEG_RADIUS) / size
             peg = (BALL_RADIUS + PEG_RADIUS + self.peg_margin) / size
         grid = [(float(r), float(c)) for r, c in cells]
@@ -590,20 +598,25 @@ class BallSkill(Skill):
 
     # -- act: the controller ----------------------------------------------------------
 
-    def act(self, timestep) -> np.ndarray:
-        """The next [roll, steer] action; updates ``status``."""
+    def hold(self) -> np.ndarray:
+        """Roll and steer off: the ball coasts to a stop."""
+        return np.zeros(2)
+
+    def act(self, timestep, scene) -> np.ndarray:
+        """The next [roll, steer] action for ``scene`` (the estimate of
+        ``timestep``); updates ``status``."""
         task = self._task
         if task is None or not self._legs:
             return np.zeros(2)
         if timestep is not None and timestep.first():
             self._prev_heading = None
-        px, py = task.walker_position().tolist()
-        vx, vy = task.walker_velocity().tolist()
-        heading = task.walker_heading()
+        px, py = (float(v) for v in scene.walker_xy)
+        vx, vy = (float(v) for v in scene.walker_velocity)
+        heading = float(scene.heading)
         prev = self._prev_heading
         rate = 0.0 if prev is None else _wrap(heading - prev) / self._dt
         self._prev_heading = heading
-        boxes = task.box_positions().tolist()
+        boxes = np.asarray(scene.box_xy, float).tolist()
         self._steps += 1
 
         leg = self._legs[self._leg]
@@ -749,8 +762,8 @@ class BallSkill(Skill):
         # -- status ----------------------------------------------------------------
         if self.status is not Status.RUNNING:
             return action.copy()
-        est = task.abstract_cells
-        if est is not self._est_seen:
+        est = scene.abstract_cells
+        if est != self._est_seen:
             self._est_seen = est
             est_boxes = frozenset(est[0])
             if est_boxes not in self._expected:

@@ -2,12 +2,18 @@
 
 A skill is a closed-loop controller for one kind of body:
 
-* ``reset(env, subgoal, state)`` starts executing a planner's `Subgoal` from
-  the abstract ``state`` it was planned from, in ``env`` (an
-  `envs.core.Environment`; skills read the task's accessors, e.g. the
-  walker's pose or the arm's pinch site, and never change the simulation);
-* ``act(timestep) -> action`` returns the next action for ``env.step`` and
-  updates ``status``;
+* ``reset(description, subgoal, scene)`` starts executing a planner's
+  `Subgoal` from the scene it was planned from (``scene.state`` is the
+  abstract state); ``description`` is the task's public description
+  (`envs.description`);
+* ``act(timestep, scene) -> action`` returns the next action for
+  ``env.step`` from the current timestep and the estimator's scene for it
+  (`skills.scene`), and updates ``status``;
+* ``hold() -> action`` keeps the body still (used while no estimate can be
+  made).
+
+Skills see the subgoal, the scene estimate, the timestep's observations and
+the public description, never the simulator (the observation boundary).
 * ``status`` is `Status.RUNNING` until the skill reaches the subgoal
   (`Status.SUCCESS`) or gives up (`Status.FAILURE`: stuck, blocked, out of
   reach). The option layer (`hier_agents.option_layer`) also cuts a skill
@@ -45,12 +51,16 @@ class Skill(abc.ABC):
         self.failure_reason: str | None = None
 
     @abc.abstractmethod
-    def reset(self, env, subgoal, state) -> None:
-        """Starts executing ``subgoal`` (planned from ``state``) in ``env``."""
+    def reset(self, description, subgoal, scene) -> None:
+        """Starts executing ``subgoal`` (planned from ``scene``)."""
 
     @abc.abstractmethod
-    def act(self, timestep) -> np.ndarray:
+    def act(self, timestep, scene) -> np.ndarray:
         """The next action; updates ``status``."""
+
+    @abc.abstractmethod
+    def hold(self) -> np.ndarray:
+        """An action that keeps the body still."""
 
     def _fail(self, reason: str) -> None:
         self.status = Status.FAILURE

@@ -9,7 +9,8 @@ import pytest
 
 import envs
 from hier_agents import run as run_lib
-from hier_agents.components import make_agent
+from hier_agents.boundary import BoundaryEnv
+from hier_agents.components import env_overrides, make_agent
 from hier_agents.option_layer import ModularAgent
 
 NO_CAMERAS = {"top_camera": None, "egocentric_camera": None}
@@ -44,13 +45,18 @@ def test_a_short_run_solves_mujoban_level1_and_counts_every_subgoal():
 def test_the_option_layer_replans_after_a_box_is_moved_by_hand(tmp_path):
     levels = tmp_path / "open_room.txt"
     levels.write_text(OPEN_ROOM)
-    env = envs.load("mujoban/level1", seed=0, levels=str(levels), **NO_CAMERAS)
-    agent = make_agent("mujoban/level1", env)
-    timestep = env.reset()
-    agent.reset(env, timestep, seed=0)
+    # The default, observation-only agent (the camera estimator) sees the box
+    # move: it is given only the description and the timesteps.
+    env = envs.load("mujoban/level1", seed=0, levels=str(levels),
+                    **env_overrides("mujoban/level1"))
+    view = BoundaryEnv(env)
+    agent = make_agent("mujoban/level1", view.description())
+    assert not agent.privileged
+    timestep = view.reset()
+    agent.reset(view.description(), timestep, seed=0)
     assert env.task.abstract_cells[0] == ((3, 3),)
     for _ in range(5):
-        timestep = env.step(agent.act(timestep))
+        timestep = view.step(agent.act(timestep))
     assert agent.episode_stats.issued == 1 and agent.episode_stats.failed == 0
     # Move the box by hand two rows down, to row 5 (still solvable: open room).
     task, physics = env.task, env.physics
@@ -60,7 +66,7 @@ def test_the_option_layer_replans_after_a_box_is_moved_by_hand(tmp_path):
     pushes_before = agent.episode_stats.issued
     steps = 0
     while not timestep.last():
-        timestep = env.step(agent.act(timestep))
+        timestep = view.step(agent.act(timestep))
         steps += 1
     assert env.task.solved, "the agent did not recover from the moved box"
     stats = agent.episode_stats
@@ -71,7 +77,7 @@ def test_the_option_layer_replans_after_a_box_is_moved_by_hand(tmp_path):
 
 def test_the_option_layer_rejects_a_bad_t_abs():
     env = envs.load("mujoban/level1", seed=0, **NO_CAMERAS)
-    agent = make_agent("mujoban/level1", env)
+    agent = make_agent("mujoban/level1", env.description(), estimator="oracle", simulator=env)
     with pytest.raises(ValueError, match="t_abs"):
         ModularAgent(agent.estimator, agent.planner, agent.skill, t_abs=0)
     env.close()
@@ -155,7 +161,62 @@ def test_cli_rejects_unknown_names_listing_the_valid_ones(argv, listed, capsys):
 def test_make_agent_rejects_unknown_names():
     env = envs.load("mujoban/level1", seed=0, **NO_CAMERAS)
     with pytest.raises(ValueError, match="random"):
-        make_agent("mujoban/level1", env, planner="minimax")
+        make_agent("mujoban/level1", env.description(), planner="minimax")
     with pytest.raises(ValueError, match="mujoban"):
-        make_agent("cartpole/swingup", env)
+        make_agent("cartpole/swingup", env.description())
+    with pytest.raises(ValueError, match="privileged"):
+        make_agent("mujoban/level1", env.description(), estimator="oracle")
     env.close()
+
+
+# Level 0: the box starts in a corner that is not a pad (a deadlock the
+# solver proves); level 1 is solvable.
+DEADLOCK_THEN_OPEN = """; 0
+##########
+#$       #
+#        #
+#     .  #
+#        #
+#   @    #
+##########
+
+; 1
+##########
+#        #
+#  $  .  #
+#        #
+#   @    #
+#        #
+##########
+"""
+
+
+def test_a_deadlocked_episode_ends_as_a_failure_with_its_reason_and_the_run_goes_on(tmp_path):
+    levels = tmp_path / "deadlock.txt"
+    levels.write_text(DEADLOCK_THEN_OPEN)
+    summary = run_lib.run("mujoban/level1", 2, seed=0, levels=str(levels), progress=False,
+                          estimator="oracle")
+    first, second = summary["rows"]
+    assert not first["solved"] and first["failure_reason"].startswith("no plan (unsolvable)")
+    assert first["steps"] < 5  # given up at once, not run into the time limit
+    assert second["solved"] and "failure_reason" not in second
+    assert summary["episode_failures"] == {"no plan (unsolvable)": 1}
+    assert summary["privileged"] is True and summary["estimator"] == "oracle"
+
+
+def test_an_agent_error_costs_its_episode_not_the_run(monkeypatch):
+    from skills.ball import BallSkill
+    calls = {"n": 0}
+    original = BallSkill.act
+
+    def flaky(self, timestep, scene):
+        calls["n"] += 1
+        if calls["n"] == 3:
+            raise RuntimeError("a bug in the skill")
+        return original(self, timestep, scene)
+
+    monkeypatch.setattr(BallSkill, "act", flaky)
+    summary = run_lib.run("mujoban/level1", 2, seed=0, progress=False, estimator="oracle")
+    first, second = summary["rows"]
+    assert first["failure_reason"] == "error: RuntimeError: a bug in the skill"
+    assert second["solved"]

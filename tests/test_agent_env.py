@@ -162,9 +162,11 @@ def test_mujoban_expert_target_reached_by_the_ball_skill_pays_the_auxiliary_rewa
             diff_boxes = {tuple(x) for x in np.argwhere(cur[3] != tgt[3])}
             assert diff_boxes == ({ahead, beyond} if push else set())
             skill = BallSkill()
-            skill.reset(env.env, subgoal, state)
+            scene = env.estimator.estimate(env.timestep)
+            assert scene.state == state
+            skill.reset(env.env.description(), subgoal, scene)
             for step in range(1, 201):
-                result = env.step(skill.act(env.timestep))
+                result = env.step(skill.act(env.timestep, env.estimator.estimate(env.timestep)))
                 if result.discount_abs == 0.0:
                     break
                 assert result.reward_abs == 0.0 and result.discount_abs == pytest.approx(0.9)
@@ -183,10 +185,10 @@ def test_mujoban_solved_abstract_state_has_no_target():
     with AgentEnv("mujoban/level1", "expert-planner", seed=0, cameras=False) as env:
         env.reset()
         skill = BallSkill()
-        skill.reset(env.env, env.subgoal, env.abstract_state)
+        skill.reset(env.env.description(), env.subgoal, env.estimator.estimate(env.timestep))
         rewards = []
         for _ in range(200):
-            result = env.step(skill.act(env.timestep))
+            result = env.step(skill.act(env.timestep, env.estimator.estimate(env.timestep)))
             rewards.append(result.reward_abs)
             if env.subgoal is None and not result.last:
                 planes = result.obs["planner"]
@@ -255,9 +257,10 @@ def test_board_target_move_pays_the_auxiliary_reward_and_another_move_does_not()
 
         def touch(action):
             state = env.abstract_state
-            skill.reset(env.env, Subgoal(action, state.child(action)), state)
+            scene = env.estimator.estimate(env.timestep)
+            skill.reset(env.env.description(), Subgoal(action, state.child(action)), scene)
             for _ in range(300):
-                a = skill.act(env.timestep)
+                a = skill.act(env.timestep, env.estimator.estimate(env.timestep))
                 result = env.step((a - (low + high) / 2) / ((high - low) / 2))
                 if result.discount_abs == 0.0:
                     return result

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -15,6 +16,8 @@ from envs.core import Environment
 from envs.mujoban import sources
 from envs.mujoban.levels import Level
 from envs.mujoban.task import Mujoban
+from hier_agents.estimators import OracleEstimator
+from hier_agents.option_layer import ModularAgent
 from skills.ball import BallSkill
 from skills.base import Skill, Status
 
@@ -36,40 +39,45 @@ def estimate(task) -> SokobanState:
     return SokobanState(level.walls, level.targets, boxes, player, level.height, level.width)
 
 
+def scene_of(env, timestep, state=None):
+    """The oracle's scene of ``timestep`` (skill tests use exact positions;
+    the camera estimator has its own tests), its abstract state replaced by
+    ``state`` if given (a subgoal planned from a wrong state)."""
+    oracle = OracleEstimator(env)
+    oracle.reset(env.description(), timestep)
+    scene = oracle.estimate(timestep)
+    return dataclasses.replace(scene, state=state) if state is not None else scene
+
+
 def run_subgoal(env, skill, timestep, moves, *, state=None, plan=(), max_steps=300):
     """Runs the skill on ``moves`` from the estimate (or ``state``) until it
     stops or the episode ends; returns the timesteps seen."""
-    state = state or estimate(env.task)
+    oracle = OracleEstimator(env)
+    oracle.reset(env.description(), timestep)
+    scene = oracle.estimate(timestep)
+    state = state or scene.state
+    scene = dataclasses.replace(scene, state=state)
     goal = replay(state, moves) if moves else state
-    skill.reset(env, Subgoal(action=tuple(moves), state=goal, plan=tuple(plan)), state)
+    skill.reset(env.description(), Subgoal(action=tuple(moves), state=goal, plan=tuple(plan)),
+                scene)
     seen = []
     while skill.status is Status.RUNNING and len(seen) < max_steps:
-        timestep = env.step(skill.act(timestep))
+        timestep = env.step(skill.act(timestep, scene))
         seen.append(timestep)
         if timestep.last():
             break
+        scene = oracle.estimate(timestep)
     return seen
 
 
 def run_episode(env, skill, planner, *, pushes=True):
-    """The modular agent's loop: estimate, plan (the next push, or the next
-    move), run the skill for <= T_abs steps."""
+    """The modular agent (oracle estimates) for one episode: (steps, solved)."""
+    agent = ModularAgent(OracleEstimator(env), planner, skill, t_abs=T_ABS, use_pushes=pushes)
     timestep = env.reset()
-    planner.reset()
+    agent.reset(env.description(), timestep)
     steps = 0
-    subgoal = None
-    option_steps = 0
     while not timestep.last():
-        if subgoal is None or skill.status is not Status.RUNNING or option_steps >= T_ABS:
-            state = estimate(env.task)
-            if state.is_solved():
-                subgoal = Subgoal(action=(), state=state)
-            else:
-                subgoal = planner.next_push(state) if pushes else planner.plan(state)
-            skill.reset(env, subgoal, state)
-            option_steps = 0
-        timestep = env.step(skill.act(timestep))
-        option_steps += 1
+        timestep = env.step(agent.act(timestep))
         steps += 1
     return steps, env.task.solved
 
@@ -272,14 +280,15 @@ BOX_BEFORE_WALL = """\
 
 def test_illegal_subgoal_fails_at_once():
     env = make_env(BOX_BEFORE_WALL)
-    env.reset()
-    state = estimate(env.task)
+    timestep = env.reset()
+    scene = scene_of(env, timestep)
+    state = scene.state
     skill = BallSkill()
     # The second push would move the box into the wall.
-    skill.reset(env, Subgoal(action=("R", "R"), state=state), state)
+    skill.reset(env.description(), Subgoal(action=("R", "R"), state=state), scene)
     assert skill.status is Status.FAILURE
     assert skill.failure_reason.startswith("illegal move")
-    assert np.all(skill.act(None) == 0.0)
+    assert np.all(skill.act(None, scene) == 0.0)
 
 
 def test_box_pushed_into_a_wall_the_state_left_out_is_reported_stuck_not_hung():
@@ -369,8 +378,8 @@ def test_reset_mid_push_continues_without_stopping():
             # covers it (within 0.1 cells): then hold, as the agent's loop does.
             subgoal = (Subgoal(action=(), state=state) if state.is_solved()
                        else planner.next_push(state))
-            skill.reset(env, subgoal, state)
-        timestep = env.step(skill.act(timestep))
+            skill.reset(env.description(), subgoal, scene_of(env, timestep))
+        timestep = env.step(skill.act(timestep, scene_of(env, timestep)))
         steps += 1
     assert env.task.solved
     assert steps < 120

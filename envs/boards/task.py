@@ -149,6 +149,8 @@ class BoardTask(PhysicsTask):
         self.main_camera = "front_camera"
         self._ik = None
         self._tcp_ik = None
+        self._description = None
+        self._model = None
 
     def _add_sensors(self, nsample: int) -> None:
         """Touch and contact sensors that keep every substep's reading."""
@@ -173,6 +175,62 @@ class BoardTask(PhysicsTask):
                     sensor.add("contact", name=f"finger_{k}_{j}", geom1=geom, subtree2=body,
                                data="found", nsample=nsample)
                     for j, body in enumerate(finger_bodies)])
+
+    def description(self):
+        """The public `envs.description.BoardDescription` of this task (built
+        once: the arm's own model is compiled from a fresh arm and hand)."""
+        if self._description is None:
+            self._description = self._describe()
+        return self._description
+
+    def _describe(self):
+        from dm_control import mjcf
+
+        from envs.description import ArmDescription, BoardDescription, CameraDescription
+        arena = self._arena
+        # The arm's own model: a fresh arm and hand mounted as in the arena.
+        root = mjcf.RootElement(model="jaco")
+        arm, hand = kinova.JacoArm(name="arm"), kinova.JacoHand(name="hand")
+        arm.attach(hand)
+        frame = root.attach(arm.mjcf_model)
+        frame.pos = arena_lib.ARM_OFFSET
+        xml = root.to_xml_string()
+        assets = root.get_assets()
+        joints = list(arm.joints) + list(hand.joints)
+        spec = self._model.actuator_ctrlrange[self._act_ids]
+        arm_desc = ArmDescription(
+            xml=xml, assets=assets, joint_names=tuple(j.full_identifier for j in joints),
+            pinch_site=hand.pinch_site.full_identifier,
+            tool_center_point=hand.tool_center_point.full_identifier,
+            base_position=tuple(float(v) for v in arena_lib.ARM_OFFSET),
+            action_minimum=tuple(float(v) for v in spec[:, 0]),
+            action_maximum=tuple(float(v) for v in spec[:, 1]))
+        n = self.game.size
+        cx, cy = arena.centre
+        zones = {}
+        if arena.pass_geom is not None:
+            size = tuple(float(v) for v in arena.pass_geom.size)
+            # The pass sensor covers the board's footprint and beyond; the
+            # part outside the board on each side is what a robot can touch.
+            for side, sign in (("left", -1.0), ("right", 1.0)):
+                zones[side] = {"centre": (cx + sign * 0.5 * (arena.half_board + size[0]), cy,
+                                          float(2 * size[2] / 2)),
+                               "half": (0.5 * (size[0] - arena.half_board), size[1])}
+        cam = arena.front_camera
+        front = CameraDescription(
+            "front_camera", tuple(float(v) for v in cam.pos),
+            tuple(float(v) for v in cam.xyaxes), float(cam.fovy or 45.0),
+            (self._cameras["front_camera"].height, self._cameras["front_camera"].width)
+            if "front_camera" in self._cameras else None)
+        return BoardDescription(
+            game=self.game.name, board_size=n, komi=float(getattr(self.game, "komi", 0.0) or 0.0),
+            num_points=self.game.num_points, pass_action=self.game.pass_action,
+            point_positions=tuple(tuple(float(v) for v in self.point_position(a))
+                                  for a in range(self.game.num_points)),
+            pad_half=float(arena.pad_half), pass_zones=zones,
+            board_centre=(float(cx), float(cy)), board_half=float(arena.half_board),
+            registering=self._registering, control_timestep=float(self.control_timestep),
+            time_limit_steps=int(self.time_limit_steps), arm=arm_desc, front_camera=front)
 
     # -- composer / PhysicsTask plumbing ------------------------------------
 

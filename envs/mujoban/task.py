@@ -76,6 +76,8 @@ PIXEL_COLOURS = {
 LevelSource = Callable[[np.random.Generator], Level]
 
 _PARKED_Z = -20.0
+#: The rolling ball's radius (dm_control's ``RollingBallWithHead`` shell), metres.
+BALL_RADIUS = 0.2
 #: Aliveness in [-1, 0] below which the walker counts as dead (the original's
 #: ``_ALIVE_THRESHOLD``).
 ALIVE_THRESHOLD = -0.5
@@ -228,6 +230,25 @@ class Mujoban(PhysicsTask):
     @property
     def cell_size(self) -> float:
         return self._arena.cell_size
+
+    def description(self):
+        """The public `envs.description.MujobanDescription` of this task."""
+        from envs.description import CameraDescription, MujobanDescription
+        arena = self._arena
+        cam = arena.top_camera
+        top = CameraDescription(
+            "top_camera", tuple(float(v) for v in cam.pos), tuple(float(v) for v in cam.xyaxes),
+            float(cam.fovy), (self._cameras["top_camera"].height, self._cameras["top_camera"].width)
+            if "top_camera" in self._cameras else None)
+        box = self._boxes[0]
+        return MujobanDescription(
+            grid_shape=tuple(arena.grid_shape), cell_size=float(arena.cell_size),
+            pegs=bool(arena.pegs), max_boxes=len(self._boxes),
+            control_timestep=float(self.control_timestep),
+            time_limit_steps=int(self.time_limit_steps),
+            pad_tolerance=self._pad_tolerance / arena.cell_size,
+            box_half=float(box.half_size), box_half_height=float(box.half_height),
+            ball_radius=BALL_RADIUS, peg_radius=arena_lib.PEG_RADIUS, top_camera=top)
 
     # -- composer hooks -----------------------------------------------------
 

@@ -54,8 +54,8 @@ Rewards and discounts (`StepResult`):
   physics): the actors reset the environment then, so the next observation
   belongs to a new episode and there is nothing to bootstrap from.
 * The auxiliary task runs in sub-episodes. At a sub-episode's start the
-  family's estimator (`hier_agents.components.ESTIMATORS`, the first entry)
-  estimates the abstract state and the planner proposes ONE transition
+  ground-truth estimator (``entity-layer`` for MuJoBan, privileged as in the
+  paper; ``board`` for the board games) estimates the abstract state and the planner proposes ONE transition
   (``planner.plan(state)``: one Sokoban move, one board move); the current
   state and the target stay fixed for the sub-episode (the paper's appendix).
   The sub-episode ends
@@ -252,8 +252,13 @@ class AgentEnv:
                 planners = PLANNERS[fam]
                 factory = (next(iter(planners.values())) if condition == "expert-planner"
                            else planners["random"])
-                self.planner = factory(self.env, self.seed)
-                self.estimator = next(iter(ESTIMATORS[fam].values()))(self.env, self.seed)
+                description = self.env.description()
+                self.planner = factory(description, self.seed)
+                # The paper's planner conditions read the ground-truth abstract
+                # state: the privileged entity-layer estimator (board games:
+                # the game record, observation-only).
+                name = "entity-layer" if fam == "mujoban" else "board"
+                self.estimator = ESTIMATORS[fam][name](description, self.seed, self.env)
                 if fam == "mujoban":
                     h, w = task.grid_shape
                     planner_shape, planner_action_dim = (8, int(h), int(w)), len(PLANNER_ACTIONS)
@@ -291,7 +296,7 @@ class AgentEnv:
             if self.seed is not None:
                 seed = int(np.random.SeedSequence([self.seed, self._episode]).generate_state(1)[0])
             self.planner.reset(seed)
-            self.estimator.reset(self.env, timestep)
+            self.estimator.reset(self.env.description(), timestep)
             self._start_subepisode(timestep)
         return self._observe(timestep.observation)
 
@@ -395,7 +400,7 @@ class AgentEnv:
         task = self.env.task
         self._sub_steps = 0
         try:
-            state = self.estimator.estimate(self.env, timestep)
+            state = self.estimator.estimate(timestep).state
         except (EstimationError, ValueError):
             # Physics can put the rounded cells in a state no Sokoban board has
             # (two boxes in one cell, the walker on a box after a diagonal

@@ -1,0 +1,17 @@
+"""Estimators: observations -> scene estimates (`skills.scene`).
+
+* MuJoBan: `CameraEstimator` (``camera``, the default: the top camera's
+  frames and the walker's proprioception), `OracleEstimator` (``oracle``,
+  privileged: the simulator's positions), `EntityLayerEstimator`
+  (``entity-layer``, privileged: the environment's ground-truth grid);
+* MuJoXO / MuJoGo: `BoardEstimator` (``board``: the game record and board
+  observations, the arm's joint observations).
+"""
+
+from hier_agents.estimators.base import EstimationError, Estimator
+from hier_agents.estimators.board import BoardEstimator
+from hier_agents.estimators.mujoban import (EntityLayerEstimator, OracleEstimator,
+                                            rounded_state)
+
+__all__ = ["Estimator", "EstimationError", "BoardEstimator", "OracleEstimator",
+           "EntityLayerEstimator", "rounded_state"]

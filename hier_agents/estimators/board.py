@@ -1,0 +1,50 @@
+"""`BoardEstimator` (``board``): MuJoXO / MuJoGo scenes from observations.
+
+The game comes from the ``move_history`` observation (the game record)
+replayed in OpenSpiel and checked against the ``board_state`` markers; the
+arm from its joint observations (``arm/joints_pos``, ``arm/joints_vel``,
+which are the qpos and qvel of the arm's own model,
+`envs.description.ArmDescription`). Observation-only.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from envs.boards.games import BoardGame
+from hier_agents.estimators.base import EstimationError, Estimator
+from skills.scene import ArmScene
+
+
+class BoardEstimator(Estimator):
+    """The game record replayed in OpenSpiel, and the arm's joints."""
+
+    name = "board"
+
+    def __init__(self) -> None:
+        self._games = {}
+        self._game = None
+
+    def reset(self, description, timestep) -> None:
+        key = (description.game, description.board_size, description.komi)
+        if key not in self._games:
+            game = BoardGame(description.game, description.board_size, komi=description.komi)
+            self._games[key] = (game, game.load())
+        self._game = self._games[key]
+
+    def estimate(self, timestep) -> ArmScene:
+        if self._game is None:
+            raise RuntimeError("BoardEstimator.estimate called before reset")
+        game, spiel = self._game
+        obs = timestep.observation
+        history = np.asarray(obs["move_history"])
+        end = int(np.argmax(history < 0)) if (history < 0).any() else len(history)
+        played = history[:end]
+        state = spiel.new_initial_state()
+        for action in played:
+            state.apply_action(int(action))
+        if not np.array_equal(game.board_planes(state), obs["board_state"]):
+            raise EstimationError("move_history and board_state disagree")
+        return ArmScene(state=state, moves=tuple(int(a) for a in played),
+                        qpos=np.array(obs["arm/joints_pos"], float),
+                        qvel=np.array(obs["arm/joints_vel"], float))
