@@ -14,7 +14,8 @@ composer tasks (entities, MJCF, the lifecycle hooks ``after_compile``,
   never called: a task that needs them must not use this runner);
 * computes observations once per control step, from precomputed indices
   (``PhysicsTask.observe``), and renders only the cameras that are enabled,
-  only when an observation is built.
+  only when an observation is built -- or, with ``lazy_cameras=True``, only
+  when an agent reads the frame (`LazyObservation`).
 
 Every random draw comes from one ``np.random.Generator`` seeded by ``seed``.
 """
@@ -94,10 +95,15 @@ class Environment(dm_env.Environment):
         initial poses, opponents). ``None`` draws fresh entropy.
       raise_on_physics_error: if False, a diverging simulation ends the
         episode (reward 0, discount 0) instead of raising ``PhysicsError``.
+      lazy_cameras: camera frames are rendered when first read from the
+        timestep's observation (a `LazyObservation`), not when it is built;
+        a frame left unread costs nothing. It must be read before the next
+        ``step``/``reset`` (then it raises `StaleObservationError`): agents
+        that look at every k-th frame save the rendering of the others.
     """
 
     def __init__(self, task: PhysicsTask, seed: int | None = None, *,
-                 raise_on_physics_error: bool = True):
+                 raise_on_physics_error: bool = True, lazy_cameras: bool = False):
         if not isinstance(task, PhysicsTask):
             raise TypeError(f"task must be a PhysicsTask, got {type(task).__name__}")
         self._task = task
@@ -119,6 +125,10 @@ class Environment(dm_env.Environment):
         self._step_count = 0
         self._reset_next_step = True
         self._action_spec = task.action_spec(self._physics)
+        if not isinstance(lazy_cameras, bool):
+            raise TypeError(f"lazy_cameras must be True or False, got {lazy_cameras!r}")
+        self._lazy = lazy_cameras and bool(self._camera_ids)
+        self._stamp = 0  # counts observations built; a lazy frame is valid for one
 
     # -- dm_env API ---------------------------------------------------------
 
@@ -248,10 +258,71 @@ class Environment(dm_env.Environment):
             raise ValueError(f"action must be finite, got {action}")
         return action
 
-    def _observation(self) -> dict[str, np.ndarray]:
+    def _observation(self) -> Mapping[str, np.ndarray]:
         obs = self._task.observe(self._physics)
+        self._stamp += 1
+        if self._lazy:
+            return LazyObservation(obs, self, self._stamp)
         if self._camera_ids:
             data = self._data
             for name, (cam_id, height, width) in self._camera_ids.items():
                 obs[name] = self._cameras.render(data, cam_id, height, width)
         return obs
+
+    def _render_camera(self, name: str, stamp: int) -> np.ndarray:
+        if stamp != self._stamp:
+            raise StaleObservationError(
+                f"the {name!r} frame of an earlier timestep was read after the environment "
+                f"stepped on; with lazy_cameras=True read camera frames before the next "
+                f"step (or build the environment with lazy_cameras=False)")
+        cam_id, height, width = self._camera_ids[name]
+        return self._cameras.render(self._data, cam_id, height, width)
+
+
+class StaleObservationError(RuntimeError):
+    """A lazy camera frame was read after its environment stepped on."""
+
+
+class LazyObservation(Mapping):
+    """A timestep's observations whose camera frames render on first read.
+
+    Behaves as a read-only mapping (``obs["top_camera"]``, iteration, ``len``,
+    ``dict(obs)``, which reads, and so renders, every frame). Non-camera
+    observations are computed when it is built, as without lazy cameras.
+    """
+
+    __slots__ = ("_values", "_env", "_stamp", "_keys")
+
+    def __init__(self, values: dict, env: Environment, stamp: int):
+        self._values, self._env, self._stamp = values, env, stamp
+        self._keys = tuple(values) + tuple(env._camera_ids)  # pylint: disable=protected-access
+
+    def __getitem__(self, key):
+        try:
+            return self._values[key]
+        except KeyError:
+            if key not in self._env._camera_ids:  # pylint: disable=protected-access
+                raise
+        frame = self._env._render_camera(key, self._stamp)  # pylint: disable=protected-access
+        self._values[key] = frame
+        return frame
+
+    def __iter__(self):
+        return iter(self._keys)
+
+    def __len__(self) -> int:
+        return len(self._keys)
+
+    def __contains__(self, key) -> bool:
+        return key in self._keys
+
+    def rendered(self, key) -> bool:
+        """Whether frame ``key`` has been rendered (read) already."""
+        return key in self._values
+
+    def __repr__(self) -> str:
+        shown = {k: ("<rendered>" if k in self._values else "<not rendered>")
+                 if k in self._env._camera_ids else self._values[k]  # pylint: disable=protected-access
+                 for k in self._keys}
+        return f"LazyObservation({shown})"
+

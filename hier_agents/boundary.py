@@ -16,6 +16,8 @@ combination through it.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import dm_env
 
 __all__ = ["BoundaryEnv", "BoundaryViolation", "PRIVILEGED_OBSERVATIONS"]
@@ -76,8 +78,7 @@ class BoundaryEnv:
     def _filter(self, timestep: dm_env.TimeStep) -> dm_env.TimeStep:
         obs = timestep.observation
         if self._strip and any(k in obs for k in self._strip):
-            obs = {k: v for k, v in obs.items() if k not in self._strip}
-            timestep = timestep._replace(observation=obs)
+            timestep = timestep._replace(observation=_Without(obs, self._strip))
         return timestep
 
     def __getattr__(self, name):
@@ -87,3 +88,29 @@ class BoundaryEnv:
 
     def __setattr__(self, name, value):
         raise BoundaryViolation(f"an agent may not set env.{name}")
+
+
+class _Without(Mapping):
+    """A view of an observation mapping without some keys; reads pass through
+    (so lazily rendered camera frames stay lazy)."""
+
+    __slots__ = ("_obs", "_keys")
+
+    def __init__(self, obs, strip):
+        self._obs = obs
+        self._keys = tuple(k for k in obs if k not in strip)
+
+    def __getitem__(self, key):
+        if key not in self._keys:
+            raise KeyError(key)
+        return self._obs[key]
+
+    def __iter__(self):
+        return iter(self._keys)
+
+    def __len__(self) -> int:
+        return len(self._keys)
+
+    def __contains__(self, key) -> bool:
+        return key in self._keys
+

@@ -379,3 +379,30 @@ def test_walker_driven_at_a_peg_at_full_speed_stays_on_its_side(pegs):
         assert closest > 0.2 and not passed
     else:
         assert closest < 0.1 and passed
+
+
+def test_lazy_cameras_render_only_frames_that_are_read_and_refuse_stale_ones():
+    from envs.core import LazyObservation, StaleObservationError
+    eager = envs.load("mujoban/level2", seed=4, top_camera=(48, 48), egocentric_camera=None)
+    lazy = envs.load("mujoban/level2", seed=4, top_camera=(48, 48), egocentric_camera=None,
+                     lazy_cameras=True)
+    a, b = eager.reset(), lazy.reset()
+    assert isinstance(b.observation, LazyObservation)
+    assert set(b.observation) == set(a.observation)
+    assert not b.observation.rendered("top_camera")
+    np.testing.assert_array_equal(b.observation["top_camera"], a.observation["top_camera"])
+    assert b.observation.rendered("top_camera")
+    for _ in range(3):
+        a, b2 = eager.step([0.5, 0.2]), lazy.step([0.5, 0.2])
+    np.testing.assert_array_equal(b2.observation["top_camera"], a.observation["top_camera"])
+    np.testing.assert_array_equal(b2.observation["walker/orientation"],
+                                  a.observation["walker/orientation"])
+    unread = lazy.step([0.5, 0.2])
+    lazy.step([0.5, 0.2])
+    unread.observation["walker/orientation"]  # computed eagerly: still readable
+    with pytest.raises(StaleObservationError, match="lazy_cameras"):
+        unread.observation["top_camera"]
+    with pytest.raises(TypeError, match="lazy_cameras"):
+        envs.load("mujoban/level1", lazy_cameras="yes")
+    eager.close()
+    lazy.close()

@@ -48,7 +48,7 @@ def make_mujoxo(*, epsilon: float = 0.25, seed: int | None = None, front_camera=
                 arm_reset: bool = True, time_limit: float = 30.0,
                 control_timestep: float = 0.05, physics_timestep: float = 0.002,
                 piece_noise: float | None = None, render_size=(256, 256),
-                raise_on_physics_error: bool = True) -> Environment:
+                raise_on_physics_error: bool = True, lazy_cameras: bool = False) -> Environment:
     """MuJoXO: tic-tac-toe against minimax mixed with random moves at rate ``epsilon``.
 
     Any contact pressing a square's touch sensor registers a move. Rewards at
@@ -62,7 +62,8 @@ def make_mujoxo(*, epsilon: float = 0.25, seed: int | None = None, front_camera=
                      arm_reset=arm_reset, front_camera=front_camera, time_limit=time_limit,
                      piece_noise=piece_noise, control_timestep=control_timestep,
                      physics_timestep=physics_timestep, render_size=render_size)
-    return Environment(task, seed=seed, raise_on_physics_error=raise_on_physics_error)
+    return Environment(task, seed=seed, raise_on_physics_error=raise_on_physics_error,
+                       lazy_cameras=lazy_cameras)
 
 
 def make_mujogo(*, board_size: int = 7, level: int = 10, epsilon: float = 0.0,
@@ -72,7 +73,7 @@ def make_mujogo(*, board_size: int = 7, level: int = 10, epsilon: float = 0.0,
                 registering: str = "fingers", allow_double_pass: bool = False,
                 piece_noise: float | None = None,
                 gnugo_timeout: float = 10.0, gnugo_command=None, render_size=(256, 256),
-                raise_on_physics_error: bool = True) -> Environment:
+                raise_on_physics_error: bool = True, lazy_cameras: bool = False) -> Environment:
     """MuJoGo: Go (Tromp-Taylor, komi 5.5) against GNU Go at ``level``, random at ``epsilon``.
 
     A press registers only if a finger geom (knuckle or tip; ``registering=
@@ -98,7 +99,8 @@ def make_mujogo(*, board_size: int = 7, level: int = 10, epsilon: float = 0.0,
                          allow_double_pass=allow_double_pass, piece_noise=piece_noise,
                          control_timestep=control_timestep, physics_timestep=physics_timestep,
                          render_size=render_size)
-        return Environment(task, seed=seed, raise_on_physics_error=raise_on_physics_error)
+        return Environment(task, seed=seed, raise_on_physics_error=raise_on_physics_error,
+                       lazy_cameras=lazy_cameras)
     except BaseException:
         opponent.close()
         raise

@@ -30,7 +30,7 @@ def make(*, difficulty: int | None = None, pegs: bool = False, seed: int | None 
          control_timestep: float = 0.05, physics_timestep: float = 0.001,
          pad_tolerance: float = 0.1, noslip_iterations: int = 5, sleep: bool = False,
          render_size=(256, 256),
-         raise_on_physics_error: bool = True) -> Environment:
+         raise_on_physics_error: bool = True, lazy_cameras: bool = False) -> Environment:
     """Builds a MuJoBan environment.
 
     The defaults are the original task (physics_planning_games' MuJoBan, with
@@ -49,6 +49,8 @@ def make(*, difficulty: int | None = None, pegs: bool = False, seed: int | None 
         after the last) or ``"shuffle"`` (uniformly at random) for `levels`.
       grid_shape: arena size in cells; smaller levels are padded with walls.
       top_camera, egocentric_camera: ``(height, width)`` or None to switch off.
+      lazy_cameras: render a camera frame only when the agent reads it from
+        the timestep (before the next step); see `envs.core.Environment`.
       randomize_appearance: new wall/floor textures and colours every episode.
       time_limit: seconds (45 s = 900 control steps of 0.05 s).
       control_timestep: seconds per agent action (the paper's 0.05).
@@ -82,7 +84,8 @@ def make(*, difficulty: int | None = None, pegs: bool = False, seed: int | None 
                    control_timestep=control_timestep, physics_timestep=physics_timestep,
                    pad_tolerance=pad_tolerance, noslip_iterations=noslip_iterations,
                    sleep=sleep, render_size=render_size)
-    return Environment(task, seed=seed, raise_on_physics_error=raise_on_physics_error)
+    return Environment(task, seed=seed, raise_on_physics_error=raise_on_physics_error,
+                       lazy_cameras=lazy_cameras)
 
 
 def _check_file_fits(source: sources.FileLevels, grid_shape: tuple[int, int]) -> None:
