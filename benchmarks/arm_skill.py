@@ -3,15 +3,21 @@
     python benchmarks/arm_skill.py [--envs NAME ...] [--episodes N] [--seed S]
                                    [--t-abs T] [--abstract-games N] [--json PATH]
 
-Each episode (one game) runs the modular agent's loop with the physical arm:
+Each episode (one game) runs the modular agent's loop with the physical arm,
+behind the observation boundary (the agent sees ``env.description()`` and
+timesteps only):
 
-1. the abstract state is the task's OpenSpiel state (``env.task.state``, a
-   clone: the board is read exactly);
+1. estimate: `BoardEstimator` replays the ``move_history`` observation in
+   OpenSpiel (the abstract state) and reads the arm's joint observations;
 2. plan: `MinimaxPlanner` for MuJoXO, `GnuGoPlanner` (level 10, 7x7, komi
    5.5; its own engine, not the environment's opponent) for MuJoGo;
-3. run `skills.arm.ArmTouchSkill` on the subgoal until it reports success or
-   failure or ``--t-abs`` (50) control steps passed, then go back to 1. The
-   environment's opponent replies inside the step that registers the move.
+3. run `skills.arm.ArmTouchSkill` on the subgoal with the option layer's
+   `run_option` until it reports success or failure or ``--t-abs`` (50)
+   control steps passed, then go back to 1. The environment's opponent
+   replies inside the step that registers the move. (`run_option` steps the
+   skill's hold action once more on the step it sees the move registered,
+   so a touch counts one step more than with the hand-written loop of
+   earlier versions.)
 
 Environments: ``mujoxo/mixture`` (minimax opponent with random moves at rate
 0.25, 30 s = 600 steps, truncation at the limit), ``mujoxo/optimal``,
@@ -58,6 +64,8 @@ import envs  # noqa: E402
 from abstract_planners.epsilon_greedy import EpsilonGreedy  # noqa: E402
 from abstract_planners.go import GnuGoPlanner  # noqa: E402
 from abstract_planners.tictactoe import MinimaxPlanner  # noqa: E402
+from hier_agents.estimators import BoardEstimator, EstimationError  # noqa: E402
+from hier_agents.option_layer import run_option  # noqa: E402
 from skills.arm import ArmTouchSkill  # noqa: E402
 from skills.base import Status  # noqa: E402
 
@@ -87,41 +95,69 @@ def make_planner(name: str, seed: int):
     raise ValueError(f"unknown environment {name!r}: expected mujoxo/... or mujogo/...")
 
 
+class TimedSkill:
+    """A skill whose ``reset`` and ``act`` are timed (into ``stats``): what
+    `run_option` needs of a skill, passed through."""
+
+    def __init__(self, skill, stats: dict):
+        self.skill, self.stats = skill, stats
+        self.name = skill.name
+
+    @property
+    def status(self):
+        return self.skill.status
+
+    @property
+    def failure_reason(self):
+        return self.skill.failure_reason
+
+    def reset(self, description, subgoal, scene) -> None:
+        start = time.perf_counter()
+        self.skill.reset(description, subgoal, scene)
+        self.stats["reset_s"] += time.perf_counter() - start
+
+    def act(self, timestep, scene):
+        start = time.perf_counter()
+        action = self.skill.act(timestep, scene)
+        self.stats["act_s"] += time.perf_counter() - start
+        self.stats["acts"] += 1
+        return action
+
+    def hold(self):
+        return self.skill.hold()
+
+
 def play_game(env, planner, skill, t_abs: int, stats: dict) -> dict:
     """One game with the agent loop of the module docstring; updates ``stats``."""
+    description = env.description()
+    estimator = BoardEstimator()
+    timed = TimedSkill(skill, stats)
     timestep = env.reset()
+    estimator.reset(description, timestep)
     steps = 0
+    scene = None
     while not timestep.last():
-        state = env.task.state.clone()
-        if state.is_terminal():  # cannot happen while the episode runs
+        try:
+            scene = estimator.estimate(timestep)
+        except EstimationError:
+            timestep = env.step(skill.hold())
+            steps += 1
+            continue
+        if scene.state.is_terminal():  # cannot happen while the episode runs
             break
         start = time.perf_counter()
-        subgoal = planner.plan(state)
+        subgoal = planner.plan(scene.state)
         stats["plan_s"] += time.perf_counter() - start
         stats["plans"] += 1
-        start = time.perf_counter()
-        skill.reset(env, subgoal, state)
-        stats["reset_s"] += time.perf_counter() - start
         stats["touches"] += 1
-        option_steps = 0
-        while True:
-            start = time.perf_counter()
-            action = skill.act(timestep)
-            stats["act_s"] += time.perf_counter() - start
-            stats["acts"] += 1
-            if skill.status is not Status.RUNNING or option_steps >= t_abs:
-                break
-            timestep = env.step(action)
-            steps += 1
-            option_steps += 1
-            if timestep.last():
-                skill.act(timestep)  # let the skill see the final outcome
-                break
-        if skill.status is Status.SUCCESS:
+        result = run_option(env, estimator, timed, subgoal, timestep, t_abs=t_abs, scene=scene)
+        timestep = result.timestep
+        steps += result.steps
+        if result.status is Status.SUCCESS:
             stats["planned"] += 1
-            stats["touch_steps"].append(option_steps)
-        elif skill.status is Status.FAILURE:
-            reason = skill.failure_reason or "unknown"
+            stats["touch_steps"].append(result.steps)
+        elif result.status is Status.FAILURE:
+            reason = result.reason or "unknown"
             stats["failures"][reason.split(":")[0]] += 1
             if reason.startswith("wrong move"):
                 stats["wrong"] += 1
@@ -129,16 +165,19 @@ def play_game(env, planner, skill, t_abs: int, stats: dict) -> dict:
                 stats["failed"] += 1
         else:
             stats["cut"] += 1
-        if option_steps == 0 and not timestep.last():
+        if result.steps == 0 and not timestep.last():
             # The skill gave up before moving (e.g. no posture found from
             # here): let time pass so the game cannot loop without steps.
-            timestep = env.step(skill.act(timestep))
+            timestep = env.step(skill.hold())
             steps += 1
-    state = env.task.state
-    if state.is_terminal():
+    try:
+        state = estimator.estimate(timestep).state
+    except EstimationError:
+        state = scene.state if scene is not None else None
+    if state is not None and state.is_terminal():
         value = state.returns()[0]
         result = "win" if value > 0 else "loss" if value < 0 else "draw"
-    elif env.task.game.name == "go":
+    elif description.game == "go":
         result = "loss"  # MuJoGo: a game running at the time limit is lost
     else:
         result = "unfinished"

@@ -253,7 +253,10 @@ def run_option(env, estimator: Estimator, skill: Skill, subgoal: Subgoal, timest
     skill.reset(description, subgoal, scene)
     steps, seen = 0, True
     while skill.status is Status.RUNNING and steps < t_abs and not timestep.last():
-        timestep = env.step(skill.act(timestep, scene) if seen else skill.hold())
+        action = skill.act(timestep, scene) if seen else skill.hold()
+        if skill.status is not Status.RUNNING:
+            break  # the skill saw its outcome in this timestep
+        timestep = env.step(action)
         steps += 1
         try:
             scene, seen = estimator.estimate(timestep), True
@@ -262,8 +265,8 @@ def run_option(env, estimator: Estimator, skill: Skill, subgoal: Subgoal, timest
             continue
         if on_step is not None:
             on_step(timestep, scene)
-        if timestep.last():
-            skill.act(timestep, scene)  # let the skill see the final outcome
+    if timestep.last() and seen and skill.status is Status.RUNNING:
+        skill.act(timestep, scene)  # let the skill see the final outcome
     return OptionResult(skill.status, steps, timestep, skill.failure_reason)
 
 

@@ -1,22 +1,94 @@
-"""The Jaco arm-touch skill (`skills.arm.ArmTouchSkill`) in MuJoXO and MuJoGo."""
+"""The Jaco arm-touch skill (`skills.arm.ArmTouchSkill`) in MuJoXO and MuJoGo.
+
+The skill runs through the option layer (`run_option`, `ModularAgent`) with
+the observation-only `BoardEstimator`, on an environment wrapper that offers
+only what a robot's interface would (`PublicEnv`). The tests themselves read
+the simulator to *check* outcomes (they are outside the observation
+boundary); the skill does not.
+"""
 
 from __future__ import annotations
 
+import ast
+import dataclasses
 import shutil
+from pathlib import Path
 
+import dm_env
 import numpy as np
 import pytest
 
 import envs
 from abstract_planners.base import Subgoal
 from abstract_planners.tictactoe import MinimaxPlanner
-from skills.arm import ArmTouchSkill
+from hier_agents.estimators import BoardEstimator
+from hier_agents.option_layer import ModularAgent, run_option
+from skills.arm import ArmModel, ArmTouchConfig, ArmTouchSkill
 from skills.base import Status
 
 NO_CAMERA = {"front_camera": None}
+ARM_PACKAGE = Path(__file__).resolve().parents[1] / "skills" / "arm"
 needs_gnugo = pytest.mark.skipif(shutil.which("gnugo") is None and
                                  shutil.which("/usr/games/gnugo") is None,
                                  reason="GNU Go is not installed")
+
+
+class PublicEnv:
+    """An environment seen through its public interface only: ``reset``,
+    ``step``, ``action_spec``, ``observation_spec`` and ``description``
+    (optionally a doctored one). Every action must lie within the spec."""
+
+    def __init__(self, env, description=None):
+        self._env = env
+        self._description = description
+
+    def reset(self):
+        return self._env.reset()
+
+    def step(self, action):
+        spec = self._env.action_spec()
+        action = np.asarray(action)
+        assert action.shape == spec.shape
+        assert np.all(action >= spec.minimum) and np.all(action <= spec.maximum)
+        return self._env.step(action)
+
+    def action_spec(self):
+        return self._env.action_spec()
+
+    def observation_spec(self):
+        return self._env.observation_spec()
+
+    def description(self):
+        return self._description if self._description is not None else self._env.description()
+
+
+def moved(description, shift=None, positions=None):
+    """``description`` with its board points moved by ``shift`` (x, y, z) or
+    put at ``positions(action)`` (the skill is fooled; the board is not)."""
+    points = [description.point_position(a) for a in range(description.num_points)]
+    if positions is not None:
+        points = [positions(a) for a in range(description.num_points)]
+    if shift is not None:
+        points = [p + np.asarray(shift, float) for p in points]
+    return dataclasses.replace(description,
+                               point_positions=tuple(tuple(map(float, p)) for p in points))
+
+
+def run_touch(env, skill, action, timestep, *, description=None, t_abs=80):
+    """Runs ``skill`` on ``action`` from ``timestep`` through the option layer."""
+    public = PublicEnv(env, description)
+    estimator = BoardEstimator()
+    estimator.reset(public.description(), timestep)
+    scene = estimator.estimate(timestep)
+    subgoal = Subgoal(action, scene.state.child(action) if action in
+                      scene.state.legal_actions() else None)
+    return run_option(public, estimator, skill, subgoal, timestep, t_abs=t_abs, scene=scene)
+
+
+def scene_of(env, timestep):
+    estimator = BoardEstimator()
+    estimator.reset(env.description(), timestep)
+    return estimator.estimate(timestep)
 
 
 @pytest.fixture(scope="module")
@@ -33,24 +105,68 @@ def mujogo():
     env.close()
 
 
-def run_skill(env, skill, action, timestep, max_steps=80):
-    """Resets ``skill`` on ``action`` from the current state and steps until it ends."""
-    state = env.task.state.clone()
-    skill.reset(env, Subgoal(action, state.child(action)), state)
-    steps = 0
-    while steps < max_steps:
-        command = skill.act(timestep)
-        if skill.status is not Status.RUNNING:
-            break
-        spec = env.action_spec()
-        assert command.shape == spec.shape
-        assert np.all(command >= spec.minimum) and np.all(command <= spec.maximum)
-        timestep = env.step(command)
-        steps += 1
-        if timestep.last():
-            skill.act(timestep)
-            break
-    return timestep, steps
+# -- the observation boundary -------------------------------------------------------
+
+
+def test_the_skill_package_never_names_the_simulator():
+    """No module of `skills.arm` reads ``physics``, the ``task``, an ``env`` or
+    raw MuJoCo pointers (``.ptr``)."""
+    forbidden = {"physics", "task", "ptr", "env", "_env"}
+    for path in sorted(ARM_PACKAGE.glob("*.py")):
+        tree = ast.parse(path.read_text())
+        names = {node.attr for node in ast.walk(tree) if isinstance(node, ast.Attribute)}
+        names |= {node.id for node in ast.walk(tree) if isinstance(node, ast.Name)}
+        names |= {arg.arg for node in ast.walk(tree) if isinstance(node, ast.arguments)
+                  for arg in node.args + node.kwonlyargs}
+        assert not names & forbidden, (path.name, names & forbidden)
+
+
+def test_a_touch_registers_through_the_public_interface_only(mujoxo):
+    """A MuJoXO touch through a wrapper that has no ``physics`` or ``task``."""
+    env = PublicEnv(mujoxo)
+    assert not hasattr(env, "physics") and not hasattr(env, "task")
+    timestep = env.reset()
+    estimator = BoardEstimator()
+    estimator.reset(env.description(), timestep)
+    scene = estimator.estimate(timestep)
+    skill = ArmTouchSkill()
+    result = run_option(env, estimator, skill, Subgoal(4, scene.state.child(4)), timestep,
+                        t_abs=80)
+    assert result.status is Status.SUCCESS, result.reason
+    assert estimator.estimate(result.timestep).moves[0] == 4
+    assert mujoxo.task.moves[0] == 4  # (the check reads the simulator; the skill did not)
+
+
+def test_the_arm_model_matches_the_simulated_arm(mujogo):
+    """The skill's own arm model, set to the observed joints, puts the pinch
+    site where the simulation has it."""
+    env = mujogo
+    timestep = env.reset()
+    arm = ArmModel(env.description().arm, band=0.006)
+    arm.set_posture(timestep.observation["arm/joints_pos"])
+    np.testing.assert_allclose(arm.current.data.site_xpos[arm.site],
+                               env.task.pinch_site_position(), atol=1e-9)
+    assert np.all(arm.fingers_closed > 1.0)
+    np.testing.assert_allclose(arm.base_xy(), env.description().arm.base_position[:2],
+                               atol=1e-9)
+
+
+def test_config_and_keyword_overrides():
+    config = ArmTouchConfig(pre_height=0.03)
+    assert ArmTouchSkill(config).config.pre_height == 0.03
+    skill = ArmTouchSkill(config, max_tilt=40, orientations=[[0, 0]])
+    assert skill.config.pre_height == 0.03 and skill.config.max_tilt == 40.0
+    assert skill.config.orientations == ((0.0, 0.0),)
+    assert ArmTouchSkill(pre_height=0.02).config.pre_height == 0.02
+    assert ArmTouchSkill().config == ArmTouchConfig()
+    with pytest.raises(TypeError):
+        ArmTouchSkill(no_such_parameter=1)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        config.pre_height = 0.1
+    assert ArmTouchSkill().hold().shape == (9,)  # before any reset
+
+
+# -- touches --------------------------------------------------------------------
 
 
 @pytest.mark.parametrize("point", range(9))
@@ -58,11 +174,12 @@ def test_mujoxo_touch_registers_the_planned_point(mujoxo, point):
     env = mujoxo
     timestep = env.reset()
     skill = ArmTouchSkill()
-    _, steps = run_skill(env, skill, point, timestep)
-    assert skill.status is Status.SUCCESS, skill.failure_reason
+    result = run_touch(env, skill, point, timestep)
+    assert result.status is Status.SUCCESS, result.reason
     assert env.task.moves_registered == 1
     assert env.task.moves[0] == point
-    assert steps <= skill.max_steps
+    # (run_option takes one more step, the one on which the skill sees the move)
+    assert result.steps <= skill.config.max_steps + 1
 
 
 @needs_gnugo
@@ -70,20 +187,20 @@ def test_mujogo_every_point_and_the_pass_register(mujogo):
     """Every point of the 7x7 board -- the far row, ~0.8 m from the arm's base,
     needs the hand leant -- and the pass, each from a fresh random arm pose."""
     env = mujogo
-    game = env.task.game
+    description = env.description()
     failures, leans = [], {}
-    for action in list(range(game.num_points)) + [game.pass_action]:
+    for action in list(range(description.num_points)) + [description.pass_action]:
         timestep = env.reset()
         skill = ArmTouchSkill()
-        _, steps = run_skill(env, skill, action, timestep)
-        if (skill.status is not Status.SUCCESS or env.task.moves[:1] != (action,)
-                or steps > skill.max_steps):
-            failures.append((action, skill.failure_reason, env.task.moves[:1], steps))
+        result = run_touch(env, skill, action, timestep)
+        if (result.status is not Status.SUCCESS or env.task.moves[:1] != (action,)
+                or result.steps > skill.config.max_steps + 1):
+            failures.append((action, result.reason, env.task.moves[:1], result.steps))
         leans[action] = skill.touch_tilt
     assert not failures
     # The far row (Go row 0, farthest from the arm) is touched with the hand
     # leant well away from vertical.
-    assert min(leans[a] for a in range(game.size)) > 15
+    assert min(leans[a] for a in range(description.board_size)) > 15
 
 
 @needs_gnugo
@@ -93,11 +210,14 @@ def test_mujogo_several_touches_in_a_row(mujogo):
     timestep = env.reset()
     skill = ArmTouchSkill()
     rng = np.random.default_rng(1)
+    pass_action = env.description().pass_action
     for touch in range(4):
-        legal = [a for a in env.task.state.legal_actions() if a != env.task.game.pass_action]
+        state = scene_of(env, timestep).state
+        legal = [a for a in state.legal_actions() if a != pass_action]
         point = int(rng.choice(legal))
-        timestep, _ = run_skill(env, skill, point, timestep)
-        assert skill.status is Status.SUCCESS, (touch, point, skill.failure_reason)
+        result = run_touch(env, skill, point, timestep)
+        timestep = result.timestep
+        assert result.status is Status.SUCCESS, (touch, point, result.reason)
         assert env.task.moves[2 * touch] == point
         assert env.task.moves_registered == touch + 1
 
@@ -107,45 +227,39 @@ def test_mujogo_pass_on_the_pass_area(mujogo):
     env = mujogo
     timestep = env.reset()
     skill = ArmTouchSkill()
-    pass_action = env.task.game.pass_action
+    description = env.description()
     tool_x = env.task.pinch_site_position()[0]
-    run_skill(env, skill, pass_action, timestep)
-    assert skill.status is Status.SUCCESS, skill.failure_reason
-    assert env.task.moves[0] == pass_action
+    result = run_touch(env, skill, description.pass_action, timestep)
+    assert result.status is Status.SUCCESS, result.reason
+    assert env.task.moves[0] == description.pass_action
     # The skill went for the pass area on the hand's side of the board, clear
     # of the board's squares.
-    assert np.sign(skill.target[0]) == np.sign(tool_x) or abs(tool_x) < 1e-3
-    arena = env.task.arena
-    assert abs(skill.target[0] - arena.centre[0]) > arena.half_board + 0.05
+    cx = description.board_centre[0]
+    assert np.sign(skill.target[0] - cx) == np.sign(tool_x - cx) or abs(tool_x - cx) < 1e-3
+    assert abs(skill.target[0] - cx) > description.board_half + 0.05
 
 
 @pytest.mark.parametrize("seed", [0, 1])
 def test_a_whole_mujoxo_game_against_the_optimal_opponent_is_a_draw(seed):
-    env = envs.load("mujoxo/optimal", seed=seed, **NO_CAMERA)
-    planner = MinimaxPlanner(seed=seed)
-    skill = ArmTouchSkill()
+    """The modular agent (board estimator, minimax, the arm skill) plays a
+    whole game on the public interface: every touch registers, and the game
+    is a draw."""
+    raw = envs.load("mujoxo/optimal", seed=seed, **NO_CAMERA)
+    env = PublicEnv(raw)
+    agent = ModularAgent(BoardEstimator(), MinimaxPlanner(seed=seed), ArmTouchSkill())
     timestep = env.reset()
-    touches = 0
+    agent.reset(env.description(), timestep, seed=seed)
     while not timestep.last():
-        state = env.task.state.clone()
-        subgoal = planner.plan(state)
-        skill.reset(env, subgoal, state)
-        for _ in range(50):
-            command = skill.act(timestep)
-            if skill.status is not Status.RUNNING:
-                break
-            timestep = env.step(command)
-            if timestep.last():
-                skill.act(timestep)
-                break
-        assert skill.status is Status.SUCCESS, skill.failure_reason
-        touches += 1
-        assert touches <= 5
-    state = env.task.state
+        timestep = env.step(agent.act(timestep))
+    agent.end_episode(timestep)
+    stats = agent.episode_stats
+    assert stats.failed == 0 and stats.cut_off == 0, stats.failures
+    assert stats.reached == stats.issued <= 5
+    state = agent.estimator.estimate(timestep).state
     assert state.is_terminal()
     assert state.returns()[0] == 0  # a draw: never a loss
     assert timestep.reward == pytest.approx(0.5)
-    env.close()
+    raw.close()
 
 
 @needs_gnugo
@@ -155,27 +269,28 @@ def test_a_new_subgoal_mid_flight_is_followed(mujogo):
     env = mujogo
     timestep = env.reset()
     skill = ArmTouchSkill()
-    state = env.task.state.clone()
-    skill.reset(env, Subgoal(0, state.child(0)), state)
-    for _ in range(8):
-        timestep = env.step(skill.act(timestep))
+    result = run_touch(env, skill, 0, timestep, t_abs=8)
+    assert result.status is Status.RUNNING and result.steps == 8
     assert env.task.moves_registered == 0
-    run_skill(env, skill, 48, timestep)
-    assert skill.status is Status.SUCCESS, skill.failure_reason
+    assert np.abs(result.timestep.observation["arm/joints_vel"][:6]).max() > 0.05  # moving
+    result = run_touch(env, skill, 48, result.timestep)
+    assert result.status is Status.SUCCESS, result.reason
     assert env.task.moves[0] == 48
 
 
-def test_unreachable_target_fails_at_once(mujoxo, monkeypatch):
+# -- failures -------------------------------------------------------------------
+
+
+def test_unreachable_target_fails_at_once(mujoxo):
     env = mujoxo
     timestep = env.reset()
-    monkeypatch.setattr(env.task, "point_position",
-                        lambda action: np.array([1.5, 1.5, 0.024]))
+    description = moved(env.description(), positions=lambda a: np.array([1.5, 1.5, 0.024]))
+    scene = scene_of(env, timestep)
     skill = ArmTouchSkill()
-    state = env.task.state.clone()
-    skill.reset(env, Subgoal(4, state.child(4)), state)
+    skill.reset(description, Subgoal(4, scene.state.child(4)), scene)
     assert skill.status is Status.FAILURE
     assert skill.failure_reason.startswith("unreachable")
-    command = skill.act(timestep)  # holds still, does not raise
+    command = skill.act(timestep, scene)  # holds still, does not raise
     assert np.all(command[:6] == 0)
 
 
@@ -183,39 +298,49 @@ def test_illegal_or_off_board_actions_fail(mujoxo):
     env = mujoxo
     env.reset()
     env.task.play_moves([4, 0])  # the centre is taken
+    timestep = env.step(ArmTouchSkill().hold())
+    scene = scene_of(env, timestep)
+    assert scene.moves == (4, 0)
     skill = ArmTouchSkill()
-    state = env.task.state.clone()
-    skill.reset(env, Subgoal(4, None), state)
+    skill.reset(env.description(), Subgoal(4, None), scene)
     assert skill.status is Status.FAILURE and skill.failure_reason.startswith("illegal")
-    skill.reset(env, Subgoal(9, None), state)
+    skill.reset(env.description(), Subgoal(9, None), scene)
     assert skill.status is Status.FAILURE and skill.failure_reason.startswith("illegal")
 
 
-def test_another_registered_move_is_a_failure(mujoxo, monkeypatch):
+def test_another_registered_move_is_a_failure(mujoxo):
     """The skill is fooled into touching point 2's pad while asked for point 0."""
     env = mujoxo
     timestep = env.reset()
-    real = env.task.point_position
-    monkeypatch.setattr(env.task, "point_position", lambda action: real(2))
-    skill = ArmTouchSkill()
-    run_skill(env, skill, 0, timestep)
-    assert skill.status is Status.FAILURE
-    assert skill.failure_reason.startswith("wrong move")
+    real = env.description()
+    description = moved(real, positions=lambda a: real.point_position(2))
+    result = run_touch(env, ArmTouchSkill(), 0, timestep, description=description)
+    assert result.status is Status.FAILURE
+    assert result.reason.startswith("wrong move")
     assert env.task.moves[0] == 2
 
 
-def test_a_target_that_never_registers_fails_within_the_step_limit(mujoxo, monkeypatch):
+def test_a_target_that_never_registers_fails_within_the_step_limit(mujoxo):
     """A target off the pads (beside the board) cannot register: the skill gives up."""
     env = mujoxo
     timestep = env.reset()
-    real = env.task.point_position
-    monkeypatch.setattr(env.task, "point_position",
-                        lambda action: real(action) + np.array([0.3, 0.0, 0.0]))
+    description = moved(env.description(), shift=(0.3, 0.0, 0.0))
     skill = ArmTouchSkill()
-    _, steps = run_skill(env, skill, 5, timestep, max_steps=200)
-    assert skill.status is Status.FAILURE
+    result = run_touch(env, skill, 5, timestep, description=description, t_abs=200)
+    assert result.status is Status.FAILURE
     assert env.task.moves_registered == 0
-    assert steps <= skill.max_steps
+    assert result.steps <= skill.config.max_steps + 1  # (+ the hold on which it gave up)
+
+
+def test_the_episode_ending_first_is_a_failure(mujoxo):
+    env = mujoxo
+    timestep = env.reset()
+    scene = scene_of(env, timestep)
+    skill = ArmTouchSkill()
+    skill.reset(env.description(), Subgoal(4, scene.state.child(4)), scene)
+    skill.act(timestep._replace(step_type=dm_env.StepType.LAST), scene)
+    assert skill.status is Status.FAILURE
+    assert skill.failure_reason.startswith("episode ended")
 
 
 def test_the_skill_does_not_change_the_simulation(mujoxo):
@@ -224,9 +349,9 @@ def test_the_skill_does_not_change_the_simulation(mujoxo):
     data = env.physics.data
     qpos, qvel = data.qpos.copy(), data.qvel.copy()
     skill = ArmTouchSkill()
-    state = env.task.state.clone()
-    skill.reset(env, Subgoal(4, state.child(4)), state)
-    skill.act(timestep)
+    scene = scene_of(env, timestep)
+    skill.reset(env.description(), Subgoal(4, scene.state.child(4)), scene)
+    skill.act(timestep, scene)
     np.testing.assert_array_equal(data.qpos, qpos)
     np.testing.assert_array_equal(data.qvel, qvel)
     assert skill.name == "arm-touch"
