@@ -18,7 +18,8 @@ from envs.mujoban.levels import Level
 from envs.mujoban.task import Mujoban
 from hier_agents.estimators import OracleEstimator
 from hier_agents.option_layer import ModularAgent
-from skills.ball import BallSkill
+from skills.ball import CONTACT, BallConfig, BallSkill
+from skills.ball.controller import carrot, locate, speed_limit, wrap
 from skills.base import Skill, Status
 
 NO_CAMERAS = dict(top_camera=None, egocentric_camera=None)
@@ -383,3 +384,45 @@ def test_reset_mid_push_continues_without_stopping():
         steps += 1
     assert env.task.solved
     assert steps < 120
+
+
+def test_parameters_are_one_frozen_config_set_by_keyword_overrides():
+    skill = BallSkill(cruise_speed=3, push_speed=1.2, stuck_steps=25.0, lookahead=False,
+                      k_heading=3.5)
+    cfg = skill.config
+    assert isinstance(cfg, BallConfig)
+    assert (cfg.cruise_speed, cfg.push_speed, cfg.stuck_steps, cfg.lookahead, cfg.k_heading) \
+        == (3.0, 1.2, 25, False, 3.5)
+    assert type(cfg.cruise_speed) is float and type(cfg.stuck_steps) is int
+    assert cfg.decel == BallConfig().decel  # the rest keeps the tuned defaults
+    assert repr(skill) == "BallSkill(cruise_speed=3.0, push_speed=1.2, stuck_steps=25)"
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        cfg.cruise_speed = 1.0
+    # A whole record, with overrides on top.
+    base = BallConfig(push_speed=1.0)
+    skill = BallSkill(base, stuck_steps=10)
+    assert skill.config.push_speed == 1.0 and skill.config.stuck_steps == 10
+    assert BallSkill(base).config is base
+    # Unknown names raise TypeError naming the valid ones.
+    with pytest.raises(TypeError, match="cruise_speed.*push_speed"):
+        BallSkill(cruse_speed=3.0)
+    with pytest.raises(TypeError):
+        BallSkill(config=3.5)
+
+
+def test_controller_pieces_on_a_straight_leg():
+    assert wrap(3 * math.pi / 2) == pytest.approx(-math.pi / 2)
+    # Two segments: (0, 0) -> (2, 0) -> (2, 2).
+    seg = [(0.0, 0.0, 1.0, 0.0, 2.0, 0.0), (2.0, 0.0, 0.0, 1.0, 2.0, 2.0)]
+    i, t, s_here = locate(seg, 0, 1.0, 0.1)
+    assert (i, s_here) == (0, 1.0)
+    assert carrot(seg, i, t, s_here, 0.5) == (1.5, 0.0)
+    assert carrot(seg, i, t, s_here, 1.5) == (2.0, 0.5)  # round the corner
+    i, t, s_here = locate(seg, 0, 2.1, 1.0)
+    assert (i, s_here) == (1, 3.0)  # on the second segment, never back
+    i, t, s_here = locate(seg, 0, -1.0, 0.0)
+    assert t == -1.0 and carrot(seg, i, t, s_here, 0.5) == (0.5, 0.0)  # before the start
+    # Speed: a stop 2 m ahead with 2 a = 4 caps the speed at sqrt(8).
+    assert speed_limit([(3.0, 0.0)], 1.0, 3.5, 4.0) == pytest.approx(math.sqrt(8.0))
+    assert speed_limit([(0.5, 0.0)], 1.0, 3.5, 4.0) == 3.5  # behind: ignored
+    assert CONTACT == pytest.approx(0.6)
