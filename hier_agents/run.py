@@ -26,7 +26,7 @@ MuJoBan rows report the solved fraction; board games win/draw/loss rates. All
 rates carry 95% Wilson intervals. JSON keys: env, episodes, estimator,
 privileged, success_rate, win_rate, draw_rate, loss_rate (board games),
 mean_return, mean_steps, subgoal_success_rate, episode_failures (reason ->
-count), wall_s, plus planner, skill, seed and per-episode rows.
+count), wall_s, control_steps_per_s, plus planner, skill, seed and per-episode rows.
 """
 
 from __future__ import annotations
@@ -212,6 +212,8 @@ def _summary(env_name, fam, rows, totals: OptionStats, seed, planner, skill) -> 
             reasons[kind] = reasons.get(kind, 0) + 1
     out["episode_failures"] = reasons
     out["wall_s"] = float(np.mean([r["wall_s"] for r in rows]))
+    wall = sum(r["wall_s"] for r in rows)
+    out["control_steps_per_s"] = sum(r["steps"] for r in rows) / wall if wall > 0 else None
     out["rows"] = rows
     return out
 
@@ -248,6 +250,9 @@ def format_table(summary: dict) -> str:
         lines.append("  unsolved because  " + ", ".join(
             f"{k} x{v}" for k, v in sorted(summary["episode_failures"].items())))
     lines.append(f"  wall s / episode  {summary['wall_s']:.2f}")
+    if summary.get("control_steps_per_s"):
+        lines.append(f"  control steps / s {summary['control_steps_per_s']:.0f} "
+                     f"(environment and agent, one process)")
     return "\n".join(lines)
 
 
