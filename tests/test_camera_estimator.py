@@ -203,7 +203,8 @@ def test_between_frames_the_scene_is_predicted_and_a_moved_box_is_seen_at_the_ne
         timestep = env.step(action)
         scene = est.estimate(timestep)
         errors.append(np.linalg.norm(scene.walker_xy - env.task.walker_position()))
-    assert est.frames_read == 14 and est.steps_predicted == 27
+    # Every third frame, every second near a box: never two in a row.
+    assert est.frames_read + est.steps_predicted == 41 and 14 <= est.frames_read <= 21
     assert max(errors) < 0.03 * env.description().cell_size
     # A box moved by hand (one cell over) shows up within frame_every steps.
     box_cells, player = env.task.abstract_cells

@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 
 import envs
-from envs.mujoban.levels import BOXOBAN_DIR
+from envs.mujoban.levels import BOXOBAN_DIR, read_levels
 from hier_agents.boundary import BoundaryEnv
 from hier_agents.components import env_overrides, make_agent
 from hier_agents.estimators import OracleEstimator
@@ -43,8 +43,12 @@ def test_camera_and_oracle_agree_at_every_option_start_of_seeded_episodes(name):
     assert starts >= 6 and solved == 3
 
 
-def test_camera_agent_solves_real_boxoban_levels_with_pegs():
-    path = BOXOBAN_DIR / "unfiltered-valid-000.txt"
+def test_camera_agent_solves_real_boxoban_levels_with_pegs(tmp_path):
+    # Levels 2 and 3 of the file: the oracle agent solves them in ~500 of
+    # the 900 steps (level 0 runs out of time even for the oracle).
+    levels = read_levels(BOXOBAN_DIR / "unfiltered-valid-000.txt")[2:4]
+    path = tmp_path / "two.txt"
+    path.write_text("".join(f"; {k}\n{level.to_text()}\n\n" for k, level in enumerate(levels)))
     starts, solved = _play_and_compare("mujoban/level5-pegs", seed=0, episodes=2,
                                        levels=str(path))
     assert solved == 2 and starts >= 8

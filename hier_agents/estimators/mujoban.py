@@ -50,8 +50,11 @@ def rounded_state(description, walls: frozenset, targets: frozenset, box_xy,
                                   f"before any estimate")
         player = previous_player
     height, width = description.grid_shape
-    state = SokobanState(walls=walls, targets=targets, boxes=frozenset(box_cells),
-                         player=player, height=height, width=width)
+    try:
+        state = SokobanState(walls=walls, targets=targets, boxes=frozenset(box_cells),
+                             player=player, height=height, width=width)
+    except ValueError as exc:  # e.g. a box now where the walker's kept cell was
+        raise EstimationError(f"no consistent grid: {exc}") from None
     return state, box_cells
 
 
