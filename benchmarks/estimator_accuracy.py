@@ -11,10 +11,11 @@ neighbour, then a zero action); every estimator estimates at every step (the
 rounding rule remembers the previous player cell) and 4 frames per episode,
 from step 5 on, are scored. All estimators see the same frames.
 
-Estimators: ``camera/1`` (the camera estimator reading every frame),
-``camera/3`` (as the agent runs it: it reads every third frame and predicts
-the scene in between; the scored frames fall between reads) and the
-privileged ``oracle``. Per estimator:
+Estimators: ``camera`` as the agent runs it (it reads some frames and
+predicts the scene in between, see `hier_agents.estimators.camera`; scored
+frames may fall between reads), ``camera/every`` (the same estimator reading
+and locating everything in every frame) and the privileged ``oracle``.
+Per estimator:
 
 * ``whole_grid_accuracy``: frames whose whole abstract grid is right: walls
   and targets (the env's ``full_entity_layer`` channels 0 and 1), the box
@@ -59,7 +60,7 @@ import numpy as np  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
 from hier_agents.estimators.base import EstimationError  # noqa: E402
-from hier_agents.estimators.camera import FRAME_EVERY, FRAME_SHAPE, CameraEstimator  # noqa: E402
+from hier_agents.estimators.camera import FRAME_SHAPE, CameraEstimator  # noqa: E402
 from hier_agents.estimators.mujoban import OracleEstimator, cells_of  # noqa: E402
 
 BOXOBAN = Path(envs.__file__).resolve().parent / "mujoban" / "data" / "boxoban"
@@ -262,10 +263,13 @@ def main(argv=None) -> int:
     for index, (label, name, levels) in enumerate(SOURCES):
         seed = args.seed + SEED_OFFSET + index
         env = _make_env(name, levels, seed)
-        estimators = [CameraEstimator(frame_every=1), CameraEstimator(), OracleEstimator(env)]
-        for est in estimators:  # table labels: the camera as the agent runs it, and per frame
-            est.label = (est.name if est.name != "camera" else
-                         "camera/1" if est.frame_every == 1 else f"camera/{est.frame_every}")
+        every = CameraEstimator(frame_every=1, walker_every=1)
+        every.label = "camera/every"
+        agent = CameraEstimator()
+        agent.label = "camera"
+        oracle = OracleEstimator(env)
+        oracle.label = "oracle"
+        estimators = [agent, every, oracle]
         for est in estimators:
             privileged[est.label] = est.privileged
             totals.setdefault(est.label, _new_stats())
@@ -299,8 +303,8 @@ def main(argv=None) -> int:
               f"{r['walker_error_median_cells']:>7.4f}/{r['walker_error_p95_cells']:<7.4f} "
               f"{r['box_error_median_cells']:>7.4f}/{r['box_error_p95_cells']:<7.4f} "
               f"{r['ms_per_estimate']:>7.2f} {r['ms_per_reset']:>8.2f}")
-    print(f"camera/{FRAME_EVERY} whole-grid accuracy per source: " + ", ".join(
-        f"{label} {100 * v[f'camera/{FRAME_EVERY}']['whole_grid_accuracy']:.1f}%"
+    print("camera whole-grid accuracy per source: " + ", ".join(
+        f"{label} {100 * v['camera']['whole_grid_accuracy']:.1f}%"
         for label, v in per_source.items()))
     if render:
         print("render cost, ms per env.step (mujoban/level5): " + ", ".join(
