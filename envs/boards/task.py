@@ -213,8 +213,9 @@ class BoardTask(PhysicsTask):
             # The pass sensor covers the board's footprint and beyond; the
             # part outside the board on each side is what a robot can touch.
             for side, sign in (("left", -1.0), ("right", 1.0)):
+                # (the pass geom is centred at z = 0: its top is at its half-height)
                 zones[side] = {"centre": (cx + sign * 0.5 * (arena.half_board + size[0]), cy,
-                                          float(2 * size[2] / 2)),
+                                          size[2]),
                                "half": (0.5 * (size[0] - arena.half_board), size[1])}
         cam = arena.front_camera
         front = CameraDescription(
@@ -223,7 +224,7 @@ class BoardTask(PhysicsTask):
             (self._cameras["front_camera"].height, self._cameras["front_camera"].width)
             if "front_camera" in self._cameras else None)
         return BoardDescription(
-            game=self.game.name, board_size=n, komi=float(getattr(self.game, "komi", 0.0) or 0.0),
+            game=self.game.name, board_size=n, komi=float(self.game.komi),
             num_points=self.game.num_points, pass_action=self.game.pass_action,
             point_positions=tuple(tuple(float(v) for v in self.point_position(a))
                                   for a in range(self.game.num_points)),
