@@ -17,7 +17,7 @@ from envs.mujoban import sources
 from envs.mujoban.levels import Level
 from envs.mujoban.task import Mujoban
 from hier_agents.estimators import OracleEstimator
-from hier_agents.option_layer import ModularAgent
+from hier_agents.option_layer import ModularAgent, run_option
 from skills.ball import CONTACT, BallConfig, BallSkill
 from skills.ball.controller import carrot, locate, speed_limit, wrap
 from skills.base import Skill, Status
@@ -51,23 +51,18 @@ def scene_of(env, timestep, state=None):
 
 
 def run_subgoal(env, skill, timestep, moves, *, state=None, plan=(), max_steps=300):
-    """Runs the skill on ``moves`` from the estimate (or ``state``) until it
-    stops or the episode ends; returns the timesteps seen."""
+    """Runs the skill on ``moves`` from the estimate (or ``state``) with the
+    option layer's `run_option` until it stops, ``max_steps`` pass or the
+    episode ends; returns the timesteps seen."""
     oracle = OracleEstimator(env)
     oracle.reset(env.description(), timestep)
     scene = oracle.estimate(timestep)
     state = state or scene.state
-    scene = dataclasses.replace(scene, state=state)
     goal = replay(state, moves) if moves else state
-    skill.reset(env.description(), Subgoal(action=tuple(moves), state=goal, plan=tuple(plan)),
-                scene)
     seen = []
-    while skill.status is Status.RUNNING and len(seen) < max_steps:
-        timestep = env.step(skill.act(timestep, scene))
-        seen.append(timestep)
-        if timestep.last():
-            break
-        scene = oracle.estimate(timestep)
+    run_option(env, oracle, skill, Subgoal(action=tuple(moves), state=goal, plan=tuple(plan)),
+               timestep, t_abs=max_steps, scene=dataclasses.replace(scene, state=state),
+               on_step=lambda ts, _: seen.append(ts))
     return seen
 
 
