@@ -34,6 +34,9 @@ def row(path: Path) -> str:
     levels = [a for a in s.get("provenance", {}).get("command", "").split() if a.endswith(".txt")]
     label = f"`{name}`" + (f" on `{Path(levels[0]).name}` (first {s['episodes']})"
                            if levels else "")
+    options = s.get("env_options") or {}
+    if options:
+        label += " with " + ", ".join(f"`{k}={v}`" for k, v in options.items())
     if "win_rate" in s:
         result = (f"won {_pct(s['win_rate'], s['win_interval'])}, drawn "
                   f"{100 * s['draw_rate']:.0f}%, lost {100 * s['loss_rate']:.0f}%")
@@ -42,7 +45,7 @@ def row(path: Path) -> str:
     estimator = s.get("estimator", "?") + (" (**privileged**)" if s.get("privileged") else "")
     sub = s.get("subgoal_success_rate")
     speed = s.get("control_steps_per_s")
-    paper = "-" if levels else PAPER.get(name, "-")
+    paper = "-" if levels or options else PAPER.get(name, "-")
     failures = ", ".join(f"{k} {v}" for k, v in sorted(s.get("episode_failures", {}).items()))
     return (f"| {label} | {estimator} | {result} | {s['mean_steps']:.0f} | "
             f"{'-' if sub is None else f'{100 * sub:.1f}%'} | "
