@@ -1,0 +1,176 @@
+"""How long the modular agent's body takes to execute Sokoban plans, per level.
+
+    python benchmarks/execution_time.py [--levels FILE] [--episodes N] [--seed S]
+                                        [--estimator camera|oracle] [--no-pegs]
+                                        [--fit] [--json PATH]
+
+Plays the first ``--episodes`` levels of a Boxoban file in order (default:
+the shipped ``medium-valid-000.txt``, 100 levels) in ``mujoban/level5-pegs``
+(``--no-pegs``: ``mujoban/level5``) with the modular agent (default: the
+observation-only ``camera`` estimator; ``oracle`` is privileged and says so),
+the Sokoban solver and the ball skill, exactly as ``python -m hier_agents.run
+mujoban/level5-pegs --levels FILE`` does. Per level it records:
+
+* ``pushes`` / ``moves``: of the solver's first solution from the start;
+* ``features``: `abstract_planners.sokoban_time.plan_features` of that
+  solution (walking moves, pushes, pushing strokes, turns);
+* ``estimated_steps``: `estimate_steps` with the library's default weights;
+* ``steps``: control steps the episode took (the 900-step limit if unsolved);
+* ``steps_per_push`` (steps / pushes) and ``limit_share`` (steps / limit);
+* ``solved`` and, if not, ``failure_reason``.
+
+The table prints solved % with its 95% Wilson interval, the mean control
+steps per push, and the distribution (median, p90, max) of the share of the
+time limit used by solved levels. ``--fit`` also fits the time model's
+weights to the measured steps of the solved levels (non-negative least
+squares, `fit_weights`) and reports them with the fit's R^2. ``--json``
+writes ``{"provenance", "summary", "rows"}``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from _common import write_json  # noqa: E402
+
+import numpy as np  # noqa: E402
+from tqdm import tqdm  # noqa: E402
+
+import envs  # noqa: E402
+from abstract_planners.sokoban import SokobanState  # noqa: E402
+from abstract_planners.sokoban_solver import solve  # noqa: E402
+from abstract_planners.sokoban_time import (DEFAULT_WEIGHTS, FEATURES, estimate_steps,  # noqa: E402
+                                            fit_weights, plan_features)
+from envs.mujoban.levels import BOXOBAN_DIR, read_levels  # noqa: E402
+from hier_agents.boundary import BoundaryEnv  # noqa: E402
+from hier_agents.components import env_overrides, is_privileged, make_agent  # noqa: E402
+from hier_agents.stats import wilson_interval  # noqa: E402
+
+DEFAULT_LEVELS = BOXOBAN_DIR / "medium-valid-000.txt"
+
+
+def run_level(view, env, agent, level) -> dict:
+    """Plans ``level`` abstractly, then plays it; returns its row."""
+    start = SokobanState.from_level(level)
+    found = solve(start, time_limit=10.0)
+    row = {"level": level.name, "planned": found.solved}
+    if found.solved:
+        features = plan_features(start, found.moves)
+        row.update(pushes=found.pushes, moves=len(found.moves), features=features,
+                   estimated_steps=round(estimate_steps(features), 1))
+    timestep = view.reset()
+    agent.reset(view.description(), timestep)
+    steps, t0 = 0, time.perf_counter()
+    while not timestep.last():
+        action = agent.act(timestep)
+        if agent.gave_up is not None:
+            break
+        timestep = view.step(action)
+        steps += 1
+    limit = view.description().time_limit_steps
+    row.update(solved=bool(env.task.solved), steps=steps, limit_share=round(steps / limit, 4),
+               wall_s=round(time.perf_counter() - t0, 3))
+    if found.solved and found.pushes:
+        row["steps_per_push"] = round(steps / found.pushes, 2)
+    if not row["solved"]:
+        row["failure_reason"] = agent.gave_up or "time limit"
+    return row
+
+
+def summarise(rows: list[dict], fit: bool) -> dict:
+    n = len(rows)
+    solved = [r for r in rows if r["solved"]]
+    shares = [r["limit_share"] for r in solved]
+    per_push = [r["steps_per_push"] for r in rows if "steps_per_push" in r]
+    out = {"levels": n, "solved": len(solved), "success_rate": len(solved) / n,
+           "success_interval": wilson_interval(len(solved), n),
+           "mean_steps_per_push": float(np.mean(per_push)) if per_push else None,
+           "mean_steps_per_push_solved": (float(np.mean([r["steps_per_push"] for r in solved
+                                                         if "steps_per_push" in r]))
+                                          if solved else None),
+           "limit_share_solved": ({"median": float(np.median(shares)),
+                                   "p90": float(np.percentile(shares, 90)),
+                                   "max": float(np.max(shares))} if shares else None),
+           "default_weights": dict(DEFAULT_WEIGHTS)}
+    with_plan = [r for r in solved if "features" in r]
+    if with_plan:
+        est = np.array([r["estimated_steps"] for r in with_plan])
+        got = np.array([r["steps"] for r in with_plan])
+        out["estimate_error_solved"] = {"mean": float(np.mean(est - got)),
+                                        "mean_abs": float(np.mean(np.abs(est - got)))}
+    if fit and len(with_plan) > len(FEATURES) + 1:
+        weights = fit_weights([r["features"] for r in with_plan], [r["steps"] for r in with_plan])
+        pred = np.array([estimate_steps(r["features"], weights) for r in with_plan])
+        got = np.array([r["steps"] for r in with_plan], float)
+        r2 = 1.0 - float(np.sum((got - pred) ** 2) / np.sum((got - got.mean()) ** 2))
+        out["fitted_weights"] = {k: round(v, 3) for k, v in weights.items()}
+        out["fit_r2"] = round(r2, 4)
+    return out
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--levels", type=Path, default=DEFAULT_LEVELS)
+    parser.add_argument("--episodes", type=int, default=100, help="levels from the file's start")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--estimator", default="camera")
+    parser.add_argument("--no-pegs", action="store_true")
+    parser.add_argument("--fit", action="store_true", help="fit the time model's weights")
+    parser.add_argument("--json", type=Path)
+    args = parser.parse_args(argv)
+    if not args.levels.exists():
+        parser.error(f"no level file {args.levels}")
+    if args.episodes < 1:
+        parser.error("--episodes must be >= 1")
+    try:
+        privileged = is_privileged("mujoban", args.estimator)
+    except ValueError as exc:
+        parser.error(str(exc))
+    name = "mujoban/level5" if args.no_pegs else "mujoban/level5-pegs"
+    levels = read_levels(args.levels)[:args.episodes]
+    env = envs.load(name, seed=args.seed, levels=str(args.levels),
+                    **env_overrides(name, args.estimator))
+    view = env if privileged else BoundaryEnv(env)
+    agent = make_agent(name, view.description(), estimator=args.estimator, seed=args.seed,
+                       simulator=env if privileged else None)
+    rows = []
+    bar = tqdm(levels, desc=args.levels.name, unit="level", file=sys.stderr)
+    try:
+        for level in bar:
+            rows.append(run_level(view, env, agent, level))
+            bar.set_postfix(solved=f"{sum(r['solved'] for r in rows)}/{len(rows)}")
+    finally:
+        env.close()
+    summary = summarise(rows, args.fit)
+    summary.update(env=name, levels_file=args.levels.name, estimator=args.estimator,
+                   privileged=privileged, seed=args.seed)
+    low, high = summary["success_interval"]
+    print(f"{args.levels.name}, first {len(rows)} levels, {name}, estimator {args.estimator}"
+          f"{' (PRIVILEGED)' if privileged else ''}")
+    print(f"  solved              {100 * summary['success_rate']:.1f}% "
+          f"[{100 * low:.1f}, {100 * high:.1f}]")
+    if summary["mean_steps_per_push"] is not None:
+        print(f"  steps per push      {summary['mean_steps_per_push']:.1f} (all levels), "
+              f"{summary['mean_steps_per_push_solved']:.1f} (solved)")
+    if summary["limit_share_solved"]:
+        share = summary["limit_share_solved"]
+        print(f"  share of the limit  median {100 * share['median']:.0f}%, "
+              f"p90 {100 * share['p90']:.0f}%, max {100 * share['max']:.0f}% (solved levels)")
+    if "estimate_error_solved" in summary:
+        err = summary["estimate_error_solved"]
+        print(f"  estimate - measured mean {err['mean']:+.0f}, mean |.| {err['mean_abs']:.0f} "
+              f"steps (default weights)")
+    if "fitted_weights" in summary:
+        print(f"  fitted weights      {summary['fitted_weights']} (R^2 {summary['fit_r2']:.2f})")
+    if args.json:
+        write_json(args.json, {"summary": summary, "rows": rows})
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
