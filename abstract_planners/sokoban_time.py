@@ -41,7 +41,7 @@ def plan_features(state: SokobanState, moves: Sequence[str]) -> dict[str, int]:
     """The time features of playing ``moves`` from ``state`` (see the module
     docstring). Raises ValueError on an illegal move."""
     counts = dict.fromkeys(FEATURES, 0)
-    previous, pushed_box, push_dir = None, None, None
+    previous, pushed_box, push_dir = None, None, None  # the last move, the box it pushed
     for k, move in enumerate(moves):
         if move not in DIRECTIONS or not state.is_legal(move):
             raise ValueError(f"move {k} ({move!r}) is illegal from player at {state.player}")
@@ -49,8 +49,8 @@ def plan_features(state: SokobanState, moves: Sequence[str]) -> dict[str, int]:
         if state.is_push(move):
             box = (state.player[0] + dr, state.player[1] + dc)
             counts["push"] += 1
-            if not (box == pushed_box and move == push_dir and previous == move):
-                counts["stroke"] += 1
+            if not (box == pushed_box and move == push_dir):
+                counts["stroke"] += 1  # not the previous move's push, carried on
             if previous is not None and previous != move and box != pushed_box:
                 counts["turn"] += 1
             pushed_box, push_dir = (box[0] + dr, box[1] + dc), move
@@ -58,6 +58,7 @@ def plan_features(state: SokobanState, moves: Sequence[str]) -> dict[str, int]:
             counts["walk"] += 1
             if previous is not None and previous != move:
                 counts["turn"] += 1
+            pushed_box = push_dir = None
         previous = move
         state = state.apply(move)
     return counts
