@@ -5,16 +5,20 @@
 
 For each level this runs ``abstract_planners.sokoban_solver.solve`` with the
 given time limit (10 s by default) and records whether it solved the level,
-the wall time, nodes expanded, pushes and moves of the solution, and the
-reason (``solved`` / ``unsolvable`` / ``budget``). Every returned solution is
+the wall time, nodes expanded, pushes and moves of the solution, its time
+features and the control steps the ball skill is estimated to need for it
+(`abstract_planners.sokoban_time`), and the reason (``solved`` /
+``unsolvable`` / ``budget``). Every returned solution is
 replayed through the rules by the solver itself.
 
 A progress bar runs while solving; a line is printed for each level that was
 not solved, then a summary table: levels, solved, solved %, median / p95 /
-max milliseconds and mean nodes expanded. With --json the summary (keys
-total, solved, median_ms, p95_ms, max_ms, mean_nodes, time_limit_s,
-levels_file) and per-level rows (index, solved, ms, nodes, pushes, moves,
-reason) are written to PATH.
+max milliseconds, mean nodes expanded, mean pushes, mean estimated control
+steps and how many solutions are estimated to need more than MuJoBan's 900.
+With --json the summary (keys total, solved, median_ms, p95_ms, max_ms,
+mean_nodes, mean_pushes, mean_estimated_steps, over_time_limit,
+time_limit_s, levels_file) and per-level rows (index, solved, ms, nodes,
+pushes, moves, features, estimated_steps, reason) are written to PATH.
 
 The default level file is the shipped ``unfiltered-valid-000.txt``; the
 shipped ``medium-valid-000.txt`` is the harder set.
@@ -36,6 +40,7 @@ from tqdm import tqdm  # noqa: E402
 
 from abstract_planners.sokoban import SokobanState  # noqa: E402
 from abstract_planners.sokoban_solver import solve  # noqa: E402
+from abstract_planners.sokoban_time import estimate_steps, plan_features  # noqa: E402
 from envs.mujoban.levels import BOXOBAN_DIR, read_levels  # noqa: E402
 
 DEFAULT_LEVELS = BOXOBAN_DIR / "unfiltered-valid-000.txt"
@@ -55,10 +60,16 @@ def run(levels_file: Path, time_limit: float, limit: int | None = None) -> dict:
     rows = []
     for position, level in enumerate(tqdm(levels, desc=levels_file.name, unit="level")):
         index = int(level.name) if level.name is not None and level.name.isdigit() else position
-        result = solve(SokobanState.from_level(level), time_limit=time_limit)
-        rows.append({"index": index, "solved": result.solved, "ms": round(result.ms, 3),
-                     "nodes": result.nodes, "pushes": result.pushes,
-                     "moves": "".join(result.moves), "reason": result.reason})
+        start = SokobanState.from_level(level)
+        result = solve(start, time_limit=time_limit)
+        row = {"index": index, "solved": result.solved, "ms": round(result.ms, 3),
+               "nodes": result.nodes, "pushes": result.pushes,
+               "moves": "".join(result.moves), "reason": result.reason}
+        if result.solved:
+            features = plan_features(start, result.moves)
+            row["features"] = features
+            row["estimated_steps"] = round(estimate_steps(features), 1)
+        rows.append(row)
         if not result.solved:
             tqdm.write(f"level {index}: not solved ({result.reason}) after "
                        f"{result.ms:.0f} ms, {result.nodes} nodes")
@@ -74,15 +85,24 @@ def run(levels_file: Path, time_limit: float, limit: int | None = None) -> dict:
         "p95_ms": percentile(ms, 95) if ms else 0.0,
         "max_ms": max(ms) if ms else 0.0,
         "mean_nodes": statistics.fmean(row["nodes"] for row in rows) if rows else 0.0,
+        "mean_pushes": (statistics.fmean(r["pushes"] for r in rows if r["solved"])
+                        if solved else None),
+        "mean_estimated_steps": (statistics.fmean(r["estimated_steps"] for r in rows
+                                                  if r["solved"]) if solved else None),
+        "over_time_limit": sum(r.get("estimated_steps", 0) > 900 for r in rows),
         "levels": rows,
     }
 
 
 def print_summary(summary: dict) -> None:
-    header = ("levels", "solved", "solved %", "median ms", "p95 ms", "max ms", "mean nodes")
+    header = ("levels", "solved", "solved %", "median ms", "p95 ms", "max ms", "mean nodes",
+              "mean pushes", "mean est. steps", "est. > 900")
+    pushes, est = summary["mean_pushes"], summary["mean_estimated_steps"]
     values = (str(summary["total"]), str(summary["solved"]), f"{summary['solved_pct']:.1f}",
               f"{summary['median_ms']:.1f}", f"{summary['p95_ms']:.1f}",
-              f"{summary['max_ms']:.1f}", f"{summary['mean_nodes']:.0f}")
+              f"{summary['max_ms']:.1f}", f"{summary['mean_nodes']:.0f}",
+              "-" if pushes is None else f"{pushes:.1f}", "-" if est is None else f"{est:.0f}",
+              str(summary["over_time_limit"]))
     widths = [max(len(h), len(v)) for h, v in zip(header, values)]
     print(f"\n{summary['levels_file']} (time limit {summary['time_limit_s']} s)")
     print("  ".join(h.rjust(w) for h, w in zip(header, widths)))
