@@ -2,6 +2,7 @@
 
     python benchmarks/execution_time.py [--levels FILE] [--episodes N] [--seed S]
                                         [--estimator camera|oracle] [--no-pegs]
+                                        [--planner sokoban-solver|sokoban-solver:time]
                                         [--fit] [--json PATH]
 
 Plays the first ``--episodes`` levels of a Boxoban file in order (default:
@@ -55,9 +56,11 @@ DEFAULT_LEVELS = BOXOBAN_DIR / "medium-valid-000.txt"
 
 
 def run_level(view, env, agent, level) -> dict:
-    """Plans ``level`` abstractly, then plays it; returns its row."""
+    """Plans ``level`` abstractly (with the agent's planner's search), then
+    plays it; returns its row."""
     start = SokobanState.from_level(level)
-    found = solve(start, time_limit=10.0)
+    search = getattr(agent.planner, "_solve", None)
+    found = search(start) if search is not None else solve(start, time_limit=10.0)
     row = {"level": level.name, "planned": found.solved}
     if found.solved:
         features = plan_features(start, found.moves)
@@ -119,6 +122,8 @@ def main(argv=None) -> int:
     parser.add_argument("--episodes", type=int, default=100, help="levels from the file's start")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--estimator", default="camera")
+    parser.add_argument("--planner", default="sokoban-solver",
+                        help="sokoban-solver (pushes) or sokoban-solver:time (estimated time)")
     parser.add_argument("--no-pegs", action="store_true")
     parser.add_argument("--fit", action="store_true", help="fit the time model's weights")
     parser.add_argument("--json", type=Path)
@@ -136,8 +141,12 @@ def main(argv=None) -> int:
     env = envs.load(name, seed=args.seed, levels=str(args.levels),
                     **env_overrides(name, args.estimator))
     view = env if privileged else BoundaryEnv(env)
-    agent = make_agent(name, view.description(), estimator=args.estimator, seed=args.seed,
-                       simulator=env if privileged else None)
+    try:
+        agent = make_agent(name, view.description(), estimator=args.estimator, seed=args.seed,
+                           planner=args.planner, simulator=env if privileged else None)
+    except ValueError as exc:
+        env.close()
+        parser.error(str(exc))
     rows = []
     bar = tqdm(levels, desc=args.levels.name, unit="level", file=sys.stderr)
     try:
@@ -148,10 +157,10 @@ def main(argv=None) -> int:
         env.close()
     summary = summarise(rows, args.fit)
     summary.update(env=name, levels_file=args.levels.name, estimator=args.estimator,
-                   privileged=privileged, seed=args.seed)
+                   planner=args.planner, privileged=privileged, seed=args.seed)
     low, high = summary["success_interval"]
-    print(f"{args.levels.name}, first {len(rows)} levels, {name}, estimator {args.estimator}"
-          f"{' (PRIVILEGED)' if privileged else ''}")
+    print(f"{args.levels.name}, first {len(rows)} levels, {name}, planner {args.planner}, "
+          f"estimator {args.estimator}{' (PRIVILEGED)' if privileged else ''}")
     print(f"  solved              {100 * summary['success_rate']:.1f}% "
           f"[{100 * low:.1f}, {100 * high:.1f}]")
     if summary["mean_steps_per_push"] is not None:

@@ -36,6 +36,11 @@ def _sokoban_solver(description, seed):
     return SokobanSolverPlanner(time_limit=10.0)
 
 
+def _sokoban_time(description, seed):
+    from abstract_planners.sokoban_time_solver import TimeSolverPlanner
+    return TimeSolverPlanner(time_limit=10.0)
+
+
 def _sokoban_random(description, seed):
     from abstract_planners.sokoban_random import RandomPlanner
     return RandomPlanner(seed=seed)
@@ -75,7 +80,8 @@ Factory = Callable[..., object]
 
 #: family -> name -> factory(description, seed); the first entry is the default.
 PLANNERS: dict[str, dict[str, Factory]] = {
-    "mujoban": {"sokoban-solver": _sokoban_solver, "random": _sokoban_random},
+    "mujoban": {"sokoban-solver": _sokoban_solver, "sokoban-solver:time": _sokoban_time,
+                "random": _sokoban_random},
     "mujoxo": {"minimax": _minimax, "mcts": _mcts, "random": _board_random},
     "mujogo": {"gnugo": _gnugo, "mcts": _mcts, "random": _board_random},
 }
