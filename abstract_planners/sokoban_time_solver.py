@@ -16,9 +16,10 @@ levels sooner. `TimeSolverPlanner` (``--planner sokoban-solver:time``) runs
 both searches and keeps the plan with the smaller estimated time, so by the
 estimate it is never worse than the push solver's, and it is complete
 whenever the push solver is. Solutions are replayed through the rules
-before they are returned. On the first 30 shipped medium levels it cuts the
-summed estimated time by 14% and the plans estimated over 900 steps from
-12 to 4 (with the push solver's plan kept where it is better, more).
+before they are returned. On the first 100 shipped medium levels the
+planner's plans need 15% less estimated time than the push solver's, and
+12 instead of 43 are estimated over MuJoBan's 900 control steps (first 100
+unfiltered levels: 20% less, 2 instead of 13 over).
 """
 
 from __future__ import annotations
