@@ -2,10 +2,11 @@
 
     python benchmarks/agent_table.py [--dir results/agent]
 
-Reads every ``hier_agents.run --json`` file under ``DIR`` (observation-only
-rows) and ``DIR/oracle`` (privileged rows) and prints a Markdown table: one
-row per file, observation-only rows first, each naming its estimator and
-whether it read the simulator. Nothing is measured here; every number comes
+Reads every ``hier_agents.run --json`` file under ``DIR`` and
+``DIR/time-planner`` (observation-only rows; the latter with
+``--planner sokoban-solver:time``) and ``DIR/oracle`` (privileged rows) and
+prints a Markdown table: one row per file, observation-only rows first,
+each naming its estimator and whether it read the simulator. Nothing is measured here; every number comes
 from a file that records its command, commit and date.
 """
 
@@ -34,6 +35,8 @@ def row(path: Path) -> str:
     levels = [a for a in s.get("provenance", {}).get("command", "").split() if a.endswith(".txt")]
     label = f"`{name}`" + (f" on `{Path(levels[0]).name}` (first {s['episodes']})"
                            if levels else "")
+    if s.get("planner") not in (None, "sokoban-solver", "-") and name.startswith("mujoban"):
+        label += f", planner `{s['planner']}`"
     options = s.get("env_options") or {}
     if options:
         label += " with " + ", ".join(f"`{k}={v}`" for k, v in options.items())
@@ -63,6 +66,7 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     files = sorted(args.dir.glob("*.json"), key=_order)
     oracle = sorted((args.dir / "oracle").glob("*.json"), key=_order)
+    files += sorted((args.dir / "time-planner").glob("*.json"), key=_order)
     if not files and not oracle:
         parser.error(f"no JSON files under {args.dir}")
     print("| environment | estimator | solved / won [95% CI] | mean steps | subgoal success "
