@@ -611,8 +611,9 @@ class SokobanSolverPlanner(Planner):
         """Forgets the cached solution (the solver is deterministic: ``seed`` is unused)."""
         self._index, self._states, self._moves, self._is_push = {}, [], (), ()
 
-    def _solve(self, state) -> SolveResult:
-        """The search behind the plans (subclasses may use another)."""
+    def search(self, state) -> SolveResult:
+        """The search behind the plans, from ``state`` (a `SolveResult`;
+        subclasses may search otherwise)."""
         return solve(state, time_limit=self.time_limit, max_nodes=self.max_nodes)
 
     def _locate(self, state) -> tuple[SokobanState, int, dict]:
@@ -625,7 +626,7 @@ class SokobanSolverPlanner(Planner):
         if i is not None:
             return state, i, {"nodes": 0, "ms": (time.perf_counter() - t0) * 1000.0,
                               "cached": True}
-        found = self._solve(state)
+        found = self.search(state)
         if not found.solved:
             self.reset()
             if found.reason == "unsolvable":

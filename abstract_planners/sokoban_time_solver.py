@@ -166,7 +166,7 @@ class TimeSolverPlanner(SokobanSolverPlanner):
         super().__init__(time_limit=time_limit, max_nodes=max_nodes)
         self.weights, self.weight = dict(weights), float(weight)
 
-    def _solve(self, state):
+    def search(self, state) -> SolveResult:
         """Both searches; the plan with the smaller estimated time (so never
         worse, by the estimate, than the push solver's)."""
         budget = None if self.time_limit is None else 0.5 * self.time_limit

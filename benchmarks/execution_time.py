@@ -59,7 +59,7 @@ def run_level(view, env, agent, level) -> dict:
     """Plans ``level`` abstractly (with the agent's planner's search), then
     plays it; returns its row."""
     start = SokobanState.from_level(level)
-    search = getattr(agent.planner, "_solve", None)
+    search = getattr(agent.planner, "search", None)
     found = search(start) if search is not None else solve(start, time_limit=10.0)
     row = {"level": level.name, "planned": found.solved}
     if found.solved:

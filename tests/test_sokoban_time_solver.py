@@ -20,7 +20,7 @@ def test_time_plans_solve_and_are_never_estimated_slower_than_push_plans(level):
     timed = solve_for_time(state, time_limit=5.0)
     assert timed.solved and replay(state, timed.moves).is_solved()
     planner = TimeSolverPlanner(time_limit=10.0)
-    chosen = planner._solve(state)
+    chosen = planner.search(state)
     pushed = solve(state, time_limit=10.0)
     estimate = lambda moves: estimate_steps(plan_features(state, moves))  # noqa: E731
     assert replay(state, chosen.moves).is_solved()
