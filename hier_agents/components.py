@@ -80,7 +80,7 @@ Factory = Callable[..., object]
 
 #: family -> name -> factory(description, seed); the first entry is the default.
 PLANNERS: dict[str, dict[str, Factory]] = {
-    "mujoban": {"sokoban-solver": _sokoban_solver, "sokoban-solver:time": _sokoban_time,
+    "mujoban": {"sokoban-solver:time": _sokoban_time, "sokoban-solver": _sokoban_solver,
                 "random": _sokoban_random},
     "mujoxo": {"minimax": _minimax, "mcts": _mcts, "random": _board_random},
     "mujogo": {"gnugo": _gnugo, "mcts": _mcts, "random": _board_random},

@@ -216,6 +216,101 @@ def test_consecutive_pushes_in_one_direction_do_not_stop_the_box():
     assert estimate(env.task).boxes == replay(state, "R").boxes
 
 
+TURN_AFTER = """\
+########
+#      #
+# @$  .#
+#      #
+#      #
+########"""
+
+
+def _push_then_rest(pegs, chain):
+    """Pushes the box right one cell with a walk known to follow (the plan goes
+    on down and round); returns (steps to success, the box's offset from its
+    cell centre once at rest, the walker's speed at success)."""
+    env = make_env(TURN_AFTER, pegs=pegs)
+    timestep = env.reset()
+    skill = BallSkill(chain=chain)
+    seen = run_subgoal(env, skill, timestep, ("R",), plan=("D", "R", "R", "U", "R"))
+    assert skill.status is Status.SUCCESS, skill.failure_reason
+    speed = float(np.linalg.norm(env.task.walker_velocity()))
+    steps = len(seen)
+    # The ball now turns away (here: it stops); the box slides on alone.
+    for _ in range(30):
+        timestep = env.step([0.0, 0.0])
+    return steps, max(box_offsets(env.task)), speed
+
+
+@pytest.mark.parametrize("pegs", [False, True])
+def test_chained_push_ends_early_and_keeps_the_box_as_centred_as_a_settled_push(pegs):
+    """Issue 14: with the next walk known, a push hands over to it before the
+    box is at rest; the box still stops within the push-only skill's
+    tolerance (``center_tol``) of its cell centre."""
+    chained_steps, chained_off, chained_speed = _push_then_rest(pegs, chain=True)
+    settled_steps, settled_off, _ = _push_then_rest(pegs, chain=False)
+    tol = BallConfig().center_tol  # cells; the cell is 1 m
+    assert settled_off < tol
+    assert chained_off < tol
+    assert chained_steps <= settled_steps
+    if not pegs:  # here the hand-over comes while the ball still moves
+        assert chained_steps < settled_steps
+        assert chained_speed > 0.05
+
+
+def test_a_leg_rebuilt_mid_push_keeps_pushing_at_speed():
+    """A re-plan while the ball pushes (the option layer's T_abs) rebuilds the
+    leg from where the ball is: no meeting-speed limit where it already
+    touches the box (braking there lets the box slide on alone)."""
+    from skills.ball import legs
+
+    env = make_env(CHAIN)
+    timestep = env.reset()
+    skill = BallSkill()
+    seen = run_subgoal(env, skill, timestep, ("R",), plan=("R", "R", "R", "R"))
+    assert skill.status is Status.SUCCESS, skill.failure_reason
+    scene = scene_of(env, seen[-1])  # mid-push: the box rounds into the next cell
+    cfg = skill.config
+    plan = legs.plan(env.description(), cfg, Subgoal(action=("R",),
+                                                     state=replay(scene.state, "R"),
+                                                     plan=("R", "R", "R")), scene)
+    leg = plan.legs[0]
+    assert leg.push is not None
+    _, _, s_here = locate(leg.seg, 0, *scene.walker_xy)
+    two_a = 2.0 * cfg.decel
+    # The limits ahead allow more than the meeting speed where the ball is.
+    assert speed_limit(leg.limits, s_here, cfg.cruise_speed, two_a) > cfg.contact_speed + 0.3
+
+
+def test_holding_centres_a_box_from_its_far_side_when_the_walker_is_not_behind_it():
+    """A box left past its pad's centre with the walker elsewhere: the hold
+    subgoal walks round behind it and pushes it back (found on a Boxoban level
+    whose last push overshot)."""
+    level = """\
+#######
+##  ###
+#   ###
+#@    #
+#   * #
+#######"""
+    env = make_env(level)
+    timestep = env.reset()
+    task = env.task
+    state = estimate(task)
+    assert state.is_solved()
+    (box,) = state.boxes
+    bx, by = task.cell_to_world(*box)
+    task.set_box_position(env.physics, 0, (bx + 0.2, by))  # 0.2 cells right of the pad
+    assert not task.solved  # off the pad by more than its tolerance
+    skill = BallSkill()
+    seen = run_subgoal(env, skill, timestep, ())
+    assert skill.status is not Status.FAILURE, skill.failure_reason
+    # The episode ends as the box comes within the pad's tolerance.
+    assert seen[-1].last() and task.solved
+    x, y = task.box_positions()[0]
+    assert abs(x - bx) < 0.1 and abs(y - by) < 0.05
+
+
 @pytest.mark.parametrize("name", ["mujoban/level1", "mujoban/level1-pegs",
                                   "mujoban/level3", "mujoban/level3-pegs"])
 def test_generated_levels_solved_end_to_end_with_the_solver(name):

@@ -13,9 +13,10 @@ Conditions (Mirza et al. 2020, "Experimental conditions"):
 
 * ``"vanilla"``: cameras and proprioception only; no planner, no auxiliary
   reward (``reward_abs`` and ``discount_abs`` are always 0).
-* ``"expert-planner"``: the family's default planner of
-  `hier_agents.components.PLANNERS` (the Sokoban solver, minimax, GNU Go
-  level 10) proposes targets for the auxiliary task.
+* ``"expert-planner"``: the expert planner of `EXPERT_PLANNER` (MuJoBan: the
+  exact Sokoban solver ``"sokoban-solver"``, as in the paper), otherwise the
+  family's default planner of `hier_agents.components.PLANNERS` (minimax, GNU
+  Go level 10), proposes targets for the auxiliary task.
 * ``"random-planner"``: the family's ``"random"`` planner (a uniformly random
   legal next state).
 
@@ -111,6 +112,8 @@ __all__ = ["AgentEnv", "CONDITIONS", "DISCOUNTS", "InputSpec", "PLANNER_ACTIONS"
            "PROPRIO_KEYS", "StepResult"]
 
 CONDITIONS = ("vanilla", "random-planner", "expert-planner")
+#: The expert-planner condition's planner per family (others: the family's default).
+EXPERT_PLANNER = {"mujoban": "sokoban-solver"}
 
 #: Default (gamma_env, gamma_abs) per family (the paper's table).
 DISCOUNTS = {"mujoban": (0.99, 0.9), "mujoxo": (0.99, 0.98), "mujogo": (0.99, 0.98)}
@@ -250,8 +253,11 @@ class AgentEnv:
                 from hier_agents.components import ESTIMATORS, PLANNERS
 
                 planners = PLANNERS[fam]
-                factory = (next(iter(planners.values())) if condition == "expert-planner"
-                           else planners["random"])
+                # The expert is the paper's: MuJoBan's exact Sokoban solver
+                # (not the library's default, the execution-time planner).
+                expert = planners.get(EXPERT_PLANNER.get(fam, ""),
+                                      next(iter(planners.values())))
+                factory = expert if condition == "expert-planner" else planners["random"]
                 description = self.env.description()
                 self.planner = factory(description, self.seed)
                 # The paper's planner conditions read the ground-truth abstract

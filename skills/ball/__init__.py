@@ -50,7 +50,9 @@ that is just as clear and whose chord keeps the ball's radius from them (and
 the ball's plus the peg's radius from pegs: the pursuit cuts inside fast
 arcs). A turn into a push line keeps a straight run of 0.3 m before the
 contact. A box that the walker left short of its cell centre while standing
-behind it (its push was cut off) is first pushed on to the centre.
+behind it (its push was cut off) is first pushed on to the centre; while
+holding (an empty subgoal), a box off its centre with the walker elsewhere
+is reached from its far side by the shortest walk and pushed back.
 
 Control
 =======
@@ -87,8 +89,12 @@ decelerations near 4.9 m/s^2 let boxes run on and miss the pad's 0.1-cell
 tolerance). The box then stops within ``center_tol`` of its cell centre. The
 target is scaled down with the heading error and tracked by a proportional
 roll command with feed-forward. The ball meets the box at
-``contact_speed`` (0.8 m/s) and pushing accelerates at only ~2.6 m/s^2:
-one push takes ~1 s, each further cell of a straight push ~0.55 s.
+``contact_speed`` (1.2 m/s) and pushing accelerates at only ~2.6 m/s^2:
+one push takes ~1 s, each further cell of a straight push ~0.55 s. Before
+the ball meets the box, the push's cap only limits it to what it can brake
+to by the contact; a leg rebuilt while the ball already touches the box (a
+re-plan mid-push) has no meeting speed (braking there would let the box
+slide on alone).
 
 Status
 ======
@@ -99,7 +105,12 @@ Status
   of its cell centre, or the walker stands near its last cell. When the plan
   goes on the same way (the next push continues in the same direction, the
   walk continues) reaching the abstract state is enough, so the ball does
-  not stop between subgoals.
+  not stop between subgoals. *Chaining*: when the plan goes on after a push
+  that ends a stroke (the next walk is known, ``subgoal.plan`` not empty),
+  the push is done as soon as the box, sliding on alone at its floor
+  deceleration (``box_decel``, 4.9 m/s^2), will stop within half of
+  ``center_tol`` of its cell centre: the ball turns to the next walk
+  without waiting for the box to come to rest (``chain=False`` waits).
 * FAILURE, with ``failure_reason`` = ``"<kind>: <details>"``, kinds:
   ``illegal move`` (in the given state; at ``reset``), ``stuck`` (no
   progress for ``stuck_steps`` steps: blocked path, box against a wall or

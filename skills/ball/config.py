@@ -25,12 +25,12 @@ class BallConfig:
     #: Speed through a sharp turn into a push line, m/s.
     push_turn_speed: float = 0.5
     #: Speed when the ball meets the box, m/s.
-    contact_speed: float = 0.8
+    contact_speed: float = 1.2
     #: Top speed while pushing, m/s.
     push_speed: float = 1.5
     #: Planned deceleration before corners, the box and stops, m/s^2 (the
-    #: ball brakes at ~8).
-    decel: float = 7.0
+    #: ball brakes at ~8-9).
+    decel: float = 8.5
     #: Planned deceleration of the ball and the box it pushes, m/s^2.
     push_decel: float = 3.5
     #: The ball stops pushing this far (m) before the box centre reaches its
@@ -44,6 +44,13 @@ class BallConfig:
     stuck_steps: int = 30
     #: Metres a box that should stay put may move before failing.
     disturb_tol: float = 0.15
+    #: Chaining: when more of the plan is known after a push (the next walk),
+    #: the push ends as soon as the box, sliding on alone at its floor
+    #: deceleration ``box_decel`` (m/s^2), will stop within half of
+    #: ``center_tol`` of its cell centre; the ball turns away without waiting
+    #: for the box to come to rest.
+    chain: bool = True
+    box_decel: float = 4.9
 
     # -- trajectory ----------------------------------------------------------------
     #: Extend the trajectory with ``subgoal.plan`` (module doc).
@@ -55,7 +62,7 @@ class BallConfig:
     #: yaw rate (rad/s) that set their speed, straight run (m) kept before
     #: meeting a box.
     max_radius: float = 1.0
-    lateral_accel: float = 8.0
+    lateral_accel: float = 12.0
     max_turn_rate: float = 5.0
     push_straight: float = 0.3
     #: Clearance (m) kept between the ball and a peg when cutting corners.
@@ -70,7 +77,7 @@ class BallConfig:
     #: centring a box left short: too short a push to steer the box back)
     #: backs off and comes in again.
     align_gap: float = 0.3
-    align_tol: float = 0.125
+    align_tol: float = 0.25
     finish_align_tol: float = 0.04
     #: While pushing, the carrot sits ``k_recentre`` times the box's offset
     #: from its cell's centre line on the other side of it (at most

@@ -169,7 +169,12 @@ class Contact:
                 v = math.sqrt(config.contact_speed ** 2 + two_a * gap)
                 if v < v_des:
                     v_des = v
-        v = math.sqrt(2.0 * config.push_decel * max(rem - config.push_lead, 0.0))
+        # The box's remaining distance caps the pushing speed; before the
+        # ball meets the box, only what it can still brake to by then.
+        v2 = 2.0 * config.push_decel * max(rem - config.push_lead, 0.0)
+        if not self.touched and gap > 0.0:
+            v2 += two_a * gap
+        v = math.sqrt(v2)
         if v < v_des:
             v_des = v
         off_line = (by - lateral) if dx else (bx - lateral)

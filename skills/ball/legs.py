@@ -82,6 +82,11 @@ def plan(description, config: BallConfig, subgoal, scene) -> Trajectory:
     # new subgoal as soon as the estimate rounds it into its cell) is
     # first pushed on to the centre, if the walker is still behind it.
     finish = finish_leg(description, config, box_xy, est_boxes, here, walls | state.boxes)
+    if finish is None and not moves:
+        # Holding with a box off its cell centre and the walker not behind
+        # it: walk round behind it and centre it.
+        finish = centre_leg(description, config, box_xy, est_boxes, state, here,
+                            walls | state.boxes)
     if finish is not None and not moves:
         legs = [finish]
     elif finish is not None:
@@ -222,6 +227,61 @@ def finish_leg(description, config: BallConfig, box_xy, est_boxes, here, blocked
     return None
 
 
+def centre_leg(description, config: BallConfig, box_xy, est_boxes, state, here, blocked):
+    """A walk to behind a box further than ``finish_tol`` from its cell centre
+    and the short push that centres it (the largest offset first), or None
+    when every box is centred or none can be reached from behind."""
+    size = float(description.cell_size)
+    tol = config.finish_tol * size
+    offsets = []
+    for i, (bx, by) in enumerate(box_xy):
+        if i >= len(est_boxes):
+            break
+        cell = tuple(est_boxes[i])
+        cx, cy = map(float, description.cell_centre(*cell))
+        ox, oy = bx - cx, by - cy
+        for off, move in ((ox, "L" if ox > 0 else "R"), (oy, "D" if oy > 0 else "U")):
+            if abs(off) > tol:
+                offsets.append((abs(off), i, cell, move))
+    for _, i, cell, move in sorted(offsets, reverse=True):
+        dr, dc = DIRECTIONS[move]
+        behind = (cell[0] - dr, cell[1] - dc)
+        if behind in blocked:
+            continue
+        path = walk_cells(state.player, behind, blocked, state.height, state.width)
+        if path is None:
+            continue
+        return make_leg(description, config, path, (i, move, cell, 0), box_xy, blocked,
+                        start=here)
+    return None
+
+
+def walk_cells(start, goal, blocked, height, width):
+    """The shortest 4-connected path of cells from ``start`` to ``goal``
+    avoiding ``blocked`` (both ends included), or None."""
+    start, goal = tuple(start), tuple(goal)
+    previous = {start: None}
+    frontier = [start]
+    while frontier:
+        nxt = []
+        for cell in frontier:
+            if cell == goal:
+                path = []
+                while cell is not None:
+                    path.append(cell)
+                    cell = previous[cell]
+                return path[::-1]
+            for dr, dc in DIRECTIONS.values():
+                n = (cell[0] + dr, cell[1] + dc)
+                if n in previous or n in blocked or not (0 <= n[0] < height
+                                                          and 0 <= n[1] < width):
+                    continue
+                previous[n] = cell
+                nxt.append(n)
+        frontier = nxt
+    return None
+
+
 def rebuild(description, config: BallConfig, leg: Leg, box_xy, start) -> Leg:
     """``leg`` built again from the walker's position ``start`` and the boxes' ``box_xy``."""
     cells, push, blocked, keep = leg.args
@@ -255,11 +315,16 @@ def make_leg(description, config: BallConfig, cells, push, box_xy, blocked, *, k
         chain = push[3]
         leg.push, leg.cell_lat = _push_line(frame, pts, push, box_xy)
     merged = merge_collinear(pts, leg.push[1] if leg.push is not None else (1.0, 0.0))
-    # The straight run before meeting the box: the last segment minus the push.
-    contact_run = None
+    # The straight run before meeting the box: the last segment minus the
+    # push, which is as long as the box's actual distance to its target (a
+    # leg rebuilt mid-push starts with the box between cells).
+    contact_run = push_run = None
     if push is not None:
+        _, (ux, uy), (tx, ty), _, _ = leg.push
+        bx, by = box_xy[leg.push[0]]
+        push_run = max(0.0, (tx - bx) * ux + (ty - by) * uy)
         lx, ly = merged[-2]
-        contact_run = math.hypot(merged[-1][0] - lx, merged[-1][1] - ly) - chain * size
+        contact_run = math.hypot(merged[-1][0] - lx, merged[-1][1] - ly) - push_run
     dense, marks = _round_corners(frame, config, merged, blocked, peg, peg_touch, contact_run)
     seg = []
     s = 0.0
@@ -277,7 +342,14 @@ def make_leg(description, config: BallConfig, cells, push, box_xy, blocked, *, k
     if push is not None:
         # Meeting the box: the last segment's length minus the push itself.
         _, _, _, _, length, s_last = seg[-1]
-        limits.append((s_last + max(0.0, length - chain * size), config.contact_speed))
+        # No meeting speed for a ball already touching the box (a leg
+        # rebuilt mid-push): braking there would let the box slide on alone.
+        bx, by = box_xy[leg.push[0]]
+        ux, uy = leg.push[1]
+        touching = start is not None and \
+            (bx - start[0]) * ux + (by - start[1]) * uy - CONTACT < 0.05
+        if not touching:
+            limits.append((s_last + max(0.0, length - push_run), config.contact_speed))
     else:
         limits.append((s, 0.0))
     leg.pts = dense

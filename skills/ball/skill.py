@@ -91,6 +91,8 @@ class BallSkill(Skill):
         self._expected = plan.expected
         self._box_start = plan.box_start
         self._needs_settle = plan.needs_settle
+        # More of the plan after this subgoal: the next walk is known.
+        self._continues = bool(tuple(getattr(subgoal, "plan", None) or ()))
         self._legs = plan.legs
         self._pushed_boxes = plan.pushed_boxes
         contact.backoffs = 0
@@ -195,6 +197,11 @@ class BallSkill(Skill):
         if box is not None:
             # Settled: the box has (nearly) stopped and the ball no longer pushes it.
             done_leg = box.rem < tol and box_speed < 0.1 and (box.gap > 0.03 or v_along < 0.15)
+            if not done_leg and cfg.chain and box.rem < tol and (self._continues
+                                                                 or not last_leg):
+                # Chained: the box slides the rest on its own.
+                rest = box.rem - box_speed * box_speed / (2.0 * cfg.box_decel)
+                done_leg = abs(rest) < 0.5 * tol
             if done_leg and box.rem < -0.5 * self._cell:
                 self._fail(f"box overshot: by {-box.rem:.2f} m, out of its cell")
                 return
