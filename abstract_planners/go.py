@@ -161,9 +161,11 @@ class GnuGoPlanner(Planner):
 
     Choices:
 
-    * **resign**: GNU Go resigning means it considers the game lost; the
-      planner returns the pass action with ``info["resigned"] = True`` (the
-      OpenSpiel game goes on; the opponent can end it by passing).
+    * **resign**: GNU Go resigning means it considers the game lost.
+      OpenSpiel's go has no resign action, so the planner returns the pass
+      action with ``info["resigned"] = True``; callers must honour the flag:
+      the board environments (`envs.boards.task.BoardTask`) end the game
+      there as the agent's win and play nothing.
     * **a move OpenSpiel calls illegal** (should not happen: both use simple
       ko and forbid suicide): a `RuntimeWarning` and the pass action (always
       legal) with ``info["illegal_engine_move"]`` set to GNU Go's vertex; the

@@ -127,15 +127,15 @@ def measure(name: str, episodes: int, seed: int, t_abs: int, estimator: str = "o
     env = make_env(name, seed, estimator)
     privileged = is_privileged("mujoban", estimator)
     view = env if privileged else BoundaryEnv(env)
-    agent = make_agent("mujoban/level1", view.description(), estimator=estimator,
-                       simulator=env if privileged else None, t_abs=t_abs)
-    results = []
-    t0 = time.perf_counter()
-    for _ in tqdm(range(episodes), desc=name, unit="ep", leave=False):
-        row = run_episode(view, agent)
-        row["solved"] = bool(env.task.solved)
-        results.append(row)
-    wall = time.perf_counter() - t0
+    with env, make_agent("mujoban/level1", view.description(), estimator=estimator,
+                         simulator=env if privileged else None, t_abs=t_abs) as agent:
+        results = []
+        t0 = time.perf_counter()
+        for _ in tqdm(range(episodes), desc=name, unit="ep", leave=False):
+            row = run_episode(view, agent)
+            row["solved"] = bool(env.task.solved)
+            results.append(row)
+        wall = time.perf_counter() - t0
     solved = sum(r["solved"] for r in results)
     low, high = wilson(solved, len(results))
     reached = sum(r["reached"] for r in results)

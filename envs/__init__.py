@@ -6,19 +6,21 @@
     xo = envs.load("mujoxo/mixture")                     # tic-tac-toe with a Jaco arm
     go = envs.load("mujogo/7x7")                         # 7x7 Go against GNU Go
 
-`envs.names()` lists every environment; `envs.overrides(name)` its settings
+`envs.names()` lists every environment; `envs.overrides(name)` its settings;
+`envs.check(name, **overrides)` checks a configuration without building it
 (`envs.no_cameras(name)`: those that turn its cameras off).
 """
 
 from envs import _gl  # noqa: F401  (must run before mujoco picks a GL backend)
 
 from envs.core import Environment, PhysicsTask
-from envs.registry import describe, load, names, no_cameras, overrides
+from envs.registry import (UnknownEnvironmentError, check, describe, load, names, no_cameras,
+                           overrides)
 from envs import mujoban  # noqa: F401  (registers the MuJoBan names)
 from envs import boards  # noqa: F401  (registers the MuJoXO and MuJoGo names)
 from envs.gymnasium_env import GymnasiumEnv, register_all as _register_gymnasium
 
 _register_gymnasium()
 
-__all__ = ["Environment", "GymnasiumEnv", "PhysicsTask", "describe", "load", "names", "no_cameras",
-           "overrides"]
+__all__ = ["Environment", "GymnasiumEnv", "PhysicsTask", "UnknownEnvironmentError", "check",
+           "describe", "load", "names", "no_cameras", "overrides"]

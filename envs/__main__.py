@@ -25,31 +25,31 @@ import envs
 
 def rollout(name: str, episodes: int, seed: int, cameras: bool) -> list[dict]:
     env = envs.load(name, seed=seed, **({} if cameras else envs.no_cameras(name)))
-    spec = env.action_spec()
-    rng = np.random.default_rng(seed)
-    rows = []
-    with tqdm(total=episodes * env.task.time_limit_steps, unit="step", desc=name,
-              file=sys.stderr, disable=None) as bar:
-        for episode in range(episodes):
-            timestep = env.reset()
-            ret, steps, action = 0.0, 0, None
-            start = time.perf_counter()
-            while not timestep.last():
-                if steps % 10 == 0:
-                    action = rng.uniform(spec.minimum, spec.maximum, size=spec.shape)
-                timestep = env.step(action)
-                ret += timestep.reward
-                steps += 1
-                bar.update(1)
-            wall = time.perf_counter() - start
-            rows.append({"episode": episode, "return": ret, "steps": steps,
-                         # Solved (MuJoBan) or won (board games): a terminal
-                         # step paying at least 1.
-                         "solved": bool(timestep.discount == 0.0 and timestep.reward >= 1.0),
-                         "steps_per_s": steps / wall})
-            bar.total -= env.task.time_limit_steps - steps
-            bar.refresh()
-    env.close()
+    with env:  # closed (GL contexts, GNU Go) whatever happens
+        spec = env.action_spec()
+        rng = np.random.default_rng(seed)
+        rows = []
+        with tqdm(total=episodes * env.task.time_limit_steps, unit="step", desc=name,
+                  file=sys.stderr, disable=None) as bar:
+            for episode in range(episodes):
+                timestep = env.reset()
+                ret, steps, action = 0.0, 0, None
+                start = time.perf_counter()
+                while not timestep.last():
+                    if steps % 10 == 0:
+                        action = rng.uniform(spec.minimum, spec.maximum, size=spec.shape)
+                    timestep = env.step(action)
+                    ret += timestep.reward
+                    steps += 1
+                    bar.update(1)
+                wall = time.perf_counter() - start
+                rows.append({"episode": episode, "return": ret, "steps": steps,
+                             # Solved (MuJoBan) or won (board games): a terminal
+                             # step paying at least 1.
+                             "solved": bool(timestep.discount == 0.0 and timestep.reward >= 1.0),
+                             "steps_per_s": steps / wall})
+                bar.total -= env.task.time_limit_steps - steps
+                bar.refresh()
     return rows
 
 

@@ -107,6 +107,17 @@ class Environment(dm_env.Environment):
         if not isinstance(task, PhysicsTask):
             raise TypeError(f"task must be a PhysicsTask, got {type(task).__name__}")
         self._task = task
+        self._closed = False
+        self._cameras = None
+        try:
+            self._build(task, seed, raise_on_physics_error, lazy_cameras)
+        except BaseException:
+            # Whatever failed, the task's external resources (a GNU Go
+            # subprocess) and any GL context made so far are freed.
+            self.close()
+            raise
+
+    def _build(self, task, seed, raise_on_physics_error, lazy_cameras) -> None:
         self._rng = np.random.default_rng(seed)
         self._raise_on_physics_error = raise_on_physics_error
         self._physics = mjcf.Physics.from_mjcf_model(task.root_entity.mjcf_model)
@@ -177,8 +188,22 @@ class Environment(dm_env.Environment):
         return specs.BoundedArray((), np.float64, 0.0, 1.0, name="discount")
 
     def close(self) -> None:
-        self._cameras.close()
-        self._task.close()
+        """Frees the GL contexts and the task's external resources (a GNU Go
+        subprocess). Idempotent; also called by ``with envs.load(...) as env:``
+        (dm_env environments are context managers) and when construction fails."""
+        if getattr(self, "_closed", True):
+            return
+        self._closed = True
+        try:
+            if self._cameras is not None:
+                self._cameras.close()
+        finally:
+            self._task.close()
+
+    @property
+    def closed(self) -> bool:
+        """Whether `close` has been called."""
+        return self._closed
 
     # -- extras -------------------------------------------------------------
 

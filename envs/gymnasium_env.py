@@ -62,16 +62,20 @@ class GymnasiumEnv(gymnasium.Env):
                 raise ValueError(f"give env_name (one of {names()}) or env")
             env = load(env_name, **overrides)
         self._env = env
-        self.render_mode = render_mode
-        self._render_camera = render_camera or env.task.main_camera
-        self._render_size = tuple(render_size)
-        self.observation_space = spaces.Dict(
-            {k: spec_to_space(s) for k, s in env.observation_spec().items()})
-        aspec = env.action_spec()
-        self.action_space = spaces.Box(
-            np.broadcast_to(aspec.minimum, aspec.shape).astype(np.float32),
-            np.broadcast_to(aspec.maximum, aspec.shape).astype(np.float32),
-            aspec.shape, dtype=np.float32)
+        try:
+            self.render_mode = render_mode
+            self._render_camera = render_camera or env.task.main_camera
+            self._render_size = tuple(render_size)
+            self.observation_space = spaces.Dict(
+                {k: spec_to_space(s) for k, s in env.observation_spec().items()})
+            aspec = env.action_spec()
+            self.action_space = spaces.Box(
+                np.broadcast_to(aspec.minimum, aspec.shape).astype(np.float32),
+                np.broadcast_to(aspec.maximum, aspec.shape).astype(np.float32),
+                aspec.shape, dtype=np.float32)
+        except BaseException:
+            env.close()
+            raise
         self._needs_reset = True
 
     @property
@@ -105,6 +109,8 @@ class GymnasiumEnv(gymnasium.Env):
         return self._env.render(self._render_camera, *self._render_size)
 
     def close(self):
+        """Closes the wrapped environment (idempotent); gymnasium envs are
+        context managers: ``with gymnasium.make(name) as env:``."""
         self._env.close()
 
 

@@ -23,6 +23,9 @@ class EnvEntry:
     factory: Callable[..., Environment]
     kwargs: dict[str, Any] = field(default_factory=dict)
     description: str = ""
+    #: Checks the factory's keyword arguments (seed included) without building
+    #: anything; raises TypeError/ValueError naming the bad value (`check`).
+    validate: Callable[..., Any] | None = None
 
 
 _REGISTRY: dict[str, EnvEntry] = {}
@@ -56,6 +59,25 @@ def no_cameras(name: str) -> dict[str, None]:
     return {k: None for k in overrides(name) if k.endswith("_camera")}
 
 
+def check(name: str, seed: int | None = None, **kwargs) -> None:
+    """Checks a configuration as `load` would, without building anything (no
+    model compiled, no GL context, no engine started): microseconds.
+
+    Raises:
+      UnknownEnvironmentError: unknown name (a KeyError and a ValueError).
+      TypeError: an override the environment does not have, or of the wrong type.
+      ValueError: a value out of range (`envs.mujoban.LevelError` for a bad
+        level file); the message names the setting and the value.
+    """
+    entry = _entry(name)
+    valid = overrides(name)
+    unknown = sorted(set(kwargs) - set(valid))
+    if unknown:
+        raise TypeError(f"{name}: unknown override(s) {unknown}; valid overrides: {valid}")
+    if entry.validate is not None:
+        entry.validate(seed=seed, **entry.kwargs, **kwargs)
+
+
 def load(name: str, seed: int | None = None, **kwargs) -> Environment:
     """Builds the named environment as a dm_env ``Environment``.
 
@@ -66,21 +88,29 @@ def load(name: str, seed: int | None = None, **kwargs) -> Environment:
         ``levels="file.txt"``, ``top_camera=None``; `overrides(name)` lists them.
 
     Raises:
-      KeyError: unknown name (the message lists the known ones).
-      TypeError: an override the environment does not have.
+      KeyError: unknown name (the message lists the known ones;
+        `UnknownEnvironmentError`, also a ValueError).
+      TypeError: an override the environment does not have, or of the wrong type.
+      ValueError: a value out of range. Bad configurations fail in `check`,
+        before anything is built.
     """
+    check(name, seed, **kwargs)
     entry = _entry(name)
-    valid = overrides(name)
-    unknown = sorted(set(kwargs) - set(valid))
-    if unknown:
-        raise TypeError(f"{name}: unknown override(s) {unknown}; valid overrides: {valid}")
     return entry.factory(seed=seed, **entry.kwargs, **kwargs)
+
+
+class UnknownEnvironmentError(KeyError, ValueError):
+    """`load` was given a name that is not registered."""
+
+    def __str__(self) -> str:  # KeyError would show the message's repr
+        return str(self.args[0]) if self.args else ""
 
 
 def _entry(name: str) -> EnvEntry:
     try:
         return _REGISTRY[name]
-    except KeyError:
+    except (KeyError, TypeError):  # TypeError: an unhashable name
         close = difflib.get_close_matches(str(name), _REGISTRY, n=3)
         hint = f" Did you mean {close}?" if close else ""
-        raise KeyError(f"unknown environment {name!r}.{hint} Known environments: {names()}") from None
+        raise UnknownEnvironmentError(
+            f"unknown environment {name!r}.{hint} Known environments: {names()}") from None

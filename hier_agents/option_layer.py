@@ -112,6 +112,28 @@ class ModularAgent:
         self._expected: frozenset | None = None
         self._counted = True
 
+    def close(self) -> None:
+        """Closes the planner (a GNU Go subprocess), the skill and the
+        estimator, each even if another one raised. Idempotent. The agent is
+        also a context manager: ``with ModularAgent(...) as agent:``."""
+        errors = []
+        for part in (self.planner, self.skill, self.estimator):
+            close = getattr(part, "close", None)
+            if close is None:
+                continue
+            try:
+                close()
+            except Exception as exc:  # noqa: BLE001 - close the others first
+                errors.append(exc)
+        if errors:
+            raise errors[0]
+
+    def __enter__(self) -> "ModularAgent":
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.close()
+
     @property
     def privileged(self) -> bool:
         """True when the estimator reads more than a robot observes."""

@@ -18,9 +18,15 @@ or ``entity-layer`` read the simulator and every table and JSON says
 ``privileged``.
 
 Runs never abort: an episode the agent gives up (the planner finds no plan,
-e.g. after a box was pushed into a deadlock) or an agent error ends that
-episode as a failure with its reason (``failure_reason`` in the episode's
-row); a diverging simulation ends its episode.
+e.g. after a box was pushed into a deadlock) ends as a failure with its
+reason (``failure_reason`` in the episode's row); any error inside an episode
+(environment reset, estimator, planner, skill, GTP engine) ends that episode
+with ``error`` ("Type: message") and ``failure_reason`` ("error: ...") in its
+row, counted in the table and in ``errors``; the next episode goes on; a
+diverging simulation ends its episode. Ctrl-C ends the run with the table
+(and ``--json``) of the episodes played (``interrupted``: true, exit code
+130). The environment and the agent (planner, skill, estimator) are closed
+whatever happened, so no GNU Go process outlives a run.
 
 MuJoBan rows report the solved fraction; board games win/draw/loss rates. All
 rates carry 95% Wilson intervals. JSON keys: env, episodes, estimator,
@@ -78,74 +84,101 @@ def run(env_name: str, episodes: int, seed: int = 0, *, planner: str | None = No
         if fam != "mujoban":
             raise ValueError("--levels only applies to mujoban environments")
         overrides["levels"] = levels
-    env = envs.load(env_name, seed=seed, **overrides)
-    privileged = is_privileged(fam, estimator)
-    # An observation-only agent sees the environment through the boundary
-    # (no simulator, no ground-truth layers); the harness keeps `env` to judge.
-    view = env if privileged else BoundaryEnv(env)
-    description = view.description()
-    # The agent gets the public description and timesteps; only a privileged
-    # estimator is handed the simulator, on purpose.
-    agent = make_agent(env_name, description, planner=planner, skill=skill,
-                       estimator=estimator, seed=seed, simulator=env if privileged else None)
     totals = OptionStats()
     rows, frames = [], []
+    interrupted = False
+    env = made = None
     bar = tqdm(total=episodes, unit="episode", desc=env_name, file=sys.stderr,
                disable=not progress)
     try:
+        env = envs.load(env_name, seed=seed, **overrides)
+        privileged = is_privileged(fam, estimator)
+        # An observation-only agent sees the environment through the boundary
+        # (no simulator, no ground-truth layers); the harness keeps `env` to judge.
+        view = env if privileged else BoundaryEnv(env)
+        description = view.description()
+        # The agent gets the public description and timesteps; only a privileged
+        # estimator is handed the simulator, on purpose.
+        made = make_agent(env_name, description, planner=planner, skill=skill,
+                          estimator=estimator, seed=seed, simulator=env if privileged else None)
         for episode in range(episodes):
-            start = time.perf_counter()
-            timestep = view.reset()
-            ret, steps, reason = 0.0, 0, None
-            try:
-                agent.reset(description, timestep, seed=seed * 100_003 + episode)
-                while not timestep.last():
-                    if video and episode == 0:
-                        frames.append(env.render(env.task.main_camera, 256, 256))
-                    action = agent.act(timestep)
-                    if agent.gave_up is not None:
-                        reason = agent.gave_up
-                        break
-                    timestep = view.step(action)
-                    ret += float(timestep.reward)
-                    steps += 1
-                if reason is None:
-                    agent.end_episode(timestep)
-            except Exception as exc:  # an agent bug must not lose the other episodes
-                reason = f"error: {type(exc).__name__}: {exc}"
-            row = {"episode": episode, "return": ret, "steps": steps,
-                   "wall_s": time.perf_counter() - start,
-                   "subgoals_issued": agent.episode_stats.issued,
-                   "subgoals_reached": agent.episode_stats.reached,
-                   "estimation_failures": agent.episode_stats.estimation_failures}
-            if fam == "mujoban":
-                row["solved"] = bool(env.task.solved)
-                if not row["solved"]:
-                    row["failure_reason"] = reason or "time limit"
-            else:
-                state = env.task.state
-                value = state.returns()[0] if state.is_terminal() else -1.0
-                row["outcome"] = "win" if value > 0 else ("draw" if value == 0 else "loss")
-                row["final_reward"] = float(timestep.reward)
-                if row["outcome"] != "win" and (reason or not state.is_terminal()):
-                    row["failure_reason"] = reason or "time limit"
+            row, stats = _play_episode(env, view, made, description, fam, episode, seed,
+                                       frames if video and episode == 0 else None)
             rows.append(row)
-            totals.add(agent.episode_stats)
+            totals.add(stats)
             bar.update(1)
             bar.set_postfix(_postfix(rows, fam))
+    except KeyboardInterrupt:
+        # Ctrl-C: the episodes played so far make the table (the one under way is dropped).
+        interrupted = True
     finally:
         bar.close()
-        agent.planner.close()
-        env.close()
+        try:
+            if made is not None:
+                made.close()
+        finally:
+            if env is not None:
+                env.close()
     if video and frames:
         import imageio.v2 as imageio
         imageio.mimwrite(video, frames, fps=int(round(1 / env.control_timestep)),
                          macro_block_size=1)
     summary = _summary(env_name, fam, rows, totals, seed, planner, skill)
     summary["estimator"] = estimator_name(fam, estimator)
-    summary["privileged"] = privileged
+    summary["privileged"] = is_privileged(fam, estimator)
     summary["env_options"] = env_options
+    summary["episodes_requested"] = episodes
+    summary["interrupted"] = interrupted
     return summary
+
+
+def _play_episode(env, view, agent, description, fam, episode, seed, frames):
+    """One episode; any error inside it (reset, estimator, planner, skill, GTP
+    engine) ends it with ``error`` and ``failure_reason`` in its row.
+    Returns (row, the agent's subgoal counters for it)."""
+    start = time.perf_counter()
+    timestep, ret, steps, reason, error, started = None, 0.0, 0, None, None, False
+    try:
+        timestep = view.reset()
+        agent.reset(description, timestep, seed=seed * 100_003 + episode)
+        started = True
+        while not timestep.last():
+            if frames is not None:
+                frames.append(env.render(env.task.main_camera, 256, 256))
+            action = agent.act(timestep)
+            if agent.gave_up is not None:
+                reason = agent.gave_up
+                break
+            timestep = view.step(action)
+            ret += float(timestep.reward)
+            steps += 1
+        if reason is None:
+            agent.end_episode(timestep)
+    except Exception as exc:  # an error must not lose the other episodes
+        error = f"{type(exc).__name__}: {exc}"
+        reason = f"error: {error}"
+    # Counters of an episode whose agent never started are not the last episode's.
+    stats = agent.episode_stats if started else OptionStats()
+    row = {"episode": episode, "return": ret, "steps": steps,
+           "wall_s": time.perf_counter() - start,
+           "subgoals_issued": stats.issued, "subgoals_reached": stats.reached,
+           "estimation_failures": stats.estimation_failures}
+    if fam == "mujoban":
+        # (after a failed reset the task still shows the last episode's end)
+        row["solved"] = timestep is not None and bool(getattr(env.task, "solved", False))
+        if not row["solved"]:
+            row["failure_reason"] = reason or "time limit"
+    else:
+        outcome = env.task.outcome if timestep is not None else None
+        row["outcome"] = outcome or "loss"  # a game still running counts as lost
+        row["final_reward"] = float(timestep.reward or 0.0) if timestep is not None else 0.0
+        if timestep is not None and getattr(env.task, "resigned", False):
+            row["opponent_resigned"] = True
+        if row["outcome"] != "win" and (reason or outcome is None):
+            row["failure_reason"] = reason or "time limit"
+    if error is not None:
+        row["error"] = error
+    return row, stats
 
 
 def _run_policy(env_name, fam, episodes, seed, agent, levels, video, progress,
@@ -179,11 +212,23 @@ def _postfix(rows, fam) -> dict:
     return {"wins": f"{sum(r['outcome'] == 'win' for r in rows)}/{len(rows)}"}
 
 
+def _mean(values):
+    return float(np.mean(values)) if len(values) else None
+
+
 def _summary(env_name, fam, rows, totals: OptionStats, seed, planner, skill) -> dict:
     n = len(rows)
     out = {"env": env_name, "episodes": n, "seed": seed, "agent": "modular",
            "planner": planner or next(iter(PLANNERS[fam])),
            "skill": skill or next(iter(SKILLS[fam]))}
+    if n == 0:  # e.g. interrupted before the first episode ended
+        for key in (("success_rate",) if fam == "mujoban" else
+                    ("win_rate", "draw_rate", "loss_rate", "success_rate")):
+            out[key] = None
+        out.update(mean_return=None, mean_steps=None, subgoal_success_rate=None,
+                   subgoals={}, episode_failures={}, errors=0, wall_s=None,
+                   control_steps_per_s=None, rows=[])
+        return out
     if fam == "mujoban":
         solved = sum(r["solved"] for r in rows)
         out["success_rate"] = solved / n
@@ -211,6 +256,7 @@ def _summary(env_name, fam, rows, totals: OptionStats, seed, planner, skill) -> 
             kind = row["failure_reason"].split(":", 1)[0]
             reasons[kind] = reasons.get(kind, 0) + 1
     out["episode_failures"] = reasons
+    out["errors"] = sum("error" in row for row in rows)
     out["wall_s"] = float(np.mean([r["wall_s"] for r in rows]))
     wall = sum(r["wall_s"] for r in rows)
     out["control_steps_per_s"] = sum(r["steps"] for r in rows) / wall if wall > 0 else None
@@ -233,6 +279,11 @@ def format_table(summary: dict) -> str:
         who = (f"{summary['agent']} ({summary['condition']}, trained "
                f"{summary['training_frames']:,} frames on {summary['trained_env']})")
     lines = [f"{summary['env']}: {who}, {summary['episodes']} episodes, seed {summary['seed']}"]
+    if summary.get("interrupted"):
+        lines.append(f"  INTERRUPTED (Ctrl-C): {summary['episodes']} of "
+                     f"{summary.get('episodes_requested', '?')} episodes played")
+    if not summary["episodes"]:
+        return "\n".join(lines)
     if "win_rate" in summary:
         lines.append(f"  win   {_pct(summary['win_rate'], summary['win_interval'])}")
         lines.append(f"  draw  {_pct(summary['draw_rate'], summary['draw_interval'])}")
@@ -249,6 +300,10 @@ def format_table(summary: dict) -> str:
     if summary.get("episode_failures"):
         lines.append("  unsolved because  " + ", ".join(
             f"{k} x{v}" for k, v in sorted(summary["episode_failures"].items())))
+    if summary.get("errors"):
+        first = next(r["error"] for r in summary["rows"] if "error" in r)
+        lines.append(f"  errors            {summary['errors']} episode(s) ended by an error "
+                     f"(first: {first[:120]})")
     lines.append(f"  wall s / episode  {summary['wall_s']:.2f}")
     if summary.get("control_steps_per_s"):
         lines.append(f"  control steps / s {summary['control_steps_per_s']:.0f} "
@@ -353,7 +408,7 @@ def main(argv=None) -> int:
         with open(args.json, "w") as f:
             json.dump(summary, f, indent=2)
         print(f"wrote {args.json}")
-    return 0
+    return 130 if summary.get("interrupted") else 0
 
 
 if __name__ == "__main__":

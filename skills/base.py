@@ -62,6 +62,9 @@ class Skill(abc.ABC):
     def hold(self) -> np.ndarray:
         """An action that keeps the body still."""
 
+    def close(self) -> None:
+        """Frees external resources (none by default). Idempotent."""
+
     def _fail(self, reason: str) -> None:
         self.status = Status.FAILURE
         self.failure_reason = reason

@@ -89,13 +89,7 @@ def test_mujoxo_against_the_optimal_opponent_never_loses():
     assert summary["subgoal_success_rate"] == 1.0
 
 
-def test_mujogo_with_the_gnugo_planner_wins_and_every_touch_registers_the_plan():
-    pytest.importorskip("pyspiel")
-    from abstract_planners.gtp import find_gnugo
-    try:
-        find_gnugo()
-    except Exception:
-        pytest.skip("gnugo not installed")
+def test_mujogo_with_the_gnugo_planner_wins_and_every_touch_registers_the_plan(gnugo):
     summary = run_lib.run("mujogo/7x7", 1, seed=0, progress=False)
     assert summary["win_rate"] == 1.0
     subgoals = summary["subgoals"]

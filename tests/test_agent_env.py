@@ -2,13 +2,10 @@
 
 from __future__ import annotations
 
-import os
-import shutil
 
 import numpy as np
 import pytest
 
-from abstract_planners import gtp
 from abstract_planners.base import Subgoal
 from abstract_planners.sokoban import DIRECTIONS
 from hier_agents.impala.agent_env import (CONDITIONS, PLANNER_ACTIONS, AgentEnv, InputSpec,
@@ -16,15 +13,13 @@ from hier_agents.impala.agent_env import (CONDITIONS, PLANNER_ACTIONS, AgentEnv,
 from skills.arm import ArmTouchSkill
 from skills.ball import BallSkill
 
-HAVE_GNUGO = shutil.which("gnugo") is not None or os.access(gtp.DEBIAN_GNUGO, os.X_OK)
-needs_gnugo = pytest.mark.skipif(not HAVE_GNUGO, reason="GNU Go is not installed")
 
 PROPRIO = {"mujoban": 25, "mujoxo": 39, "mujogo": 39}
 CAMERAS = {"mujoban": ("top_camera", "walker/egocentric_camera"), "mujoxo": ("front_camera",),
            "mujogo": ("front_camera",)}
 CASES = ([("mujoban/level1", c, cams) for c in CONDITIONS for cams in (True, False)]
          + [("mujoxo/mixture", c, cams) for c in CONDITIONS for cams in (True, False)]
-         + [pytest.param("mujogo/7x7", c, cams, marks=needs_gnugo)
+         + [("mujogo/7x7", c, cams)  # these take the conftest's `gnugo` fixture
             for c, cams in (("vanilla", True), ("expert-planner", False),
                             ("random-planner", False))])
 
@@ -51,8 +46,10 @@ def _check_obs(env: AgentEnv, obs: dict) -> None:
 
 
 @pytest.mark.parametrize("name, condition, cameras", CASES)
-def test_input_spec_and_observations(name, condition, cameras):
+def test_input_spec_and_observations(name, condition, cameras, request):
     fam = name.split("/")[0]
+    if fam == "mujogo":
+        request.getfixturevalue("gnugo")
     with AgentEnv(name, condition, seed=0, cameras=cameras, image_size=32) as env:
         spec = env.input_spec
         assert isinstance(spec, InputSpec) and env.family == fam

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import ast
 import dataclasses
-import shutil
 from pathlib import Path
 
 import dm_env
@@ -28,9 +27,7 @@ from skills.base import Status
 
 NO_CAMERA = {"front_camera": None}
 ARM_PACKAGE = Path(__file__).resolve().parents[1] / "skills" / "arm"
-needs_gnugo = pytest.mark.skipif(shutil.which("gnugo") is None and
-                                 shutil.which("/usr/games/gnugo") is None,
-                                 reason="GNU Go is not installed")
+needs_gnugo = pytest.mark.usefixtures("gnugo")  # conftest decides whether GNU Go is there
 
 
 class PublicEnv:

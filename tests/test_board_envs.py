@@ -192,7 +192,7 @@ def test_go_refuses_a_second_consecutive_pass_by_the_agent(allow_double_pass):
     env.close()
 
 
-def test_killed_gnugo_is_restarted_and_the_game_continues():
+def test_killed_gnugo_is_restarted_and_the_game_continues(gnugo):
     env = make_mujogo(seed=0, **NO_CAMERA)
     env.reset()
     touch_point(env, env.task.point_position(24))

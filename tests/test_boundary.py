@@ -29,23 +29,17 @@ def _combinations():
             yield pytest.param(name, limit, est, plan, skill, id=f"{fam}-{est}-{plan}-{skill}")
 
 
-def _needs_gnugo(planner: str) -> None:
-    if planner == "gnugo":
-        from abstract_planners.gtp import find_gnugo
-        try:
-            find_gnugo()
-        except Exception:
-            pytest.skip("gnugo not installed")
 
 
 @pytest.mark.parametrize("name, limit, estimator, planner, skill", list(_combinations()))
 def test_every_listed_combination_plays_through_the_boundary(name, limit, estimator, planner,
-                                                             skill):
+                                                             skill, request):
     """Each estimator/planner/skill offered by ``--list`` plays an episode
     through a wrapper exposing only reset, step, the specs and the public
     description; a privileged estimator handed that wrapper as its
     "simulator" is stopped at its first read."""
-    _needs_gnugo(planner)
+    if name.startswith("mujogo"):  # the opponent (and the gnugo planner) need GNU Go
+        request.getfixturevalue("gnugo")
     fam = name.split("/")[0]
     env = envs.load(name, seed=1, time_limit=limit, **env_overrides(name, estimator))
     view = BoundaryEnv(env)

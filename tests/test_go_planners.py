@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import os
-import shutil
 import signal
 
 import pyspiel
@@ -15,8 +14,7 @@ from abstract_planners.go import (GnuGoPlanner, MCTSPlanner, action_to_vertex, g
                                   pass_action, vertex_to_action)
 from abstract_planners.gtp import GnuGoNotFoundError
 
-HAVE_GNUGO = shutil.which("gnugo") is not None or os.access(gtp.DEBIAN_GNUGO, os.X_OK)
-needs_gnugo = pytest.mark.skipif(not HAVE_GNUGO, reason="GNU Go is not installed")
+needs_gnugo = pytest.mark.usefixtures("gnugo")  # conftest decides whether GNU Go is there
 
 
 def state_after(game, vertices):

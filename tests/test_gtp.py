@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import os
 import pickle
-import shutil
 import signal
 import sys
 import textwrap
@@ -14,8 +13,7 @@ import pytest
 from abstract_planners import gtp
 from abstract_planners.gtp import GnuGoNotFoundError, GTPClient, GTPError
 
-HAVE_GNUGO = shutil.which("gnugo") is not None or os.access(gtp.DEBIAN_GNUGO, os.X_OK)
-needs_gnugo = pytest.mark.skipif(not HAVE_GNUGO, reason="GNU Go is not installed")
+needs_gnugo = pytest.mark.usefixtures("gnugo")  # conftest decides whether GNU Go is there
 
 # A scripted GTP engine: answers by command name, echoing the numeric id.
 FAKE_ENGINE = textwrap.dedent(r'''

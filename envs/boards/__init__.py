@@ -21,12 +21,14 @@ original only has 7x7; larger boards shrink the squares to keep its width).
 from __future__ import annotations
 
 import numbers
+import shutil
 
 from abstract_planners.epsilon_greedy import EpsilonGreedy
 from abstract_planners.go import GnuGoPlanner
 from abstract_planners.tictactoe import MinimaxPlanner
 from envs.boards.games import BoardGame
 from envs.boards.task import BoardTask
+from envs import _config
 from envs.core import Environment
 from envs.registry import EnvEntry, register
 
@@ -44,6 +46,64 @@ def _check_level(level) -> int:
     return int(level)
 
 
+def _check_board_common(*, seed, front_camera, arm_reset, time_limit, control_timestep,
+                        physics_timestep, piece_noise, render_size, raise_on_physics_error,
+                        lazy_cameras) -> None:
+    _config.check_common(seed, render_size, raise_on_physics_error, lazy_cameras)
+    _config.check_camera("front_camera", front_camera)
+    _config.check_bool("arm_reset", arm_reset)
+    _config.check_timing(time_limit, control_timestep, physics_timestep)
+    if piece_noise is not None:
+        _config.check_real("piece_noise", piece_noise, low=0.0, high=1.0)
+
+
+def check_mujoxo(*, epsilon: float = 0.25, seed=None, front_camera=(84, 84), arm_reset=True,
+                 time_limit=30.0, control_timestep=0.05, physics_timestep=0.002,
+                 piece_noise=None, render_size=(256, 256), raise_on_physics_error=True,
+                 lazy_cameras=False) -> None:
+    """Checks `make_mujoxo`'s arguments without building anything (`envs._config`)."""
+    _check_epsilon(epsilon)
+    _check_board_common(seed=seed, front_camera=front_camera, arm_reset=arm_reset,
+                        time_limit=time_limit, control_timestep=control_timestep,
+                        physics_timestep=physics_timestep, piece_noise=piece_noise,
+                        render_size=render_size, raise_on_physics_error=raise_on_physics_error,
+                        lazy_cameras=lazy_cameras)
+
+
+def check_mujogo(*, board_size=7, level=10, epsilon=0.0, komi=5.5, seed=None,
+                 front_camera=(84, 84), arm_reset=True, time_limit=45.0, control_timestep=0.05,
+                 physics_timestep=0.002, registering="fingers", allow_double_pass=False,
+                 piece_noise=None, gnugo_timeout=10.0, gnugo_command=None,
+                 render_size=(256, 256), raise_on_physics_error=True,
+                 lazy_cameras=False) -> None:
+    """Checks `make_mujogo`'s arguments without building anything or starting
+    GNU Go (`envs._config`)."""
+    _config.check_int("board_size", board_size, 5, 19)
+    _check_level(level)
+    _check_epsilon(epsilon)
+    _config.check_real("komi", komi, low=-1000.0, high=1000.0)
+    _check_board_common(seed=seed, front_camera=front_camera, arm_reset=arm_reset,
+                        time_limit=time_limit, control_timestep=control_timestep,
+                        physics_timestep=physics_timestep, piece_noise=piece_noise,
+                        render_size=render_size, raise_on_physics_error=raise_on_physics_error,
+                        lazy_cameras=lazy_cameras)
+    _config.check_choice("registering", registering, ("arm", "fingers", "fingertips"))
+    _config.check_bool("allow_double_pass", allow_double_pass)
+    _config.check_real("gnugo_timeout", gnugo_timeout, low=0.0, low_open=True, high=86_400.0)
+    if gnugo_command is not None:
+        words = gnugo_command.split() if isinstance(gnugo_command, str) else gnugo_command
+        if isinstance(words, (bytes, numbers.Number)) or not hasattr(words, "__iter__") or \
+                isinstance(words, dict):
+            raise TypeError(f"gnugo_command must be a command line (a str or a list of str), "
+                            f"got {_config._show(gnugo_command)}")
+        words = list(words)
+        if not words or not all(isinstance(w, str) and w and "\0" not in w for w in words):
+            raise ValueError(f"gnugo_command must be a non-empty list of non-empty str, "
+                             f"got {_config._show(gnugo_command)}")
+        if shutil.which(words[0]) is None:
+            raise ValueError(f"gnugo_command: executable {words[0]!r} not found")
+
+
 def make_mujoxo(*, epsilon: float = 0.25, seed: int | None = None, front_camera=(84, 84),
                 arm_reset: bool = True, time_limit: float = 30.0,
                 control_timestep: float = 0.05, physics_timestep: float = 0.002,
@@ -56,6 +116,11 @@ def make_mujoxo(*, epsilon: float = 0.25, seed: int | None = None, front_camera=
     steps), then truncation. ``piece_noise``: the opponent's pieces land within
     this fraction of the sensor half-size (None: the original's 1).
     """
+    check_mujoxo(epsilon=epsilon, seed=seed, front_camera=front_camera, arm_reset=arm_reset,
+                 time_limit=time_limit, control_timestep=control_timestep,
+                 physics_timestep=physics_timestep, piece_noise=piece_noise,
+                 render_size=render_size, raise_on_physics_error=raise_on_physics_error,
+                 lazy_cameras=lazy_cameras)
     epsilon = _check_epsilon(epsilon)
     opponent = EpsilonGreedy(MinimaxPlanner(), epsilon)
     task = BoardTask(BoardGame("tic_tac_toe", 3, draw_reward=0.5), opponent, registering="arm",
@@ -87,6 +152,13 @@ def make_mujogo(*, board_size: int = 7, level: int = 10, epsilon: float = 0.0,
     GTP reply (seconds): a hung engine raises ``GTPError``, a dead one is
     restarted and replays the game.
     """
+    check_mujogo(board_size=board_size, level=level, epsilon=epsilon, komi=komi, seed=seed,
+                 front_camera=front_camera, arm_reset=arm_reset, time_limit=time_limit,
+                 control_timestep=control_timestep, physics_timestep=physics_timestep,
+                 registering=registering, allow_double_pass=allow_double_pass,
+                 piece_noise=piece_noise, gnugo_timeout=gnugo_timeout,
+                 gnugo_command=gnugo_command, render_size=render_size,
+                 raise_on_physics_error=raise_on_physics_error, lazy_cameras=lazy_cameras)
     game = BoardGame("go", board_size, komi=float(komi), draw_reward=0.0)
     epsilon = _check_epsilon(epsilon)
     level = _check_level(level)
@@ -110,15 +182,20 @@ def _register() -> None:
     for name, eps, text in (("mixture", 0.25, "random moves at rate 0.25 (the paper's)"),
                             ("optimal", 0.0, "always optimal"), ("random", 1.0, "always random")):
         register(EnvEntry(f"mujoxo/{name}", make_mujoxo, {"epsilon": eps},
-                          f"MuJoXO, tic-tac-toe with a Jaco arm; minimax opponent {text}"))
+                          f"MuJoXO, tic-tac-toe with a Jaco arm; minimax opponent {text}",
+                          validate=check_mujoxo))
     register(EnvEntry("mujogo/7x7", make_mujogo, {"board_size": 7},
-                      "MuJoGo, 7x7 Go with a Jaco arm against GNU Go level 10 (the paper's)"))
+                      "MuJoGo, 7x7 Go with a Jaco arm against GNU Go level 10 (the paper's)",
+                      validate=check_mujogo))
     register(EnvEntry("mujogo/7x7-mixture", make_mujogo, {"board_size": 7, "epsilon": 0.2},
-                      "MuJoGo 7x7, GNU Go level 10 with random moves at rate 0.2"))
+                      "MuJoGo 7x7, GNU Go level 10 with random moves at rate 0.2",
+                      validate=check_mujogo))
     register(EnvEntry("mujogo/7x7-eval", make_mujogo, {"board_size": 7, "time_limit": 60.0},
-                      "MuJoGo 7x7 with the paper's 60 s evaluation time limit"))
+                      "MuJoGo 7x7 with the paper's 60 s evaluation time limit",
+                      validate=check_mujogo))
     register(EnvEntry("mujogo/9x9", make_mujogo, {"board_size": 9},
-                      "MuJoGo, 9x9 Go against GNU Go level 10"))
+                      "MuJoGo, 9x9 Go against GNU Go level 10",
+                      validate=check_mujogo))
 
 
 _register()

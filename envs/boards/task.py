@@ -146,6 +146,7 @@ class BoardTask(PhysicsTask):
         self._add_sensors(self.physics_steps_per_control_step)
         self.time_limit_steps = int(round(time_limit / control_timestep))
         self.state = None  # the OpenSpiel state of the current game
+        self._resigned = False
         self.main_camera = "front_camera"
         self._ik = None
         self._tcp_ik = None
@@ -336,6 +337,7 @@ class BoardTask(PhysicsTask):
         m.geom_group[self._piece_ids] = arena_lib.HIDDEN_GROUP
         self._reward = 0.0
         self._game_over = False
+        self._resigned = False
         self._last_agent_move_passed = False
         self.moves_registered = 0
         self.ik_failures = 0
@@ -403,6 +405,13 @@ class BoardTask(PhysicsTask):
         self.moves_registered += 1
         if not self.state.is_terminal():
             subgoal = self.opponent.plan(self.state)
+            if subgoal.info.get("resigned"):
+                # The opponent (GNU Go) resigned: the game ends as the agent's
+                # win (OpenSpiel's go has no resign action, so nothing is played).
+                self._resigned = True
+                self._game_over = True
+                self._reward = 1.0
+                return
             self._apply(int(subgoal.action), piece_xy=None, rng=rng)
         if self.state.is_terminal():
             self._game_over = True
@@ -611,6 +620,22 @@ class BoardTask(PhysicsTask):
     @property
     def game_over(self) -> bool:
         return self._game_over
+
+    @property
+    def resigned(self) -> bool:
+        """Whether the opponent resigned this game (it ended as the agent's win)."""
+        return self._resigned
+
+    @property
+    def outcome(self) -> str | None:
+        """``"win"``, ``"draw"`` or ``"loss"`` for the agent once the game is
+        over (an opponent's resignation is a win), else None."""
+        if self._resigned:
+            return "win"
+        if self.state is None or not self.state.is_terminal():
+            return None
+        value = self.state.returns()[AGENT]
+        return "win" if value > 0 else ("draw" if value == 0 else "loss")
 
     def point_position(self, action: int) -> np.ndarray:
         """World (x, y, z) of board point ``action`` on the board's top."""

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import os
 
+from envs import _config
 from envs.core import Environment
 from envs.mujoban import sources
 from envs.mujoban.levels import Level, LevelError
@@ -69,15 +70,17 @@ def make(*, difficulty: int | None = None, pegs: bool = False, seed: int | None 
       raise_on_physics_error: raise on a diverging simulation (else the
         episode ends with discount 0).
     """
-    if levels is not None:
-        if level_order not in ("sequential", "shuffle"):
-            raise ValueError(f"level_order must be 'sequential' or 'shuffle', got {level_order!r}")
-        source = sources.FileLevels(levels, shuffle=level_order == "shuffle")
-        _check_file_fits(source, tuple(grid_shape))
-    elif difficulty is None:
-        source = sources.CurriculumLevels()
-    else:
-        source = sources.GeneratedLevels(difficulty)
+    source = check_config(
+        difficulty=difficulty, pegs=pegs, seed=seed, levels=levels, level_order=level_order,
+        grid_shape=grid_shape, top_camera=top_camera, egocentric_camera=egocentric_camera,
+        randomize_appearance=randomize_appearance, time_limit=time_limit,
+        control_timestep=control_timestep, physics_timestep=physics_timestep,
+        pad_tolerance=pad_tolerance, noslip_iterations=noslip_iterations, sleep=sleep,
+        render_size=render_size, raise_on_physics_error=raise_on_physics_error,
+        lazy_cameras=lazy_cameras)
+    if source is None:
+        source = (sources.CurriculumLevels() if difficulty is None
+                  else sources.GeneratedLevels(difficulty))
     task = Mujoban(source, grid_shape=grid_shape, max_boxes=source.max_boxes, pegs=pegs,
                    top_camera=top_camera, egocentric_camera=egocentric_camera,
                    randomize_appearance=randomize_appearance, time_limit=time_limit,
@@ -86,6 +89,52 @@ def make(*, difficulty: int | None = None, pegs: bool = False, seed: int | None 
                    sleep=sleep, render_size=render_size)
     return Environment(task, seed=seed, raise_on_physics_error=raise_on_physics_error,
                        lazy_cameras=lazy_cameras)
+
+
+def check_config(*, difficulty=None, pegs=False, seed=None, levels=None,
+                 level_order="sequential", grid_shape=sources.ARENA_SHAPE, top_camera=(96, 96),
+                 egocentric_camera=(96, 96), randomize_appearance=True, time_limit=45.0,
+                 control_timestep=0.05, physics_timestep=0.001, pad_tolerance=0.1,
+                 noslip_iterations=5, sleep=False, render_size=(256, 256),
+                 raise_on_physics_error=True, lazy_cameras=False):
+    """Checks `make`'s arguments without building anything (`envs._config`).
+
+    Returns the `sources.FileLevels` of ``levels`` (read and checked against
+    the arena), or None without a file.
+
+    Raises:
+      TypeError, ValueError, LevelError: naming the bad setting and value.
+    """
+    if difficulty is not None:
+        _config.check_int("difficulty", difficulty, 1, 5)
+    _config.check_bool("pegs", pegs)
+    _config.check_common(seed, render_size, raise_on_physics_error, lazy_cameras)
+    _config.check_choice("level_order", level_order, ("sequential", "shuffle"))
+    grid = _config.check_pair("grid_shape", grid_shape, 3, _config.MAX_GRID_SIDE)
+    _config.check_camera("top_camera", top_camera)
+    _config.check_camera("egocentric_camera", egocentric_camera)
+    _config.check_bool("randomize_appearance", randomize_appearance)
+    _config.check_timing(time_limit, control_timestep, physics_timestep)
+    _config.check_real("pad_tolerance", pad_tolerance, low=0.0, low_open=True, high=0.5)
+    _config.check_int("noslip_iterations", noslip_iterations, 0, _config.MAX_NOSLIP_ITERATIONS)
+    _config.check_bool("sleep", sleep)
+    source = None
+    if levels is not None:
+        _config.check_path("levels", levels)
+        try:
+            source = sources.FileLevels(levels, shuffle=level_order == "shuffle")
+        except (OSError, UnicodeDecodeError) as exc:
+            raise LevelError(f"cannot read the level file: {exc}", path=str(levels)) from None
+        _check_file_fits(source, grid)
+        needed = None
+    elif difficulty is None:
+        needed = sources.ARENA_SHAPE
+    else:
+        needed = sources.GeneratedLevels(int(difficulty)).max_shape
+    if needed is not None and (grid[0] < needed[0] or grid[1] < needed[1]):
+        raise ValueError(f"grid_shape {_config._show(grid_shape)} is smaller than the "
+                         f"{needed[0]}x{needed[1]} levels of this environment")
+    return source
 
 
 def _check_file_fits(source: sources.FileLevels, grid_shape: tuple[int, int]) -> None:
@@ -131,10 +180,12 @@ def _register() -> None:
             register(EnvEntry(
                 f"mujoban/level{difficulty}{suffix}", make,
                 {"difficulty": difficulty, "pegs": pegs},
-                f"MuJoBan, generated difficulty-{difficulty} levels{peg_text}"))
+                f"MuJoBan, generated difficulty-{difficulty} levels{peg_text}",
+                validate=check_config))
         register(EnvEntry(
             f"mujoban/curriculum{suffix}", make, {"difficulty": None, "pegs": pegs},
-            f"MuJoBan, the paper's 5-level training curriculum{peg_text}"))
+            f"MuJoBan, the paper's 5-level training curriculum{peg_text}",
+            validate=check_config))
 
 
 _register()

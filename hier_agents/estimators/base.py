@@ -40,5 +40,8 @@ class Estimator(abc.ABC):
     def estimate(self, timestep):
         """The scene now. Raises `EstimationError` when it cannot be made."""
 
+    def close(self) -> None:
+        """Frees external resources (none by default). Idempotent."""
+
     def __repr__(self) -> str:
         return f"{type(self).__name__}()"

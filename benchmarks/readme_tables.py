@@ -1,0 +1,278 @@
+"""Every results table of the README, generated from the JSON committed under results/.
+
+    python benchmarks/readme_tables.py            # print every table
+    python benchmarks/readme_tables.py --check    # exit 1 naming each table that disagrees
+    python benchmarks/readme_tables.py --write    # rewrite the tables in README.md
+
+A table lives in the README between marker comments::
+
+    <!-- table:NAME -->
+    | ... generated Markdown ... |
+    <!-- /table:NAME -->
+
+and is produced by the generator registered under NAME (`TABLES`). To add a
+table, write a function that returns its Markdown lines from files under
+``results/`` and decorate it with ``@table("NAME")``; put the markers in the
+README and run ``--write``. Nothing is measured here: every number comes from
+a JSON that records its command, commit, date and machine (`provenance`).
+``--check`` also fails when a registered table has no markers in the README
+or the README has markers no generator knows.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import io
+import json
+import math
+import re
+import sys
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import agent_table  # noqa: E402
+
+#: name -> function(results_dir) -> list of Markdown lines.
+TABLES: dict[str, Callable[[Path], list[str]]] = {}
+
+
+def table(name: str):
+    """Registers a table generator under ``name`` (its README marker name)."""
+    def register(func):
+        if name in TABLES:
+            raise ValueError(f"table {name!r} is already registered")
+        TABLES[name] = func
+        return func
+    return register
+
+
+def _load(path: Path) -> dict:
+    return json.loads(path.read_text())
+
+
+# -- generators -----------------------------------------------------------------
+
+
+@table("agent-results")
+def agent_results(results: Path) -> list[str]:
+    """The modular agent's results: exactly what `benchmarks/agent_table.py`
+    prints from results/agent/ (its file order and labels)."""
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        code = agent_table.main(["--dir", str(results / "agent")])
+    if code:
+        raise RuntimeError(f"benchmarks/agent_table.py exited with {code}")
+    return out.getvalue().splitlines()
+
+
+#: execution_time JSONs in the README's order: (file under results/, ball skill).
+#: ``execution_time_before/`` holds the runs with the ball skill of issue 13
+#: (it stopped after every stroke; the time model's first weights).
+EXECUTION_TIME_FILES = (
+    ("execution_time_before/execution_time_medium.json", "issue 13"),
+    ("execution_time_before/execution_time_medium_time-planner.json", "issue 13"),
+    ("execution_time_medium.json", "chained"),
+    ("execution_time_medium_time-planner.json", "chained"),
+    ("execution_time_medium_time-planner_oracle.json", "chained"),
+    ("execution_time_before/execution_time_unfiltered.json", "issue 13"),
+    ("execution_time_before/execution_time_unfiltered_time-planner.json", "issue 13"),
+    ("execution_time_unfiltered_time-planner.json", "chained"),
+)
+
+
+@table("execution-time")
+def execution_time(results: Path) -> list[str]:
+    """Real Boxoban levels against the clock (`benchmarks/execution_time.py`)."""
+    lines = ["| levels (pegs) | planner | ball skill | estimator | solved [95% CI] "
+             "| control steps per push "
+             "| share of the limit used, solved levels (median / p90 / max) "
+             "| time model: estimate - measured, mean / mean abs (solved levels) |",
+             "| --- | --- | --- | --- | --- | --- | --- | --- |"]
+    runs = [(_load(results / name)["summary"], skill) for name, skill in EXECUTION_TIME_FILES]
+    for s, skill in runs:
+        # A run whose fitted weights are the ones other runs used: the model
+        # was fitted on it, so its estimate error is not out of sample.
+        used_elsewhere = [o["default_weights"] for o, _ in runs if o is not s]
+        label = f"`{s['levels_file']}`, first {s['levels']}"
+        planner = f"`{s.get('planner') or 'sokoban-solver'}`"
+        estimator = s["estimator"] + (" (**privileged**)" if s.get("privileged") else "")
+        low, high = s["success_interval"]
+        solved = f"{100 * s['success_rate']:.1f}% [{100 * low:.1f}, {100 * high:.1f}]"
+        share = s["limit_share_solved"]
+        shares = " / ".join(f"{100 * share[k]:.0f}%" for k in ("median", "p90", "max"))
+        fitted = s.get("fitted_weights")
+        if fitted and any(_same_weights(fitted, w) for w in used_elsewhere) and \
+                not _same_weights(s["default_weights"], fitted):
+            error = "the weights were fitted on this run"
+        else:
+            err = s["estimate_error_solved"]
+            error = f"{err['mean']:+.0f} / {err['mean_abs']:.0f}".replace("+-", "-")
+            if error.startswith("-0 ") or error.startswith("+0 "):
+                error = "0" + error[2:]
+        lines.append(f"| {label} | {planner} | {skill} | {estimator} | {solved} | "
+                     f"{s['mean_steps_per_push']:.1f} | {shares} | {error} |")
+    return lines
+
+
+def _same_weights(a: dict, b: dict) -> bool:
+    keys = ("walk", "push", "stroke", "turn")
+    return all(abs(float(a[k]) - float(b[k])) < 0.05 for k in keys)
+
+
+def _whole(value: float) -> str:
+    """Rounded half up, thousands separated (470.5 -> "471")."""
+    return f"{math.floor(value + 0.5):,}"
+
+
+def _span(values, fmt=None) -> str:
+    show = _whole if fmt is None else fmt.format
+    low, high = show(min(values)), show(max(values))
+    return low if low == high else f"{low}-{high}"
+
+
+def _speed_row(label: str, rows: list[dict], *, ratio: bool, original: bool,
+               level5: bool, level5_original: bool = False) -> str:
+    steps = _span([r["steps_per_s"] for r in rows])
+    fives = [r for r in rows if r["env"].startswith("mujoban/level5")]
+    if level5 and fives:
+        steps += f" (level 5: {_span([r['steps_per_s'] for r in fives])})"
+    limit = _span([r["ratio"] for r in rows], "{:.2f}") if ratio else "-"
+    times = "-"
+    known = [r for r in rows if r.get("x_original")]
+    if original and known:
+        theirs = float(np.median([r["steps_per_s"] / r["x_original"] for r in known]))
+        times = f"{_span([r['x_original'] for r in known], '{:.1f}')}x its ~{theirs:.0f}"
+        fives = [r for r in known if r["env"].startswith("mujoban/level5")]
+        if level5_original and fives:
+            times += f" (level 5: {_span([r['x_original'] for r in fives], '{:.1f}')}x)"
+    reset = _span([1000 * r["reset_s"] for r in rows]) + " ms"
+    return f"| {label} | {steps} | {limit} | {times} | {reset} |"
+
+
+@table("env-speed")
+def env_speed(results: Path) -> list[str]:
+    """Control steps/s of every environment (`benchmarks/env_speed.py`), cameras off and on."""
+    rows = _load(results / "env_speed.json")["rows"]
+    both = _load(results / "env_speed_both_cameras.json")["rows"]
+    mujoban = [r for r in rows if r["env"].startswith("mujoban/")]
+    boards = [r for r in rows if not r["env"].startswith("mujoban/")]
+    cams = lambda group, cameras: [r for r in group if r["cameras"] == cameras]  # noqa: E731
+    return ["| setting | steps/s | physics limit ratio | x the original (same timestep, same "
+            "cameras) | reset |",
+            "| --- | --- | --- | --- | --- |",
+            _speed_row("MuJoBan, cameras off, levels 1-5 with and without pegs",
+                       cams(mujoban, []), ratio=True, original=True, level5=True,
+                       level5_original=True),
+            _speed_row("MuJoBan, 96x96 top camera", cams(mujoban, ["top_camera"]),
+                       ratio=False, original=True, level5=True),
+            _speed_row("MuJoBan, both 96x96 cameras (the default observations), level 5", both,
+                       ratio=False, original=False, level5=False),
+            _speed_row("MuJoXO / MuJoGo, cameras off", cams(boards, []), ratio=True,
+                       original=False, level5=False),
+            _speed_row("MuJoXO / MuJoGo, 84x84 front camera (the paper's one camera)",
+                       cams(boards, ["front_camera"]), ratio=False, original=False, level5=False),
+            _speed_row("MuJoXO / MuJoGo, two 84x84 views (the original code's set)",
+                       cams(boards, ["front_camera", "second_view"]), ratio=False, original=True,
+                       level5=False)]
+
+
+@table("learner-speed")
+def learner_speed(results: Path) -> list[str]:
+    """Actor-learner frames/s against as many bare environment processes stepping at once."""
+    s = _load(results / "learner_speed.json")
+    procs = s["actors"]
+    words = {1: "one", 2: "two", 3: "three", 4: "four"}.get(procs, str(procs))
+    return ["| run | learner frames/s | bare environment processes at once | ratio to them "
+            "| one bare process | ratio to it |",
+            "| --- | --- | --- | --- | --- | --- |",
+            f"| `{s['env']}` {s['agent']}, cameras {'on' if s['cameras'] else 'off'}, "
+            f"{procs} actors x {s['envs_per_actor']} envs ({s['backend']}) "
+            f"| {s['learner_frames_per_s']:,.0f} | {words}: {s['parallel_env_steps_per_s']:,.0f} "
+            f"steps/s | **{s['ratio_to_parallel']:.2f}** | {s['env_steps_per_s']:,.0f} steps/s "
+            f"| {s['ratio']:.2f} |"]
+
+
+# -- README markers ---------------------------------------------------------------
+
+_BLOCK = re.compile(r"(<!-- table:(?P<name>[\w.-]+) -->\n)(?P<body>.*?)(<!-- /table:(?P=name) -->)",
+                    re.DOTALL)
+_OPEN = re.compile(r"<!-- table:([\w.-]+) -->")
+
+
+def generate(results: Path) -> dict[str, str]:
+    """Every registered table's Markdown, by name."""
+    return {name: "\n".join(func(results)) + "\n" for name, func in TABLES.items()}
+
+
+def check(readme_text: str, tables: dict[str, str]) -> list[str]:
+    """Problems: tables that differ from the README, missing or unknown markers."""
+    found = {m.group("name"): m.group("body") for m in _BLOCK.finditer(readme_text)}
+    problems = []
+    for name in _OPEN.findall(readme_text):
+        if name not in found:
+            problems.append(f"table {name!r}: no closing <!-- /table:{name} --> marker")
+        elif name not in tables:
+            problems.append(f"table {name!r}: no generator registered in "
+                            f"benchmarks/readme_tables.py")
+    for name, text in tables.items():
+        if name not in found:
+            problems.append(f"table {name!r}: no <!-- table:{name} --> markers in the README")
+        elif found[name] != text:
+            problems.append(f"table {name!r}: the README differs from the results JSON "
+                            f"(run `python benchmarks/readme_tables.py --write`)")
+    return problems
+
+
+def write(readme_text: str, tables: dict[str, str]) -> str:
+    def replace(match):
+        name = match.group("name")
+        if name not in tables:
+            return match.group(0)
+        return match.group(1) + tables[name] + match.group(4)
+    return _BLOCK.sub(replace, readme_text)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    mode = parser.add_mutually_exclusive_group()
+    mode.add_argument("--check", action="store_true",
+                      help="exit 1 when a README table disagrees with the JSON")
+    mode.add_argument("--write", action="store_true", help="rewrite the README's tables")
+    parser.add_argument("--readme", type=Path, default=ROOT / "README.md")
+    parser.add_argument("--results", type=Path, default=ROOT / "results")
+    parser.add_argument("--table", action="append", choices=sorted(TABLES),
+                        help="only this table (repeatable)")
+    args = parser.parse_args(argv)
+    tables = generate(args.results)
+    if args.table:
+        tables = {k: v for k, v in tables.items() if k in args.table}
+    if not (args.check or args.write):
+        for name, text in tables.items():
+            print(f"<!-- table:{name} -->\n{text}<!-- /table:{name} -->\n")
+        return 0
+    text = args.readme.read_text()
+    if args.write:
+        new = write(text, tables)
+        missing = [name for name in tables if f"<!-- table:{name} -->" not in new]
+        args.readme.write_text(new)
+        print(f"wrote {len(tables) - len(missing)} table(s) to {args.readme}")
+        for name in missing:
+            print(f"table {name!r} has no markers in {args.readme}; add "
+                  f"<!-- table:{name} --> and <!-- /table:{name} --> around it", file=sys.stderr)
+        return 1 if missing else 0
+    problems = check(text, tables)
+    for problem in problems:
+        print(problem, file=sys.stderr)
+    if not problems:
+        print(f"{len(tables)} README table(s) agree with {args.results}")
+    return 1 if problems else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

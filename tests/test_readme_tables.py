@@ -1,0 +1,54 @@
+"""benchmarks/readme_tables.py: every README results table agrees with the committed JSON."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+import readme_tables  # noqa: E402
+
+
+def test_the_readme_tables_agree_with_the_results_json():
+    result = subprocess.run([sys.executable, "benchmarks/readme_tables.py", "--check"], cwd=ROOT,
+                            capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+
+
+def test_check_names_the_table_that_disagrees(tmp_path):
+    # A README whose tables are all generated, then one number changed.
+    text = readme_tables.write((ROOT / "README.md").read_text(),
+                               readme_tables.generate(ROOT / "results"))
+    tampered = text.replace("| 47.7 |", "| 47.8 |", 1)
+    assert tampered != text
+    readme = tmp_path / "README.md"
+    readme.write_text(tampered)
+    result = subprocess.run([sys.executable, "benchmarks/readme_tables.py", "--check",
+                             "--readme", str(readme)], cwd=ROOT, capture_output=True, text=True)
+    assert result.returncode == 1
+    assert result.stderr.splitlines() == [
+        "table 'execution-time': the README differs from the results JSON "
+        "(run `python benchmarks/readme_tables.py --write`)"]
+    # --write repairs it.
+    assert readme_tables.main(["--write", "--readme", str(readme)]) == 0
+    assert readme.read_text() == text
+
+
+def test_markers_without_a_generator_and_generators_without_markers_are_reported():
+    tables = {"one": "| a |\n"}
+    text = "x\n<!-- table:one -->\n| a |\n<!-- /table:one -->\n<!-- table:two -->\n| b |\n" \
+           "<!-- /table:two -->\n"
+    assert readme_tables.check(text, tables) == [
+        "table 'two': no generator registered in benchmarks/readme_tables.py"]
+    assert "no <!-- table:three --> markers" in readme_tables.check(
+        text, {**tables, "three": "| c |\n"})[-1]
+    assert readme_tables.write(text, {"one": "| new |\n"}).count("| new |") == 1
+
+
+def test_every_table_generator_reads_only_results(tmp_path):
+    for name, func in readme_tables.TABLES.items():
+        lines = func(ROOT / "results")
+        assert lines[1].startswith("| ---"), name
