@@ -71,6 +71,11 @@ def _ball(description, seed):
     return BallSkill()
 
 
+def _learned_ball(description, seed):
+    from skills.learned import LearnedBallSkill
+    return LearnedBallSkill()
+
+
 def _arm(description, seed):
     from skills.arm import ArmTouchSkill
     return ArmTouchSkill()
@@ -86,7 +91,7 @@ PLANNERS: dict[str, dict[str, Factory]] = {
     "mujogo": {"gnugo": _gnugo, "mcts": _mcts, "random": _board_random},
 }
 SKILLS: dict[str, dict[str, Factory]] = {
-    "mujoban": {"ball": _ball},
+    "mujoban": {"ball": _ball, "learned-ball": _learned_ball},
     "mujoxo": {"arm-touch": _arm},
     "mujogo": {"arm-touch": _arm},
 }

@@ -1,0 +1,101 @@
+"""Training the ball skill (`hier_agents.train_skill`) and the shipped policy."""
+
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from hier_agents.train_skill import Agent, TorchPolicy, evaluate, main
+from skills.learned import POLICY_PATH, LearnedBallSkill, load_policy
+
+
+def test_shipped_checkpoint_loads():
+    assert POLICY_PATH.exists()
+    assert POLICY_PATH.stat().st_size < 2_000_000
+    policy = load_policy()
+    out = policy(np.zeros(12))
+    assert out.shape == (2,) and np.all(np.isfinite(out))
+
+
+def test_shipped_checkpoint_solves_a_level1_episode():
+    """Observation-only: the camera estimator behind the boundary."""
+    from hier_agents.run import run
+    summary = run("mujoban/level1", 1, seed=0, skill="learned-ball", progress=False)
+    assert summary["privileged"] is False
+    assert summary["rows"][0]["solved"], summary["rows"][0]
+
+
+def test_numpy_policy_matches_torch():
+    agent = Agent()
+    from skills.learned.ball import NumpyPolicy
+    numpy_policy = NumpyPolicy(agent.actor.state_dict())
+    x = np.random.default_rng(0).normal(size=(5, 12)).astype(np.float32)
+    with torch.no_grad():
+        expected = agent.actor(torch.as_tensor(x)).numpy()
+    got = np.array([numpy_policy(row) for row in x])
+    np.testing.assert_allclose(got, expected, atol=1e-5)
+
+
+def test_teacher_mode_is_the_scripted_skill():
+    """`LearnedBallSkill("teacher")` acts exactly as `BallSkill`."""
+    import envs
+    from abstract_planners.sokoban_solver import SokobanSolverPlanner
+    from hier_agents.estimators import OracleEstimator
+    from skills.ball import BallSkill
+    actions = []
+    for skill in (BallSkill(), LearnedBallSkill("teacher")):
+        env = envs.load("mujoban/level2", seed=4, **envs.no_cameras("mujoban/level2"))
+        est = OracleEstimator(env)
+        ts = env.reset()
+        est.reset(env.description(), ts)
+        scene = est.estimate(ts)
+        skill.reset(env.description(), SokobanSolverPlanner().next_push(scene.state), scene)
+        seq = []
+        for _ in range(30):
+            a = skill.act(ts, scene)
+            seq.append(a)
+            ts = env.step(a)
+            scene = est.estimate(ts)
+        actions.append(np.array(seq))
+    np.testing.assert_allclose(actions[0], actions[1], atol=1e-12)
+
+
+def test_cli_trains_checkpoints_and_resumes(tmp_path, capsys):
+    args = ["ball", "--steps", "400", "--bc-steps", "100", "--dagger-steps", "100",
+            "--rollout", "50", "--envs", "2",
+            "--logdir", str(tmp_path), "--eval-episodes", "2", "--seed", "1"]
+    assert main(args) == 0
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["frames"] == 400 and summary["bc_frames"] == 200
+    assert (tmp_path / "checkpoint.pt").exists()
+    assert (tmp_path / "progress.csv").read_text().count("\n") == 3  # header + 2 iterations
+    load_policy(tmp_path / "ball_policy.pt")
+    assert any(p.name.startswith("events.out.tfevents") for p in tmp_path.iterdir())
+    out = capsys.readouterr().out
+    assert "95% Wilson" in out
+    # Resume: two more iterations from the checkpoint, no second BC.
+    assert main(args[:2] + ["600"] + args[3:] + ["--resume"]) == 0
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["frames"] == 600 and summary["iterations"] == 4
+    assert "resumed" in capsys.readouterr().out
+
+
+@pytest.mark.slow
+def test_short_training_improves_option_success(tmp_path):
+    """A short seeded run (BC warm start + a few PPO iterations, ~3 minutes)
+    beats the untrained policy on held-out options."""
+    torch.manual_seed(0)
+    untrained = evaluate(TorchPolicy(Agent()), 20, seed=123, sources=("mujoban/level2",))
+    assert main(["ball", "--steps", "6000", "--bc-steps", "3000", "--dagger-steps", "1000",
+                 "--rollout", "250",
+                 "--envs", "2", "--logdir", str(tmp_path), "--eval-episodes", "1"]) == 0
+    policy = _policy(tmp_path)
+    trained = evaluate(lambda obs, info: policy(obs), 20, seed=123, sources=("mujoban/level2",))
+    assert trained["success"] >= untrained["success"] + 0.3, (untrained, trained)
+
+
+def _policy(path):
+    from skills.learned.ball import SIGN, env_action
+    policy = load_policy(path / "ball_policy.pt")
+    return lambda obs: env_action(policy(obs), float(obs[SIGN]))
