@@ -3,8 +3,9 @@
     python benchmarks/agent_table.py [--dir results/agent]
 
 Reads every ``hier_agents.run --json`` file under ``DIR`` and
-``DIR/time-planner`` (observation-only rows; the latter with
-``--planner sokoban-solver:time``) and ``DIR/oracle`` (privileged rows) and
+``DIR/push-planner`` (observation-only rows; the latter with the exact
+push solver, ``--planner sokoban-solver``, instead of MuJoBan's default, the
+execution-time planner) and ``DIR/oracle`` (privileged rows) and
 prints a Markdown table: one row per file, observation-only rows first,
 each naming its estimator and whether it read the simulator. Nothing is measured here; every number comes
 from a file that records its command, commit and date.
@@ -16,6 +17,9 @@ import argparse
 import json
 import sys
 from pathlib import Path
+
+#: MuJoBan's default planner (`hier_agents.components.PLANNERS`); rows name any other.
+DEFAULT_MUJOBAN_PLANNER = "sokoban-solver:time"
 
 #: The paper's best end-to-end RL result per environment (Mirza et al. 2020).
 PAPER = {"mujoban/level1": "100%", "mujoban/level1-pegs": "100%", "mujoban/level2": "100%",
@@ -35,7 +39,7 @@ def row(path: Path) -> str:
     levels = [a for a in s.get("provenance", {}).get("command", "").split() if a.endswith(".txt")]
     label = f"`{name}`" + (f" on `{Path(levels[0]).name}` (first {s['episodes']})"
                            if levels else "")
-    if s.get("planner") not in (None, "sokoban-solver", "-") and name.startswith("mujoban"):
+    if s.get("planner") not in (None, DEFAULT_MUJOBAN_PLANNER, "-") and name.startswith("mujoban"):
         label += f", planner `{s['planner']}`"
     options = s.get("env_options") or {}
     if options:
@@ -66,7 +70,7 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     files = sorted(args.dir.glob("*.json"), key=_order)
     oracle = sorted((args.dir / "oracle").glob("*.json"), key=_order)
-    files += sorted((args.dir / "time-planner").glob("*.json"), key=_order)
+    files += sorted((args.dir / "push-planner").glob("*.json"), key=_order)
     if not files and not oracle:
         parser.error(f"no JSON files under {args.dir}")
     print("| environment | estimator | solved / won [95% CI] | mean steps | subgoal success "

@@ -2,17 +2,19 @@
 
     python benchmarks/execution_time.py [--levels FILE] [--episodes N] [--seed S]
                                         [--estimator camera|oracle] [--no-pegs]
-                                        [--planner sokoban-solver|sokoban-solver:time]
+                                        [--planner sokoban-solver:time|sokoban-solver]
                                         [--fit] [--json PATH]
 
 Plays the first ``--episodes`` levels of a Boxoban file in order (default:
 the shipped ``medium-valid-000.txt``, 100 levels) in ``mujoban/level5-pegs``
 (``--no-pegs``: ``mujoban/level5``) with the modular agent (default: the
 observation-only ``camera`` estimator; ``oracle`` is privileged and says so),
-the Sokoban solver and the ball skill, exactly as ``python -m hier_agents.run
-mujoban/level5-pegs --levels FILE`` does. Per level it records:
+a Sokoban planner (default: MuJoBan's, the execution-time planner
+``sokoban-solver:time``; ``sokoban-solver`` is the exact push solver) and the
+ball skill, exactly as ``python -m hier_agents.run mujoban/level5-pegs
+--levels FILE`` does. Per level it records:
 
-* ``pushes`` / ``moves``: of the solver's first solution from the start;
+* ``pushes`` / ``moves``: of the planner's first plan from the start;
 * ``features``: `abstract_planners.sokoban_time.plan_features` of that
   solution (walking moves, pushes, pushing strokes, turns);
 * ``estimated_steps``: `estimate_steps` with the library's default weights;
@@ -49,7 +51,7 @@ from abstract_planners.sokoban_time import (DEFAULT_WEIGHTS, FEATURES, estimate_
                                             fit_weights, plan_features)
 from envs.mujoban.levels import BOXOBAN_DIR, read_levels  # noqa: E402
 from hier_agents.boundary import BoundaryEnv  # noqa: E402
-from hier_agents.components import env_overrides, is_privileged, make_agent  # noqa: E402
+from hier_agents.components import PLANNERS, env_overrides, is_privileged, make_agent  # noqa: E402
 from hier_agents.stats import wilson_interval  # noqa: E402
 
 DEFAULT_LEVELS = BOXOBAN_DIR / "medium-valid-000.txt"
@@ -122,8 +124,9 @@ def main(argv=None) -> int:
     parser.add_argument("--episodes", type=int, default=100, help="levels from the file's start")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--estimator", default="camera")
-    parser.add_argument("--planner", default="sokoban-solver",
-                        help="sokoban-solver (pushes) or sokoban-solver:time (estimated time)")
+    parser.add_argument("--planner", default=None,
+                        help="sokoban-solver:time (estimated time; the default) or "
+                             "sokoban-solver (the exact push solver)")
     parser.add_argument("--no-pegs", action="store_true")
     parser.add_argument("--fit", action="store_true", help="fit the time model's weights")
     parser.add_argument("--json", type=Path)
@@ -156,10 +159,11 @@ def main(argv=None) -> int:
     finally:
         env.close()
     summary = summarise(rows, args.fit)
+    planner = args.planner or next(iter(PLANNERS["mujoban"]))
     summary.update(env=name, levels_file=args.levels.name, estimator=args.estimator,
-                   planner=args.planner, privileged=privileged, seed=args.seed)
+                   planner=planner, privileged=privileged, seed=args.seed)
     low, high = summary["success_interval"]
-    print(f"{args.levels.name}, first {len(rows)} levels, {name}, planner {args.planner}, "
+    print(f"{args.levels.name}, first {len(rows)} levels, {name}, planner {planner}, "
           f"estimator {args.estimator}{' (PRIVILEGED)' if privileged else ''}")
     print(f"  solved              {100 * summary['success_rate']:.1f}% "
           f"[{100 * low:.1f}, {100 * high:.1f}]")

@@ -59,3 +59,13 @@ def test_the_benchmark_writes_a_row_per_level_with_its_keys(tmp_path):
         assert {"pushes", "moves", "features", "estimated_steps", "steps", "steps_per_push",
                 "limit_share", "solved"} <= set(row)
         assert row["limit_share"] == pytest.approx(row["steps"] / 900, abs=1e-4)
+
+
+def test_the_results_table_names_any_planner_but_mujobans_default():
+    from hier_agents.components import PLANNERS
+
+    spec = importlib.util.spec_from_file_location("agent_table", ROOT / "benchmarks" /
+                                                  "agent_table.py")
+    table = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(table)
+    assert table.DEFAULT_MUJOBAN_PLANNER == next(iter(PLANNERS["mujoban"]))
