@@ -174,7 +174,12 @@ def play_game(env, planner, skill, t_abs: int, stats: dict) -> dict:
         state = estimator.estimate(timestep).state
     except EstimationError:
         state = scene.state if scene is not None else None
-    if state is not None and state.is_terminal():
+    # The harness judges with the task's outcome (an opponent's resignation
+    # is a win; the agent's estimate cannot see a resignation).
+    outcome = getattr(env.task, "outcome", None)
+    if outcome is not None:
+        result = outcome
+    elif state is not None and state.is_terminal():
         value = state.returns()[0]
         result = "win" if value > 0 else "loss" if value < 0 else "draw"
     elif description.game == "go":

@@ -456,7 +456,7 @@ class AgentEnv:
         if self._mujoban:
             success = bool(task.solved)
         else:
-            success = bool(task.game_over and task.state.returns()[0] > 0)
+            success = task.outcome == "win"  # a resignation by the opponent included
         info = {"episode_return": self._return, "episode_steps": self._steps,
                 "success": success,
                 "truncated": not terminated and self.env.step_count >= task.time_limit_steps}

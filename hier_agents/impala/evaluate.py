@@ -33,8 +33,9 @@ def _outcome_row(row: dict, task, fam: str) -> dict:
     if fam == "mujoban":
         row["solved"] = bool(task.solved)
     else:
-        value = task.state.returns()[0] if task.state.is_terminal() else -1.0
-        row["outcome"] = "win" if value > 0 else ("draw" if value == 0 else "loss")
+        # The task's outcome counts an opponent's resignation as a win; a
+        # game still running counts as lost.
+        row["outcome"] = task.outcome or "loss"
     return row
 
 
