@@ -16,6 +16,21 @@ def _solver_action(env, info):
     return env._moves.index(move)
 
 
+def _record_rewards(env) -> list:
+    """Records the reward of every control step the simulator takes (OptionEnv
+    steps it through the boundary)."""
+    rewards = []
+    step = env._env.step
+
+    def recording_step(action):
+        timestep = step(action)
+        rewards.append(float(timestep.reward or 0.0))
+        return timestep
+
+    env._env.step = recording_step
+    return rewards
+
+
 def test_gymnasium_check_env_passes_on_mujoban_and_mujoxo():
     for name in ("mujoban/level1", "mujoxo/mixture"):
         env = OptionEnv(name, estimator="oracle" if name.startswith("mujoban") else None,
@@ -28,15 +43,7 @@ def test_gymnasium_check_env_passes_on_mujoban_and_mujoxo():
 
 def test_durations_add_up_to_the_episode_and_rewards_to_its_return():
     env = OptionEnv("mujoban/level2", seed=3, gamma=1.0)  # observation-only (camera)
-    rewards = []
-    step = env._env.step  # the simulator's (OptionEnv steps it through the boundary)
-
-    def recording_step(action):
-        timestep = step(action)
-        rewards.append(float(timestep.reward or 0.0))
-        return timestep
-
-    env._env.step = recording_step
+    rewards = _record_rewards(env)
     try:
         obs, info = env.reset(seed=3)
         assert obs.shape == env.observation_space.shape and info["steps"] == 0
@@ -59,15 +66,7 @@ def test_durations_add_up_to_the_episode_and_rewards_to_its_return():
 
 def test_the_option_reward_is_discounted_per_control_step():
     env = OptionEnv("mujoban/level1", estimator="oracle", seed=0, gamma=0.9)
-    rewards = []
-    step = env._env.step  # the simulator's (OptionEnv steps it through the boundary)
-
-    def recording_step(action):
-        timestep = step(action)
-        rewards.append(float(timestep.reward or 0.0))
-        return timestep
-
-    env._env.step = recording_step
+    rewards = _record_rewards(env)
     try:
         _, info = env.reset(seed=0)
         _, reward, *_ = env.step(_solver_action(env, info))

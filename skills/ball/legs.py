@@ -196,17 +196,22 @@ def box_index(cell, est_boxes) -> int:
     return -1
 
 
-def finish_leg(description, config: BallConfig, box_xy, est_boxes, here, blocked):
-    """A push leg that centres a box the walker left short, or None."""
-    size = float(description.cell_size)
-    px, py = here
-    tol = config.finish_tol * size
+def _box_offsets(description, box_xy, est_boxes):
+    """Per estimated box: (index, cell, (x, y), offset (x, y) from its cell centre)."""
     for i, (bx, by) in enumerate(box_xy):
         if i >= len(est_boxes):
             break
         cell = tuple(est_boxes[i])
         cx, cy = map(float, description.cell_centre(*cell))
-        ox, oy = bx - cx, by - cy
+        yield i, cell, (bx, by), (bx - cx, by - cy)
+
+
+def finish_leg(description, config: BallConfig, box_xy, est_boxes, here, blocked):
+    """A push leg that centres a box the walker left short, or None."""
+    size = float(description.cell_size)
+    px, py = here
+    tol = config.finish_tol * size
+    for i, cell, (bx, by), (ox, oy) in _box_offsets(description, box_xy, est_boxes):
         if max(abs(ox), abs(oy)) <= tol:
             continue
         if abs(ox) >= abs(oy):
@@ -231,15 +236,9 @@ def centre_leg(description, config: BallConfig, box_xy, est_boxes, state, here, 
     """A walk to behind a box further than ``finish_tol`` from its cell centre
     and the short push that centres it (the largest offset first), or None
     when every box is centred or none can be reached from behind."""
-    size = float(description.cell_size)
-    tol = config.finish_tol * size
+    tol = config.finish_tol * float(description.cell_size)
     offsets = []
-    for i, (bx, by) in enumerate(box_xy):
-        if i >= len(est_boxes):
-            break
-        cell = tuple(est_boxes[i])
-        cx, cy = map(float, description.cell_centre(*cell))
-        ox, oy = bx - cx, by - cy
+    for i, cell, _, (ox, oy) in _box_offsets(description, box_xy, est_boxes):
         for off, move in ((ox, "L" if ox > 0 else "R"), (oy, "D" if oy > 0 else "U")):
             if abs(off) > tol:
                 offsets.append((abs(off), i, cell, move))
