@@ -63,9 +63,9 @@ import numpy as np  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
 import envs  # noqa: E402
-from envs.mujoban.levels import BOXOBAN_DIR  # noqa: E402
 from hier_agents.boundary import BoundaryEnv  # noqa: E402
-from hier_agents.components import env_overrides, is_privileged, make_agent  # noqa: E402
+from hier_agents.components import is_privileged, make_agent  # noqa: E402
+from hier_agents.option_envs import make_source_env  # noqa: E402
 
 MUJOBAN = [f"mujoban/level{d}{p}" for p in ("", "-pegs") for d in range(1, 6)]
 BOXOBAN = ["boxoban/unfiltered-valid-000", "boxoban/unfiltered-valid-000-pegs"]
@@ -73,19 +73,9 @@ BOXOBAN = ["boxoban/unfiltered-valid-000", "boxoban/unfiltered-valid-000-pegs"]
 
 def make_env(name: str, seed: int, estimator: str = "oracle"):
     """The environment of a benchmark name (see the module docstring), with
-    the cameras the estimator reads (none for the oracle)."""
-    cameras = env_overrides("mujoban/level1", estimator)
-    if name.startswith("boxoban/"):
-        stem = name[len("boxoban/"):]
-        pegs = stem.endswith("-pegs")
-        if pegs:
-            stem = stem[: -len("-pegs")]
-        path = BOXOBAN_DIR / f"{stem}.txt"
-        if not path.exists():
-            raise ValueError(f"{name}: no level file {path}")
-        base = "mujoban/level5-pegs" if pegs else "mujoban/level5"
-        return envs.load(base, seed=seed, levels=str(path), **cameras)
-    return envs.load(name, seed=seed, **cameras)
+    the cameras the estimator reads (none for the oracle); the option
+    environments' `make_source_env`."""
+    return make_source_env(name, seed, estimator)
 
 
 def run_episode(view, agent) -> dict:
