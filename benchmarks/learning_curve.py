@@ -79,7 +79,8 @@ def target_sensitivity(path: Path, seed: int, steps: int = 300) -> float | None:
         return None
     k = spec.planner_action_dim
     with AgentEnv(config["env"], config["condition"], seed=seed, cameras=config["cameras"],
-                  image_size=config["image_size"], t_abs=config["t_abs"],
+                  image_size=config["image_size"], state=config.get("state", False),
+                  t_abs=config["t_abs"],
                   abs_reward=config["abs_reward"], **config.get("env_overrides", {})) as env:
         obs = env.reset()
         state, first, spreads = net.initial_state(k), np.ones(k, bool), []

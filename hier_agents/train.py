@@ -54,6 +54,9 @@ def main(argv=None) -> int:
     parser.add_argument("--abs-reward", type=float, default=1.0,
                         help="auxiliary reward for reaching the planner's target")
     parser.add_argument("--cameras", action="store_true", help="feed 96x96 camera images")
+    parser.add_argument("--state", action="store_true",
+                        help="feed the current abstract state at every step (MuJoBan: "
+                             "full_entity_layer, privileged; not in the paper)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--checkpoint-every", type=float, default=300.0, help="seconds")
     parser.add_argument("--keep-checkpoints", action="store_true",
@@ -78,7 +81,7 @@ def main(argv=None) -> int:
                          logdir=args.logdir, unroll_length=args.unroll_length,
                          batch_size=args.batch_size, learning_rate=args.learning_rate,
                          entropy_cost=args.entropy_cost, abs_reward=args.abs_reward,
-                         cameras=args.cameras, seed=args.seed,
+                         cameras=args.cameras, state=args.state, seed=args.seed,
                          checkpoint_every_s=args.checkpoint_every, log_every_s=args.log_every,
                          keep_checkpoints=args.keep_checkpoints,
                          progress=not args.no_progress)

@@ -31,6 +31,8 @@ def _check_obs(env: AgentEnv, obs: dict) -> None:
         expected.add("planner")
     if spec.planner_action_dim:
         expected.add("planner_action")
+    if spec.state_shape is not None:
+        expected.add("state")
     assert set(obs) == expected
     assert obs["proprio"].shape == (spec.proprio_dim,) and obs["proprio"].dtype == np.float32
     assert np.all(np.isfinite(obs["proprio"]))
@@ -331,3 +333,24 @@ def test_unknown_condition_or_family_raises_value_error():
         assert condition in str(error.value)
     with pytest.raises(ValueError, match="mujoban"):
         AgentEnv("cartpole/swingup")
+
+
+@pytest.mark.parametrize("name, key", [("mujoban/level1", "full_entity_layer"),
+                                       ("mujoxo/mixture", "board_state")])
+@pytest.mark.parametrize("condition", ["vanilla", "expert-planner"])
+def test_state_input_is_the_current_abstract_state_at_every_step(name, key, condition):
+    with AgentEnv(name, condition, seed=3, cameras=False, state=True) as env:
+        obs = env.reset()
+        _check_obs(env, obs)
+        c = env.input_spec.state_shape[0]
+        rng = np.random.default_rng(0)
+        for _ in range(60):
+            truth = env.timestep.observation[key].transpose(2, 0, 1)
+            assert obs["state"].shape == (c, *truth.shape[1:]) and obs["state"].dtype == np.float32
+            np.testing.assert_array_equal(obs["state"], truth)
+            result = env.step(rng.uniform(-1, 1, env.input_spec.action_dim))
+            obs = result.obs
+            if result.last:
+                obs = env.reset()
+    with AgentEnv(name, condition, seed=3, cameras=False) as env:
+        assert env.input_spec.state_shape is None and "state" not in env.reset()

@@ -75,6 +75,21 @@ def test_the_checkpoint_plays_through_hier_agents_run(tmp_path, capsys):
     assert "checkpoint:" in capsys.readouterr().out
 
 
+def test_a_state_input_run_trains_resumes_only_as_state_and_plays(tmp_path):
+    logdir = tmp_path / "run"
+    train(TrainConfig(condition="vanilla", steps=10, logdir=str(logdir), state=True, **TINY))
+    ckpt = load_checkpoint(logdir / "checkpoint.pt")
+    assert ckpt["config"]["state"] is True and tuple(ckpt["input_spec"]["state_shape"]) == (4, 10, 10)
+    net, spec = net_from_checkpoint(ckpt)
+    assert spec.state_shape == (4, 10, 10) and net.state_encoder is not None
+    with pytest.raises(ValueError, match="state"):
+        train(TrainConfig(condition="vanilla", steps=20, logdir=str(logdir), state=False, **TINY))
+    out = tmp_path / "eval.json"
+    assert run_lib.main(["mujoban/level1", "--agent", f"checkpoint:{logdir}",
+                         "--episodes", "1", "--json", str(out)]) == 0
+    assert json.loads(out.read_text())["training_frames"] == 10
+
+
 @pytest.mark.parametrize("argv, message", [
     (["mujoban/level1", "--agent", "cheater"], "vanilla"),
     (["mujoban/nope"], "mujoban/level1"),

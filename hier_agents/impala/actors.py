@@ -54,13 +54,14 @@ class ActorConfig:
     envs_per_actor: int = 4
     cameras: bool = False
     image_size: int = 96
+    state: bool = False
     t_abs: int = 50
     abs_reward: float = 1.0
     seed: int = 0
     env_overrides: dict = dataclasses.field(default_factory=dict)
 
 
-_BINARY_KEYS = frozenset({"planner", "planner_action"})
+_BINARY_KEYS = frozenset({"planner", "planner_action", "state"})
 _POLL_S = 0.5  # how often a waiting learner checks for a stop request or a dead actor
 
 
@@ -99,6 +100,7 @@ class Actor:
         base = config.seed * 10_007 + actor_id * 101
         self.envs = [AgentEnv(config.env, config.condition, seed=base + i,
                               cameras=config.cameras, image_size=config.image_size,
+                              state=config.state,
                               t_abs=config.t_abs, abs_reward=config.abs_reward,
                               **config.env_overrides)
                      for i in range(config.envs_per_actor)]

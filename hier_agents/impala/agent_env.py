@@ -42,6 +42,13 @@ Observations (``obs``, a dict of fresh numpy arrays):
   southwards); the board games infer the move from the planes (the paper).
   Without an active target the target planes repeat the current ones and the
   one-hot is all zeros.
+* ``state=True`` (any condition): ``"state"`` float32 ``(C, H, W)``, the
+  current abstract state at every step (MuJoBan: the entity planes of
+  ``full_entity_layer``, C = 4, **privileged**: the simulator's rounded cells,
+  as the entity-layer estimator reads them; board games: ``board_state``,
+  C = 3). With ``cameras=False`` this is the "state" observation setting of
+  `benchmarks/compare_agents.py`: the agent sees the grid (or board) and its
+  proprioception, no images.
 
 Actions: ``step`` clips the policy's action to [-1, 1] and maps it affinely
 onto the environment's action bounds (MuJoBan [-1, 1]^2, the arm's joint
@@ -144,6 +151,7 @@ class InputSpec:
       planner_shape: ``(C, H, W)`` of ``"planner"``, None without a planner.
       planner_action_dim: length of the ``"planner_action"`` one-hot, 0 if absent.
       action_dim: action size A.
+      state_shape: ``(C, H, W)`` of ``"state"``, None unless ``state=True``.
     """
 
     images: tuple[tuple[str, tuple[int, int, int]], ...]
@@ -151,6 +159,7 @@ class InputSpec:
     planner_shape: tuple[int, int, int] | None
     planner_action_dim: int
     action_dim: int
+    state_shape: tuple[int, int, int] | None = None
 
 
 class StepResult(NamedTuple):
@@ -189,6 +198,8 @@ class AgentEnv:
       seed: seed of the environment and, per episode, of the planner.
       cameras: observe the paper's cameras (True) or render nothing (False).
         An explicit ``*_camera`` override in ``overrides`` wins either way.
+      state: also observe the current abstract state at every step
+        (``"state"``; privileged for MuJoBan, see the module docstring).
       image_size: side of the square camera images.
       t_abs: control steps of an auxiliary sub-episode (the paper's 50).
       abs_reward: auxiliary reward for reaching a target.
@@ -205,7 +216,8 @@ class AgentEnv:
     """
 
     def __init__(self, env_name: str, condition: str = "vanilla", *, seed: int | None = 0,
-                 cameras: bool = True, image_size: int = 96, t_abs: int = 50,
+                 cameras: bool = True, image_size: int = 96, state: bool = False,
+                 t_abs: int = 50,
                  abs_reward: float = 1.0, gamma_env: float | None = None,
                  gamma_abs: float | None = None, **overrides):
         if condition not in CONDITIONS:
@@ -273,13 +285,20 @@ class AgentEnv:
                     planner_shape = (6, n, n)
                 self._planes = np.zeros(planner_shape, np.float32)
                 self._onehot = np.zeros(planner_action_dim, np.float32)
+            self._state_key = None
+            state_shape = None
+            if state:
+                self._state_key = "full_entity_layer" if fam == "mujoban" else "board_state"
+                h, w, c = (int(v) for v in obs_spec[self._state_key].shape)
+                state_shape = (c, h, w)
         except BaseException:
             self.close()
             raise
         self.input_spec = InputSpec(images=images, proprio_dim=proprio_dim,
                                     planner_shape=planner_shape,
                                     planner_action_dim=planner_action_dim,
-                                    action_dim=int(np.prod(self._action_shape)))
+                                    action_dim=int(np.prod(self._action_shape)),
+                                    state_shape=state_shape)
         self._mujoban = fam == "mujoban"
         self._episode = -1
         self._needs_reset = True
@@ -380,6 +399,8 @@ class AgentEnv:
             obs["planner"] = self._planes.copy()
             if self._mujoban:
                 obs["planner_action"] = self._onehot.copy()
+        if self._state_key is not None:
+            obs["state"] = observation[self._state_key].transpose(2, 0, 1).astype(np.float32)
         return obs
 
     def _check(self) -> tuple[bool, bool]:

@@ -111,7 +111,8 @@ def play_checkpoint(env_name: str, path: str, episodes: int, seed: int = 0, *,
     net, spec = net_from_checkpoint(ckpt)
     torch.set_num_threads(1)
     env = AgentEnv(env_name, config["condition"], seed=seed, cameras=config["cameras"],
-                   image_size=config["image_size"], t_abs=config["t_abs"],
+                   image_size=config["image_size"], state=config.get("state", False),
+                   t_abs=config["t_abs"],
                    abs_reward=config["abs_reward"], **config.get("env_overrides", {}))
     if env.input_spec != spec:
         env.close()

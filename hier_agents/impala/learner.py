@@ -65,6 +65,7 @@ class TrainConfig:
     entropy_cost: float = 1e-3
     cameras: bool = False
     image_size: int = 96
+    state: bool = False  # observe the current abstract state (AgentEnv(state=True))
     t_abs: int = 50
     abs_reward: float = 1.0
     seed: int = 0
@@ -205,8 +206,9 @@ def _spec_from_dict(d: dict):
 
     d = dict(d)
     d["images"] = tuple((name, tuple(shape)) for name, shape in d["images"])
-    if d.get("planner_shape") is not None:
-        d["planner_shape"] = tuple(d["planner_shape"])
+    for key in ("planner_shape", "state_shape"):
+        if d.get(key) is not None:
+            d[key] = tuple(d[key])
     return InputSpec(**d)
 
 
@@ -269,7 +271,7 @@ def train(config: TrainConfig) -> dict:
 
     # The input spec comes from one environment built here (closed at once).
     probe = AgentEnv(config.env, config.condition, seed=config.seed, cameras=config.cameras,
-                     image_size=config.image_size, t_abs=config.t_abs,
+                     image_size=config.image_size, state=config.state, t_abs=config.t_abs,
                      abs_reward=config.abs_reward, **config.env_overrides)
     spec = probe.input_spec
     probe.close()
@@ -283,8 +285,8 @@ def train(config: TrainConfig) -> dict:
     if ckpt_path.exists():
         ckpt = load_checkpoint(ckpt_path)
         saved = ckpt["config"]
-        for key in ("env", "condition", "cameras", "image_size"):
-            if saved[key] != getattr(config, key):
+        for key in ("env", "condition", "cameras", "image_size", "state"):
+            if saved.get(key, False if key == "state" else None) != getattr(config, key):
                 raise ValueError(f"{ckpt_path} was trained with {key}={saved[key]!r}, not "
                                  f"{getattr(config, key)!r}; use another --logdir")
         net.load_state_dict(ckpt["model"])
@@ -302,7 +304,8 @@ def train(config: TrainConfig) -> dict:
     actor_config = ActorConfig(env=config.env, condition=config.condition,
                                unroll_length=config.unroll_length,
                                envs_per_actor=config.envs_per_actor, cameras=config.cameras,
-                               image_size=config.image_size, t_abs=config.t_abs,
+                               image_size=config.image_size, state=config.state,
+                               t_abs=config.t_abs,
                                abs_reward=config.abs_reward,
                                seed=config.seed * 1000 + counters["updates"],
                                env_overrides=dict(config.env_overrides))

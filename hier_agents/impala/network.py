@@ -22,6 +22,10 @@ a diagonal Gaussian policy and one or two value estimates:
   zeros before and 2 after, so the output keeps the board's H x W.
 * **planner action** (float one-hot ``(K,)``, MuJoBan expert conditions):
   concatenated as is.
+* **state** (float ``(C, H, W)`` planes, the current abstract state at every
+  step, only when the environment observes it: ``AgentEnv(state=True)``,
+  not in the paper): an encoder of the planner state's shape (its own
+  weights).
 
 All encodings are concatenated and fed to two separate LSTM cores: a value
 core (256 units) and a policy core (128 units). The policy head turns the
@@ -309,6 +313,10 @@ class ImpalaNet(nn.Module):
             self.planner_encoder = PlannerEncoder(tuple(spec.planner_shape))
             size += ENCODING_SIZE
         size += int(spec.planner_action_dim)
+        self.state_encoder = None
+        if getattr(spec, "state_shape", None) is not None:
+            self.state_encoder = PlannerEncoder(tuple(spec.state_shape))
+            size += ENCODING_SIZE
         if size == 0:
             raise ValueError(f"{spec} gives the network no input")
         self.encoding_size = size
@@ -344,6 +352,9 @@ class ImpalaNet(nn.Module):
             parts.append(self.planner_encoder(planes.reshape(n, *planes.shape[-3:])))
         if self.spec.planner_action_dim > 0:
             parts.append(obs["planner_action"].reshape(n, -1).to(torch.float32))
+        if self.state_encoder is not None:
+            planes = obs["state"]
+            parts.append(self.state_encoder(planes.reshape(n, *planes.shape[-3:])))
         return parts[0] if len(parts) == 1 else torch.cat(parts, dim=1)
 
     def forward(self, obs: dict[str, torch.Tensor], first: torch.Tensor,
