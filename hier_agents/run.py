@@ -124,12 +124,27 @@ def run(env_name: str, episodes: int, seed: int = 0, *, planner: str | None = No
         imageio.mimwrite(video, frames, fps=int(round(1 / env.control_timestep)),
                          macro_block_size=1)
     summary = _summary(env_name, fam, rows, totals, seed, planner, skill)
+    summary["training_frames"] = training_frames(made)
     summary["estimator"] = estimator_name(fam, estimator)
     summary["privileged"] = is_privileged(fam, estimator)
     summary["env_options"] = env_options
     summary["episodes_requested"] = episodes
     summary["interrupted"] = interrupted
     return summary
+
+
+def training_frames(agent) -> int:
+    """Environment frames spent training the learned parts of a modular agent.
+
+    The sum of the parts' ``training_frames`` (a learned skill's, a learned
+    planner's); 0 for scripted parts. Frames, not wall time: what
+    `benchmarks/compare_agents.py` puts beside the end-to-end agents' frames.
+    """
+    if agent is None:
+        return 0
+    parts = (getattr(agent, "planner", None), getattr(agent, "skill", None),
+             getattr(agent, "estimator", None))
+    return int(sum(int(getattr(part, "training_frames", 0) or 0) for part in parts))
 
 
 def _play_episode(env, view, agent, description, fam, episode, seed, frames):
@@ -273,6 +288,8 @@ def format_table(summary: dict) -> str:
         who = (f"estimator {summary.get('estimator', '?')}"
                f"{' (PRIVILEGED: reads the simulator)' if summary.get('privileged') else ''}, "
                f"planner {summary['planner']}, skill {summary['skill']}")
+        if summary.get("training_frames"):
+            who += f" (learned parts trained on {summary['training_frames']:,} frames)"
     elif summary["agent"].startswith("random"):
         who = summary["condition"]
     else:

@@ -261,7 +261,8 @@ def test_kept_checkpoints_give_a_learning_curve_and_a_comparison(tmp_path, capsy
                     "--random", "10", "--json", str(out)], check=True, capture_output=True,
                    cwd=root)
     rows = json.loads(out.read_text())["rows"]
-    assert [r["agent"] for r in rows] == ["modular", f"checkpoint:{run_dir}", "random:10"]
+    assert [r["agent"] for r in rows] == ["modular", f"checkpoint:{run_dir / 'checkpoint.pt'}",
+                                          "random:10"]
     assert [r["training_frames"] for r in rows] == [0, 20, 0]
     assert rows[0]["success_rate"] == 1.0  # the modular agent solves level 1
 

@@ -100,9 +100,15 @@ def policy_action(roll_steer, sign: float) -> np.ndarray:
 
 
 class NumpyPolicy:
-    """The actor's mean network, evaluated in numpy: features -> [throttle, steer]."""
+    """The actor's mean network, evaluated in numpy: features -> [throttle, steer].
 
-    def __init__(self, state_dict) -> None:
+    ``meta``: the checkpoint's record of its training (``frames``: agent
+    control steps learned from; ``sim_steps``: every control step simulated
+    for it, scene set-up included), empty if unknown.
+    """
+
+    def __init__(self, state_dict, meta: dict | None = None) -> None:
+        self.meta = dict(meta or {})
         def arr(v):
             return np.asarray(v.detach().cpu().numpy() if hasattr(v, "detach") else v,
                               np.float64)
@@ -128,7 +134,7 @@ def load_policy(path=None) -> NumpyPolicy:
     if tuple(ckpt.get("features", ())) != FEATURES:
         raise ValueError(f"{path}: checkpoint features {ckpt.get('features')} do not match "
                          f"{FEATURES}")
-    return NumpyPolicy(ckpt["actor"])
+    return NumpyPolicy(ckpt["actor"], ckpt.get("meta"))
 
 
 class LearnedDrive(Drive):
@@ -204,6 +210,17 @@ class LearnedBallSkill(BallSkill):
             policy = load_policy(policy)
         self.policy = policy
         self._drive = LearnedDrive(policy)
+
+    @property
+    def training_frames(self) -> int:
+        """Control steps simulated to train this skill's policy (0: not learned).
+
+        The checkpoint's ``sim_steps`` (every control step simulated for its
+        training, scripted scene set-up included; the conservative count for
+        equal-budget comparisons), else its ``frames``.
+        """
+        meta = getattr(self.policy, "meta", None) or {}
+        return int(meta.get("sim_steps", meta.get("frames", 0)))
 
     def __repr__(self) -> str:
         kind = "record-only" if self.policy is None else (
