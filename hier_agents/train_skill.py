@@ -218,10 +218,15 @@ def evaluate_only(args) -> int:
         import torch as _torch
         meta = _torch.load(path, map_location="cpu", weights_only=True).get("meta", {})
         args.json.parent.mkdir(parents=True, exist_ok=True)
+        from hier_agents.provenance import provenance
+        root = Path(__file__).resolve().parents[1]
+        shown = path.resolve()
+        shown = shown.relative_to(root) if shown.is_relative_to(root) else shown
         args.json.write_text(json.dumps(
-            {"policy": str(path), "policy_meta": meta, "rows": rows,
+            {"policy": str(shown), "policy_meta": meta, "rows": rows,
              "wall_s": round(time.perf_counter() - t0, 1),
-             "cpu_s": round(time.process_time() - c0, 1)}, indent=2, default=str) + "\n")
+             "cpu_s": round(time.process_time() - c0, 1),
+             "provenance": provenance()}, indent=2, default=str) + "\n")
         print(f"wrote {args.json}")
     return 0
 
