@@ -36,11 +36,18 @@ which it **clears each random floor**: the lower end of its interval above
 the upper end of the floor's. ``--json`` writes the rows and that summary
 (with provenance); ``--plot`` draws success against training frames with the
 intervals and the floors (matplotlib, a dev dependency).
+
+``--reuse EARLIER.json`` takes the rows of an earlier run of this script for
+the agents it already played (same environment, episodes and seed; a
+modular spec, a checkpoint file or a random hold) instead of playing them
+again: each reused row says so (``reused``) and the new JSON keeps the
+earlier file's provenance under ``reused_from``.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import re
 import sys
 from pathlib import Path
@@ -201,6 +208,16 @@ def plot(rows: list[dict], path: Path, title: str) -> None:
     plt.close(fig)
 
 
+def _key(row: dict) -> tuple:
+    """What identifies an agent's row for ``--reuse``."""
+    agent = row["agent"]
+    if agent == "modular":
+        return ("modular", row["series"])
+    if agent.startswith("random"):
+        return ("random", agent)
+    return ("checkpoint", row["checkpoint"], "(sampled)" in row.get("condition", ""))
+
+
 def _label(row: dict) -> str:
     agent = row["agent"]
     if agent == "modular":
@@ -238,6 +255,8 @@ def main(argv=None) -> int:
                         help="checkpoints sample from their policy instead of taking its mean")
     parser.add_argument("--json", type=Path)
     parser.add_argument("--plot", type=Path, help="PNG of success against training frames")
+    parser.add_argument("--reuse", type=Path, metavar="EARLIER_JSON",
+                        help="reuse the rows of an earlier run for the agents it played")
     parser.add_argument("--no-progress", action="store_true")
     args = parser.parse_args(argv)
     if args.env not in envs.names():
@@ -258,15 +277,35 @@ def main(argv=None) -> int:
 
     from hier_agents.impala.learner import load_checkpoint
 
+    earlier, reused_from = {}, None
+    if args.reuse:
+        try:
+            old = json.loads(args.reuse.read_text())
+        except (OSError, ValueError) as exc:
+            parser.error(f"--reuse {args.reuse}: {exc}")
+        if (old.get("env"), old.get("episodes"), old.get("seed")) != (
+                args.env, args.episodes, args.seed):
+            parser.error(f"--reuse {args.reuse} played {old.get('env')}, {old.get('episodes')} "
+                         f"episodes, seed {old.get('seed')}: not this comparison")
+        earlier = {_key(r): r for r in old["rows"]}
+        reused_from = {"path": str(args.reuse), "provenance": old.get("provenance")}
+
+    def play(key, **kwargs):
+        if key in earlier:
+            print(f"reusing the row of {key[1]} from {args.reuse}", file=sys.stderr)
+            return {**earlier[key], "reused": True}
+        return run(args.env, args.episodes, args.seed, progress=progress, **kwargs)
+
     rows = []
     progress = not args.no_progress
     for spec, kwargs in modular:
-        summary = run(args.env, args.episodes, args.seed, progress=progress, **kwargs)
+        summary = play(("modular", f"modular {spec}"), **kwargs)
         summary["series"] = f"modular {spec}"
+        summary["spec"] = spec
         rows.append(summary)
     for series, path in checkpoints:
-        summary = run(args.env, args.episodes, args.seed, agent=f"checkpoint:{path}",
-                      stochastic=args.stochastic, progress=progress)
+        summary = play(("checkpoint", str(path), bool(args.stochastic)),
+                       agent=f"checkpoint:{path}", stochastic=args.stochastic)
         config = load_checkpoint(path)["config"]
         summary["checkpoint"] = str(path)
         summary["checkpoint_config"] = {k: config.get(k) for k in
@@ -277,7 +316,7 @@ def main(argv=None) -> int:
         rows.append(summary)
     for hold in args.random:
         agent = f"random:{hold}"
-        summary = run(args.env, args.episodes, args.seed, agent=agent, progress=progress)
+        summary = play(("random", agent), agent=agent)
         summary["series"] = agent
         rows.append(summary)
     for r in rows:
@@ -313,7 +352,8 @@ def main(argv=None) -> int:
                          f"not within {found['largest_frames_tried']:,} frames"))
     if args.json:
         write_json(args.json, {"env": args.env, "episodes": args.episodes, "seed": args.seed,
-                               "rows": rows, "clears_random_floor": floors})
+                               "rows": rows, "clears_random_floor": floors,
+                               **({"reused_from": reused_from} if reused_from else {})})
     if args.plot:
         plot(rows, args.plot, f"{args.env}: {args.episodes} episodes per point, seed {args.seed}")
     return 0

@@ -86,3 +86,22 @@ def test_curves_learned_skill_frames_floors_and_plot(tmp_path):
                                                 str(run_dir)}
     assert "first training budget clearing" in proc.stdout
     assert png.stat().st_size > 10_000 and png.read_bytes()[:4] == b"\x89PNG"
+
+    # --reuse: the rows already played come back as they were, marked; new ones are played.
+    out2 = tmp_path / "compare2.json"
+    subprocess.run(
+        [sys.executable, str(ROOT / "benchmarks" / "compare_agents.py"), "mujoban/level1",
+         "--episodes", "2", "--modular", "default", "planner=random",
+         "--checkpoint", str(run_dir), "--curve", "--random", "10", "--reuse", str(out),
+         "--json", str(out2), "--no-progress"], check=True, capture_output=True, text=True,
+        cwd=ROOT)
+    again = json.loads(out2.read_text())
+    assert [r.get("reused", False) for r in again["rows"]] == [True, False, True, True, True]
+    assert again["rows"][0]["success_rate"] == rows[0]["success_rate"]
+    assert again["rows"][1]["planner"] == "random"
+    assert again["reused_from"]["provenance"] == data["provenance"]
+    bad = subprocess.run(
+        [sys.executable, str(ROOT / "benchmarks" / "compare_agents.py"), "mujoban/level1",
+         "--episodes", "3", "--random", "10", "--reuse", str(out)],
+        capture_output=True, text=True, cwd=ROOT)
+    assert bad.returncode == 2 and "not this comparison" in bad.stderr
