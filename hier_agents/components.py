@@ -9,6 +9,13 @@ Agents are built from the task's public description only; the privileged
 estimators (``oracle``, ``entity-layer``) also need the simulator, given
 explicitly as ``simulator``. The first name in each table is the default.
 
+MuJoBan planners also take ``learned:PATH``: a policy over options trained
+with ``python -m hier_agents.train_options`` (a checkpoint file or run
+directory) played by `abstract_planners.learned_options.OptionPolicyPlanner`;
+``learned`` is the shipped one (``abstract_planners/learned/options.pt``,
+with its hand-written dead-push rule: no push onto a cell from which no pad
+can be reached); ``learned-unpruned`` is the same policy without the rule.
+
 Families: ``mujoban`` (Sokoban states, the ball walker), ``mujoxo``
 (tic-tac-toe) and ``mujogo`` (Go), both with the Jaco arm. Unknown names
 raise `ValueError` listing the valid ones.
@@ -39,6 +46,29 @@ def _sokoban_solver(description, seed):
 def _sokoban_time(description, seed):
     from abstract_planners.sokoban_time_solver import TimeSolverPlanner
     return TimeSolverPlanner(time_limit=10.0)
+
+
+def _learned_options(path, prune_dead=None):
+    def factory(description, seed):
+        from abstract_planners.learned_options import OptionPolicyPlanner
+        return OptionPolicyPlanner(path, seed=seed, prune_dead=prune_dead)
+    return factory
+
+
+class _PlannerTable(dict):
+    """A family's planners by name, plus ``learned:PATH`` (any checkpoint of
+    `hier_agents.train_options`: a policy over options played as a planner)."""
+
+    prefix = "learned:"
+
+    def __contains__(self, name) -> bool:
+        return dict.__contains__(self, name) or (isinstance(name, str) and name.startswith(
+            self.prefix) and len(name) > len(self.prefix))
+
+    def __getitem__(self, name):
+        if not dict.__contains__(self, name) and name in self:
+            return _learned_options(name[len(self.prefix):])
+        return dict.__getitem__(self, name)
 
 
 def _sokoban_random(description, seed):
@@ -85,8 +115,10 @@ Factory = Callable[..., object]
 
 #: family -> name -> factory(description, seed); the first entry is the default.
 PLANNERS: dict[str, dict[str, Factory]] = {
-    "mujoban": {"sokoban-solver:time": _sokoban_time, "sokoban-solver": _sokoban_solver,
-                "random": _sokoban_random},
+    "mujoban": _PlannerTable({"sokoban-solver:time": _sokoban_time,
+                              "sokoban-solver": _sokoban_solver, "random": _sokoban_random,
+                              "learned": _learned_options(None),
+                              "learned-unpruned": _learned_options(None, prune_dead=False)}),
     "mujoxo": {"minimax": _minimax, "mcts": _mcts, "random": _board_random},
     "mujogo": {"gnugo": _gnugo, "mcts": _mcts, "random": _board_random},
 }
@@ -146,7 +178,9 @@ def _pick(table: dict[str, dict[str, Factory]], kind: str, fam: str, name: str |
     if name is None:
         return next(iter(options.values()))
     if name not in options:
-        raise ValueError(f"unknown {kind} {name!r} for {fam}; valid: {sorted(options)}")
+        extra = (" or learned:PATH (a hier_agents.train_options checkpoint)"
+                 if isinstance(options, _PlannerTable) else "")
+        raise ValueError(f"unknown {kind} {name!r} for {fam}; valid: {sorted(options)}{extra}")
     return options[name]
 
 

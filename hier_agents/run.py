@@ -358,7 +358,8 @@ def main(argv=None) -> int:
         for fam in PLANNERS:
             names = [f"{name} (privileged)" if getattr(factory, "privileged", False) else name
                      for name, factory in ESTIMATORS[fam].items()]
-            print(f"{fam}: planners {list(PLANNERS[fam])}, skills {list(SKILLS[fam])}, "
+            planners = list(PLANNERS[fam]) + (["learned:PATH"] if fam == "mujoban" else [])
+            print(f"{fam}: planners {planners}, skills {list(SKILLS[fam])}, "
                   f"estimators {names}")
         return 0
     env_name = args.env or DEFAULT_ENV
@@ -375,7 +376,14 @@ def main(argv=None) -> int:
     for kind, table, name in (("planner", PLANNERS, args.planner), ("skill", SKILLS, args.skill),
                               ("estimator", ESTIMATORS, args.estimator)):
         if name is not None and name not in table[fam]:
-            parser.error(f"unknown {kind} {name!r} for {fam}; valid: {sorted(table[fam])}")
+            extra = " or learned:PATH" if kind == "planner" and fam == "mujoban" else ""
+            parser.error(f"unknown {kind} {name!r} for {fam}; valid: {sorted(table[fam])}{extra}")
+    if args.planner and args.planner.startswith("learned:") and fam == "mujoban":
+        from abstract_planners.learned_options import load_option_policy
+        try:  # a missing or foreign checkpoint fails here, with a usage error
+            load_option_policy(args.planner[len("learned:"):])
+        except (FileNotFoundError, ValueError) as exc:
+            parser.error(f"--planner {args.planner}: {exc}")
     if args.levels is not None and fam != "mujoban":
         parser.error("--levels only applies to mujoban environments")
     env_options = {}
