@@ -198,6 +198,103 @@ def learner_speed(results: Path) -> list[str]:
             f"| {s['ratio']:.2f} |"]
 
 
+def _level_key(path: Path):
+    stem = path.stem.split("level", 1)[-1]
+    return (int(stem.split("-")[0]) if stem[:1].isdigit() else 99, stem)
+
+
+def _ci(rate, interval) -> str:
+    return f"{100 * rate:.1f}% [{100 * interval[0]:.1f}, {100 * interval[1]:.1f}]"
+
+
+@table("learned-ball")
+def learned_ball(results: Path) -> list[str]:
+    """Solver + learned ball skill on generated levels, beside the scripted skill's rows."""
+    lines = ["| environment | learned skill: solved [95% CI] | mean steps | subgoal success "
+             "| scripted skill (results/agent): solved | mean steps |",
+             "| --- | --- | --- | --- | --- | --- |"]
+    for path in sorted((results / "learned_ball").glob("run_level*.json"), key=_level_key):
+        s = _load(path)
+        if s.get("skill") != "learned-ball" or s.get("privileged"):
+            raise ValueError(f"{path}: not an observation-only learned-ball run")
+        ref_path = results / "agent" / (s["env"].replace("/", "_") + ".json")
+        ref = _load(ref_path) if ref_path.exists() else None
+        sub = s.get("subgoal_success_rate")
+        lines.append(
+            f"| `{s['env']}` | {_ci(s['success_rate'], s['success_interval'])} "
+            f"| {s['mean_steps']:.0f} | {'-' if sub is None else f'{100 * sub:.1f}%'} | "
+            + (f"{_ci(ref['success_rate'], ref['success_interval'])} | {ref['mean_steps']:.0f} |"
+               if ref else "- | - |"))
+    opt = _load(results / "learned_ball" / "option_success_camera.json")
+    for name, r in opt["rows"].items():
+        lines.append(f"| held-out options, {', '.join(r['sources'])} scenes, {r['estimator']} "
+                     f"estimator, {name} | {_ci(r['success'], (r['wilson_low'], r['wilson_high']))} "
+                     f"({r['successes']}/{r['episodes']}) | {r['mean_steps_success']:.0f} | - "
+                     f"| - | - |")
+    return lines
+
+
+@table("option-policy")
+def option_policy(results: Path) -> list[str]:
+    """The learned policy over options as a planner (`results/option_policy/`)."""
+    folder = results / "option_policy"
+    lines = ["| planner | environment | solved [95% CI] | mean steps | subgoal success "
+             "| physics frames trained | abstract option steps trained |",
+             "| --- | --- | --- | --- | --- | --- | --- |"]
+    for sub, words in (("", "learned policy + dead-push rule (`learned`, shipped)"),
+                       ("no_pruning", "learned policy alone (`learned-unpruned`)")):
+        for path in sorted((folder / sub).glob("level*.json"), key=_level_key):
+            s = _load(path)
+            if s.get("privileged") or not str(s.get("planner", "")).startswith("learned"):
+                raise ValueError(f"{path}: not an observation-only learned-planner run")
+            meta = _load_option_meta(s)
+            sub_rate = s.get("subgoal_success_rate")
+            lines.append(
+                f"| {words}, skill `{s['skill']}` | `{s['env']}` "
+                f"| {_ci(s['success_rate'], s['success_interval'])} | {s['mean_steps']:.0f} "
+                f"| {'-' if sub_rate is None else f'{100 * sub_rate:.1f}%'} "
+                f"| {s['training_frames']:,} (planner {meta['control_frames']:,} + skill "
+                f"{s['training_frames'] - meta['control_frames']:,}) "
+                f"| {meta['abstract_steps']:,} |")
+    return lines
+
+
+def _load_option_meta(summary: dict) -> dict:
+    import torch
+
+    name = summary["planner"]
+    path = (ROOT / "abstract_planners" / "learned" / "options.pt"
+            if name in ("learned", "learned-unpruned") else Path(name.split(":", 1)[1]))
+    return torch.load(path, map_location="cpu", weights_only=False)["meta"]
+
+
+@table("compare-agents")
+def compare_agents(results: Path) -> list[str]:
+    """The equal-budget comparison (`benchmarks/compare_agents.py`), one row per agent."""
+    data = _load(results / "compare" / "mujoban_level1.json")
+    lines = ["| agent | observes | training frames | solved [95% CI] | mean steps |",
+             "| --- | --- | --- | --- | --- |"]
+    for r in data["rows"]:
+        lines.append(f"| {r['label']} | {r['observations']} | {r['training_frames']:,} "
+                     f"| {_ci(r['success_rate'], r['success_interval'])} | {r['mean_steps']:.0f} |")
+    lines.append("")
+    lines.append("| series | first budget clearing random actions (new draw each step) "
+                 "| first budget clearing random actions held 10 steps |")
+    lines.append("| --- | --- | --- |")
+    for name, by_floor in data["clears_random_floor"].items():
+        cells = []
+        for floor in ("random:1", "random:10"):
+            found = by_floor.get(floor)
+            if found is None:
+                cells.append("-")
+            elif found["first_frames"] is None:
+                cells.append(f"not within {found['largest_frames_tried']:,} frames")
+            else:
+                cells.append(f"{found['first_frames']:,} frames")
+        lines.append(f"| {name} | {cells[0]} | {cells[1]} |")
+    return lines
+
+
 # -- README markers ---------------------------------------------------------------
 
 _BLOCK = re.compile(r"(<!-- table:(?P<name>[\w.-]+) -->\n)(?P<body>.*?)(<!-- /table:(?P=name) -->)",
@@ -205,9 +302,10 @@ _BLOCK = re.compile(r"(<!-- table:(?P<name>[\w.-]+) -->\n)(?P<body>.*?)(<!-- /ta
 _OPEN = re.compile(r"<!-- table:([\w.-]+) -->")
 
 
-def generate(results: Path) -> dict[str, str]:
-    """Every registered table's Markdown, by name."""
-    return {name: "\n".join(func(results)) + "\n" for name, func in TABLES.items()}
+def generate(results: Path, names=None) -> dict[str, str]:
+    """Every registered table's Markdown (or only those in ``names``), by name."""
+    return {name: "\n".join(func(results)) + "\n" for name, func in TABLES.items()
+            if names is None or name in names}
 
 
 def check(readme_text: str, tables: dict[str, str]) -> list[str]:
@@ -249,9 +347,7 @@ def main(argv=None) -> int:
     parser.add_argument("--table", action="append", choices=sorted(TABLES),
                         help="only this table (repeatable)")
     args = parser.parse_args(argv)
-    tables = generate(args.results)
-    if args.table:
-        tables = {k: v for k, v in tables.items() if k in args.table}
+    tables = generate(args.results, args.table)
     if not (args.check or args.write):
         for name, text in tables.items():
             print(f"<!-- table:{name} -->\n{text}<!-- /table:{name} -->\n")
