@@ -12,11 +12,12 @@ pads, boxes, player planes) through `policy_input`, and its logits are
 masked to the legal moves (it never proposes an illegal one).
 
 Optionally (``prune_dead=True``, or ``meta["prune_dead_pushes"]`` in the
-checkpoint, which the shipped file sets) the mask also drops the pushes that
-would put a box on a dead cell (`live_cells`: a cell from which no pad can be
-reached by pushing, e.g. a corner): a hand-written rule on top of the
-learned policy, applied at play time only (on abstract level-2 states it
-lifts the shipped policy's greedy solve rate from 82% to 90%).
+checkpoint) the mask also drops the pushes that would put a box on a dead
+cell (`live_cells`: a cell from which no pad can be reached by pushing, e.g.
+a corner): a hand-written rule on top of the learned policy, applied at play
+time only (an earlier policy, approach B in `results/option_policy/`, needed
+it to reach 85% on level 2). The shipped file does not set it: the shipped
+planner is the learned policy alone.
 
 By name: ``--planner learned:PATH`` (a checkpoint file or a training run's
 directory) and ``--planner learned`` (the shipped

@@ -12,9 +12,8 @@ explicitly as ``simulator``. The first name in each table is the default.
 MuJoBan planners also take ``learned:PATH``: a policy over options trained
 with ``python -m hier_agents.train_options`` (a checkpoint file or run
 directory) played by `abstract_planners.learned_options.OptionPolicyPlanner`;
-``learned`` is the shipped one (``abstract_planners/learned/options.pt``,
-with its hand-written dead-push rule: no push onto a cell from which no pad
-can be reached); ``learned-unpruned`` is the same policy without the rule.
+``learned`` is the shipped one (``abstract_planners/learned/options.pt``:
+the learned policy alone, no hand-written rule).
 
 Families: ``mujoban`` (Sokoban states, the ball walker), ``mujoxo``
 (tic-tac-toe) and ``mujogo`` (Go), both with the Jaco arm. Unknown names
@@ -48,10 +47,10 @@ def _sokoban_time(description, seed):
     return TimeSolverPlanner(time_limit=10.0)
 
 
-def _learned_options(path, prune_dead=None):
+def _learned_options(path):
     def factory(description, seed):
         from abstract_planners.learned_options import OptionPolicyPlanner
-        return OptionPolicyPlanner(path, seed=seed, prune_dead=prune_dead)
+        return OptionPolicyPlanner(path, seed=seed)
     return factory
 
 
@@ -117,8 +116,7 @@ Factory = Callable[..., object]
 PLANNERS: dict[str, dict[str, Factory]] = {
     "mujoban": _PlannerTable({"sokoban-solver:time": _sokoban_time,
                               "sokoban-solver": _sokoban_solver, "random": _sokoban_random,
-                              "learned": _learned_options(None),
-                              "learned-unpruned": _learned_options(None, prune_dead=False)}),
+                              "learned": _learned_options(None)}),
     "mujoxo": {"minimax": _minimax, "mcts": _mcts, "random": _board_random},
     "mujogo": {"gnugo": _gnugo, "mcts": _mcts, "random": _board_random},
 }
