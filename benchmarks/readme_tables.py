@@ -238,34 +238,30 @@ def learned_ball(results: Path) -> list[str]:
 def option_policy(results: Path) -> list[str]:
     """The learned policy over options as a planner (`results/option_policy/`)."""
     folder = results / "option_policy"
-    lines = ["| planner | environment | solved [95% CI] | mean steps | subgoal success "
-             "| physics frames trained | abstract option steps trained |",
-             "| --- | --- | --- | --- | --- | --- | --- |"]
-    for sub, words in (("", "learned policy + dead-push rule (`learned`, shipped)"),
-                       ("no_pruning", "learned policy alone (`learned-unpruned`)")):
+    lines = ["| policy over options | environment | solved [95% CI] | mean steps "
+             "| subgoal success | frames trained (planner + skill) | abstract option steps "
+             "| training CPU (planner) |",
+             "| --- | --- | --- | --- | --- | --- | --- | --- |"]
+    groups = (("", "approach_D/train_D_summary.json",
+               "**shipped** (`learned`): approach D, the learned policy alone"),
+              ("approach_B", "approach_B/train_B_summary.json",
+               "approach B + hand-written dead-push rule"),
+              ("approach_B/no_pruning", "approach_B/train_B_summary.json",
+               "approach B, the learned policy alone"))
+    for sub, train, words in groups:
+        t = _load(folder / train)
         for path in sorted((folder / sub).glob("level*.json"), key=_level_key):
             s = _load(path)
             if s.get("privileged") or not str(s.get("planner", "")).startswith("learned"):
                 raise ValueError(f"{path}: not an observation-only learned-planner run")
-            meta = _load_option_meta(s)
             sub_rate = s.get("subgoal_success_rate")
             lines.append(
                 f"| {words}, skill `{s['skill']}` | `{s['env']}` "
                 f"| {_ci(s['success_rate'], s['success_interval'])} | {s['mean_steps']:.0f} "
                 f"| {'-' if sub_rate is None else f'{100 * sub_rate:.1f}%'} "
-                f"| {s['training_frames']:,} (planner {meta['control_frames']:,} + skill "
-                f"{s['training_frames'] - meta['control_frames']:,}) "
-                f"| {meta['abstract_steps']:,} |")
+                f"| {t['control_frames']:,} + {s['training_frames'] - t['control_frames']:,} "
+                f"| {t['abstract_steps']:,} | {t['cpu_minutes']:.1f} min |")
     return lines
-
-
-def _load_option_meta(summary: dict) -> dict:
-    import torch
-
-    name = summary["planner"]
-    path = (ROOT / "abstract_planners" / "learned" / "options.pt"
-            if name in ("learned", "learned-unpruned") else Path(name.split(":", 1)[1]))
-    return torch.load(path, map_location="cpu", weights_only=False)["meta"]
 
 
 @table("compare-agents")
