@@ -15,15 +15,24 @@ moves), each answered by the opponent, so GNU Go plays real games over GTP
 Every ``--sample-every`` episodes (and at the start and end) it samples:
 resident memory (VmRSS), open file descriptors, child processes, threads,
 and live OpenGL contexts (`mujoco.Renderer` objects and GL context objects
-found by the garbage collector: the contexts this process holds). The JSON
-has the samples and, per quantity, the change after the first 100 episodes;
-the issue's targets are RSS growth < 50 MB after episode 100 and constant
-file descriptors and child processes.
+found by the garbage collector: the contexts this process holds); and, to
+tell where memory goes, the resident memory of the ``[heap]`` and of
+anonymous mappings and glibc's ``mallinfo2`` (bytes in use in malloc's
+arenas, free there, and in use in mmapped blocks). The JSON has the samples
+and, per quantity, the change after the first 100 episodes; the issue's
+targets are RSS growth < 50 MB after episode 100 and constant file
+descriptors and child processes. ``--only mujogo`` (a substring, repeatable)
+soaks just the matching configurations.
+
+The environments fix glibc's mmap threshold (`envs._malloc`); without that
+the resident memory of this soak grew by ~274 MB from episode 100 to 1000
+(results/soak_notes.md).
 """
 
 from __future__ import annotations
 
 import argparse
+import ctypes
 import gc
 import os
 import sys
@@ -77,11 +86,46 @@ def _gl_contexts() -> int:
     return count
 
 
+def _mappings() -> dict:
+    """Resident MB of the ``[heap]`` and of anonymous mappings (smaps)."""
+    rss = {"heap_rss_mb": 0, "anon_rss_mb": 0}
+    key = None
+    with open("/proc/self/smaps") as f:
+        for line in f:
+            fields = line.split()
+            if not fields[0].endswith(":"):  # a mapping's header line
+                path = fields[5] if len(fields) > 5 else ""
+                key = "heap_rss_mb" if path == "[heap]" else "anon_rss_mb" if not path else None
+            elif fields[0] == "Rss:" and key:
+                rss[key] += int(fields[1])
+    return {k: round(v / 1024, 1) for k, v in rss.items()}
+
+
+class _Mallinfo2(ctypes.Structure):
+    _fields_ = [(n, ctypes.c_size_t) for n in ("arena", "ordblks", "smblks", "hblks", "hblkhd",
+                                               "usmblks", "fsmblks", "uordblks", "fordblks",
+                                               "keepcost")]
+
+
+def _malloc_stats() -> dict:
+    """glibc's mallinfo2 in MB: in use and free in the arenas, in use in mmapped blocks."""
+    try:
+        info = ctypes.CDLL("libc.so.6").mallinfo2
+    except (OSError, AttributeError):
+        return {}
+    info.restype = _Mallinfo2
+    m = info()
+    return {"malloc_in_use_mb": round(m.uordblks / 2**20, 1),
+            "malloc_free_mb": round(m.fordblks / 2**20, 1),
+            "malloc_mmapped_mb": round(m.hblkhd / 2**20, 1)}
+
+
 def sample(episode: int, started: float) -> dict:
     return {"episode": episode, "wall_s": round(time.perf_counter() - started, 1),
             "rss_mb": round(_status("VmRSS") / 1024, 1),
             "open_fds": len(os.listdir("/proc/self/fd")), "children": _children(),
-            "threads": _status("Threads"), "gl_objects": _gl_contexts()}
+            "threads": _status("Threads"), "gl_objects": _gl_contexts(),
+            **_mappings(), **_malloc_stats()}
 
 
 def _build(name: str, cameras: bool, seed: int):
@@ -105,7 +149,9 @@ def play_episode(env, rng, steps: int, moves: int) -> None:
 
 
 def soak(episodes: int, *, sample_every: int = 50, rebuild_every: int = 25, steps: int = 20,
-         moves: int = 4, seed: int = 0, progress: bool = True) -> dict:
+         moves: int = 4, seed: int = 0, progress: bool = True,
+         configs: list[tuple[str, bool]] | None = None) -> dict:
+    configs = CONFIGS if configs is None else configs
     rng = np.random.default_rng(seed)
     live: dict[int, tuple] = {}  # config index -> (env, episodes played)
     samples, errors = [], []
@@ -113,8 +159,8 @@ def soak(episodes: int, *, sample_every: int = 50, rebuild_every: int = 25, step
     samples.append(sample(0, started))
     try:
         for episode in range(1, episodes + 1):
-            index = (episode - 1) % len(CONFIGS)
-            name, cameras = CONFIGS[index]
+            index = (episode - 1) % len(configs)
+            name, cameras = configs[index]
             env, played = live.get(index, (None, 0))
             if env is not None and played >= rebuild_every:
                 env.close()
@@ -131,25 +177,40 @@ def soak(episodes: int, *, sample_every: int = 50, rebuild_every: int = 25, step
                 samples.append(sample(episode, started))
                 if progress:
                     s = samples[-1]
-                    print(f"episode {episode:5d}: rss {s['rss_mb']:7.1f} MB, fds {s['open_fds']}, "
+                    print(f"episode {episode:5d}: rss {s['rss_mb']:7.1f} MB "
+                          f"(heap {s['heap_rss_mb']:.0f}, anon {s['anon_rss_mb']:.0f}), "
+                          f"fds {s['open_fds']}, "
                           f"children {s['children']}, threads {s['threads']}, "
                           f"gl {s['gl_objects']}, {s['wall_s']:.0f} s", flush=True)
     finally:
         for env, _ in live.values():
             env.close()
     after_close = sample(episodes, started)
-    return {"episodes": episodes, "configs": [{"env": n, "cameras": c} for n, c in CONFIGS],
+    return {"episodes": episodes, "configs": [{"env": n, "cameras": c} for n, c in configs],
+            "malloc": {"mmap_threshold_fixed_by_envs": envs._malloc.applied(),  # pylint: disable=protected-access
+                       **{k: os.environ[k] for k in ("MALLOC_ARENA_MAX", "MALLOC_MMAP_THRESHOLD_",
+                                                     "GLIBC_TUNABLES") if k in os.environ}},
             "steps_per_episode": steps, "moves_per_board_episode": moves,
             "rebuild_every": rebuild_every, "sample_every": sample_every,
             "samples": samples, "after_close": after_close, "errors": errors,
             "summary": summarise(samples, after_close)}
 
 
+def select(only: list[str]) -> list[tuple[str, bool]]:
+    """The configurations matching any of `only` (all of them if it is empty)."""
+    def matches(name: str, cameras: bool, pattern: str) -> bool:
+        if pattern in ("cameras-on", "cameras-off"):
+            return cameras == (pattern == "cameras-on")
+        return pattern in name
+    return [(n, c) for n, c in CONFIGS if not only or any(matches(n, c, p) for p in only)]
+
+
 def summarise(samples: list[dict], after_close: dict) -> dict:
     base = next((s for s in samples if s["episode"] >= 100), samples[0])
     last = samples[-1]
     out = {"from_episode": base["episode"], "to_episode": last["episode"]}
-    for key in ("rss_mb", "open_fds", "children", "threads", "gl_objects"):
+    for key in ("rss_mb", "heap_rss_mb", "anon_rss_mb", "open_fds", "children", "threads",
+                "gl_objects"):
         values = [s[key] for s in samples if s["episode"] >= base["episode"]]
         out[key] = {"at_base": base[key], "last": last[key], "min": min(values),
                     "max": max(values), "growth": round(last[key] - base[key], 1)}
@@ -172,13 +233,19 @@ def main(argv=None) -> int:
     parser.add_argument("--moves", type=int, default=4,
                         help="abstract agent moves (each answered) per board-game episode")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--only", action="append", default=[], metavar="SUBSTRING",
+                        help="soak only the configurations whose name contains this "
+                             "('cameras-on'/'cameras-off' select by camera setting); repeatable")
     parser.add_argument("--json", type=Path)
     args = parser.parse_args(argv)
     if args.episodes < 1 or args.sample_every < 1 or args.rebuild_every < 1:
         parser.error("--episodes, --sample-every and --rebuild-every must be >= 1")
+    configs = select(args.only)
+    if not configs:
+        parser.error(f"--only {args.only} matches none of {CONFIGS}")
     result = soak(args.episodes, sample_every=args.sample_every,
                   rebuild_every=args.rebuild_every, steps=args.steps, moves=args.moves,
-                  seed=args.seed)
+                  seed=args.seed, configs=configs)
     summary = result["summary"]
     print(f"after episode {summary['from_episode']} -> {summary['to_episode']}: "
           f"rss {summary['rss_mb']['growth']:+.1f} MB, fds {summary['open_fds']['min']}-"

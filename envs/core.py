@@ -35,6 +35,7 @@ from dm_control import composer, mjcf
 from dm_control.rl import control
 from dm_env import specs
 
+from envs import _malloc
 from envs.rendering import CameraConfig, Cameras
 
 _BADQACC = int(mujoco.mjtWarning.mjWARN_BADQACC)
@@ -198,7 +199,10 @@ class Environment(dm_env.Environment):
             if self._cameras is not None:
                 self._cameras.close()
         finally:
-            self._task.close()
+            try:
+                self._task.close()
+            finally:
+                _malloc.trim()  # hand the freed GL buffers back (issue 16)
 
     @property
     def closed(self) -> bool:
