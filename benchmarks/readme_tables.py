@@ -207,6 +207,26 @@ def _ci(rate, interval) -> str:
     return f"{100 * rate:.1f}% [{100 * interval[0]:.1f}, {100 * interval[1]:.1f}]"
 
 
+@table("soak")
+def soak(results: Path) -> list[str]:
+    """`benchmarks/soak.py`: each sampled quantity after the first 100 episodes."""
+    d = _load(results / "soak.json")
+    summary = d["summary"]
+    lines = [f"| quantity (episodes {summary['from_episode']}-{summary['to_episode']}) "
+             "| at episode 100 | last | min | max | growth |",
+             "| --- | --- | --- | --- | --- | --- |"]
+    for key, words in (("rss_mb", "resident memory, MB"), ("heap_rss_mb", "of it the heap, MB"),
+                       ("anon_rss_mb", "anonymous mappings, MB"), ("open_fds", "file descriptors"),
+                       ("children", "child processes"), ("threads", "threads"),
+                       ("gl_objects", "GL contexts")):
+        q = summary.get(key)
+        if q is None:
+            continue
+        lines.append(f"| {words} | {q['at_base']:g} | {q['last']:g} | {q['min']:g} | {q['max']:g} "
+                     f"| {q['growth']:+g} |")
+    return lines
+
+
 @table("learned-ball")
 def learned_ball(results: Path) -> list[str]:
     """Solver + learned ball skill on generated levels, beside the scripted skill's rows."""
