@@ -18,9 +18,9 @@ from pathlib import Path
 _ROOT = Path(__file__).resolve().parents[1]
 
 
-def _git(*args: str) -> str | None:
+def _git(*args: str, root: Path = _ROOT) -> str | None:
     try:
-        out = subprocess.run(["git", *args], cwd=_ROOT, capture_output=True, text=True,
+        out = subprocess.run(["git", *args], cwd=root, capture_output=True, text=True,
                              timeout=10, check=True)
     except (OSError, subprocess.SubprocessError):
         return None
@@ -45,6 +45,15 @@ def _memory_gib() -> float | None:
         return None
 
 
+def _commit(root: Path = _ROOT) -> str | None:
+    """HEAD of the checkout at ``root``, ``+dirty`` if code (not results) changed."""
+    commit = _git("rev-parse", "HEAD", root=root)
+    if commit is not None and _git("status", "--porcelain", "--untracked-files=no",
+                                   "--", ".", ":(exclude)results", root=root):
+        commit += "+dirty"
+    return commit
+
+
 def provenance(command: str | None = None) -> dict:
     """The record of this process: ``command``, ``commit``, ``date``, ``machine``.
 
@@ -53,7 +62,9 @@ def provenance(command: str | None = None) -> dict:
         this process's arguments (``python -m pkg.mod`` for modules run with -m).
 
     ``commit`` is the checkout's HEAD with ``+dirty`` appended when tracked
-    files differ from it, or None outside a git checkout.
+    files other than ``results/`` differ from it (a benchmark run that has
+    just rewritten one result file still measures the committed code), or
+    None outside a git checkout.
     """
     if command is None:
         argv = list(sys.argv)
@@ -67,9 +78,7 @@ def provenance(command: str | None = None) -> dict:
             except ValueError:
                 pass
         command = "python " + " ".join(shlex.quote(a) for a in argv)
-    commit = _git("rev-parse", "HEAD")
-    if commit is not None and _git("status", "--porcelain", "--untracked-files=no"):
-        commit += "+dirty"
+    commit = _commit()
     import mujoco  # the simulator version matters for every physics number
     return {
         "command": command,

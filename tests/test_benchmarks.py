@@ -46,3 +46,25 @@ def test_env_speed_with_a_deviation_option_makes_no_original_comparison(tmp_path
     (row,) = result["rows"]
     assert row["physics_timestep"] == 0.001 and row["env_options"] == {"noslip_iterations": 0}
     assert row["x_original"] is None
+
+
+def test_provenance_is_dirty_only_when_code_differs_from_the_commit(tmp_path):
+    from hier_agents.provenance import _commit
+
+    def git(*args):
+        subprocess.run(["git", "-c", "user.name=t", "-c", "user.email=t@t", *args],
+                       cwd=tmp_path, check=True, capture_output=True)
+
+    git("init", "-q")
+    (tmp_path / "code.py").write_text("x = 1\n")
+    (tmp_path / "results").mkdir()
+    (tmp_path / "results" / "speed.json").write_text("{}\n")
+    git("add", "-A")
+    git("commit", "-qm", "first")
+    head = _commit(tmp_path)
+    assert len(head) == 40
+    (tmp_path / "results" / "speed.json").write_text('{"steps": 1}\n')  # a run rewrote its result
+    (tmp_path / "notes.txt").write_text("untracked\n")
+    assert _commit(tmp_path) == head
+    (tmp_path / "code.py").write_text("x = 2\n")
+    assert _commit(tmp_path) == head + "+dirty"
