@@ -26,13 +26,12 @@ soaks just the matching configurations.
 
 The environments fix glibc's mmap threshold (`envs._malloc`); without that
 the resident memory of this soak grew by ~274 MB from episode 100 to 1000
-(results/soak_notes.md).
+(results/soak_before_fix.json).
 """
 
 from __future__ import annotations
 
 import argparse
-import ctypes
 import gc
 import os
 import sys
@@ -101,23 +100,14 @@ def _mappings() -> dict:
     return {k: round(v / 1024, 1) for k, v in rss.items()}
 
 
-class _Mallinfo2(ctypes.Structure):
-    _fields_ = [(n, ctypes.c_size_t) for n in ("arena", "ordblks", "smblks", "hblks", "hblkhd",
-                                               "usmblks", "fsmblks", "uordblks", "fordblks",
-                                               "keepcost")]
-
-
 def _malloc_stats() -> dict:
     """glibc's mallinfo2 in MB: in use and free in the arenas, in use in mmapped blocks."""
-    try:
-        info = ctypes.CDLL("libc.so.6").mallinfo2
-    except (OSError, AttributeError):
+    m = envs._malloc.mallinfo()  # pylint: disable=protected-access
+    if m is None:
         return {}
-    info.restype = _Mallinfo2
-    m = info()
-    return {"malloc_in_use_mb": round(m.uordblks / 2**20, 1),
-            "malloc_free_mb": round(m.fordblks / 2**20, 1),
-            "malloc_mmapped_mb": round(m.hblkhd / 2**20, 1)}
+    return {"malloc_in_use_mb": round(m["uordblks"] / 2**20, 1),
+            "malloc_free_mb": round(m["fordblks"] / 2**20, 1),
+            "malloc_mmapped_mb": round(m["hblkhd"] / 2**20, 1)}
 
 
 def sample(episode: int, started: float) -> dict:

@@ -9,7 +9,7 @@ threshold to the freed block's size (glibc's dynamic threshold, up to 32 MiB):
 from then on the blocks of every rebuilt environment come from the heap, the
 old ones leave holes there that glibc cannot return, and resident memory
 grew in steps at every rebuild (+274 MB over 900 episodes of
-``benchmarks/soak.py``; see results/soak_notes.md).
+``benchmarks/soak.py``; results/soak_before_fix.json).
 
 `apply()` (run when ``envs`` is imported) fixes the threshold with
 ``mallopt(M_MMAP_THRESHOLD, 128 KiB)``, which per mallopt(3) also switches
@@ -80,6 +80,25 @@ def apply() -> bool:
 def applied() -> bool:
     """Whether `apply` has fixed the threshold in this process."""
     return _applied
+
+
+class _Mallinfo2(ctypes.Structure):
+    _fields_ = [(n, ctypes.c_size_t) for n in ("arena", "ordblks", "smblks", "hblks", "hblkhd",
+                                               "usmblks", "fsmblks", "uordblks", "fordblks",
+                                               "keepcost")]
+
+
+def mallinfo() -> dict[str, int] | None:
+    """glibc's ``mallinfo2()`` as a dict of byte counts (``arena``: obtained
+    for the heap; ``uordblks``/``fordblks``: in use/free there; ``hblkhd``:
+    in mmapped blocks), or None without it."""
+    libc = _load_libc()
+    info = getattr(libc, "mallinfo2", None) if libc is not None else None
+    if info is None:
+        return None
+    info.restype = _Mallinfo2
+    m = info()
+    return {name: getattr(m, name) for name, _ in _Mallinfo2._fields_}
 
 
 def trim() -> None:

@@ -59,10 +59,15 @@ print(json.dumps({"mmapped": mmapped, "kept_top": kept_top, "applied": applied})
 """
 
 
-def probe(mode: str, **env) -> dict:
+def _environ_without_malloc_settings(**env) -> dict:
     environ = {k: v for k, v in os.environ.items()
                if k not in ("MALLOC_MMAP_THRESHOLD_", "MALLOC_TRIM_THRESHOLD_", "GLIBC_TUNABLES")}
     environ.update(env)
+    return environ
+
+
+def probe(mode: str, **env) -> dict:
+    environ = _environ_without_malloc_settings(**env)
     out = subprocess.run([sys.executable, "-c", PROBE, mode], cwd=ROOT, env=environ,
                          capture_output=True, text=True, check=True, timeout=120)
     return json.loads(out.stdout.strip().splitlines()[-1])
@@ -94,17 +99,12 @@ def test_a_threshold_chosen_by_the_user_is_left_alone():
     assert probe("envs", MALLOC_TRIM_THRESHOLD_=str(2**20))["applied"] is False
 
 
-# Rebuilds MuJoBan environments the way long runs do (the old environment is
-# still alive while the next is built) and reports how far malloc's heap
+# Rebuilds MuJoBan environments the way long runs do (close one, build the
+# next, eight times) and reports how far malloc's heap
 # (mallinfo2.arena: bytes obtained with brk or in arena heaps) grew.
 REBUILD = r"""
-import ctypes, gc, json
+import gc, json
 import envs
-libc = ctypes.CDLL("libc.so.6")
-class M(ctypes.Structure):
-    _fields_ = [(n, ctypes.c_size_t) for n in
-                "arena ordblks smblks hblks hblkhd usmblks fsmblks uordblks fordblks keepcost".split()]
-libc.mallinfo2.restype = M
 env = envs.load("mujoban/level1", seed=0, **envs.no_cameras("mujoban/level1"))
 env.reset()
 heaps = []
@@ -113,15 +113,14 @@ for i in range(8):
     env = envs.load("mujoban/level1", seed=i + 1, **envs.no_cameras("mujoban/level1"))
     env.reset()
     gc.collect()
-    heaps.append(libc.mallinfo2().arena)
+    heaps.append(envs._malloc.mallinfo()["arena"])
 print(json.dumps({"heap_mb": [h / 2**20 for h in heaps]}))
 """
 
 
 def test_rebuilding_environments_keeps_their_large_blocks_out_of_the_heap():
-    environ = {k: v for k, v in os.environ.items()
-               if k not in ("MALLOC_MMAP_THRESHOLD_", "MALLOC_TRIM_THRESHOLD_", "GLIBC_TUNABLES")}
-    out = subprocess.run([sys.executable, "-c", REBUILD], cwd=ROOT, env=environ,
+    out = subprocess.run([sys.executable, "-c", REBUILD], cwd=ROOT,
+                         env=_environ_without_malloc_settings(),
                          capture_output=True, text=True, check=True, timeout=600)
     heap_mb = json.loads(out.stdout.strip().splitlines()[-1])["heap_mb"]
     # Each MuJoBan model buffer is 17.5 MB; none of them may end up in the heap.
