@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["CameraDescription", "MujobanDescription", "ArmDescription", "BoardDescription"]
+__all__ = ["CameraDescription", "MujobanLooks", "MujobanDescription", "ArmDescription", "BoardDescription"]
 
 
 @dataclass(frozen=True)
@@ -83,6 +83,40 @@ class CameraDescription:
 
 
 @dataclass(frozen=True)
+class MujobanLooks:
+    """The colours of what a MuJoBan agent must recognise, and the light.
+
+    Attributes (RGBA in [0, 1]):
+      box, box_on_pad: a box, and a box while it covers a pad.
+      pad, pad_covered: a target pad, and one a box covers (the ring left
+        around the box).
+      right_ear, left_ear: the walker's two ear spheres (red at the head's
+        +x, blue at -x).
+      headlight_ambient, headlight_diffuse: the only light, at the camera.
+
+    Walls and floors are not here: their textures change between episodes.
+    """
+
+    box: tuple[float, float, float, float]
+    box_on_pad: tuple[float, float, float, float]
+    pad: tuple[float, float, float, float]
+    pad_covered: tuple[float, float, float, float]
+    right_ear: tuple[float, float, float, float]
+    left_ear: tuple[float, float, float, float]
+    headlight_ambient: float
+    headlight_diffuse: float
+
+    def facing_rgb(self, rgba, shade: float = 1.0) -> np.ndarray:
+        """RGB (0-255 floats) of an untextured surface of colour ``rgba``
+        whose normal makes an angle with cosine ``shade`` with the line of
+        sight to the headlight (1: facing the top camera). MuJoCo's
+        fixed-function lighting, no specular: ``min(1, rgba * (ambient +
+        diffuse * shade)) * 255``."""
+        light = self.headlight_ambient + self.headlight_diffuse * shade
+        return np.minimum(np.asarray(rgba, float)[:3] * light, 1.0) * 255.0
+
+
+@dataclass(frozen=True)
 class MujobanDescription:
     """The public facts of a MuJoBan environment.
 
@@ -98,6 +132,7 @@ class MujobanDescription:
       box_half, box_half_height, ball_radius, peg_radius: metres.
       top_camera, egocentric_camera: the cameras (``shape`` None when off).
       action_names: what each action component drives.
+      looks: object colours and light (`MujobanLooks`); None when unknown.
     """
 
     grid_shape: tuple[int, int]
@@ -114,6 +149,7 @@ class MujobanDescription:
     top_camera: CameraDescription
     egocentric_camera: CameraDescription | None = None
     action_names: tuple[str, ...] = ("roll", "steer")
+    looks: MujobanLooks | None = None
 
     def cell_centre(self, row: int, col: int) -> tuple[float, float]:
         """World (x, y) of a cell's centre."""

@@ -211,17 +211,29 @@ def test_cameras_are_observed_at_their_size_and_can_be_switched_off():
         assert key in off
 
 
-def test_appearance_changes_between_episodes():
-    env = envs.load("mujoban/level1", seed=0, levels=str(BOXOBAN_DIR / "unfiltered-valid-000.txt"),
-                    **NO_CAMERAS)
-    model = env.physics.model
-    floor = env.physics.bind(env.task.arena.floor).element_id
-    seen = set()
-    for _ in range(6):
-        env.reset()
-        mat = model.geom_matid[floor]
-        seen.add((int(mat), tuple(np.round(model.mat_rgba[mat], 3))))
-    assert len(seen) > 1
+def test_appearance_changes_between_episodes_and_follows_the_seed():
+    def appearances(seed):
+        env = envs.load("mujoban/level1", seed=seed,
+                        levels=str(BOXOBAN_DIR / "unfiltered-valid-000.txt"), **NO_CAMERAS)
+        out = []
+        for _ in range(8):
+            env.reset()
+            out.append(env.task.appearance)
+        env.close()
+        return out
+
+    first = appearances(0)
+    assert len(set(first)) > 1
+    walls = {w for w, _ in first}
+    floors = {f for _, f in first}
+    assert walls <= set(arena_lib_styles()[0]) and floors <= set(arena_lib_styles()[1])
+    assert appearances(0) == first          # the same seed draws the same looks
+    assert appearances(1) != first
+
+
+def arena_lib_styles():
+    from labmaze import assets
+    return (assets.get_wall_texture_paths("style_01"), assets.get_floor_texture_paths("style_01"))
 
 
 def test_level_larger_than_the_arena_is_a_level_error(tmp_path):
@@ -327,7 +339,7 @@ def _place_box_next_to_pad(env, offset):
 
 
 @pytest.mark.parametrize("offset", [(0.09, 0.0), (0.0, -0.09), (-0.09, 0.09)])
-def test_box_within_0_09_m_of_its_pad_covers_it_rewards_and_turns_it_green(offset):
+def test_box_within_0_09_m_of_its_pad_covers_it_rewards_and_turns_pad_green_box_blue(offset):
     env = make_env(TWO_BOXES)
     env.reset()
     timestep = _place_box_next_to_pad(env, offset)
@@ -338,6 +350,12 @@ def test_box_within_0_09_m_of_its_pad_covers_it_rewards_and_turns_it_green(offse
     pad_ids = [env.physics.bind(g).element_id for g in env.task.arena.pads]
     covered = [np.allclose(rgba[i], arena_lib.PAD_COVERED_RGBA, atol=1e-3) for i in pad_ids[:2]]
     assert covered.count(True) == 1
+    # The original's colours: the covering box blue, the other box yellow.
+    box_ids = [env.physics.bind(b.geom).element_id for b in env.task.boxes[:2]]
+    index = env.task.abstract_cells[0].index(env.task.world_to_cell(env.task.cell_to_world(3, 5)))
+    for k, i in enumerate(box_ids):
+        want = arena_lib.BOX_ON_PAD_RGBA if k == index else arena_lib.BOX_RGBA
+        np.testing.assert_allclose(rgba[i], want, atol=1e-6)
 
 
 @pytest.mark.parametrize("offset", [(0.11, 0.0), (0.0, 0.11), (0.09, -0.11)])

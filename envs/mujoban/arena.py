@@ -16,8 +16,12 @@ step or frame, never anything that would need a recompile:
   its centre to each corner, 0.25 m tall) turned 45 degrees at every interior
   grid intersection, colliding with the walker and the boxes; the collision
   geoms are hidden and all pegs are drawn by a single mesh;
-* wall and floor appearance: several textured materials compiled in; each
-  episode picks one for the walls and one for the floor and tints it.
+* looks: the original's (labmaze's ``sky_03`` skybox, headlight only, the
+  box, pad and peg colours); every labmaze ``style_01`` wall and floor
+  texture is compiled in, and each episode the task points the wall and
+  floor materials at one of each. Wall tops and the floor show one copy of
+  the texture per cell, aligned with the cells, as the original's
+  texturing planes do; outside the grid the skybox shows.
 
 Grid convention: cell ``(row, col)`` with row 0 at the top of the level text
 has its centre at ``x = (col - (W-1)/2) * cell``, ``y = ((H-1)/2 - row) * cell``;
@@ -26,11 +30,9 @@ has its centre at ``x = (col - (W-1)/2) * cell``, ``y = ((H-1)/2 - row) * cell``
 
 from __future__ import annotations
 
-import io
-
 import numpy as np
 from dm_control import composer, mjcf
-from PIL import Image
+from labmaze import assets as labmaze_assets
 
 # Collision bits. Walker geoms use (contype=1, conaffinity=1) from its XML.
 WALKER_BIT = 1
@@ -51,44 +53,24 @@ PEG_RGBA = (0.5, 0.5, 0.5, 1.0)
 #: looking down, its field of view fitting 1.1 times the larger grid side.
 TOP_CAMERA_DISTANCE = 100.0
 TOP_CAMERA_PADDING = 1.1
-PAD_RGBA = (0.8, 0.2, 0.2, 1.0)          # a target pad with no box on it
-PAD_COVERED_RGBA = (0.2, 0.8, 0.2, 1.0)  # a target pad covered by a box
-
-
-def _skyline_png(seed: int = 7, face: int = 256) -> bytes:
-    """A cube-map skybox whose four sides show four different skylines.
-
-    The layout is MuJoCo's 3x4 grid ``.U..LFRBD...`` ... simplified to a strip
-    of six faces (``gridsize="1 6"``, ``gridlayout="RLUDFB"``). Each side face
-    gets buildings of its own colour and height profile, so the walker can tell
-    its heading from the egocentric view.
-    """
-    rng = np.random.default_rng(seed)
-    sky_top = np.array([70, 110, 170], np.float32)
-    sky_bottom = np.array([170, 195, 225], np.float32)
-    rows = np.linspace(0.0, 1.0, face, dtype=np.float32)[:, None, None]
-    side = (sky_top * (1 - rows) + sky_bottom * rows) * np.ones((1, face, 1), np.float32)
-    palettes = [(60, 50, 80), (90, 40, 30), (30, 70, 50), (80, 80, 30)]
-
-    def side_face(k: int) -> np.ndarray:
-        img = side.copy()
-        col = 0
-        base_height = 0.25 + 0.12 * k
-        while col < face:
-            w = int(rng.integers(face // 24, face // 8))
-            h = int(face * (0.5 - base_height * rng.uniform(0.3, 1.0) * 0.9))
-            img[max(h, 0):, col:col + w] = np.array(palettes[k]) * rng.uniform(0.7, 1.2)
-            col += w
-        img[int(face * 0.55):] = np.array(palettes[k]) * 0.5  # ground band
-        return img
-
-    top = np.broadcast_to(sky_top, (face, face, 3))
-    bottom = np.full((face, face, 3), 40, np.float32)
-    faces = [side_face(0), side_face(1), top, bottom, side_face(2), side_face(3)]
-    strip = np.concatenate(faces, axis=1).clip(0, 255).astype(np.uint8)
-    buf = io.BytesIO()
-    Image.fromarray(strip).save(buf, format="PNG")
-    return buf.getvalue()
+# Looks: the original task's (physics_planning_games, mujoban.py).
+#: A box, and a box while it covers a pad (the original paints the pad's
+#: activator box blue).
+BOX_RGBA = (173 / 255, 179 / 255, 60 / 255, 1.0)
+BOX_ON_PAD_RGBA = (0.0, 0.0, 1.0, 1.0)
+#: A target pad with no box on it, and one covered by a box (the green ring
+#: around a blue box).
+PAD_RGBA = (1.0, 0.0, 0.0, 1.0)
+PAD_COVERED_RGBA = (0.0, 1.0, 0.0, 1.0)
+#: The headlight of dm_control composer's base arena (diffuse 0.6, specular
+#: 0) with the original's ambient 0.8, and no other light: a surface facing
+#: the top camera renders as ``min(1, rgba * 1.4)``.
+HEADLIGHT_AMBIENT = 0.8
+HEADLIGHT_DIFFUSE = 0.6
+#: labmaze texture styles drawn by the original: skybox ``sky_03``, wall and
+#: floor textures of ``style_01`` (one of each drawn per episode).
+SKY_STYLE = "sky_03"
+TEXTURE_STYLE = "style_01"
 
 
 def _peg_mesh(centres: np.ndarray, radius: float, height: float, sides: int = 8):
@@ -139,40 +121,34 @@ class MujobanArena(composer.Arena):
         root.visual.quality.offsamples = 0
         root.visual.__getattr__("global").offheight = int(offscreen_size[0])
         root.visual.__getattr__("global").offwidth = int(offscreen_size[1])
-        root.visual.headlight.ambient = (0.4, 0.4, 0.4)
-        root.visual.headlight.diffuse = (0.6, 0.6, 0.6)
-        root.visual.headlight.specular = (0.1, 0.1, 0.1)
+        root.visual.headlight.ambient = (HEADLIGHT_AMBIENT,) * 3
+        root.visual.headlight.diffuse = (HEADLIGHT_DIFFUSE,) * 3
+        root.visual.headlight.specular = (0.0, 0.0, 0.0)
         root.visual.map.znear = 0.01
 
-        root.asset.add("texture", name="skyline", type="skybox",
-                       file=mjcf.Asset(_skyline_png(), ".png"),
-                       gridsize=(1, 6), gridlayout="RLUDFB")
-        self.floor_materials, self.wall_materials = [], []
-        for i, (builtin, mark) in enumerate([("checker", "none"), ("checker", "edge"),
-                                             ("gradient", "none"), ("flat", "random")]):
-            tex = root.asset.add("texture", name=f"floor_tex_{i}", type="2d", builtin=builtin,
-                                 mark=mark, rgb1=(0.9, 0.9, 0.9), rgb2=(0.6, 0.6, 0.6),
-                                 markrgb=(0.3, 0.3, 0.3), random=0.05, width=64, height=64)
-            self.floor_materials.append(root.asset.add(
-                "material", name=f"floor_mat_{i}", texture=tex,
-                texrepeat=(width, height), texuniform=False, reflectance=0.0))
-        # Wall textures carry no per-cell marks: slabs that merge many cells
-        # must look like the cells drawn one by one.
-        for i, (builtin, mark) in enumerate([("flat", "random"), ("gradient", "none"),
-                                             ("flat", "none"), ("checker", "random")]):
-            tex = root.asset.add("texture", name=f"wall_tex_{i}", type="2d", builtin=builtin,
-                                 mark=mark, rgb1=(0.95, 0.95, 0.95), rgb2=(0.7, 0.7, 0.7),
-                                 markrgb=(0.4, 0.4, 0.4), random=0.1, width=32, height=32)
-            self.wall_materials.append(root.asset.add(
-                "material", name=f"wall_mat_{i}", texture=tex, texuniform=True,
-                texrepeat=(1 / cell_size, 1 / cell_size)))
-
-        root.worldbody.add("light", name="sun", directional=True, castshadow=False,
-                           pos=(0, 0, 10), dir=(0.3, 0.2, -1), diffuse=(0.5, 0.5, 0.5))
+        sky = labmaze_assets.get_sky_texture_paths(SKY_STYLE)
+        root.asset.add("texture", name="skybox", type="skybox", fileleft=sky.left,
+                       fileright=sky.right, fileup=sky.up, filedown=sky.down,
+                       filefront=sky.front, fileback=sky.back)
+        # Every texture of the style is compiled in (uploaded to the GL
+        # context once); an episode only re-points the materials' texture ids.
+        self.wall_textures = [
+            root.asset.add("texture", name=f"wall_{key}", type="2d", file=path)
+            for key, path in sorted(labmaze_assets.get_wall_texture_paths(TEXTURE_STYLE).items())]
+        self.floor_textures = [
+            root.asset.add("texture", name=f"floor_{key}", type="2d", file=path)
+            for key, path in sorted(labmaze_assets.get_floor_texture_paths(TEXTURE_STYLE).items())]
+        # Textures are stretched over each geom face (texuniform off) and
+        # repeated once per cell: ``texrepeat`` is the face's size in cells.
+        self.wall_cell_material = root.asset.add(
+            "material", name="wall_cell", texture=self.wall_textures[0], texrepeat=(1, 1))
         half_w, half_h = width * cell_size / 2, height * cell_size / 2
+        self.floor_material = root.asset.add(
+            "material", name="floor", texture=self.floor_textures[0],
+            texrepeat=(width, height))
         self.floor = root.worldbody.add(
-            "geom", name="floor", type="plane", size=(half_w + 2, half_h + 2, 0.5),
-            material=self.floor_materials[0], contype=FLOOR_BIT, conaffinity=WALKER_BIT,
+            "geom", name="floor", type="plane", size=(half_w, half_h, 0.5),
+            material=self.floor_material, contype=FLOOR_BIT, conaffinity=WALKER_BIT,
             # MuJoCo's default geom friction, as dm_control's maze floor; the
             # boxes touch the floor only through the task's contact pairs.
             condim=3, friction=(1.0, 0.005, 0.0001))
@@ -193,7 +169,7 @@ class MujobanArena(composer.Arena):
                 row.append(root.worldbody.add(
                     "geom", name=f"wall_{r}_{c}", type="box", size=(hc, hc, WALL_HEIGHT / 2),
                     pos=(x, y, WALL_HEIGHT / 2), group=HIDDEN_GROUP,
-                    material=self.wall_materials[0],
+                    material=self.wall_cell_material,
                     # Compiled as colliding so that MuJoCo puts them in the
                     # world body's collision tree; the task switches the
                     # non-wall cells off per level.
@@ -202,12 +178,18 @@ class MujobanArena(composer.Arena):
         # Render-only wall slabs. Real Boxoban levels need at most 19 (10 on
         # average); a level that needs more than the pool is drawn with its
         # per-cell collision geoms instead (slower to render, same look).
+        # Each slab has a material of its own: its texrepeat is the slab's
+        # size in cells, set with the level.
+        num_slabs = min(int(wall_slabs), height * width)
+        self.slab_materials = [
+            root.asset.add("material", name=f"wall_slab_{i}", texture=self.wall_textures[0])
+            for i in range(num_slabs)]
         self.wall_slabs = [
             root.worldbody.add("geom", name=f"wall_slab_{i}", type="box",
                                size=(hc, hc, WALL_HEIGHT / 2), pos=(0, 0, -10),
                                group=HIDDEN_GROUP, contype=0, conaffinity=0,
-                               material=self.wall_materials[0])
-            for i in range(min(int(wall_slabs), height * width))]
+                               material=self.slab_materials[i])
+            for i in range(num_slabs)]
         self.pads = [
             root.worldbody.add("geom", name=f"pad_{i}", type="box",
                                size=(0.5 * cell_size, 0.5 * cell_size, 0.004),

@@ -4,9 +4,7 @@ from __future__ import annotations
 
 from dm_control import composer, mjcf
 
-from envs.mujoban.arena import BOX_BIT, WALKER_BIT
-
-BOX_RGBA = (0.72, 0.52, 0.3, 1.0)
+from envs.mujoban.arena import BOX_BIT, BOX_RGBA, WALKER_BIT
 
 #: The original task's box (physics_planning_games, mujoban.py: ``_BOX_SIZE``,
 #: ``_BOX_HEIGHT``, ``_BOX_MASS``): half-size 0.4 x 0.4, half-height 0.15 m, 2.5 kg.

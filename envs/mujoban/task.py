@@ -63,21 +63,27 @@ ENTITY_CHANNELS = ("wall", "target", "player", "box")
 WALL, TARGET, PLAYER, BOX = range(4)
 
 #: Colours of ``pixel_layer``, one pixel per grid cell.
+#: The original's: the player blue whether on a target or not.
 PIXEL_COLOURS = {
     "floor": (0, 0, 0),
-    "wall": (120, 120, 120),
-    "target": (254, 126, 125),
-    "box": (142, 121, 56),
-    "box_on_target": (254, 95, 56),
-    "player": (160, 212, 56),
-    "player_on_target": (219, 212, 56),
+    "wall": (128, 128, 128),
+    "target": (255, 0, 0),
+    "box": (255, 255, 0),
+    "box_on_target": (0, 255, 0),
+    "player": (0, 0, 255),
+    "player_on_target": (0, 0, 255),
 }
 
 LevelSource = Callable[[np.random.Generator], Level]
 
 _PARKED_Z = -20.0
+#: MuJoCo's texture role of a material's base colour (``mjTEXROLE_RGB``).
+_TEXROLE_RGB = 1
 #: The rolling ball's radius (dm_control's ``RollingBallWithHead`` shell), metres.
 BALL_RADIUS = 0.2
+#: Its ear spheres' colours (dm_control's ``add_ears``): red at the head's +x,
+#: blue at -x.
+EAR_RGBA = ((0.7, 0.0, 0.0, 1.0), (0.0, 0.0, 0.7, 1.0))
 #: Aliveness in [-1, 0] below which the walker counts as dead (the original's
 #: ``_ALIVE_THRESHOLD``).
 ALIVE_THRESHOLD = -0.5
@@ -111,7 +117,8 @@ class Mujoban(PhysicsTask):
         motion, and block the walker too, as in the original).
       top_camera: ``(height, width)`` of the top-down RGB camera, or None.
       egocentric_camera: ``(height, width)`` of the walker's camera, or None.
-      randomize_appearance: sample wall and floor textures/colours every episode.
+      randomize_appearance: draw the wall and floor textures every episode
+        (labmaze ``style_01``, as the original); False keeps the first of each.
       control_timestep, physics_timestep, time_limit: seconds. The
         defaults are the paper's 0.05 s control step and the original's 1 ms
         physics step; ``physics_timestep=0.005`` is the cheaper deviation.
@@ -233,7 +240,7 @@ class Mujoban(PhysicsTask):
 
     def description(self):
         """The public `envs.description.MujobanDescription` of this task."""
-        from envs.description import CameraDescription, MujobanDescription
+        from envs.description import CameraDescription, MujobanDescription, MujobanLooks
         arena = self._arena
         cam = arena.top_camera
         top = CameraDescription(
@@ -248,7 +255,13 @@ class Mujoban(PhysicsTask):
             time_limit_steps=int(self.time_limit_steps),
             pad_tolerance=self._pad_tolerance / arena.cell_size,
             box_half=float(box.half_size), box_half_height=float(box.half_height),
-            ball_radius=BALL_RADIUS, peg_radius=arena_lib.PEG_RADIUS, top_camera=top)
+            ball_radius=BALL_RADIUS, peg_radius=arena_lib.PEG_RADIUS, top_camera=top,
+            looks=MujobanLooks(
+                box=arena_lib.BOX_RGBA, box_on_pad=arena_lib.BOX_ON_PAD_RGBA,
+                pad=arena_lib.PAD_RGBA, pad_covered=arena_lib.PAD_COVERED_RGBA,
+                right_ear=EAR_RGBA[0], left_ear=EAR_RGBA[1],
+                headlight_ambient=arena_lib.HEADLIGHT_AMBIENT,
+                headlight_diffuse=arena_lib.HEADLIGHT_DIFFUSE))
 
     # -- composer hooks -----------------------------------------------------
 
@@ -261,9 +274,12 @@ class Mujoban(PhysicsTask):
         self._wall_ids = np.array([[bind(g).element_id for g in row] for row in arena.wall_cells])
         self._slab_ids = np.array([bind(g).element_id for g in arena.wall_slabs])
         self._pad_ids = np.array([bind(g).element_id for g in arena.pads])
-        self._floor_id = bind(arena.floor).element_id
-        self._floor_mat_ids = np.array([bind(m).element_id for m in arena.floor_materials])
-        self._wall_mat_ids = np.array([bind(m).element_id for m in arena.wall_materials])
+        self._floor_mat = bind(arena.floor_material).element_id
+        self._wall_mats = np.array([bind(m).element_id for m in
+                                    [arena.wall_cell_material, *arena.slab_materials]])
+        self._slab_mats = self._wall_mats[1:]
+        self._floor_tex_ids = [bind(t).element_id for t in arena.floor_textures]
+        self._wall_tex_ids = [bind(t).element_id for t in arena.wall_textures]
         self._box_geom_ids = np.array([bind(b.geom).element_id for b in self._boxes])
         box_qpos = np.array([[bind(j).qposadr for j in js] for js in self._box_joints])
         box_dof = np.array([[bind(j).dofadr for j in js] for js in self._box_joints])
@@ -337,7 +353,7 @@ class Mujoban(PhysicsTask):
             raise TypeError(f"level_source returned {type(level).__name__}, expected Level")
         self._set_level(level)
         if self._randomize_appearance:
-            self._randomize_colours(random_state)
+            self._draw_appearance(random_state)
         m, d = self._model, self._data
         d.qpos[self._walker_joint_qpos] = 0.0
         px, py = self._arena.cell_centre(*self.level.player)
@@ -396,6 +412,7 @@ class Mujoban(PhysicsTask):
                 entered = sum(now and not before for now, before in zip(covered, previous))
                 left = sum(before and not now for now, before in zip(covered, previous))
                 self._covered = covered
+            if covered != previous or any(covered):  # the covering box may change
                 self._paint_pads()
             # The paper's estimate: boxes first, then the walker unless it overlaps a box.
             box_cells = tuple((min(max(round(cy - y * inv), 0), rmax),
@@ -501,6 +518,17 @@ class Mujoban(PhysicsTask):
         return np.array(self._covered, bool)
 
     @property
+    def appearance(self) -> tuple[str, str]:
+        """This episode's (wall texture, floor texture): labmaze ``style_01``
+        names such as ``("yellow", "blue_team")``."""
+        m = self._model
+        wall = int(m.mat_texid[self._wall_mats[0], _TEXROLE_RGB])
+        floor = int(m.mat_texid[self._floor_mat, _TEXROLE_RGB])
+        names = self._arena
+        return (names.wall_textures[self._wall_tex_ids.index(wall)].name.removeprefix("wall_"),
+                names.floor_textures[self._floor_tex_ids.index(floor)].name.removeprefix("floor_"))
+
+    @property
     def solved(self) -> bool:
         return self._solved
 
@@ -554,6 +582,7 @@ class Mujoban(PhysicsTask):
                 m.geom_pos[slab] = ((x0 + x1) / 2, (y0 + y1) / 2, arena_lib.WALL_HEIGHT / 2)
                 m.geom_size[slab] = ((c1 - c0) * cell / 2, (r1 - r0) * cell / 2,
                                      arena_lib.WALL_HEIGHT / 2)
+                m.mat_texrepeat[self._slab_mats[k]] = (c1 - c0, r1 - r0)
                 m.geom_group[slab] = 0
             else:
                 m.geom_pos[slab] = (0, 0, _PARKED_Z)
@@ -577,15 +606,15 @@ class Mujoban(PhysicsTask):
             layer[r, c, TARGET] = True
         self._static_layer = layer
 
-    def _randomize_colours(self, rng: np.random.Generator) -> None:
+    def _draw_appearance(self, rng: np.random.Generator) -> None:
+        """Points the wall and floor materials at one labmaze texture each,
+        drawn from ``rng`` (the original draws them from numpy's global
+        generator)."""
         m = self._model
-        floor_mat = int(rng.choice(self._floor_mat_ids))
-        wall_mat = int(rng.choice(self._wall_mat_ids))
-        m.geom_matid[self._floor_id] = floor_mat
-        m.geom_matid[self._slab_ids] = wall_mat
-        m.geom_matid[self._wall_ids.ravel()] = wall_mat
-        m.mat_rgba[floor_mat, :3] = rng.uniform(0.3, 1.0, size=3)
-        m.mat_rgba[wall_mat, :3] = rng.uniform(0.3, 1.0, size=3)
+        m.mat_texid[self._wall_mats, _TEXROLE_RGB] = self._wall_tex_ids[
+            int(rng.integers(len(self._wall_tex_ids)))]
+        m.mat_texid[self._floor_mat, _TEXROLE_RGB] = self._floor_tex_ids[
+            int(rng.integers(len(self._floor_tex_ids)))]
 
     def _box_xy(self) -> list[tuple[float, float]]:
         qpos = self._qpos.tolist()
@@ -597,9 +626,19 @@ class Mujoban(PhysicsTask):
                      for tx, ty in self._target_xy)
 
     def _paint_pads(self) -> None:
+        """The original's colours: a covered pad green and the box covering
+        it (the first in box order) blue, other pads red, other boxes yellow."""
         rgba = self._model.geom_rgba
+        rgba[self._box_geom_ids[: self._num_boxes]] = arena_lib.BOX_RGBA
+        tol = self._pad_tolerance
+        boxes = self._box_reference
         for k, covered in enumerate(self._covered):
             rgba[self._pad_ids[k]] = arena_lib.PAD_COVERED_RGBA if covered else arena_lib.PAD_RGBA
+            if covered:
+                tx, ty = self._target_xy[k]
+                i = next(i for i, (bx, by) in enumerate(boxes)
+                         if abs(tx - bx) <= tol and abs(ty - by) <= tol)
+                rgba[self._box_geom_ids[i]] = arena_lib.BOX_ON_PAD_RGBA
 
     def _set_layers(self, box_cells, player) -> None:
         self._box_cells = tuple(box_cells)

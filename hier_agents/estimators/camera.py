@@ -100,6 +100,8 @@ without a camera, ~3.2-3.6 ms at 96x96; the spread is machine load).
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 from scipy import ndimage
 from scipy.optimize import linear_sum_assignment
@@ -146,23 +148,83 @@ _QUANTILES = (2, 10, 25, 50, 75, 90, 98)
 WALL_MATCH = 6.5
 
 
-def _masks(frame: np.ndarray) -> dict:
-    """Boolean masks of the untinted colours. Tinted floors and walls render
-    as a grey texture times ``min(1, tint * light)``, each channel at least
-    ~0.6 of the brightest and at most ~242 (0.95 x 255): they never reach
-    the pads' (one channel 255, the others ~0.4 of it), the box's (red 255)
-    or the ears' (one channel only) colours."""
-    f = frame.astype(np.int16)
-    r, g, b = f[..., 0], f[..., 1], f[..., 2]
-    red_ear = (r > 40) & (g * 5 < r) & (b * 5 < r)
-    blue_ear = (b > 40) & (r * 5 < b) & (g * 5 < b)
+#: Largest difference (0-255, any channel) between a pixel and an untextured
+#: surface's computed colour (`MujobanLooks.facing_rgb`) for it to show that
+#: surface. Rendering is exact (no antialiasing, no specular light), so the
+#: margin only covers rounding; no wall or floor texture of the environment's
+#: styles comes within 13 of the box's colour or 40 of any other.
+FLAT_TOL = 4
+#: Ears are shaded spheres: a pixel shows an ear when it is the ear's colour
+#: times a light between ambient and ambient + diffuse (±``SHADE_SLACK``),
+#: within ``EAR_TOL`` (any channel), and shows no flat colour.
+EAR_TOL = 10
+SHADE_SLACK = 0.01
 
-    def pad(main, o1, o2):
-        return ((main >= 200) & (np.abs(o1 - o2) <= 6) & (o1 * 100 >= main * 30)
-                & (o1 * 100 <= main * 52))
 
-    box = (r >= 250) & (g >= 205) & (g <= 236) & (b >= 122) & (b <= 158)
-    return dict(red_ear=red_ear, blue_ear=blue_ear, pad=pad(r, g, b) | pad(g, r, b), box=box)
+#: Colour classes of `_colour_table`.
+_NONE, _BOX, _BOX_ON_PAD, _PAD, _PAD_COVERED, _RED_EAR, _BLUE_EAR = range(7)
+_FLATS = ((_BOX, "box"), (_BOX_ON_PAD, "box_on_pad"), (_PAD, "pad"),
+          (_PAD_COVERED, "pad_covered"))
+
+
+@functools.lru_cache(maxsize=8)
+def _colour_table(looks) -> tuple[np.ndarray, tuple[int, ...]]:
+    """A class per 24-bit colour (uint8 array of 2**24, see `_NONE` ...), for
+    `MujobanLooks` ``looks``: an untextured object's colour facing the camera
+    within `FLAT_TOL`; an ear's colour times a light between ambient and
+    ambient + diffuse (±`SHADE_SLACK`) within `EAR_TOL`, unless it is a
+    flat colour. Also returns the flat classes that share an ear's hue (a
+    blue box's slanted sides shade like the blue ear)."""
+    table = np.zeros(1 << 24, np.uint8)
+
+    def codes(rgb):
+        rgb = np.asarray(rgb, np.int64)
+        return (rgb[..., 0] << 16) | (rgb[..., 1] << 8) | rgb[..., 2]
+
+    lo = looks.headlight_ambient - SHADE_SLACK
+    hi = looks.headlight_ambient + looks.headlight_diffuse + SHADE_SLACK
+    span = np.arange(-EAR_TOL, EAR_TOL + 1)
+    cube = np.stack(np.meshgrid(span, span, span, indexing="ij"), -1).reshape(-1, 3)
+    confusable = set()
+    for cls, rgba in ((_RED_EAR, looks.right_ear), (_BLUE_EAR, looks.left_ear)):
+        c = np.asarray(rgba[:3], float) * 255.0
+        centres = np.rint(np.linspace(lo, hi, 64)[:, None] * c).astype(np.int64)
+        cand = np.unique((centres[:, None, :] + cube[None]).reshape(-1, 3), axis=0)
+        cand = cand[np.all((cand >= 0) & (cand <= 255), axis=1)]
+        scale = cand @ c / (c @ c)
+        resid = np.abs(cand - scale[:, None] * c).max(1)
+        keep = (resid <= EAR_TOL) & (scale >= lo) & (scale <= hi)
+        table[codes(cand[keep])] = cls
+        for flat_cls, name in _FLATS:
+            rgb = looks.facing_rgb(getattr(looks, name))
+            if np.abs(rgb - (rgb @ c) / (c @ c) * c).max() <= EAR_TOL:
+                confusable.add(flat_cls)
+    fspan = np.arange(-FLAT_TOL, FLAT_TOL + 1)
+    fcube = np.stack(np.meshgrid(fspan, fspan, fspan, indexing="ij"), -1).reshape(-1, 3)
+    for cls, name in _FLATS:
+        cand = np.rint(looks.facing_rgb(getattr(looks, name))).astype(np.int64) + fcube
+        cand = cand[np.all((cand >= 0) & (cand <= 255), axis=1)]
+        table[codes(cand)] = cls
+    return table, tuple(sorted(confusable))
+
+
+def _masks(frame: np.ndarray, looks) -> dict:
+    """Boolean masks of the objects' colours in ``frame`` (see
+    `_colour_table`): ``box`` (a box's top, yellow or blue on a pad),
+    ``pad`` (a pad, red or green when covered), ``red_ear``, ``blue_ear``,
+    and ``unsure``: pixels next to a flat object of an ear's hue, where ears
+    are not looked for (treated as hidden). Walls and floors are textured
+    and drawn per episode; none of their texels comes near these colours."""
+    table, confusable = _colour_table(looks)
+    f = frame.astype(np.int32)
+    cls = table[(f[..., 0] << 16) | (f[..., 1] << 8) | f[..., 2]]
+    unsure = np.isin(cls, confusable) if confusable else np.zeros(cls.shape, bool)
+    if unsure.any():
+        unsure = ndimage.binary_dilation(unsure, structure=np.ones((3, 3), bool))
+        cls = np.where(unsure & (cls >= _RED_EAR), _NONE, cls)
+    return dict(red_ear=cls == _RED_EAR, blue_ear=cls == _BLUE_EAR,
+                pad=(cls == _PAD) | (cls == _PAD_COVERED),
+                box=(cls == _BOX) | (cls == _BOX_ON_PAD), unsure=unsure)
 
 
 class CameraEstimator(Estimator):
@@ -192,6 +254,9 @@ class CameraEstimator(Estimator):
     # -- geometry ---------------------------------------------------------
 
     def _setup_geometry(self, description, shape) -> None:
+        if description.looks is None:
+            raise EstimationError("the task description names no looks (object colours and "
+                                  "light): the camera estimator needs them")
         if self._desc == description and self._shape == shape:
             return
         self._desc, self._shape = description, shape
@@ -223,7 +288,7 @@ class CameraEstimator(Estimator):
         frame = np.asarray(timestep.observation[self._camera_key])
         self._setup_geometry(description, frame.shape[:2])
         height, width = description.grid_shape
-        masks = _masks(frame)
+        masks = _masks(frame, self._desc.looks)
         self._walls, self._targets = self._read_static(frame, masks)
         wall_grid = np.zeros((height, width), bool)
         for r, c in self._walls:
@@ -381,7 +446,7 @@ class CameraEstimator(Estimator):
         h, w = ears.shape
         r0, c0 = max(r0 - pad, 0), max(c0 - pad, 0)
         r1, c1 = min(r1 + pad, h), min(c1 + pad, w)
-        occ = self._occluder[r0:r1, c0:c1]
+        occ = self._occluder[r0:r1, c0:c1] | masks["unsure"][r0:r1, c0:c1]
         world = self._grid_to_world(grid[r0:r1, c0:c1])
         red_w, blue_w = red[r0:r1, c0:c1], blue[r0:r1, c0:c1]
         if occ.any():
@@ -624,7 +689,7 @@ class CameraEstimator(Estimator):
         if frame.shape[:2] != self._shape:
             raise EstimationError(f"frame shape {frame.shape[:2]} differs from reset's "
                                   f"{self._shape}")
-        masks = _masks(frame)
+        masks = _masks(frame, self._desc.looks)
         try:
             if walker is None:
                 walker = self._find_walker(masks, timestep)
