@@ -45,12 +45,11 @@ from tqdm import tqdm  # noqa: E402
 
 import envs  # noqa: E402
 from envs.description import CameraDescription, MujobanDescription, MujobanLooks  # noqa: E402
-from envs.mujoban.levels import read_levels, write_levels  # noqa: E402
+from envs.mujoban.levels import BOXOBAN_DIR, read_levels, write_levels  # noqa: E402
 from hier_agents.boundary import PRIVILEGED_OBSERVATIONS  # noqa: E402
 from hier_agents.components import make_agent  # noqa: E402
 from hier_agents.stats import wilson_interval  # noqa: E402
 
-BOXOBAN = Path(envs.__file__).resolve().parent / "mujoban" / "data" / "boxoban"
 FRAME = (199, 199)
 CONTROL_TIMESTEP = 0.05
 TIME_LIMIT = 45.0
@@ -96,7 +95,8 @@ def original_description(env, pegs: bool) -> MujobanDescription:
     xmat = np.asarray(cam.xmat).reshape(3, 3)
     top = CameraDescription("top_camera", tuple(float(v) for v in cam.xpos),
                             tuple(float(v) for v in np.r_[xmat[:, 0], xmat[:, 1]]),
-                            float(cam.fovy), FRAME)
+                            float(cam.fovy), FRAME,
+                            multisamples=int(physics.model.vis.quality.offsamples))
     ears = [site for site in task._walker.mjcf_model.find_all("site")  # pylint: disable=protected-access
             if site.type == "sphere" and site.size is not None and site.size[0] == 0.26]
     red = next(tuple(s.rgba) for s in ears if s.rgba[0] > 0)
@@ -194,17 +194,7 @@ def side_by_side(level, seed: int, path: Path) -> dict:
                          egocentric_camera=None)
     ours.reset()
     task = ours.task
-    m = ours.physics.model
-    wall_ids = [ours.physics.bind(t).element_id for t in task.arena.wall_textures]
-    floor_ids = [ours.physics.bind(t).element_id for t in task.arena.floor_textures]
-    wall_names = [t.name.removeprefix("wall_") for t in task.arena.wall_textures]
-    floor_names = [t.name.removeprefix("floor_") for t in task.arena.floor_textures]
-    mats = [ours.physics.bind(x).element_id for x in
-            [task.arena.wall_cell_material, *task.arena.slab_materials]]
-    m.mat_texid[mats, 1] = wall_ids[wall_names.index(wall)]
-    m.mat_texid[ours.physics.bind(task.arena.floor_material).element_id, 1] = \
-        floor_ids[floor_names.index(floor_name.split("_", 1)[-1] if floor_name not in floor_names
-                                    else floor_name)]
+    task.set_appearance(wall, floor_name)
     steer = ours.physics.bind(task.walker.mjcf_model.find("joint", "steer"))
     steer.qpos = heading
     ours.physics.forward()
@@ -213,16 +203,22 @@ def side_by_side(level, seed: int, path: Path) -> dict:
     gap = np.full((FRAME[0], 8, 3), 255, np.uint8)
     Image.fromarray(np.concatenate([orig_frame, gap, ours_frame], 1)).resize(
         (2 * (2 * FRAME[1] + 8), 2 * FRAME[0]), Image.NEAREST).save(path)
+    diff = np.abs(orig_frame.astype(int) - ours_frame.astype(int)).max(-1)
     colours = {}
     for label, frame in (("original", orig_frame), ("ours", ours_frame)):
-        flat = frame.reshape(-1, 3)
-        values, counts = np.unique(flat, axis=0, return_counts=True)
-        top = values[np.argsort(-counts)[:12]].tolist()
-        colours[label] = {"most_common_rgb": top}
+        looks = original_description(orig, False).looks if label == "original" else \
+            ours.description().looks
+        colours[label] = {
+            name: int(np.all(frame == np.rint(looks.facing_rgb(getattr(looks, name))), -1).sum())
+            for name in ("box", "pad")}
+    comparison = {"identical_pixels": float(np.mean(diff == 0)),
+                  "pixels_within_8_levels": float(np.mean(diff <= 8)),
+                  "mean_abs_difference": float(np.abs(orig_frame.astype(int)
+                                                      - ours_frame.astype(int)).mean()),
+                  "pixels_of_exact_object_colour": colours}
     orig.close()
     ours.close()
-    return {"wall_texture": wall, "floor_texture": floor_name, "heading": heading,
-            "colours": colours}
+    return {"wall_texture": wall, "floor_texture": floor_name, "heading": heading, **comparison}
 
 
 def main(argv=None) -> int:
@@ -230,7 +226,7 @@ def main(argv=None) -> int:
                                      description=__doc__.split("\n\n")[0],
                                      formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     parser.add_argument("--levels", type=int, default=20, help="Boxoban levels per setting")
-    parser.add_argument("--file", type=Path, default=BOXOBAN / "unfiltered-valid-000.txt",
+    parser.add_argument("--file", type=Path, default=BOXOBAN_DIR / "unfiltered-valid-000.txt",
                         help="Boxoban levels file (its first --levels levels are played)")
     parser.add_argument("--pegs", choices=("both", "yes", "no"), default="both")
     parser.add_argument("--seed", type=int, default=0)
@@ -249,7 +245,8 @@ def main(argv=None) -> int:
         args.picture.parent.mkdir(parents=True, exist_ok=True)
         out["picture"] = {"path": str(args.picture), **side_by_side(levels[0], args.seed,
                                                                      args.picture)}
-        print(f"wrote {args.picture}")
+        print(f"wrote {args.picture}: " + ", ".join(
+            f"{k} {v}" for k, v in out["picture"].items() if k not in ("path",)))
     else:
         settings = {"both": (False, True), "yes": (True,), "no": (False,)}[args.pegs]
         out["runs"] = [play(levels, pegs, args.seed) for pegs in settings]

@@ -35,6 +35,11 @@ class CameraDescription:
       fovy: vertical field of view, degrees.
       shape: (height, width) of the frames the environment renders, or None
         when the camera is switched off.
+      multisamples: samples per pixel of the renderer's multisampling (0 or
+        1: none). With n samples a pixel shows a surface's own colour only
+        where the surface covers all of them, i.e. where the pixel centre lies
+        at least `coverage_inset` pixels inside the surface's outline along
+        each axis; pixels on outlines show blends.
     """
 
     name: str
@@ -42,6 +47,15 @@ class CameraDescription:
     xyaxes: tuple[float, ...]
     fovy: float
     shape: tuple[int, int] | None
+    multisamples: int = 0
+
+    @property
+    def coverage_inset(self) -> float:
+        """Pixels (see ``multisamples``): the farthest a sample lies from its
+        pixel centre along an axis in the standard n-sample patterns,
+        ``(n - 1) / (2 n)`` (0.375 for 4 samples); 0 without multisampling."""
+        n = max(int(self.multisamples), 1)
+        return (n - 1) / (2 * n)
 
     def rotation(self) -> np.ndarray:
         """(3, 3) world-from-camera rotation (columns: camera x, y, z)."""

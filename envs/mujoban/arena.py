@@ -70,6 +70,9 @@ HEADLIGHT_DIFFUSE = 0.6
 #: labmaze texture styles drawn by the original: skybox ``sky_03``, wall and
 #: floor textures of ``style_01`` (one of each drawn per episode).
 SKY_STYLE = "sky_03"
+#: Multisampling of offscreen frames: MuJoCo's default, the original's (4
+#: samples per pixel; with 0, object outlines move by up to a pixel).
+MULTISAMPLES = 4
 TEXTURE_STYLE = "style_01"
 
 
@@ -118,7 +121,7 @@ class MujobanArena(composer.Arena):
             root.option.flag.sleep = "enable"
 
         root.visual.quality.shadowsize = 0
-        root.visual.quality.offsamples = 0
+        root.visual.quality.offsamples = MULTISAMPLES
         root.visual.__getattr__("global").offheight = int(offscreen_size[0])
         root.visual.__getattr__("global").offwidth = int(offscreen_size[1])
         root.visual.headlight.ambient = (HEADLIGHT_AMBIENT,) * 3

@@ -246,7 +246,7 @@ class Mujoban(PhysicsTask):
         top = CameraDescription(
             "top_camera", tuple(float(v) for v in cam.pos), tuple(float(v) for v in cam.xyaxes),
             float(cam.fovy), (self._cameras["top_camera"].height, self._cameras["top_camera"].width)
-            if "top_camera" in self._cameras else None)
+            if "top_camera" in self._cameras else None, multisamples=arena_lib.MULTISAMPLES)
         box = self._boxes[0]
         return MujobanDescription(
             grid_shape=tuple(arena.grid_shape), cell_size=float(arena.cell_size),
@@ -520,13 +520,11 @@ class Mujoban(PhysicsTask):
     @property
     def appearance(self) -> tuple[str, str]:
         """This episode's (wall texture, floor texture): labmaze ``style_01``
-        names such as ``("yellow", "blue_team")``."""
+        names such as ``("yellow", "blue_team")`` (see `appearances`)."""
         m = self._model
-        wall = int(m.mat_texid[self._wall_mats[0], _TEXROLE_RGB])
-        floor = int(m.mat_texid[self._floor_mat, _TEXROLE_RGB])
-        names = self._arena
-        return (names.wall_textures[self._wall_tex_ids.index(wall)].name.removeprefix("wall_"),
-                names.floor_textures[self._floor_tex_ids.index(floor)].name.removeprefix("floor_"))
+        walls, floors = self.appearances()
+        return (walls[self._wall_tex_ids.index(int(m.mat_texid[self._wall_mats[0], _TEXROLE_RGB]))],
+                floors[self._floor_tex_ids.index(int(m.mat_texid[self._floor_mat, _TEXROLE_RGB]))])
 
     @property
     def solved(self) -> bool:
@@ -607,14 +605,29 @@ class Mujoban(PhysicsTask):
         self._static_layer = layer
 
     def _draw_appearance(self, rng: np.random.Generator) -> None:
-        """Points the wall and floor materials at one labmaze texture each,
-        drawn from ``rng`` (the original draws them from numpy's global
-        generator)."""
+        """Draws one labmaze texture for the walls and one for the floor from
+        ``rng`` (the original draws them from numpy's global generator)."""
+        walls, floors = self.appearances()
+        self.set_appearance(walls[int(rng.integers(len(walls)))],
+                            floors[int(rng.integers(len(floors)))])
+
+    def appearances(self) -> tuple[tuple[str, ...], tuple[str, ...]]:
+        """The wall and floor texture names an episode may draw."""
+        arena = self._arena
+        return (tuple(t.name.removeprefix("wall_") for t in arena.wall_textures),
+                tuple(t.name.removeprefix("floor_") for t in arena.floor_textures))
+
+    def set_appearance(self, wall: str, floor: str) -> None:
+        """Shows the walls with texture ``wall`` and the floor with ``floor``
+        (names from `appearances`) until the next episode draws again.
+        Raises ValueError for an unknown name."""
+        walls, floors = self.appearances()
+        for kind, name, names in (("wall", wall, walls), ("floor", floor, floors)):
+            if name not in names:
+                raise ValueError(f"unknown {kind} texture {name!r}; one of {', '.join(names)}")
         m = self._model
-        m.mat_texid[self._wall_mats, _TEXROLE_RGB] = self._wall_tex_ids[
-            int(rng.integers(len(self._wall_tex_ids)))]
-        m.mat_texid[self._floor_mat, _TEXROLE_RGB] = self._floor_tex_ids[
-            int(rng.integers(len(self._floor_tex_ids)))]
+        m.mat_texid[self._wall_mats, _TEXROLE_RGB] = self._wall_tex_ids[walls.index(wall)]
+        m.mat_texid[self._floor_mat, _TEXROLE_RGB] = self._floor_tex_ids[floors.index(floor)]
 
     def _box_xy(self) -> list[tuple[float, float]]:
         qpos = self._qpos.tolist()

@@ -211,7 +211,8 @@ def _colour_table(looks) -> tuple[np.ndarray, tuple[int, ...]]:
 def _masks(frame: np.ndarray, looks) -> dict:
     """Boolean masks of the objects' colours in ``frame`` (see
     `_colour_table`): ``box`` (a box's top, yellow or blue on a pad),
-    ``pad`` (a pad, red or green when covered), ``red_ear``, ``blue_ear``,
+    ``pad`` (a pad, red or green when covered), ``box_on_pad`` (a box's top
+    showing the pad under it), ``red_ear``, ``blue_ear``,
     and ``unsure``: pixels next to a flat object of an ear's hue, where ears
     are not looked for (treated as hidden). Walls and floors are textured
     and drawn per episode; none of their texels comes near these colours."""
@@ -222,9 +223,10 @@ def _masks(frame: np.ndarray, looks) -> dict:
     if unsure.any():
         unsure = ndimage.binary_dilation(unsure, structure=np.ones((3, 3), bool))
         cls = np.where(unsure & (cls >= _RED_EAR), _NONE, cls)
+    box_on_pad = cls == _BOX_ON_PAD
     return dict(red_ear=cls == _RED_EAR, blue_ear=cls == _BLUE_EAR,
-                pad=(cls == _PAD) | (cls == _PAD_COVERED),
-                box=(cls == _BOX) | (cls == _BOX_ON_PAD), unsure=unsure)
+                pad=(cls == _PAD) | (cls == _PAD_COVERED), box_on_pad=box_on_pad,
+                box=(cls == _BOX) | box_on_pad, unsure=unsure)
 
 
 class CameraEstimator(Estimator):
@@ -273,6 +275,11 @@ class CameraEstimator(Estimator):
         # metres per pixel at each height (for sizes)
         f = cam.focal(h)
         self._m_per_px = {z: (cam.position[2] - z) / f for z in self._grid}
+        # With multisampling, a pixel shows an object's own colour only where
+        # its centre lies `coverage_inset` pixels inside the outline: the
+        # estimator measures outlines shrunk by that much.
+        self._inset = float(cam.coverage_inset)
+        self._ear_radius = EAR_RADIUS - self._inset * self._m_per_px[EAR_HEIGHT]
 
     def _cell_index(self, z, margin=0.0):
         """(rows, cols) int arrays of each pixel's cell at height z, and a mask
@@ -323,7 +330,9 @@ class CameraEstimator(Estimator):
         ok = pin & (pr >= 0) & (pr < height) & (pc >= 0) & (pc < width)
         pad_count = np.zeros((height, width))
         all_count = np.zeros((height, width))
-        np.add.at(pad_count, (pr[ok], pc[ok]), masks["pad"][ok])
+        # A box's top in its on-a-pad colour shows a pad under it too (with
+        # multisampling the covered pad's ring is only ~1 pixel wide).
+        np.add.at(pad_count, (pr[ok], pc[ok]), (masks["pad"] | masks["box_on_pad"])[ok])
         np.add.at(all_count, (pr[ok], pc[ok]), 1)
         pad_frac = pad_count / np.maximum(all_count, 1)
         targets = frozenset((int(r), int(c)) for r, c in zip(*np.nonzero(pad_frac > 0.12)))
@@ -450,15 +459,15 @@ class CameraEstimator(Estimator):
         world = self._grid_to_world(grid[r0:r1, c0:c1])
         red_w, blue_w = red[r0:r1, c0:c1], blue[r0:r1, c0:c1]
         if occ.any():
-            centre = self._fit_ears(centre, lateral, red_w, blue_w, occ, world)
+            centre = self._fit_ears(centre, lateral, red_w, blue_w, occ, world, self._ear_radius)
         step = self._m_per_px[EAR_HEIGHT]
         for span, n in ((1.0, 17), (0.15, 13)):
-            centre = self._match_ears(centre, lateral, red_w, blue_w, occ, world,
+            centre = self._match_ears(centre, lateral, red_w, blue_w, occ, world, self._ear_radius,
                                       np.linspace(-span, span, n) * step)
         return centre
 
     @staticmethod
-    def _match_ears(centre, lateral, red, blue, occ, world, offsets):
+    def _match_ears(centre, lateral, red, blue, occ, world, radius, offsets):
         """Sub-pixel refinement: the frames are not antialiased, so a pixel
         shows an ear when its centre is on the ear's disk; among candidate
         centres (``centre`` + a grid of ``offsets``) keep those whose rendered
@@ -473,7 +482,7 @@ class CameraEstimator(Estimator):
         eb = cands - EAR_OFFSET * lateral
         dr = ((pts[None, :, 0] - er[:, None, 0]) ** 2 + (pts[None, :, 1] - er[:, None, 1]) ** 2)
         db = ((pts[None, :, 0] - eb[:, None, 0]) ** 2 + (pts[None, :, 1] - eb[:, None, 1]) ** 2)
-        r2 = EAR_RADIUS ** 2
+        r2 = radius ** 2
         pred_r = (dr <= r2) & (dr <= db)
         pred_b = (db <= r2) & (db < dr)
         miss = (pred_r != obs_r[None]).sum(1) + (pred_b != obs_b[None]).sum(1)
@@ -481,7 +490,7 @@ class CameraEstimator(Estimator):
         return best.mean(axis=0)
 
     @staticmethod
-    def _fit_ears(centre, lateral, red, blue, occ, world):
+    def _fit_ears(centre, lateral, red, blue, occ, world, radius):
         """Least-squares fit of the walker's centre to the ears' visible
         outlines: every ear pixel next to a pixel that is neither ear nor wall
         gives an edge point (the two pixels' midpoint) that lies on its ear's
@@ -512,7 +521,7 @@ class CameraEstimator(Estimator):
         for it in range(8):
             d = pts - (c + off)
             dist = np.linalg.norm(d, axis=1)
-            res = dist - EAR_RADIUS
+            res = dist - radius
             if it >= 2:
                 keep = np.abs(res) < 0.06
             if keep.sum() < 6:
@@ -541,7 +550,8 @@ class CameraEstimator(Estimator):
             return []
         grid = self._grid[self._box_z]
         px = self._m_per_px[self._box_z] / desc.cell_size          # cells per pixel
-        side = 2 * desc.box_half / desc.cell_size            # box side, cells
+        # box side (cells) as seen: pixels fully covered by the box's top
+        side = 2 * desc.box_half / desc.cell_size - 2 * self._inset * px
         area1 = (side / px) ** 2                             # pixels per box
         objs = ndimage.find_objects(labels)
         walker_g = (None if walker_xy is None else desc.world_to_grid(np.asarray(walker_xy)))
