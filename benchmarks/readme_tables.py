@@ -311,6 +311,46 @@ def compare_agents(results: Path) -> list[str]:
     return lines
 
 
+@table("original-env")
+def original_env(results: Path) -> list[str]:
+    """Our default modular agent on the original MuJoBan (`benchmarks/original_env.py`)."""
+    d = _load(results / "original_env.json")
+    lines = ["| environment | levels | pegs | agent (observation-only) | solved [95% CI] "
+             "| mean steps (solved) |", "| --- | --- | --- | --- | --- | --- |"]
+    for run in d["runs"]:
+        steps = run["mean_steps_solved"]
+        lines.append(f"| the original (`physics_planning_games`) | first {run['episodes']} of "
+                     f"`{d['levels_file']}` | {'yes' if run['pegs'] else 'no'} | {d['agent']} "
+                     f"| {_ci(run['success_rate'], run['interval'])} "
+                     f"| {'-' if steps is None else f'{steps:.0f}'} |")
+    return lines
+
+
+@table("estimator-accuracy")
+def estimator_accuracy(results: Path) -> list[str]:
+    """`benchmarks/estimator_accuracy.py`: whole-grid accuracy and errors per estimator."""
+    d = _load(results / "estimator_accuracy.json")
+    lines = ["| estimator | frames | whole grid right | walls / targets / boxes / player "
+             "| worst wall/floor appearance | walker error median / p95 (cells) "
+             "| box error median / p95 (cells) | ms per estimate |",
+             "| --- | --- | --- | --- | --- | --- | --- | --- |"]
+    for r in d["rows"]:
+        looks = r.get("by_appearance") or {}
+        worst = "-"
+        if looks:
+            name, w = min(looks.items(), key=lambda kv: (kv[1]["whole_grid_accuracy"], kv[0]))
+            worst = (f"{name}: {100 * w['whole_grid_accuracy']:.1f}% of {w['frames']} "
+                     f"({len(looks)} seen)")
+        label = r["estimator"] + (" (**privileged**)" if r["privileged"] else "")
+        parts = " / ".join(f"{100 * r[k + '_accuracy']:.1f}%"
+                           for k in ("walls", "targets", "boxes", "player"))
+        lines.append(f"| {label} | {r['frames']} | {100 * r['whole_grid_accuracy']:.1f}% "
+                     f"| {parts} | {worst} | {r['walker_error_median_cells']:.4f} / "
+                     f"{r['walker_error_p95_cells']:.4f} | {r['box_error_median_cells']:.4f} / "
+                     f"{r['box_error_p95_cells']:.4f} | {r['ms_per_estimate']:.1f} |")
+    return lines
+
+
 # -- README markers ---------------------------------------------------------------
 
 _BLOCK = re.compile(r"(<!-- table:(?P<name>[\w.-]+) -->\n)(?P<body>.*?)(<!-- /table:(?P=name) -->)",

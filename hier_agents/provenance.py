@@ -54,6 +54,12 @@ def _commit(root: Path = _ROOT) -> str | None:
     return commit
 
 
+#: The checkout's state when this process imported the library: the code it
+#: runs. A result written later records this, not the checkout's state then
+#: (which may have moved on while a long benchmark ran).
+_COMMIT_AT_START = _commit()
+
+
 def provenance(command: str | None = None) -> dict:
     """The record of this process: ``command``, ``commit``, ``date``, ``machine``.
 
@@ -61,10 +67,10 @@ def provenance(command: str | None = None) -> dict:
       command: the command line to record; defaults to ``python`` followed by
         this process's arguments (``python -m pkg.mod`` for modules run with -m).
 
-    ``commit`` is the checkout's HEAD with ``+dirty`` appended when tracked
-    files other than ``results/`` differ from it (a benchmark run that has
-    just rewritten one result file still measures the committed code), or
-    None outside a git checkout.
+    ``commit`` is the checkout's HEAD when this process imported the library,
+    with ``+dirty`` appended when tracked files other than ``results/``
+    differed from it then (a benchmark run that has just rewritten one result
+    file still measures the committed code), or None outside a git checkout.
     """
     if command is None:
         argv = list(sys.argv)
@@ -78,7 +84,7 @@ def provenance(command: str | None = None) -> dict:
             except ValueError:
                 pass
         command = "python " + " ".join(shlex.quote(a) for a in argv)
-    commit = _commit()
+    commit = _COMMIT_AT_START
     import mujoco  # the simulator version matters for every physics number
     return {
         "command": command,

@@ -12,26 +12,34 @@ Every pixel is mapped to continuous grid coordinates on a horizontal plane
 with the camera's pinhole model (`CameraDescription.unproject`, checked
 against rendered frames to a few hundredths of a pixel): z = 1 m for wall
 tops, 0.3 m (``2 * box_half_height``) for box tops, 0.6 m for the walker's
-ears, 0 for pads. MuJoCo's fixed-function lighting renders a surface as
-texture x min(1, rgba x light) (light ~1.8 from above), so a tinted floor or
-wall is a grey texture times a per-channel factor in [0.6, 1] (tints in
-[0.3, 1] mostly saturate: floors and walls are often the *same* colour),
-while the untinted objects keep colours no tinted surface reaches: pads (one
-channel 255, the others ~0.4 of it, red ``PAD_RGBA``, green
-``PAD_COVERED_RGBA`` when covered), boxes (red 255, ``BOX_RGBA``), the
-walker's red and blue "ears" (one channel only).
+ears, 0 for pads.
+
+Colours come from the description, not from one palette: the
+description's `MujobanLooks` names the colours of boxes (and of a box on a
+pad), pads (and covered pads), the walker's ears, and the light (one
+headlight at the camera). An untextured surface facing the camera renders
+as ``min(1, rgba * (ambient + diffuse)) * 255`` (`MujobanLooks.facing_rgb`),
+exactly; an ear, a shaded sphere, as its colour times a light between
+ambient and ambient + diffuse. `_colour_table` turns that into a class per
+24-bit colour (`FLAT_TOL`, `EAR_TOL`): a pad's saturated red is never an
+ear's shaded red, and pixels next to a flat object of an ear's hue (a blue
+box's slanted sides) are not read as an ear but as hidden. Walls and floors
+are textured (a texture drawn per episode); none of their texels comes near
+these colours. With multisampling (`CameraDescription.multisamples`) a pixel
+shows an object's own colour only where it covers all samples, so outlines
+are measured shrunk by `CameraDescription.coverage_inset`.
 
 ``reset`` reads the static grid from the first frame:
 
-* targets: cells at least 12% pad-coloured (a centred box leaves a ring);
-* walls: walls are textured per metre, so every wall cell looks the same
-  whatever the texture and tint, while floor textures repeat every ~1.4
-  cells with other grey levels (0.9/0.6/0.3 against 0.95/0.7/0.4). The grid's
-  outer ring is walls (Boxoban levels have a wall border; smaller generated
-  levels are padded with walls), so a cell is a wall when its colour
-  distribution (7 quantiles per channel over its top, at wall height) is
-  within 6.5 levels (mean absolute difference) of one ring cell's, and all
-  its colours are wall colours (none more than ~8 levels from every ring
+* targets: cells at least 12% pad-coloured or covered by a box in its
+  on-a-pad colour (a centred box leaves a thin ring of the pad visible);
+* walls: every wall cell shows the same texture (one copy per cell, the
+  same phase), and the floor cells another. The grid's outer ring is walls
+  (Boxoban levels have a wall border; smaller generated levels are padded
+  with walls), so a cell is a wall when its colour distribution (7
+  quantiles per channel over its top, at wall height) is within
+  `WALL_MATCH` (mean absolute difference) of one ring cell's, and all its
+  colours are wall colours (none more than ~8 levels from every ring
   colour). Walls and targets are static: read once per episode.
 * boxes: as below; their number must equal the number of pads, and their
   order is by cell (the task's order).
@@ -83,19 +91,10 @@ level source); the camera looks straight down (the environment's); boxes do
 not turn (slide joints); the walker is dm_control's rolling ball with ears.
 Frame size: 199x199 for the 10x10 arena (18.1 px per cell).
 
-Measured (``benchmarks/estimator_accuracy.py``, ``results/estimator_accuracy.json``:
-1008 held-out frames from 252 episodes over generated levels 1-5 and real
-Boxoban levels, with and without pegs, mid-episode with random actions and
-boxes nudged off-centre): whole abstract grid right in 99.9% of
-frames (walls 100%, targets 100%, boxes 100%, player 99.9%: one frame; in
-development runs such misses were the walker within a few thousandths of a
-cell of a cell boundary), 0 failures; position
-error median / p95: walker 0.0023 / 0.0062 cells, boxes 0.012 / 0.017 cells
-(box edges are pixel-quantised); ~5 ms per ``estimate`` and ~30 ms per
-``reset`` on one core of the 2-core development machine. The static grid
-alone was also right at all of 3500 further resets (tuning seeds). Rendering
-the 199x199 top camera costs ~4-6.5 ms per ``env.step`` (level 5; ~2 ms
-without a camera, ~3.2-3.6 ms at 96x96; the spread is machine load).
+Accuracy and cost: ``benchmarks/estimator_accuracy.py`` (whole-grid
+accuracy per level source and per drawn wall/floor appearance, position
+errors, ms per estimate), ``results/estimator_accuracy.json``; on the
+original environment's own frames: ``benchmarks/original_env.py``.
 """
 
 from __future__ import annotations
@@ -139,19 +138,21 @@ EAR_OFFSET = 0.22
 EAR_HEIGHT = 0.6
 WALL_HEIGHT = 1.0
 #: Quantiles (percent) of a cell's colours compared between cells, and the
-#: largest mean absolute difference (0..255 units) of a wall match. Wall
-#: cells differ from the ring's by <= ~4.5 (sub-pixel sampling), floor cells
-#: by >= ~8.5 (measured on 840 episodes of tuning seeds, 7000+); a floor
-#: cell below the threshold is still told apart when some of its colours are
-#: not wall colours at all (`CameraEstimator._foreign_fraction`).
+#: largest mean absolute difference (0..255 units) of a wall match. With the
+#: environment's 8 wall and 6 floor textures (all 48 pairs, 6 Boxoban levels,
+#: pegs and not) wall cells differ from the ring's by at most 0.54 (sub-pixel
+#: sampling), free floor cells by at least 7.5 (blue walls on the blue_team
+#: floor; every other pair >= 15.9); the threshold sits between, nearer the
+#: walls. A floor cell below it is still told apart when some of its colours
+#: are not wall colours at all (`CameraEstimator._foreign_fraction`).
 _QUANTILES = (2, 10, 25, 50, 75, 90, 98)
-WALL_MATCH = 6.5
+WALL_MATCH = 3.0
 
 
 #: Largest difference (0-255, any channel) between a pixel and an untextured
 #: surface's computed colour (`MujobanLooks.facing_rgb`) for it to show that
-#: surface. Rendering is exact (no antialiasing, no specular light), so the
-#: margin only covers rounding; no wall or floor texture of the environment's
+#: surface. Inside an outline rendering is exact (no specular light), so
+#: the margin only covers rounding; no wall or floor texture of the environment's
 #: styles comes within 13 of the box's colour or 40 of any other.
 FLAT_TOL = 4
 #: Ears are shaded spheres: a pixel shows an ear when it is the ear's colour
@@ -337,9 +338,8 @@ class CameraEstimator(Estimator):
         pad_frac = pad_count / np.maximum(all_count, 1)
         targets = frozenset((int(r), int(c)) for r, c in zip(*np.nonzero(pad_frac > 0.12)))
 
-        # Walls are textured per metre, so every wall cell looks the same
-        # (any tint, any texture); floor textures repeat every ~1.4 cells and
-        # use other grey levels. A cell is a wall when the distribution of its
+        # Every wall cell shows one copy of the episode's wall texture, every
+        # floor cell one of its floor texture. A cell is a wall when the distribution of its
         # colours (per-channel quantiles over the cell's top at wall height)
         # matches one of the outer ring's cells, which are all walls.
         sig = self._signatures(frame)
