@@ -41,7 +41,11 @@ intervals and the floors (matplotlib, a dev dependency).
 the agents it already played (same environment, episodes and seed; a
 modular spec, a checkpoint file or a random hold) instead of playing them
 again: each reused row says so (``reused``) and the new JSON keeps the
-earlier file's provenance under ``reused_from``.
+earlier file's provenance under ``reused_from``. ``--keep-rows-of
+EARLIER.json`` also keeps (marked ``reused``) every row of the earlier run
+for agents this command does not name, in the earlier order: to re-measure
+some rows of a comparison (say, the camera agents after a change of looks)
+while the others, whose checkpoints may be gone, stay as measured.
 """
 
 from __future__ import annotations
@@ -257,6 +261,8 @@ def main(argv=None) -> int:
     parser.add_argument("--plot", type=Path, help="PNG of success against training frames")
     parser.add_argument("--reuse", type=Path, metavar="EARLIER_JSON",
                         help="reuse the rows of an earlier run for the agents it played")
+    parser.add_argument("--keep-rows-of", type=Path, metavar="EARLIER_JSON",
+                        help="also keep the earlier run's rows of agents not named here")
     parser.add_argument("--no-progress", action="store_true")
     args = parser.parse_args(argv)
     if args.env not in envs.names():
@@ -272,23 +278,28 @@ def main(argv=None) -> int:
                                          args.budgets)
     except (ValueError, FileNotFoundError) as exc:
         parser.error(str(exc))
-    if not modular and not checkpoints:
+    if not modular and not checkpoints and not args.keep_rows_of:
         parser.error("nothing to compare: give --checkpoint PATH or drop --no-modular")
+    if args.reuse and args.keep_rows_of and args.reuse != args.keep_rows_of:
+        parser.error("--reuse and --keep-rows-of must name the same earlier run")
 
     from hier_agents.impala.learner import load_checkpoint
 
-    earlier, reused_from = {}, None
-    if args.reuse:
+    earlier, reused_from, old = {}, None, None
+    source = args.reuse or args.keep_rows_of
+    if source:
+        flag = "--reuse" if args.reuse else "--keep-rows-of"
         try:
-            old = json.loads(args.reuse.read_text())
+            old = json.loads(source.read_text())
         except (OSError, ValueError) as exc:
-            parser.error(f"--reuse {args.reuse}: {exc}")
+            parser.error(f"{flag} {source}: {exc}")
         if (old.get("env"), old.get("episodes"), old.get("seed")) != (
                 args.env, args.episodes, args.seed):
-            parser.error(f"--reuse {args.reuse} played {old.get('env')}, {old.get('episodes')} "
+            parser.error(f"{flag} {source} played {old.get('env')}, {old.get('episodes')} "
                          f"episodes, seed {old.get('seed')}: not this comparison")
-        earlier = {_key(r): r for r in old["rows"]}
-        reused_from = {"path": str(args.reuse), "provenance": old.get("provenance")}
+        reused_from = {"path": str(source), "provenance": old.get("provenance")}
+        if args.reuse:
+            earlier = {_key(r): r for r in old["rows"]}
 
     def play(key, **kwargs):
         if key in earlier:
@@ -319,6 +330,10 @@ def main(argv=None) -> int:
         summary = play(("random", agent), agent=agent)
         summary["series"] = agent
         rows.append(summary)
+    if args.keep_rows_of:
+        played = {_key(r): r for r in rows}
+        kept = [played.pop(_key(r), None) or {**r, "reused": True} for r in old["rows"]]
+        rows = kept + list(played.values())
     for r in rows:
         r.pop("rows", None)
         r.setdefault("training_frames", 0)

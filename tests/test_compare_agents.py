@@ -100,6 +100,21 @@ def test_curves_learned_skill_frames_floors_and_plot(tmp_path):
     assert again["rows"][0]["success_rate"] == rows[0]["success_rate"]
     assert again["rows"][1]["planner"] == "random"
     assert again["reused_from"]["provenance"] == data["provenance"]
+    # --keep-rows-of: the agents named are played again; every other row of the
+    # earlier run is kept, marked, in its place, though its checkpoint is gone.
+    import shutil
+    shutil.rmtree(run_dir)
+    out3 = tmp_path / "compare3.json"
+    subprocess.run(
+        [sys.executable, str(ROOT / "benchmarks" / "compare_agents.py"), "mujoban/level1",
+         "--episodes", "2", "--modular", "skill=learned-ball", "--random",
+         "--keep-rows-of", str(out), "--json", str(out3), "--no-progress"],
+        check=True, capture_output=True, text=True, cwd=ROOT)
+    kept = json.loads(out3.read_text())
+    assert [r["series"] for r in kept["rows"]] == [r["series"] for r in rows]
+    assert [r.get("reused", False) for r in kept["rows"]] == [True, False, True, True, True]
+    assert kept["reused_from"]["provenance"] == data["provenance"]
+    assert set(kept["clears_random_floor"]) == set(data["clears_random_floor"])
     bad = subprocess.run(
         [sys.executable, str(ROOT / "benchmarks" / "compare_agents.py"), "mujoban/level1",
          "--episodes", "3", "--random", "10", "--reuse", str(out)],
