@@ -91,3 +91,20 @@ def test_camera_estimator_reads_every_wall_and_floor_appearance(pegs):
             assert tuple(scene.state.player) == tuple(player), (wall, floor)
             assert np.linalg.norm(scene.walker_xy - task.walker_position()) < 0.03
     env.close()
+
+
+def test_cheaper_look_without_multisampling_is_read_too():
+    env = envs.load("mujoban/level5-pegs", seed=2, top_camera=(199, 199),
+                    egocentric_camera=None, multisamples=0)
+    assert env.description().top_camera.coverage_inset == 0.0
+    estimator = CameraEstimator(frame_every=1, walker_every=1)
+    timestep = env.reset()
+    layer = np.asarray(timestep.observation["full_entity_layer"])
+    estimator.reset(env.description(), timestep)
+    rng = np.random.default_rng(0)
+    for _ in range(30):
+        timestep = env.step(rng.uniform(-1, 1, 2))
+        scene = estimator.estimate(timestep)
+        assert np.linalg.norm(scene.walker_xy - env.task.walker_position()) < 0.05
+    assert estimator.walls == cells_of(layer[..., 0])
+    env.close()

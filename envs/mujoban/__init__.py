@@ -30,7 +30,7 @@ def make(*, difficulty: int | None = None, pegs: bool = False, seed: int | None 
          randomize_appearance: bool = True, time_limit: float = 45.0,
          control_timestep: float = 0.05, physics_timestep: float = 0.001,
          pad_tolerance: float = 0.1, noslip_iterations: int = 5, sleep: bool = False,
-         render_size=(256, 256),
+         render_size=(256, 256), multisamples: int = 4,
          raise_on_physics_error: bool = True, lazy_cameras: bool = False) -> Environment:
     """Builds a MuJoBan environment.
 
@@ -52,7 +52,10 @@ def make(*, difficulty: int | None = None, pegs: bool = False, seed: int | None 
       top_camera, egocentric_camera: ``(height, width)`` or None to switch off.
       lazy_cameras: render a camera frame only when the agent reads it from
         the timestep (before the next step); see `envs.core.Environment`.
-      randomize_appearance: new wall/floor textures and colours every episode.
+      randomize_appearance: draw the wall and floor textures every episode.
+      multisamples: samples per pixel of rendered frames; default 4, the
+        original's (frames identical to its own). ``0`` is a cheaper look:
+        object outlines move by up to a pixel, nothing else changes.
       time_limit: seconds (45 s = 900 control steps of 0.05 s).
       control_timestep: seconds per agent action (the paper's 0.05).
       physics_timestep: seconds per MuJoCo step; default 0.001 (the
@@ -77,7 +80,7 @@ def make(*, difficulty: int | None = None, pegs: bool = False, seed: int | None 
         control_timestep=control_timestep, physics_timestep=physics_timestep,
         pad_tolerance=pad_tolerance, noslip_iterations=noslip_iterations, sleep=sleep,
         render_size=render_size, raise_on_physics_error=raise_on_physics_error,
-        lazy_cameras=lazy_cameras)
+        lazy_cameras=lazy_cameras, multisamples=multisamples)
     if source is None:
         source = (sources.CurriculumLevels() if difficulty is None
                   else sources.GeneratedLevels(difficulty))
@@ -86,7 +89,7 @@ def make(*, difficulty: int | None = None, pegs: bool = False, seed: int | None 
                    randomize_appearance=randomize_appearance, time_limit=time_limit,
                    control_timestep=control_timestep, physics_timestep=physics_timestep,
                    pad_tolerance=pad_tolerance, noslip_iterations=noslip_iterations,
-                   sleep=sleep, render_size=render_size)
+                   sleep=sleep, render_size=render_size, multisamples=multisamples)
     return Environment(task, seed=seed, raise_on_physics_error=raise_on_physics_error,
                        lazy_cameras=lazy_cameras)
 
@@ -96,7 +99,7 @@ def check_config(*, difficulty=None, pegs=False, seed=None, levels=None,
                  egocentric_camera=(96, 96), randomize_appearance=True, time_limit=45.0,
                  control_timestep=0.05, physics_timestep=0.001, pad_tolerance=0.1,
                  noslip_iterations=5, sleep=False, render_size=(256, 256),
-                 raise_on_physics_error=True, lazy_cameras=False):
+                 raise_on_physics_error=True, lazy_cameras=False, multisamples=4):
     """Checks `make`'s arguments without building anything (`envs._config`).
 
     Returns the `sources.FileLevels` of ``levels`` (read and checked against
@@ -118,6 +121,7 @@ def check_config(*, difficulty=None, pegs=False, seed=None, levels=None,
     _config.check_real("pad_tolerance", pad_tolerance, low=0.0, low_open=True, high=0.5)
     _config.check_int("noslip_iterations", noslip_iterations, 0, _config.MAX_NOSLIP_ITERATIONS)
     _config.check_bool("sleep", sleep)
+    _config.check_int("multisamples", multisamples, 0, 16)
     source = None
     if levels is not None:
         _config.check_path("levels", levels)

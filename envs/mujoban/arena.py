@@ -70,8 +70,9 @@ HEADLIGHT_DIFFUSE = 0.6
 #: labmaze texture styles drawn by the original: skybox ``sky_03``, wall and
 #: floor textures of ``style_01`` (one of each drawn per episode).
 SKY_STYLE = "sky_03"
-#: Multisampling of offscreen frames: MuJoCo's default, the original's (4
-#: samples per pixel; with 0, object outlines move by up to a pixel).
+#: Multisampling of offscreen frames by default: MuJoCo's default, the
+#: original's (4 samples per pixel; with 0, object outlines move by up to a
+#: pixel).
 MULTISAMPLES = 4
 TEXTURE_STYLE = "style_01"
 
@@ -100,7 +101,7 @@ class MujobanArena(composer.Arena):
 
     def _build(self, grid_shape=(10, 10), max_boxes=4, cell_size=1.0, pegs=False,
                offscreen_size=(256, 256), wall_slabs=32, noslip_iterations=5,
-               sleep=False, name="mujoban"):
+               sleep=False, multisamples=MULTISAMPLES, name="mujoban"):
         self._mjcf_root = mjcf.RootElement(model=name)
         height, width = grid_shape
         self.grid_shape = (int(height), int(width))
@@ -121,7 +122,8 @@ class MujobanArena(composer.Arena):
             root.option.flag.sleep = "enable"
 
         root.visual.quality.shadowsize = 0
-        root.visual.quality.offsamples = MULTISAMPLES
+        self.multisamples = int(multisamples)
+        root.visual.quality.offsamples = self.multisamples
         root.visual.__getattr__("global").offheight = int(offscreen_size[0])
         root.visual.__getattr__("global").offwidth = int(offscreen_size[1])
         root.visual.headlight.ambient = (HEADLIGHT_AMBIENT,) * 3

@@ -131,6 +131,8 @@ class Mujoban(PhysicsTask):
       sleep: enable MuJoCo's sleeping of resting bodies (a deviation, off
         by default): boxes and the walker at rest stop being simulated until
         something touches them; about 3.5x faster physics on level 5.
+      multisamples: samples per pixel of rendered frames (the original's 4;
+        0 is cheaper, outlines move by up to a pixel).
       wall_slabs: size of the pool of render-only wall rectangles (levels
         needing more are drawn cell by cell).
       walker: a locomotion walker to use instead of the rolling ball (advanced;
@@ -141,7 +143,8 @@ class Mujoban(PhysicsTask):
                  pegs=False, top_camera=(96, 96), egocentric_camera=(96, 96),
                  randomize_appearance=True, control_timestep=0.05, physics_timestep=0.001,
                  time_limit=45.0, pad_tolerance=0.1, cell_size=1.0, render_size=(256, 256),
-                 wall_slabs=32, walker=None, noslip_iterations=5, sleep=False):
+                 wall_slabs=32, walker=None, noslip_iterations=5, sleep=False,
+                 multisamples=arena_lib.MULTISAMPLES):
         if not callable(level_source):
             raise TypeError("level_source must be callable as level_source(rng) -> Level")
         grid_shape = tuple(int(v) for v in grid_shape)
@@ -168,7 +171,7 @@ class Mujoban(PhysicsTask):
         self._arena = arena_lib.MujobanArena(
             grid_shape=grid_shape, max_boxes=max_boxes, cell_size=cell_size, pegs=pegs,
             offscreen_size=offscreen, wall_slabs=wall_slabs, noslip_iterations=noslip_iterations,
-            sleep=sleep)
+            sleep=sleep, multisamples=multisamples)
         self._walker = walker or jumping_ball.RollingBallWithHead(
             name="walker", add_ears=True, camera_height=0.25)
         self._add_walker_touch_sensor()
@@ -246,7 +249,7 @@ class Mujoban(PhysicsTask):
         top = CameraDescription(
             "top_camera", tuple(float(v) for v in cam.pos), tuple(float(v) for v in cam.xyaxes),
             float(cam.fovy), (self._cameras["top_camera"].height, self._cameras["top_camera"].width)
-            if "top_camera" in self._cameras else None, multisamples=arena_lib.MULTISAMPLES)
+            if "top_camera" in self._cameras else None, multisamples=arena.multisamples)
         box = self._boxes[0]
         return MujobanDescription(
             grid_shape=tuple(arena.grid_shape), cell_size=float(arena.cell_size),
