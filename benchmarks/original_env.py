@@ -121,6 +121,17 @@ def _visible(timestep):
     return timestep._replace(observation=obs)
 
 
+def _grid_right(state, layer) -> bool:
+    """Whether an abstract state equals the original's ``full_entity_layer``
+    (walls, targets, the box cells, the player cell; the original rounds as
+    ours does: boxes first, the player keeps its cell on overlap)."""
+    layer = np.asarray(layer)
+    cells = lambda channel: frozenset(map(tuple, np.argwhere(layer[..., channel]).tolist()))  # noqa: E731
+    player = cells(2)
+    return (state.walls == cells(0) and state.targets == cells(1) and state.boxes == cells(3)
+            and frozenset({tuple(state.player)}) == player)
+
+
 def play(levels, pegs: bool, seed: int, progress: bool = True) -> dict:
     """Our default agent on the original, one episode per level."""
     env = original_env(levels, pegs, seed)
@@ -132,25 +143,32 @@ def play(levels, pegs: bool, seed: int, progress: bool = True) -> dict:
     try:
         for index in range(len(levels)):
             start = time.perf_counter()
-            timestep = _visible(env.reset())
+            raw = env.reset()
+            timestep = _visible(raw)
             description = original_description(env, pegs)
             if agent is None:
                 agent = make_agent(name, description, seed=seed)
             agent.reset(description, timestep, seed=seed * 100_003 + index)
-            steps, solved, reason = 0, False, None
+            steps, solved, reason, right, judged = 0, False, None, 0, 0
             try:
                 while not timestep.last():
                     action = agent.act(timestep)
+                    if agent.scene is not None:  # the agent's estimate of this timestep
+                        judged += 1
+                        right += _grid_right(agent.scene.state,
+                                             raw.observation["full_entity_layer"])
                     if agent.gave_up is not None:
                         reason = agent.gave_up
                         break
-                    timestep = _visible(env.step(np.r_[action, 0.0]))  # kick: 0
+                    raw = env.step(np.r_[action, 0.0])  # kick: 0
+                    timestep = _visible(raw)
                     steps += 1
                 # The original's own rule: the last step carries its +10 solved reward.
                 solved = timestep.last() and float(timestep.reward) >= 10.0
             except Exception as exc:  # noqa: BLE001 - an error ends the episode, not the run
                 reason = f"error: {type(exc).__name__}: {exc}"
             row = {"level": index, "solved": bool(solved), "steps": steps,
+                   "estimates": judged, "estimates_right": right,
                    "wall_s": round(time.perf_counter() - start, 2)}
             if not solved:
                 row["failure_reason"] = reason or "time limit"
@@ -164,7 +182,10 @@ def play(levels, pegs: bool, seed: int, progress: bool = True) -> dict:
         env.close()
     solved = sum(r["solved"] for r in rows)
     low, high = wilson_interval(solved, len(rows))
+    judged = sum(r["estimates"] for r in rows)
     return {"pegs": pegs, "episodes": len(rows), "solved": solved,
+            "estimate_whole_grid_accuracy": sum(r["estimates_right"] for r in rows)
+            / max(judged, 1), "estimates": judged,
             "success_rate": solved / max(len(rows), 1), "interval": [low, high],
             "mean_steps_solved": float(np.mean([r["steps"] for r in rows if r["solved"]]))
             if solved else None, "rows": rows}
@@ -251,13 +272,14 @@ def main(argv=None) -> int:
         settings = {"both": (False, True), "yes": (True,), "no": (False,)}[args.pegs]
         out["runs"] = [play(levels, pegs, args.seed) for pegs in settings]
         print(f"{'pegs':>5} {'levels':>6} {'solved':>7} {'rate':>7} {'95% interval':>15} "
-              f"{'mean steps':>10}")
+              f"{'mean steps':>10} {'estimates right':>15}")
         for run in out["runs"]:
             low, high = run["interval"]
             steps = run["mean_steps_solved"]
             print(f"{str(run['pegs']):>5} {run['episodes']:>6} {run['solved']:>7} "
                   f"{100 * run['success_rate']:6.1f}% [{100 * low:5.1f}, {100 * high:5.1f}] "
-                  f"{steps if steps is None else round(steps):>10}")
+                  f"{steps if steps is None else round(steps):>10} "
+                  f"{100 * run['estimate_whole_grid_accuracy']:>14.2f}%")
     if args.json:
         write_json(args.json, out)
     return 0

@@ -316,13 +316,16 @@ def original_env(results: Path) -> list[str]:
     """Our default modular agent on the original MuJoBan (`benchmarks/original_env.py`)."""
     d = _load(results / "original_env.json")
     lines = ["| environment | levels | pegs | agent (observation-only) | solved [95% CI] "
-             "| mean steps (solved) |", "| --- | --- | --- | --- | --- | --- |"]
+             "| mean steps (solved) | its estimates right |",
+             "| --- | --- | --- | --- | --- | --- | --- |"]
     for run in d["runs"]:
         steps = run["mean_steps_solved"]
         lines.append(f"| the original (`physics_planning_games`) | first {run['episodes']} of "
                      f"`{d['levels_file']}` | {'yes' if run['pegs'] else 'no'} | {d['agent']} "
                      f"| {_ci(run['success_rate'], run['interval'])} "
-                     f"| {'-' if steps is None else f'{steps:.0f}'} |")
+                     f"| {'-' if steps is None else f'{steps:.0f}'} "
+                     f"| {100 * run['estimate_whole_grid_accuracy']:.2f}% of "
+                     f"{run['estimates']:,} steps |")
     return lines
 
 
