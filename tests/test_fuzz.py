@@ -167,6 +167,7 @@ PLAUSIBLE = {
     "render_size": st.tuples(st.integers(1, 128), st.integers(1, 128)),
     "pad_tolerance": st.floats(0, 0.6),
     "noslip_iterations": st.integers(-1, 10),
+    "multisamples": st.integers(-1, 17),
     "grid_shape": st.tuples(st.integers(2, 14), st.integers(2, 14)),
     "piece_noise": st.one_of(st.none(), st.floats(-0.1, 1.1)),
     "level": st.integers(0, 11),
