@@ -70,11 +70,11 @@ HEADLIGHT_DIFFUSE = 0.6
 #: labmaze texture styles drawn by the original: skybox ``sky_03``, wall and
 #: floor textures of ``style_01`` (one of each drawn per episode).
 SKY_STYLE = "sky_03"
+TEXTURE_STYLE = "style_01"
 #: Multisampling of offscreen frames by default: MuJoCo's default, the
 #: original's (4 samples per pixel; with 0, object outlines move by up to a
 #: pixel).
 MULTISAMPLES = 4
-TEXTURE_STYLE = "style_01"
 
 
 def _peg_mesh(centres: np.ndarray, radius: float, height: float, sides: int = 8):

@@ -62,8 +62,8 @@ from envs.rendering import CameraConfig
 ENTITY_CHANNELS = ("wall", "target", "player", "box")
 WALL, TARGET, PLAYER, BOX = range(4)
 
-#: Colours of ``pixel_layer``, one pixel per grid cell.
-#: The original's: the player blue whether on a target or not.
+#: Colours of ``pixel_layer``, one pixel per grid cell: the original's (the
+#: player blue whether on a target or not).
 PIXEL_COLOURS = {
     "floor": (0, 0, 0),
     "wall": (128, 128, 128),
