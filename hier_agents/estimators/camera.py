@@ -468,13 +468,23 @@ class CameraEstimator(Estimator):
 
     @staticmethod
     def _match_ears(centre, lateral, red, blue, occ, world, radius, offsets):
-        """Sub-pixel refinement: the frames are not antialiased, so a pixel
-        shows an ear when its centre is on the ear's disk; among candidate
-        centres (``centre`` + a grid of ``offsets``) keep those whose rendered
-        silhouettes (nearer ear in front, walls hiding both) disagree with the
-        observed ones on fewest pixels, and return their mean."""
+        """Sub-pixel refinement: a pixel shows an ear when its centre is on
+        the ear's disk of ``radius`` (the outline shrunk by the coverage
+        inset); among candidate centres (``centre`` + a grid of ``offsets``)
+        keep those whose silhouettes (nearer ear in front, walls hiding both)
+        disagree with the observed ones on fewest pixels, and return their
+        mean. Only pixels whose prediction can differ between candidates are
+        compared: within the largest shift of an ear's outline or of the line
+        between the ears (the others add the same count to every candidate)."""
         vis = ~occ
         pts = world[vis]                                   # (n, 2)
+        shift = float(np.max(np.abs(offsets))) * np.sqrt(2.0) + 1e-9
+        dr0 = np.linalg.norm(pts - (np.asarray(centre) + EAR_OFFSET * lateral), axis=1)
+        db0 = np.linalg.norm(pts - (np.asarray(centre) - EAR_OFFSET * lateral), axis=1)
+        near = ((np.abs(dr0 - radius) <= shift) | (np.abs(db0 - radius) <= shift)
+                | (np.abs(dr0 - db0) <= 2 * shift))
+        vis[vis] = near
+        pts = pts[near]
         obs_r, obs_b = red[vis], blue[vis]
         dx, dy = np.meshgrid(offsets, offsets, indexing="ij")
         cands = np.asarray(centre)[None, :] + np.stack([dx.ravel(), dy.ravel()], 1)
