@@ -298,6 +298,8 @@ def main(argv=None) -> int:
             parser.error(f"{flag} {source} played {old.get('env')}, {old.get('episodes')} "
                          f"episodes, seed {old.get('seed')}: not this comparison")
         reused_from = {"path": str(source), "provenance": old.get("provenance")}
+        if old.get("reused_from"):  # the earlier run's own reused rows keep their origin
+            reused_from["reused_from"] = old["reused_from"]
         if args.reuse:
             earlier = {_key(r): r for r in old["rows"]}
 
