@@ -66,23 +66,13 @@ from abstract_planners.go import GnuGoPlanner  # noqa: E402
 from abstract_planners.tictactoe import MinimaxPlanner  # noqa: E402
 from hier_agents.estimators import BoardEstimator, EstimationError  # noqa: E402
 from hier_agents.option_layer import run_option  # noqa: E402
+from hier_agents.stats import wilson_interval  # noqa: E402
 from skills.arm import ArmTouchSkill  # noqa: E402
 from skills.base import Status  # noqa: E402
 
 DEFAULT_ENVS = ["mujoxo/mixture", "mujogo/7x7"]
 #: Opponent epsilon of the MuJoXO environments (for the abstract comparison).
 MUJOXO_EPSILON = {"mujoxo/mixture": 0.25, "mujoxo/optimal": 0.0, "mujoxo/random": 1.0}
-
-
-def wilson_interval(successes: int, trials: int, z: float = 1.959964) -> tuple[float, float]:
-    """The 95% Wilson score interval of a binomial proportion."""
-    if trials <= 0:
-        return math.nan, math.nan
-    p = successes / trials
-    denom = 1 + z * z / trials
-    centre = (p + z * z / (2 * trials)) / denom
-    half = z * math.sqrt(p * (1 - p) / trials + z * z / (4 * trials * trials)) / denom
-    return max(0.0, centre - half), min(1.0, centre + half)
 
 
 def make_planner(name: str, seed: int):

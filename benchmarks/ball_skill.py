@@ -49,7 +49,6 @@ of wall time, a level-1 episode ~0.04 s; ``--episodes 30`` for a quick look.
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 import time
 from collections import Counter
@@ -66,6 +65,7 @@ import envs  # noqa: E402
 from hier_agents.boundary import BoundaryEnv  # noqa: E402
 from hier_agents.components import is_privileged, make_agent  # noqa: E402
 from hier_agents.option_envs import make_source_env  # noqa: E402
+from hier_agents.stats import wilson_interval  # noqa: E402
 
 MUJOBAN = [f"mujoban/level{d}{p}" for p in ("", "-pegs") for d in range(1, 6)]
 BOXOBAN = ["boxoban/unfiltered-valid-000", "boxoban/unfiltered-valid-000-pegs"]
@@ -102,17 +102,6 @@ def run_episode(view, agent) -> dict:
             "failures": Counter(stats.failures), "no_plan": no_plan, "plan_moves": plan_moves}
 
 
-def wilson(successes: int, n: int, z: float = 1.959964) -> tuple[float, float]:
-    """95% Wilson score interval of a proportion, in percent."""
-    if n == 0:
-        return 0.0, 100.0
-    p = successes / n
-    denom = 1 + z * z / n
-    centre = (p + z * z / (2 * n)) / denom
-    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / denom
-    return 100.0 * max(0.0, centre - half), 100.0 * min(1.0, centre + half)
-
-
 def measure(name: str, episodes: int, seed: int, t_abs: int, estimator: str = "oracle") -> dict:
     env = make_env(name, seed, estimator)
     privileged = is_privileged("mujoban", estimator)
@@ -127,7 +116,7 @@ def measure(name: str, episodes: int, seed: int, t_abs: int, estimator: str = "o
             results.append(row)
         wall = time.perf_counter() - t0
     solved = sum(r["solved"] for r in results)
-    low, high = wilson(solved, len(results))
+    low, high = (100.0 * v for v in wilson_interval(solved, len(results)))
     reached = sum(r["reached"] for r in results)
     failed = sum(r["failed"] for r in results)
     cut = sum(r["cut"] for r in results)

@@ -113,6 +113,7 @@ import numpy as np
 import envs
 from abstract_planners.base import NoPlanError, Subgoal
 from abstract_planners.sokoban import MOVES
+from hier_agents.components import family
 from hier_agents.estimators import EstimationError
 
 __all__ = ["AgentEnv", "CONDITIONS", "DISCOUNTS", "InputSpec", "PLANNER_ACTIONS",
@@ -137,7 +138,6 @@ _BOARD_PROPRIO = ("arm/joints_pos", "arm/joints_vel", "arm/joints_torque",
 #: Proprioceptive observations concatenated into ``"proprio"``, per family, in order.
 PROPRIO_KEYS = {"mujoban": _MUJOBAN_PROPRIO, "mujoxo": _BOARD_PROPRIO, "mujogo": _BOARD_PROPRIO}
 
-_FAMILIES = tuple(DISCOUNTS)
 _PLAYER, _BOX = 2, 3  # full_entity_layer channels (envs.mujoban.task)
 
 
@@ -172,14 +172,6 @@ class StepResult(NamedTuple):
     discount_abs: float
     last: bool
     info: dict
-
-
-def _family(env_name: str) -> str:
-    prefix = str(env_name).split("/", 1)[0]
-    if prefix not in _FAMILIES:
-        raise ValueError(f"unknown environment family of {env_name!r}; valid families: "
-                         f"{', '.join(f + '/*' for f in _FAMILIES)}")
-    return prefix
 
 
 def _gamma(value, default: float, name: str) -> float:
@@ -223,7 +215,7 @@ class AgentEnv:
         if condition not in CONDITIONS:
             raise ValueError(f"unknown condition {condition!r}; valid conditions: "
                              f"{', '.join(CONDITIONS)}")
-        fam = self.family = _family(env_name)
+        fam = self.family = family(env_name)
         if int(t_abs) < 1:
             raise ValueError(f"t_abs must be a positive number of control steps, got {t_abs!r}")
         if int(image_size) < 1:

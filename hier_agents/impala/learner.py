@@ -92,12 +92,6 @@ class TrainConfig:
         return int(self.batch_size or PAPER_BATCH[family])
 
 
-def _family(env_name: str) -> str:
-    from hier_agents.components import family
-
-    return family(env_name)
-
-
 # -- batching ---------------------------------------------------------------------------------
 
 
@@ -257,11 +251,12 @@ def train(config: TrainConfig) -> dict:
     import torch
     from tqdm import tqdm
 
+    from hier_agents.components import family as env_family
     from hier_agents.impala.agent_env import AgentEnv
     from hier_agents.impala.network import ImpalaNet
 
     config.validate()
-    family = _family(config.env)
+    family = env_family(config.env)
     batch_size = config.resolved_batch(family)
     logdir = Path(config.logdir)
     logdir.mkdir(parents=True, exist_ok=True)
