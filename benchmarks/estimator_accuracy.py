@@ -64,7 +64,8 @@ from tqdm import tqdm  # noqa: E402
 
 from hier_agents.estimators.base import EstimationError  # noqa: E402
 from hier_agents.estimators.camera import FRAME_SHAPE, CameraEstimator  # noqa: E402
-from hier_agents.estimators.mujoban import OracleEstimator, cells_of  # noqa: E402
+from hier_agents.estimators.grid import cells_of  # noqa: E402
+from hier_agents.estimators.mujoban import OracleEstimator  # noqa: E402
 
 BOXOBAN = Path(envs.__file__).resolve().parent / "mujoban" / "data" / "boxoban"
 #: (label, env name, levels file or None)

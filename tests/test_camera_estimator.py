@@ -13,7 +13,7 @@ import pytest
 import envs
 from hier_agents.estimators.base import EstimationError
 from hier_agents.estimators.camera import FRAME_SHAPE, CameraEstimator
-from hier_agents.estimators.mujoban import cells_of
+from hier_agents.estimators.grid import cells_of
 
 BOXOBAN = Path(envs.__file__).resolve().parent / "mujoban" / "data" / "boxoban"
 

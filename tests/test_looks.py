@@ -7,7 +7,7 @@ import pytest
 import envs
 from envs.mujoban import arena as arena_lib
 from hier_agents.estimators.camera import CameraEstimator
-from hier_agents.estimators.mujoban import cells_of
+from hier_agents.estimators.grid import cells_of
 from envs.mujoban.levels import BOXOBAN_DIR
 
 #: Colours rendered by the original (physics_planning_games built from

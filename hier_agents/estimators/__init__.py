@@ -11,8 +11,8 @@
 from hier_agents.estimators.base import EstimationError, Estimator
 from hier_agents.estimators.board import BoardEstimator
 from hier_agents.estimators.camera import CameraEstimator
-from hier_agents.estimators.mujoban import (EntityLayerEstimator, OracleEstimator,
-                                            rounded_state)
+from hier_agents.estimators.grid import rounded_state
+from hier_agents.estimators.mujoban import EntityLayerEstimator, OracleEstimator
 
 __all__ = ["Estimator", "EstimationError", "BoardEstimator", "CameraEstimator", "OracleEstimator",
            "EntityLayerEstimator", "rounded_state"]

@@ -106,7 +106,7 @@ from scipy import ndimage
 from scipy.optimize import linear_sum_assignment
 
 from hier_agents.estimators.base import EstimationError, Estimator
-from hier_agents.estimators.mujoban import rounded_state
+from hier_agents.estimators.grid import rounded_state
 from skills.scene import BallScene, heading_from_orientation, world_velocity
 
 __all__ = ["CameraEstimator", "FRAME_SHAPE"]
