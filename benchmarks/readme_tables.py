@@ -342,7 +342,8 @@ def estimator_accuracy(results: Path) -> list[str]:
         worst = "-"
         if looks:
             name, w = min(looks.items(), key=lambda kv: (kv[1]["whole_grid_accuracy"], kv[0]))
-            worst = (f"{name}: {100 * w['whole_grid_accuracy']:.1f}% of {w['frames']} "
+            worst = (f"all {len(looks)} seen at 100%" if w["whole_grid_accuracy"] == 1.0 else
+                     f"{name}: {100 * w['whole_grid_accuracy']:.1f}% of {w['frames']} "
                      f"({len(looks)} seen)")
         label = r["estimator"] + (" (**privileged**)" if r["privileged"] else "")
         parts = " / ".join(f"{100 * r[k + '_accuracy']:.1f}%"
