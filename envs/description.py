@@ -2,9 +2,10 @@
 
 ``env.description()`` returns one of these frozen dataclasses. They hold the
 static, public facts an agent may use besides its observations (the
-observation boundary, ``../shared/DESIGN.md``): the grid's shape and cell
+observation boundary, `hier_agents.boundary`): the grid's shape and cell
 size, board and pad geometry, the control timestep, the cameras' poses and
-intrinsics, and for the arm its own kinematic model. Nothing in them changes
+intrinsics (multisampling included), MuJoBan's looks (object colours and
+the light), and for the arm its own kinematic model. Nothing in them changes
 during an episode or depends on the simulator's state; walls, targets and
 boxes of a MuJoBan level are *not* here (the agent must see them).
 

@@ -3,7 +3,7 @@
 A scene is an estimator's reading of one timestep: a continuous estimate of
 the bodies that matter (poses, velocities) and the abstract state the
 planner needs. Skills act on the scene and the subgoal, never on the
-simulator (the observation boundary, ``../shared/DESIGN.md``), so a camera
+simulator (the observation boundary, `hier_agents.boundary`), so a camera
 estimator and the privileged ``oracle`` are interchangeable under them.
 
 Scenes are frozen; every ``estimate`` returns a new one (skills may compare
