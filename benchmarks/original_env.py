@@ -48,6 +48,7 @@ from envs.description import CameraDescription, MujobanDescription, MujobanLooks
 from envs.mujoban.levels import BOXOBAN_DIR, read_levels, write_levels  # noqa: E402
 from hier_agents.boundary import PRIVILEGED_OBSERVATIONS  # noqa: E402
 from hier_agents.components import make_agent  # noqa: E402
+from hier_agents.estimators.grid import cells_of  # noqa: E402
 from hier_agents.stats import wilson_interval  # noqa: E402
 
 FRAME = (199, 199)
@@ -126,10 +127,9 @@ def _grid_right(state, layer) -> bool:
     (walls, targets, the box cells, the player cell; the original rounds as
     ours does: boxes first, the player keeps its cell on overlap)."""
     layer = np.asarray(layer)
-    cells = lambda channel: frozenset(map(tuple, np.argwhere(layer[..., channel]).tolist()))  # noqa: E731
-    player = cells(2)
-    return (state.walls == cells(0) and state.targets == cells(1) and state.boxes == cells(3)
-            and frozenset({tuple(state.player)}) == player)
+    return (state.walls == cells_of(layer[..., 0]) and state.targets == cells_of(layer[..., 1])
+            and state.boxes == cells_of(layer[..., 3])
+            and cells_of(layer[..., 2]) == {tuple(state.player)})
 
 
 def play(levels, pegs: bool, seed: int, progress: bool = True) -> dict:
