@@ -43,7 +43,7 @@ def make(*, difficulty: int | None = None, pegs: bool = False, seed: int | None 
     Args:
       difficulty: 1-5 for one paper difficulty, None for the curriculum.
       pegs: grid pegs that block diagonal box motion (and the walker).
-      seed: random seed (levels, colours, initial heading).
+      seed: random seed (levels, wall and floor textures, initial heading).
       levels: a Boxoban-format file whose levels are played instead of
         generated ones.
       level_order: ``"sequential"`` (file order, from the first level again
