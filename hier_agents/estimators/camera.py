@@ -20,8 +20,8 @@ pad), pads (and covered pads), the walker's ears, and the light (one
 headlight at the camera). An untextured surface facing the camera renders
 as ``min(1, rgba * (ambient + diffuse)) * 255`` (`MujobanLooks.facing_rgb`),
 exactly; an ear, a shaded sphere, as its colour times a light between
-ambient and ambient + diffuse. `_colour_table` turns that into a class per
-24-bit colour (`FLAT_TOL`, `EAR_TOL`): a pad's saturated red is never an
+ambient and ambient + diffuse. `colours.colour_table` turns that into a class per
+24-bit colour (`hier_agents.estimators.colours`): a pad's saturated red is never an
 ear's shaded red, and pixels next to a flat object of an ear's hue (a blue
 box's slanted sides) are not read as an ear but as hidden. Walls and floors
 are textured (a texture drawn per episode); none of their texels comes near
@@ -99,13 +99,12 @@ original environment's own frames: ``benchmarks/original_env.py``.
 
 from __future__ import annotations
 
-import functools
-
 import numpy as np
 from scipy import ndimage
 from scipy.optimize import linear_sum_assignment
 
 from hier_agents.estimators.base import EstimationError, Estimator
+from hier_agents.estimators.colours import masks as _masks
 from hier_agents.estimators.grid import rounded_state
 from skills.scene import BallScene, heading_from_orientation, world_velocity
 
@@ -147,87 +146,6 @@ WALL_HEIGHT = 1.0
 #: are not wall colours at all (`CameraEstimator._foreign_fraction`).
 _QUANTILES = (2, 10, 25, 50, 75, 90, 98)
 WALL_MATCH = 3.0
-
-
-#: Largest difference (0-255, any channel) between a pixel and an untextured
-#: surface's computed colour (`MujobanLooks.facing_rgb`) for it to show that
-#: surface. Inside an outline rendering is exact (no specular light), so
-#: the margin only covers rounding; no wall or floor texture of the environment's
-#: styles comes within 13 of the box's colour or 40 of any other.
-FLAT_TOL = 4
-#: Ears are shaded spheres: a pixel shows an ear when it is the ear's colour
-#: times a light between ambient and ambient + diffuse (±``SHADE_SLACK``),
-#: within ``EAR_TOL`` (any channel), and shows no flat colour.
-EAR_TOL = 10
-SHADE_SLACK = 0.01
-
-
-#: Colour classes of `_colour_table`.
-_NONE, _BOX, _BOX_ON_PAD, _PAD, _PAD_COVERED, _RED_EAR, _BLUE_EAR = range(7)
-_FLATS = ((_BOX, "box"), (_BOX_ON_PAD, "box_on_pad"), (_PAD, "pad"),
-          (_PAD_COVERED, "pad_covered"))
-
-
-@functools.lru_cache(maxsize=8)
-def _colour_table(looks) -> tuple[np.ndarray, tuple[int, ...]]:
-    """A class per 24-bit colour (uint8 array of 2**24, see `_NONE` ...), for
-    `MujobanLooks` ``looks``: an untextured object's colour facing the camera
-    within `FLAT_TOL`; an ear's colour times a light between ambient and
-    ambient + diffuse (±`SHADE_SLACK`) within `EAR_TOL`, unless it is a
-    flat colour. Also returns the flat classes that share an ear's hue (a
-    blue box's slanted sides shade like the blue ear)."""
-    table = np.zeros(1 << 24, np.uint8)
-
-    def codes(rgb):
-        rgb = np.asarray(rgb, np.int64)
-        return (rgb[..., 0] << 16) | (rgb[..., 1] << 8) | rgb[..., 2]
-
-    lo = looks.headlight_ambient - SHADE_SLACK
-    hi = looks.headlight_ambient + looks.headlight_diffuse + SHADE_SLACK
-    span = np.arange(-EAR_TOL, EAR_TOL + 1)
-    cube = np.stack(np.meshgrid(span, span, span, indexing="ij"), -1).reshape(-1, 3)
-    confusable = set()
-    for cls, rgba in ((_RED_EAR, looks.right_ear), (_BLUE_EAR, looks.left_ear)):
-        c = np.asarray(rgba[:3], float) * 255.0
-        centres = np.rint(np.linspace(lo, hi, 64)[:, None] * c).astype(np.int64)
-        cand = np.unique((centres[:, None, :] + cube[None]).reshape(-1, 3), axis=0)
-        cand = cand[np.all((cand >= 0) & (cand <= 255), axis=1)]
-        scale = cand @ c / (c @ c)
-        resid = np.abs(cand - scale[:, None] * c).max(1)
-        keep = (resid <= EAR_TOL) & (scale >= lo) & (scale <= hi)
-        table[codes(cand[keep])] = cls
-        for flat_cls, name in _FLATS:
-            rgb = looks.facing_rgb(getattr(looks, name))
-            if np.abs(rgb - (rgb @ c) / (c @ c) * c).max() <= EAR_TOL:
-                confusable.add(flat_cls)
-    fspan = np.arange(-FLAT_TOL, FLAT_TOL + 1)
-    fcube = np.stack(np.meshgrid(fspan, fspan, fspan, indexing="ij"), -1).reshape(-1, 3)
-    for cls, name in _FLATS:
-        cand = np.rint(looks.facing_rgb(getattr(looks, name))).astype(np.int64) + fcube
-        cand = cand[np.all((cand >= 0) & (cand <= 255), axis=1)]
-        table[codes(cand)] = cls
-    return table, tuple(sorted(confusable))
-
-
-def _masks(frame: np.ndarray, looks) -> dict:
-    """Boolean masks of the objects' colours in ``frame`` (see
-    `_colour_table`): ``box`` (a box's top, yellow or blue on a pad),
-    ``pad`` (a pad, red or green when covered), ``box_on_pad`` (a box's top
-    showing the pad under it), ``red_ear``, ``blue_ear``,
-    and ``unsure``: pixels next to a flat object of an ear's hue, where ears
-    are not looked for (treated as hidden). Walls and floors are textured
-    and drawn per episode; none of their texels comes near these colours."""
-    table, confusable = _colour_table(looks)
-    f = frame.astype(np.int32)
-    cls = table[(f[..., 0] << 16) | (f[..., 1] << 8) | f[..., 2]]
-    unsure = np.isin(cls, confusable) if confusable else np.zeros(cls.shape, bool)
-    if unsure.any():
-        unsure = ndimage.binary_dilation(unsure, structure=np.ones((3, 3), bool))
-        cls = np.where(unsure & (cls >= _RED_EAR), _NONE, cls)
-    box_on_pad = cls == _BOX_ON_PAD
-    return dict(red_ear=cls == _RED_EAR, blue_ear=cls == _BLUE_EAR,
-                pad=(cls == _PAD) | (cls == _PAD_COVERED), box_on_pad=box_on_pad,
-                box=(cls == _BOX) | box_on_pad, unsure=unsure)
 
 
 class CameraEstimator(Estimator):
