@@ -1,7 +1,7 @@
 """A learned policy over options as a Sokoban planner (issue 15, item 3).
 
 `OptionPolicyPlanner` plays a policy trained with RL on `hier_agents.
-option_mdp.OptionEnv` (`python -m hier_agents.train_options`): ``plan(state)``
+learning.option_env.OptionEnv` (`python -m hier_agents.learning.train_options`): ``plan(state)``
 proposes ONE legal move, the subgoal `OptionEnv` itself builds for an action::
 
     Subgoal(action=(move,), state=state.apply(move), plan=())
@@ -21,7 +21,7 @@ planner is the learned policy alone.
 
 By name: ``--planner learned:PATH`` (a checkpoint file or a training run's
 directory) and ``--planner learned`` (the shipped
-``abstract_planners/learned/options.pt``), see `hier_agents.components`.
+``abstract_planners/learned/options.pt``), see `hier_agents.modular.components`.
 
 The network (`OptionPolicyNet`) is shared with the trainer:
 
@@ -63,7 +63,7 @@ SHIPPED = Path(__file__).resolve().parent / "learned" / "options.pt"
 
 def encode_state(state: SokobanState, shape) -> np.ndarray:
     """``(4, H, W)`` planes walls, pads, boxes, player: the layout of
-    `hier_agents.option_mdp.encode_sokoban` (tested equal), without importing
+    `hier_agents.learning.option_env.encode_sokoban` (tested equal), without importing
     the environment side."""
     planes = np.zeros((4, *shape), np.float32)
     for k, cells in enumerate((state.walls, state.targets, state.boxes, (state.player,))):
@@ -75,7 +75,7 @@ def encode_state(state: SokobanState, shape) -> np.ndarray:
 
 def policy_input(planes: np.ndarray, radius: int) -> np.ndarray:
     """Egocentric network input of a batch of ``(N, 4, H, W)`` planes (walls,
-    pads, boxes, player, as `hier_agents.option_mdp.encode_sokoban` makes them):
+    pads, boxes, player, as `hier_agents.learning.option_env.encode_sokoban` makes them):
     ``(N, 5, 2r+1, 2r+1)`` float32 centred on the player, off-grid cells walls,
     the fifth plane boxes on pads."""
     planes = np.asarray(planes, np.float32)
@@ -173,10 +173,10 @@ def load_option_policy(path, device: str = "cpu") -> tuple[OptionPolicyNet, dict
                 break
         else:
             raise FileNotFoundError(f"no option_policy.pt or checkpoint.pt in {path} (train one "
-                                    f"with python -m hier_agents.train_options)")
+                                    f"with python -m hier_agents.learning.train_options)")
     if not path.is_file():
         raise FileNotFoundError(f"no option-policy checkpoint at {path} (train one with "
-                                f"python -m hier_agents.train_options, or use --planner learned "
+                                f"python -m hier_agents.learning.train_options, or use --planner learned "
                                 f"for the shipped one)")
     try:
         data = torch.load(path, map_location=device, weights_only=True)
@@ -188,7 +188,7 @@ def load_option_policy(path, device: str = "cpu") -> tuple[OptionPolicyNet, dict
         found = data.get("format") if isinstance(data, dict) else type(data).__name__
         raise ValueError(f"{path} is not an option-policy checkpoint (format {FORMAT!r} "
                          f"expected, found {found!r}); it must come from "
-                         f"python -m hier_agents.train_options")
+                         f"python -m hier_agents.learning.train_options")
     if data.get("moves") != "".join(MOVES):
         raise ValueError(f"{path}: the policy's moves {data.get('moves')!r} are not "
                          f"{''.join(MOVES)!r}")
@@ -257,7 +257,7 @@ class OptionPolicyPlanner(Planner):
     """Plays a trained policy over options: one legal move per `plan`.
 
     Args:
-      path: a checkpoint of `hier_agents.train_options` (``option_policy.pt``,
+      path: a checkpoint of `hier_agents.learning.train_options` (``option_policy.pt``,
         ``checkpoint.pt`` or the run's directory). Default: the shipped one.
       device: torch device.
       greedy: the most probable legal move (True) or a sample from the

@@ -159,7 +159,7 @@ def solve_for_time(state, *, weights: Mapping[str, float] = DEFAULT_WEIGHTS,
 class TimeSolverPlanner(SokobanSolverPlanner):
     """`SokobanSolverPlanner` whose plans come from `solve_for_time` (the push
     solver's when the time search runs out of budget). Named
-    ``sokoban-solver:time`` in `hier_agents.components`."""
+    ``sokoban-solver:time`` in `hier_agents.modular.components`."""
 
     name = "sokoban-solver:time"
 

@@ -18,7 +18,7 @@ import json
 import sys
 from pathlib import Path
 
-#: MuJoBan's default planner (`hier_agents.components.PLANNERS`); rows name any other.
+#: MuJoBan's default planner (`hier_agents.modular.components.PLANNERS`); rows name any other.
 DEFAULT_MUJOBAN_PLANNER = "sokoban-solver:time"
 
 #: The paper's best end-to-end RL result per environment (Mirza et al. 2020).

@@ -65,7 +65,7 @@ from abstract_planners.epsilon_greedy import EpsilonGreedy  # noqa: E402
 from abstract_planners.go import GnuGoPlanner  # noqa: E402
 from abstract_planners.tictactoe import MinimaxPlanner  # noqa: E402
 from hier_agents.estimators import BoardEstimator, EstimationError  # noqa: E402
-from hier_agents.option_layer import run_option  # noqa: E402
+from hier_agents.modular.agent import run_option  # noqa: E402
 from hier_agents.stats import wilson_interval  # noqa: E402
 from skills.arm import ArmTouchSkill  # noqa: E402
 from skills.base import Status  # noqa: E402

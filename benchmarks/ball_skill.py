@@ -3,7 +3,7 @@
     python benchmarks/ball_skill.py [--envs NAME ...] [--episodes N] [--seed S]
                                     [--t-abs T] [--json PATH]
 
-Each episode runs the option layer (`hier_agents.option_layer.ModularAgent`)
+Each episode runs the option layer (`hier_agents.modular.agent.ModularAgent`)
 with the physical walker:
 
 1. estimate the scene: by default with the privileged ``oracle`` (the
@@ -63,8 +63,8 @@ from tqdm import tqdm  # noqa: E402
 
 import envs  # noqa: E402
 from hier_agents.boundary import BoundaryEnv  # noqa: E402
-from hier_agents.components import is_privileged, make_agent  # noqa: E402
-from hier_agents.option_envs import make_source_env  # noqa: E402
+from hier_agents.modular.components import is_privileged, make_agent  # noqa: E402
+from hier_agents.learning.skill_env import make_source_env  # noqa: E402
 from hier_agents.stats import wilson_interval  # noqa: E402
 
 MUJOBAN = [f"mujoban/level{d}{p}" for p in ("", "-pegs") for d in range(1, 6)]
@@ -79,7 +79,7 @@ def make_env(name: str, seed: int, estimator: str = "oracle"):
 
 
 def run_episode(view, agent) -> dict:
-    """One episode of the option layer (`hier_agents.option_layer.ModularAgent`:
+    """One episode of the option layer (`hier_agents.modular.agent.ModularAgent`:
     estimate -> plan -> skill); returns its counters."""
     timestep = view.reset()
     agent.reset(view.description(), timestep)

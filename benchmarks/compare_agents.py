@@ -95,7 +95,7 @@ def expand_checkpoints(paths, curve: bool, max_frames: int | None,
     ``budgets`` (frame counts) keeps, per run and budget, only the checkpoint
     trained on the most frames within it.
     """
-    from hier_agents.impala.learner import load_checkpoint
+    from hier_agents.baselines.impala.learner import load_checkpoint
 
     out = []
     for raw in paths:
@@ -283,7 +283,7 @@ def main(argv=None) -> int:
     if args.reuse and args.keep_rows_of and args.reuse != args.keep_rows_of:
         parser.error("--reuse and --keep-rows-of must name the same earlier run")
 
-    from hier_agents.impala.learner import load_checkpoint
+    from hier_agents.baselines.impala.learner import load_checkpoint
 
     earlier, reused_from, old = {}, None, None
     source = args.reuse or args.keep_rows_of

@@ -51,7 +51,7 @@ from abstract_planners.sokoban_time import (DEFAULT_WEIGHTS, FEATURES, estimate_
                                             fit_weights, plan_features)
 from envs.mujoban.levels import BOXOBAN_DIR, read_levels  # noqa: E402
 from hier_agents.boundary import BoundaryEnv  # noqa: E402
-from hier_agents.components import PLANNERS, env_overrides, is_privileged, make_agent  # noqa: E402
+from hier_agents.modular.components import PLANNERS, env_overrides, is_privileged, make_agent  # noqa: E402
 from hier_agents.stats import wilson_interval  # noqa: E402
 
 DEFAULT_LEVELS = BOXOBAN_DIR / "medium-valid-000.txt"

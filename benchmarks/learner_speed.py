@@ -7,7 +7,7 @@
 1. **Bare environment**: ``envs.load(ENV)`` with the run's cameras (off by
    default), uniform random actions, one process: control steps per second
    (the best of three runs).
-2. **Actor-learner**: `hier_agents.impala.learner.train` for ``--frames``
+2. **Actor-learner**: `hier_agents.baselines.impala.learner.train` for ``--frames``
    environment frames into a temporary log directory; its throughput is the
    frames the learner consumed per wall-clock second between its first and
    last log lines (start-up -- process spawn, imports -- excluded), as
@@ -97,7 +97,7 @@ def parallel_env_steps_per_s(name: str, cameras: bool, steps: int, processes: in
 
 
 def learner_frames_per_s(args) -> dict:
-    from hier_agents.impala.learner import TrainConfig, train
+    from hier_agents.baselines.impala.learner import TrainConfig, train
 
     with tempfile.TemporaryDirectory() as logdir:
         config = TrainConfig(env=args.env, condition=args.agent, steps=args.frames,

@@ -69,8 +69,8 @@ def target_sensitivity(path: Path, seed: int, steps: int = 300) -> float | None:
     import numpy as np
     import torch
 
-    from hier_agents.impala.agent_env import AgentEnv
-    from hier_agents.impala.learner import load_checkpoint, net_from_checkpoint
+    from hier_agents.baselines.impala.agent_env import AgentEnv
+    from hier_agents.baselines.impala.learner import load_checkpoint, net_from_checkpoint
 
     ckpt = load_checkpoint(path)
     config = ckpt["config"]
@@ -102,7 +102,7 @@ def target_sensitivity(path: Path, seed: int, steps: int = 300) -> float | None:
 
 def evaluation_curve(logdir: Path, env: str, episodes: int, seed: int,
                      stochastic: bool) -> list[dict]:
-    from hier_agents.impala.learner import CHECKPOINT, KEPT_CHECKPOINTS
+    from hier_agents.baselines.impala.learner import CHECKPOINT, KEPT_CHECKPOINTS
     from hier_agents.run import run
 
     def frames_of(p: Path) -> int:
@@ -151,7 +151,7 @@ def main(argv=None) -> int:
     if args.every_frames < 1 or args.eval_episodes < 0:
         parser.error("--every-frames must be >= 1 and --eval-episodes >= 0")
 
-    from hier_agents.impala.learner import load_checkpoint
+    from hier_agents.baselines.impala.learner import load_checkpoint
 
     out = []
     for logdir in args.runs:

@@ -47,7 +47,7 @@ import envs  # noqa: E402
 from envs.description import CameraDescription, MujobanDescription, MujobanLooks  # noqa: E402
 from envs.mujoban.levels import BOXOBAN_DIR, read_levels, write_levels  # noqa: E402
 from hier_agents.boundary import PRIVILEGED_OBSERVATIONS  # noqa: E402
-from hier_agents.components import make_agent  # noqa: E402
+from hier_agents.modular.components import make_agent  # noqa: E402
 from hier_agents.estimators.grid import cells_of  # noqa: E402
 from hier_agents.stats import wilson_interval  # noqa: E402
 

@@ -5,7 +5,7 @@ end-to-end agents.
   ``board``; the privileged ``oracle`` and ``entity-layer``);
 * `hier_agents.boundary`: `BoundaryEnv`, what an agent may hold of an
   environment;
-* `hier_agents.option_layer`: `ModularAgent` and `run_option`;
-* `hier_agents.components`: the parts by name; `hier_agents.run`: the CLI;
-* `hier_agents.impala`, `hier_agents.train`: the end-to-end baselines.
+* `hier_agents.modular`: `ModularAgent`, the option runner, the parts by name (`components`);
+* `hier_agents.learning`: option and skill environments, trainers; `hier_agents.run`: the CLI;
+* `hier_agents.baselines.impala`, `hier_agents.train`: the end-to-end baselines.
 """

@@ -48,9 +48,9 @@ from tqdm import tqdm
 
 import envs
 from hier_agents.boundary import BoundaryEnv
-from hier_agents.components import (ESTIMATORS, PLANNERS, SKILLS, env_overrides,
+from hier_agents.modular.components import (ESTIMATORS, PLANNERS, SKILLS, env_overrides,
                                     estimator_name, family, is_privileged, make_agent)
-from hier_agents.option_layer import OptionStats
+from hier_agents.modular.agent import OptionStats
 from hier_agents.stats import wilson_interval
 
 DEFAULT_ENV = "mujoban/level3"
@@ -198,7 +198,7 @@ def _play_episode(env, view, agent, description, fam, episode, seed, frames):
 
 def _run_policy(env_name, fam, episodes, seed, agent, levels, video, progress,
                 stochastic) -> dict:
-    from hier_agents.impala.evaluate import parse_agent, parse_random, play_checkpoint, play_random
+    from hier_agents.baselines.impala.evaluate import parse_agent, parse_random, play_checkpoint, play_random
 
     if levels is not None:
         raise ValueError(f"--levels is not supported with --agent {agent}")
@@ -405,7 +405,7 @@ def main(argv=None) -> int:
         parser.error("--stochastic applies to checkpoint:PATH agents")
     if args.agent != "modular":
         if args.agent.startswith("random"):
-            from hier_agents.impala.evaluate import parse_random
+            from hier_agents.baselines.impala.evaluate import parse_random
             try:
                 parse_random(args.agent)
             except ValueError as exc:

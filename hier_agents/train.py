@@ -27,7 +27,7 @@ import json
 import sys
 
 import envs
-from hier_agents.impala.agent_env import CONDITIONS
+from hier_agents.baselines.impala.agent_env import CONDITIONS
 
 
 def main(argv=None) -> int:
@@ -73,7 +73,7 @@ def main(argv=None) -> int:
         parser.error(f"unknown agent {args.agent!r}; valid: {', '.join(CONDITIONS)}")
     if args.backend not in ("local", "ray"):
         parser.error(f"unknown backend {args.backend!r}; valid: local, ray")
-    from hier_agents.impala.learner import TrainConfig, train
+    from hier_agents.baselines.impala.learner import TrainConfig, train
 
     config = TrainConfig(env=args.env, condition=args.agent, steps=args.steps,
                          actors=args.actors, envs_per_actor=args.envs_per_actor,

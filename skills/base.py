@@ -16,7 +16,7 @@ Skills see the subgoal, the scene estimate, the timestep's observations and
 the public description, never the simulator (the observation boundary).
 * ``status`` is `Status.RUNNING` until the skill reaches the subgoal
   (`Status.SUCCESS`) or gives up (`Status.FAILURE`: stuck, blocked, out of
-  reach). The option layer (`hier_agents.option_layer`) also cuts a skill
+  reach). The option layer (`hier_agents.modular.agent`) also cuts a skill
   off after ``T_abs`` control steps and re-estimates.
 
 Skills take a seed or a generator for any randomness and keep no state

@@ -10,8 +10,8 @@ import pytest
 import envs
 from hier_agents import run as run_lib
 from hier_agents.boundary import BoundaryEnv
-from hier_agents.components import env_overrides, make_agent
-from hier_agents.option_layer import ModularAgent
+from hier_agents.modular.components import env_overrides, make_agent
+from hier_agents.modular.agent import ModularAgent
 
 NO_CAMERAS = {"top_camera": None, "egocentric_camera": None}
 

@@ -1,4 +1,4 @@
-"""`hier_agents.impala.agent_env.AgentEnv`: inputs, action mapping, the auxiliary task."""
+"""`hier_agents.baselines.impala.agent_env.AgentEnv`: inputs, action mapping, the auxiliary task."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import pytest
 
 from abstract_planners.base import Subgoal
 from abstract_planners.sokoban import DIRECTIONS
-from hier_agents.impala.agent_env import (CONDITIONS, PLANNER_ACTIONS, AgentEnv, InputSpec,
+from hier_agents.baselines.impala.agent_env import (CONDITIONS, PLANNER_ACTIONS, AgentEnv, InputSpec,
                                           StepResult)
 from skills.arm import ArmTouchSkill
 from skills.ball import BallSkill

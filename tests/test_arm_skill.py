@@ -21,7 +21,7 @@ import envs
 from abstract_planners.base import Subgoal
 from abstract_planners.tictactoe import MinimaxPlanner
 from hier_agents.estimators import BoardEstimator
-from hier_agents.option_layer import ModularAgent, run_option
+from hier_agents.modular.agent import ModularAgent, run_option
 from skills.arm import ArmModel, ArmTouchConfig, ArmTouchSkill
 from skills.base import Status
 

@@ -13,7 +13,7 @@ import pytest
 
 import envs
 from hier_agents.boundary import BoundaryEnv, BoundaryViolation, PRIVILEGED_OBSERVATIONS
-from hier_agents.components import (ESTIMATORS, PLANNERS, SKILLS, env_overrides, is_privileged,
+from hier_agents.modular.components import (ESTIMATORS, PLANNERS, SKILLS, env_overrides, is_privileged,
                                     make_agent)
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -118,7 +118,7 @@ def test_descriptions_are_static_values_without_simulator_handles(name):
 #: privileged estimators (hier_agents/estimators/mujoban.py) are the exception
 #: by design.
 AGENT_SOURCES = sorted([*ROOT.glob("skills/**/*.py"), *ROOT.glob("abstract_planners/*.py"),
-                        ROOT / "hier_agents/option_layer.py",
+                        ROOT / "hier_agents/modular/agent.py",
                         *[p for p in ROOT.glob("hier_agents/estimators/*.py")
                           if p.name != "mujoban.py"]])
 FORBIDDEN = re.compile(r"\.physics\b|\benv\.task\b|\.ptr\b|full_entity_layer|pixel_layer|"

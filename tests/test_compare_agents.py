@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from hier_agents.impala.learner import TrainConfig, train
+from hier_agents.baselines.impala.learner import TrainConfig, train
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))  # for its `_common` import

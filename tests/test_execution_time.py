@@ -62,7 +62,7 @@ def test_the_benchmark_writes_a_row_per_level_with_its_keys(tmp_path):
 
 
 def test_the_results_table_names_any_planner_but_mujobans_default():
-    from hier_agents.components import PLANNERS
+    from hier_agents.modular.components import PLANNERS
 
     spec = importlib.util.spec_from_file_location("agent_table", ROOT / "benchmarks" /
                                                   "agent_table.py")

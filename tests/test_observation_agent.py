@@ -8,7 +8,7 @@ import pytest
 import envs
 from envs.mujoban.levels import BOXOBAN_DIR, read_levels
 from hier_agents.boundary import BoundaryEnv
-from hier_agents.components import env_overrides, make_agent
+from hier_agents.modular.components import env_overrides, make_agent
 from hier_agents.estimators import OracleEstimator
 
 

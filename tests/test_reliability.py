@@ -28,7 +28,7 @@ from envs import core as core_lib
 from envs.boards import make_mujogo
 from envs.boards.task import BoardTask
 from hier_agents import run as run_lib
-from hier_agents.option_layer import ModularAgent
+from hier_agents.modular.agent import ModularAgent
 from skills.arm import ArmTouchSkill
 
 FAKE_GTP = Path(__file__).with_name("fake_gtp.py")

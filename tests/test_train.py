@@ -10,7 +10,7 @@ import torch
 
 from hier_agents import run as run_lib
 from hier_agents import train as train_cli
-from hier_agents.impala.learner import TrainConfig, load_checkpoint, net_from_checkpoint, train
+from hier_agents.baselines.impala.learner import TrainConfig, load_checkpoint, net_from_checkpoint, train
 
 TINY = dict(env="mujoban/level1", unroll_length=5, batch_size=2, actors=1, envs_per_actor=2,
             checkpoint_every_s=1e9, log_every_s=0.0, progress=False)
@@ -138,9 +138,9 @@ def _toy_unrolls(net, rng, T=8, B=16):
 
 
 def test_the_learner_improves_the_return_of_a_tiny_task():
-    from hier_agents.impala.agent_env import InputSpec
-    from hier_agents.impala.learner import learner_step, make_batch
-    from hier_agents.impala.network import ImpalaNet
+    from hier_agents.baselines.impala.agent_env import InputSpec
+    from hier_agents.baselines.impala.learner import learner_step, make_batch
+    from hier_agents.baselines.impala.network import ImpalaNet
 
     torch.manual_seed(0)
     rng = np.random.default_rng(0)
@@ -170,8 +170,8 @@ def test_the_learner_improves_the_return_of_a_tiny_task():
 ])
 def test_every_environment_observation_goes_through_the_network(name, condition, cameras,
                                                                 request):
-    from hier_agents.impala.agent_env import AgentEnv
-    from hier_agents.impala.network import ImpalaNet
+    from hier_agents.baselines.impala.agent_env import AgentEnv
+    from hier_agents.baselines.impala.network import ImpalaNet
 
     if name.startswith("mujogo"):
         request.getfixturevalue("gnugo")
@@ -288,9 +288,9 @@ def test_a_dead_or_failing_actor_stops_the_learner_with_a_clear_error():
     import os
     import signal
 
-    from hier_agents.impala.actors import ActorConfig, LocalActors
-    from hier_agents.impala.agent_env import AgentEnv
-    from hier_agents.impala.network import ImpalaNet
+    from hier_agents.baselines.impala.actors import ActorConfig, LocalActors
+    from hier_agents.baselines.impala.agent_env import AgentEnv
+    from hier_agents.baselines.impala.network import ImpalaNet
 
     with AgentEnv("mujoban/level1", "vanilla", cameras=False) as env:
         net = ImpalaNet(env.input_spec, two_values=False)

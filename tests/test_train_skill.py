@@ -1,4 +1,4 @@
-"""Training the ball skill (`hier_agents.train_skill`) and the shipped policy."""
+"""Training the ball skill (`hier_agents.learning.train_skill`) and the shipped policy."""
 
 import json
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import torch
 
-from hier_agents.train_skill import Agent, TorchPolicy, evaluate, main
+from hier_agents.learning.train_skill import Agent, TorchPolicy, evaluate, main
 from skills.learned import POLICY_PATH, LearnedBallSkill, load_policy
 
 

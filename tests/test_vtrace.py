@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 import torch
 
-from hier_agents.impala.agent_env import InputSpec
-from hier_agents.impala.network import ImpalaNet, NetOutput, gaussian_entropy, gaussian_log_prob
-from hier_agents.impala.vtrace import impala_loss, vtrace
+from hier_agents.baselines.impala.agent_env import InputSpec
+from hier_agents.baselines.impala.network import ImpalaNet, NetOutput, gaussian_entropy, gaussian_log_prob
+from hier_agents.baselines.impala.vtrace import impala_loss, vtrace
 
 
 def reference_vtrace(log_rhos, discounts, rewards, values, bootstrap, clip_rho, clip_pg_rho,

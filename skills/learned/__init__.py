@@ -4,8 +4,8 @@
   the scripted geometry (legs, pursuit carrot, speed profile, box contact,
   status) and a learned low-level controller (carrot and speed target ->
   [roll, steer]), trained with PPO on the option environment
-  `hier_agents.option_envs.BallOptionEnv` by ``python -m
-  hier_agents.train_skill ball``. The trained checkpoint ships as
+  `hier_agents.learning.skill_env.BallOptionEnv` by ``python -m
+  hier_agents.learning.train_skill ball``. The trained checkpoint ships as
   ``skills/learned/ball_policy.pt``. See `skills.learned.ball`.
 """
 

@@ -47,7 +47,7 @@ The policy's output is ``[throttle, steer]`` in the drive frame; the fixed
 (not learned) map to the environment's action is ``roll = -sign *
 throttle`` (a negative roll rolls towards the face), ``steer = steer``,
 both clipped to [-1, 1]. The option environment
-(`hier_agents.option_envs.BallOptionEnv`) takes the raw ``[roll, steer]``;
+(`hier_agents.learning.skill_env.BallOptionEnv`) takes the raw ``[roll, steer]``;
 `policy_action` / `env_action` convert.
 
 The checkpoint (``ball_policy.pt``, next to this file) is a dict with
@@ -57,7 +57,7 @@ was trained). At run time the network is evaluated in numpy (~10 us).
 The shipped one was made by (seed 0, 2 vectorised environments, ~7 CPU
 minutes on the 2-core machine; ``results/learned_ball/`` has its numbers)::
 
-    python -m hier_agents.train_skill ball --steps 80000 --bc-steps 20000 --dagger-steps 20000 --envs 2 --seed 0 --logdir runs/ball --eval-episodes 200
+    python -m hier_agents.learning.train_skill ball --steps 80000 --bc-steps 20000 --dagger-steps 20000 --envs 2 --seed 0 --logdir runs/ball --eval-episodes 200
     cp runs/ball/ball_policy.pt skills/learned/ball_policy.pt
 """
 
@@ -127,7 +127,7 @@ class NumpyPolicy:
 
 
 def load_policy(path=None) -> NumpyPolicy:
-    """The policy of a checkpoint written by ``hier_agents.train_skill``
+    """The policy of a checkpoint written by ``hier_agents.learning.train_skill``
     (default: the shipped one)."""
     import torch
     ckpt = torch.load(Path(path or POLICY_PATH), map_location="cpu", weights_only=True)

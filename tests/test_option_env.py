@@ -7,7 +7,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 from abstract_planners.sokoban_solver import SokobanSolverPlanner
-from hier_agents.option_mdp import OptionEnv, encode_sokoban
+from hier_agents.learning.option_env import OptionEnv, encode_sokoban
 
 
 def _solver_action(env, info):

@@ -15,7 +15,7 @@ Conditions (Mirza et al. 2020, "Experimental conditions"):
   reward (``reward_abs`` and ``discount_abs`` are always 0).
 * ``"expert-planner"``: the expert planner of `EXPERT_PLANNER` (MuJoBan: the
   exact Sokoban solver ``"sokoban-solver"``, as in the paper), otherwise the
-  family's default planner of `hier_agents.components.PLANNERS` (minimax, GNU
+  family's default planner of `hier_agents.modular.components.PLANNERS` (minimax, GNU
   Go level 10), proposes targets for the auxiliary task.
 * ``"random-planner"``: the family's ``"random"`` planner (a uniformly random
   legal next state).
@@ -113,7 +113,7 @@ import numpy as np
 import envs
 from abstract_planners.base import NoPlanError, Subgoal
 from abstract_planners.sokoban import MOVES
-from hier_agents.components import family
+from hier_agents.modular.components import family
 from hier_agents.estimators import EstimationError
 
 __all__ = ["AgentEnv", "CONDITIONS", "DISCOUNTS", "InputSpec", "PLANNER_ACTIONS",
@@ -254,7 +254,7 @@ class AgentEnv:
             self._planning = condition != "vanilla"
             planner_shape, planner_action_dim = None, 0
             if self._planning:
-                from hier_agents.components import ESTIMATORS, PLANNERS
+                from hier_agents.modular.components import ESTIMATORS, PLANNERS
 
                 planners = PLANNERS[fam]
                 # The expert is the paper's: MuJoBan's exact Sokoban solver

@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hier_agents.impala.actors import ActorConfig, LocalActors, RayActors, stack_states
+from hier_agents.baselines.impala.actors import ActorConfig, LocalActors, RayActors, stack_states
 
 #: Paper's batch sizes (unrolls per update): board games 64, MuJoBan 128.
 PAPER_BATCH = {"mujoban": 128, "mujoxo": 64, "mujogo": 64}
@@ -76,7 +76,7 @@ class TrainConfig:
     env_overrides: dict = dataclasses.field(default_factory=dict)
 
     def validate(self) -> None:
-        from hier_agents.impala.agent_env import CONDITIONS
+        from hier_agents.baselines.impala.agent_env import CONDITIONS
 
         if self.condition not in CONDITIONS:
             raise ValueError(f"unknown agent {self.condition!r}; valid: {list(CONDITIONS)}")
@@ -138,7 +138,7 @@ def learner_step(net, optimizer, batch, config: TrainConfig,
     """
     import torch
 
-    from hier_agents.impala.vtrace import impala_loss
+    from hier_agents.baselines.impala.vtrace import impala_loss
 
     T = batch["actions"].shape[0]
     out, new_state = net(batch["obs"], batch["first"], batch["state"],
@@ -196,7 +196,7 @@ def load_checkpoint(path: str | Path) -> dict:
 
 
 def _spec_from_dict(d: dict):
-    from hier_agents.impala.agent_env import InputSpec
+    from hier_agents.baselines.impala.agent_env import InputSpec
 
     d = dict(d)
     d["images"] = tuple((name, tuple(shape)) for name, shape in d["images"])
@@ -208,7 +208,7 @@ def _spec_from_dict(d: dict):
 
 def net_from_checkpoint(ckpt: dict):
     """The trained `ImpalaNet` (eval mode) and its `InputSpec` from a checkpoint."""
-    from hier_agents.impala.network import ImpalaNet
+    from hier_agents.baselines.impala.network import ImpalaNet
 
     spec = _spec_from_dict(ckpt["input_spec"])
     net = ImpalaNet(spec, two_values=ckpt["config"]["condition"] != "vanilla")
@@ -251,9 +251,9 @@ def train(config: TrainConfig) -> dict:
     import torch
     from tqdm import tqdm
 
-    from hier_agents.components import family as env_family
-    from hier_agents.impala.agent_env import AgentEnv
-    from hier_agents.impala.network import ImpalaNet
+    from hier_agents.modular.components import family as env_family
+    from hier_agents.baselines.impala.agent_env import AgentEnv
+    from hier_agents.baselines.impala.network import ImpalaNet
 
     config.validate()
     family = env_family(config.env)

@@ -10,7 +10,7 @@ estimators (``oracle``, ``entity-layer``) also need the simulator, given
 explicitly as ``simulator``. The first name in each table is the default.
 
 MuJoBan planners also take ``learned:PATH``: a policy over options trained
-with ``python -m hier_agents.train_options`` (a checkpoint file or run
+with ``python -m hier_agents.learning.train_options`` (a checkpoint file or run
 directory) played by `abstract_planners.learned_options.OptionPolicyPlanner`;
 ``learned`` is the shipped one (``abstract_planners/learned/options.pt``:
 the learned policy alone, no hand-written rule).
@@ -25,7 +25,7 @@ from __future__ import annotations
 from typing import Callable
 
 from hier_agents.estimators import BoardEstimator, EntityLayerEstimator, OracleEstimator
-from hier_agents.option_layer import ModularAgent
+from hier_agents.modular.agent import ModularAgent
 
 
 def family(env_name: str) -> str:
@@ -56,7 +56,7 @@ def _learned_options(path):
 
 class _PlannerTable(dict):
     """A family's planners by name, plus ``learned:PATH`` (any checkpoint of
-    `hier_agents.train_options`: a policy over options played as a planner)."""
+    `hier_agents.learning.train_options`: a policy over options played as a planner)."""
 
     prefix = "learned:"
 
@@ -176,7 +176,7 @@ def _pick(table: dict[str, dict[str, Factory]], kind: str, fam: str, name: str |
     if name is None:
         return next(iter(options.values()))
     if name not in options:
-        extra = (" or learned:PATH (a hier_agents.train_options checkpoint)"
+        extra = (" or learned:PATH (a hier_agents.learning.train_options checkpoint)"
                  if isinstance(options, _PlannerTable) else "")
         raise ValueError(f"unknown {kind} {name!r} for {fam}; valid: {sorted(options)}{extra}")
     return options[name]

@@ -1,13 +1,13 @@
 """Train a skill with PPO on its option environment.
 
-    python -m hier_agents.train_skill ball --steps N --logdir DIR [--envs K] [--seed S]
+    python -m hier_agents.learning.train_skill ball --steps N --logdir DIR [--envs K] [--seed S]
                                            [--resume] [--bc-steps M] [--eval-episodes E]
-    python -m hier_agents.train_skill ball --evaluate [PATH] [--estimator camera]
+    python -m hier_agents.learning.train_skill ball --evaluate [PATH] [--estimator camera]
                                            [--eval-episodes E] [--json OUT]
 
 Trains `skills.learned.LearnedBallSkill`'s controller (the map from the
 carrot and speed target to [roll, steer]; see `skills.learned.ball` for what
-is learned and what stays geometric) on `hier_agents.option_envs.
+is learned and what stays geometric) on `hier_agents.learning.skill_env.
 BallOptionEnv` (one episode = one walk-then-push option; +1 when the
 subgoal is reached, -1 for disturbing boxes, -0.002 per step). Written
 top to bottom in one file, in the CleanRL spirit:
@@ -80,7 +80,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from hier_agents.option_envs import HELDOUT_SOURCES, TRAIN_SOURCES, BallOptionEnv
+from hier_agents.learning.skill_env import HELDOUT_SOURCES, TRAIN_SOURCES, BallOptionEnv
 from hier_agents.stats import wilson_interval
 from skills.learned.ball import FEATURES, OBS_DIM, SIGN
 
@@ -399,7 +399,7 @@ def main(argv=None) -> int:
         export_policy(agent, args.logdir / "ball_policy.pt",
                       {"frames": state["frames"], "sim_steps": state["sim_steps"],
                        "bc_frames": state["bc_frames"], "seed": args.seed,
-                       "iteration": state["iteration"], "trained_with": "hier_agents.train_skill"})
+                       "iteration": state["iteration"], "trained_with": "hier_agents.learning.train_skill"})
 
     # 1. Behaviour-cloning warm start (once).
     if args.bc_steps > 0 and state["bc_frames"] == 0:

@@ -1,10 +1,10 @@
-"""The option environments (`hier_agents.option_envs`)."""
+"""The option environments (`hier_agents.learning.skill_env`)."""
 
 import gymnasium
 import numpy as np
 import pytest
 
-from hier_agents.option_envs import BallOptionEnv
+from hier_agents.learning.skill_env import BallOptionEnv
 from skills.base import Status
 
 
@@ -29,7 +29,7 @@ def test_stable_baselines3_check_env():
 
 
 def test_registered():
-    import hier_agents.option_envs  # noqa: F401  (registers the id)
+    import hier_agents.learning.skill_env  # noqa: F401  (registers the id)
     env = gymnasium.make("options/ball-push", sources=("mujoban/level1",), seed=1)
     obs, info = env.reset(seed=1)
     assert env.observation_space.contains(obs)

@@ -29,7 +29,7 @@ from typing import NamedTuple
 
 import torch
 
-from hier_agents.impala.network import gaussian_entropy, gaussian_log_prob
+from hier_agents.baselines.impala.network import gaussian_entropy, gaussian_log_prob
 
 
 class VTrace(NamedTuple):

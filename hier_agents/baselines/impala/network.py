@@ -53,7 +53,7 @@ from torch import nn
 from torch.nn import functional as F
 
 if TYPE_CHECKING:  # the network needs only the spec's fields, not its module
-    from hier_agents.impala.agent_env import InputSpec
+    from hier_agents.baselines.impala.agent_env import InputSpec
 
 ENCODING_SIZE = 256
 VALUE_CORE_SIZE = 256

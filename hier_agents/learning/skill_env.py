@@ -85,9 +85,9 @@ from gymnasium import spaces
 import envs
 from abstract_planners.base import NoPlanError
 from abstract_planners.sokoban_solver import SokobanSolverPlanner
-from hier_agents.components import env_overrides
+from hier_agents.modular.components import env_overrides
 from hier_agents.estimators.base import EstimationError
-from hier_agents.option_layer import run_option
+from hier_agents.modular.agent import run_option
 from skills.ball import BallSkill
 from skills.base import Status
 from skills.learned.ball import OBS_DIM, SIGN, LearnedBallSkill, env_action
@@ -335,4 +335,4 @@ class BallOptionEnv(gymnasium.Env):
         self._envs = {}
 
 
-gymnasium.register("options/ball-push", entry_point="hier_agents.option_envs:BallOptionEnv")
+gymnasium.register("options/ball-push", entry_point="hier_agents.learning.skill_env:BallOptionEnv")

@@ -1,11 +1,11 @@
 """Train a policy over options with PPO on `OptionEnv`; play it as a planner.
 
-    python -m hier_agents.train_options ENV[,ENV...] --steps N --logdir DIR
+    python -m hier_agents.learning.train_options ENV[,ENV...] --steps N --logdir DIR
         [--envs K] [--seed S] [--resume] [--skill learned-ball] [--estimator camera]
         [--cpu-minutes M] [--abstract-steps A] [--eval-episodes E] ...
     python -m hier_agents.run mujoban/level2 --planner learned:DIR/option_policy.pt
 
-One environment step is one *option* (`hier_agents.option_mdp.OptionEnv`): a
+One environment step is one *option* (`hier_agents.learning.option_env.OptionEnv`): a
 Sokoban move ``U``/``D``/``L``/``R`` that the ball skill carries out in MuJoCo
 (walk one cell, or push a box one cell) until it succeeds, fails or ``t_abs``
 = 50 control steps pass; the observation is the estimator's abstract state
@@ -70,7 +70,7 @@ options.pt``, 366 KB; figures in ``results/option_policy/``) is approach "D":
 control frames, camera estimator, learned ball skill), 15.9 CPU minutes in
 all, one command::
 
-    python -m hier_agents.train_options mujoban/level1,mujoban/level2 --abstract-steps 400000 \
+    python -m hier_agents.learning.train_options mujoban/level1,mujoban/level2 --abstract-steps 400000 \
         --steps 4000 --cpu-minutes 55 --envs 2 --seed 1 --skill learned-ball --eval-episodes 0 \
         --logdir runs/options_D
 
@@ -281,7 +281,7 @@ class AbstractOptionEnv(gym.Env):
             self._info(self.duration)
 
     def _obs(self):
-        from hier_agents.option_mdp import encode_sokoban
+        from hier_agents.learning.option_env import encode_sokoban
         return encode_sokoban(self.abstract_state, self.shape)
 
     def _info(self, duration):
@@ -295,7 +295,7 @@ class AbstractOptionEnv(gym.Env):
 def make_option_env(env_name: str, seed: int, args):
     def thunk():
         torch.set_num_threads(1)
-        from hier_agents.option_mdp import OptionEnv
+        from hier_agents.learning.option_env import OptionEnv
         env = OptionEnv(env_name, skill=args.skill, estimator=args.estimator, seed=seed,
                         gamma=args.gamma, t_abs=args.t_abs)
         return Shaped(env, args.shape_box, args.shape_player, args.box_distance)
@@ -544,7 +544,7 @@ def evaluate(policy_path: Path, env_names, episodes: int, args) -> dict:
 # -- main --------------------------------------------------------------------------------------
 
 def parse_args(argv=None):
-    p = argparse.ArgumentParser(prog="python -m hier_agents.train_options",
+    p = argparse.ArgumentParser(prog="python -m hier_agents.learning.train_options",
                                 description=__doc__.split("\n\n")[0],
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("env", help="environment(s), comma-separated (e.g. mujoban/level1,"
@@ -601,7 +601,7 @@ def main(argv=None) -> int:
     args.logdir.mkdir(parents=True, exist_ok=True)
     ckpt_path = args.logdir / "checkpoint.pt"
     policy_path = args.logdir / "option_policy.pt"
-    command = "python -m hier_agents.train_options " + " ".join(
+    command = "python -m hier_agents.learning.train_options " + " ".join(
         shlex.quote(a) for a in (sys.argv[1:] if argv is None else argv))
 
     random.seed(args.seed)
@@ -663,7 +663,7 @@ def main(argv=None) -> int:
     skill = skill_record(args.skill)
 
     def meta() -> dict:
-        return {"trained_with": "hier_agents.train_options", "envs": names,
+        return {"trained_with": "hier_agents.learning.train_options", "envs": names,
                 "option_steps": state["option_steps"], "control_frames": state["control_frames"],
                 "abstract_steps": state["abstract_steps"], "updates": state["updates"],
                 "cpu_s": round(state["cpu_s"], 1), "seed": args.seed, "skill": args.skill,

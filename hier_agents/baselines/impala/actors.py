@@ -92,8 +92,8 @@ class Actor:
     def __init__(self, config: ActorConfig, actor_id: int):
         import torch
 
-        from hier_agents.impala.agent_env import AgentEnv
-        from hier_agents.impala.network import ImpalaNet
+        from hier_agents.baselines.impala.agent_env import AgentEnv
+        from hier_agents.baselines.impala.network import ImpalaNet
 
         torch.set_num_threads(1)
         self.config, self.actor_id = config, actor_id

@@ -35,8 +35,8 @@ after ``t_abs`` control steps, or when the episode ends::
 
 Estimation failures (an estimate that cannot be made for a frame) make the
 skill hold still for that step, as in the option layer
-(`hier_agents.option_layer`). The env and skill parts come from
-`hier_agents.components`: ``skill`` and ``estimator`` by name (defaults: the
+(`hier_agents.modular.agent`). The env and skill parts come from
+`hier_agents.modular.components`: ``skill`` and ``estimator`` by name (defaults: the
 family's), ``env_options`` passed to `envs.load`. A privileged estimator
 (``"oracle"``) reads the simulator and says so in ``env.privileged``.
 """
@@ -50,7 +50,7 @@ import envs
 from abstract_planners.base import Subgoal
 from abstract_planners.sokoban import MOVES
 from hier_agents.boundary import BoundaryEnv
-from hier_agents.components import (ESTIMATORS, SKILLS, env_overrides, estimator_name, family,
+from hier_agents.modular.components import (ESTIMATORS, SKILLS, env_overrides, estimator_name, family,
                                     is_privileged)
 from hier_agents.estimators.base import EstimationError
 from skills.base import Status
@@ -74,7 +74,7 @@ class OptionEnv(gym.Env):
 
     Args:
       env_name: a registered environment (``envs.names()``).
-      skill, estimator: names from `hier_agents.components` (None: the
+      skill, estimator: names from `hier_agents.modular.components` (None: the
         family's default: the ball skill and camera estimator for MuJoBan).
       seed: seeds the environment (``reset(seed=...)`` reseeds it).
       gamma: per-control-step discount of the option's reward sum.

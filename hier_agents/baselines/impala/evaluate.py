@@ -58,7 +58,7 @@ def play_random(env_name: str, episodes: int, seed: int = 0, *, hold: int = 1,
     from tqdm import tqdm
 
     import envs
-    from hier_agents.components import family
+    from hier_agents.modular.components import family
 
     fam = family(env_name)
     env = envs.load(env_name, seed=seed, **envs.no_cameras(env_name))
@@ -98,9 +98,9 @@ def play_checkpoint(env_name: str, path: str, episodes: int, seed: int = 0, *,
     import torch
     from tqdm import tqdm
 
-    from hier_agents.components import family
-    from hier_agents.impala.agent_env import AgentEnv
-    from hier_agents.impala.learner import load_checkpoint, net_from_checkpoint
+    from hier_agents.modular.components import family
+    from hier_agents.baselines.impala.agent_env import AgentEnv
+    from hier_agents.baselines.impala.learner import load_checkpoint, net_from_checkpoint
 
     ckpt = load_checkpoint(path)
     config = ckpt["config"]

@@ -1,0 +1,1 @@
+"""End-to-end baselines (`hier_agents.baselines.impala`)."""
