@@ -65,7 +65,7 @@ from abstract_planners.epsilon_greedy import EpsilonGreedy  # noqa: E402
 from abstract_planners.go import GnuGoPlanner  # noqa: E402
 from abstract_planners.tictactoe import MinimaxPlanner  # noqa: E402
 from hier_agents.estimators import BoardEstimator, EstimationError  # noqa: E402
-from hier_agents.modular.agent import run_option  # noqa: E402
+from hier_agents.modular.options import Outcome, run_option  # noqa: E402
 from hier_agents.stats import wilson_interval  # noqa: E402
 from skills.arm import ArmTouchSkill  # noqa: E402
 from skills.base import Status  # noqa: E402
@@ -142,11 +142,11 @@ def play_game(env, planner, skill, t_abs: int, stats: dict) -> dict:
         stats["touches"] += 1
         result = run_option(env, estimator, timed, subgoal, timestep, t_abs=t_abs, scene=scene)
         timestep = result.timestep
-        steps += result.steps
-        if result.status is Status.SUCCESS:
+        steps += result.duration
+        if result.outcome is Outcome.REACHED:
             stats["planned"] += 1
-            stats["touch_steps"].append(result.steps)
-        elif result.status is Status.FAILURE:
+            stats["touch_steps"].append(result.duration)
+        elif result.outcome is Outcome.FAILED:
             reason = result.reason or "unknown"
             stats["failures"][reason.split(":")[0]] += 1
             if reason.startswith("wrong move"):
@@ -155,7 +155,7 @@ def play_game(env, planner, skill, t_abs: int, stats: dict) -> dict:
                 stats["failed"] += 1
         else:
             stats["cut"] += 1
-        if result.steps == 0 and not timestep.last():
+        if result.duration == 0 and not timestep.last():
             # The skill gave up before moving (e.g. no posture found from
             # here): let time pass so the game cannot loop without steps.
             timestep = env.step(skill.hold())

@@ -21,7 +21,8 @@ import envs
 from abstract_planners.base import Subgoal
 from abstract_planners.tictactoe import MinimaxPlanner
 from hier_agents.estimators import BoardEstimator
-from hier_agents.modular.agent import ModularAgent, run_option
+from hier_agents.modular.agent import ModularAgent
+from hier_agents.modular.options import Outcome, run_option
 from skills.arm import ArmModel, ArmTouchConfig, ArmTouchSkill
 from skills.base import Status
 
@@ -129,7 +130,7 @@ def test_a_touch_registers_through_the_public_interface_only(mujoxo):
     skill = ArmTouchSkill()
     result = run_option(env, estimator, skill, Subgoal(4, scene.state.child(4)), timestep,
                         t_abs=80)
-    assert result.status is Status.SUCCESS, result.reason
+    assert result.outcome is Outcome.REACHED, result.reason
     assert estimator.estimate(result.timestep).moves[0] == 4
     assert mujoxo.task.moves[0] == 4  # (the check reads the simulator; the skill did not)
 
@@ -172,11 +173,11 @@ def test_mujoxo_touch_registers_the_planned_point(mujoxo, point):
     timestep = env.reset()
     skill = ArmTouchSkill()
     result = run_touch(env, skill, point, timestep)
-    assert result.status is Status.SUCCESS, result.reason
+    assert result.outcome is Outcome.REACHED, result.reason
     assert env.task.moves_registered == 1
     assert env.task.moves[0] == point
     # (run_option takes one more step, the one on which the skill sees the move)
-    assert result.steps <= skill.config.max_steps + 1
+    assert result.duration <= skill.config.max_steps + 1
 
 
 @needs_gnugo
@@ -190,9 +191,9 @@ def test_mujogo_every_point_and_the_pass_register(mujogo):
         timestep = env.reset()
         skill = ArmTouchSkill()
         result = run_touch(env, skill, action, timestep)
-        if (result.status is not Status.SUCCESS or env.task.moves[:1] != (action,)
-                or result.steps > skill.config.max_steps + 1):
-            failures.append((action, result.reason, env.task.moves[:1], result.steps))
+        if (result.outcome is not Outcome.REACHED or env.task.moves[:1] != (action,)
+                or result.duration > skill.config.max_steps + 1):
+            failures.append((action, result.reason, env.task.moves[:1], result.duration))
         leans[action] = skill.touch_tilt
     assert not failures
     # The far row (Go row 0, farthest from the arm) is touched with the hand
@@ -214,7 +215,7 @@ def test_mujogo_several_touches_in_a_row(mujogo):
         point = int(rng.choice(legal))
         result = run_touch(env, skill, point, timestep)
         timestep = result.timestep
-        assert result.status is Status.SUCCESS, (touch, point, result.reason)
+        assert result.outcome is Outcome.REACHED, (touch, point, result.reason)
         assert env.task.moves[2 * touch] == point
         assert env.task.moves_registered == touch + 1
 
@@ -227,7 +228,7 @@ def test_mujogo_pass_on_the_pass_area(mujogo):
     description = env.description()
     tool_x = env.task.pinch_site_position()[0]
     result = run_touch(env, skill, description.pass_action, timestep)
-    assert result.status is Status.SUCCESS, result.reason
+    assert result.outcome is Outcome.REACHED, result.reason
     assert env.task.moves[0] == description.pass_action
     # The skill went for the pass area on the hand's side of the board, clear
     # of the board's squares.
@@ -267,11 +268,11 @@ def test_a_new_subgoal_mid_flight_is_followed(mujogo):
     timestep = env.reset()
     skill = ArmTouchSkill()
     result = run_touch(env, skill, 0, timestep, t_abs=8)
-    assert result.status is Status.RUNNING and result.steps == 8
+    assert result.outcome is Outcome.CUT_OFF and result.duration == 8
     assert env.task.moves_registered == 0
     assert np.abs(result.timestep.observation["arm/joints_vel"][:6]).max() > 0.05  # moving
     result = run_touch(env, skill, 48, result.timestep)
-    assert result.status is Status.SUCCESS, result.reason
+    assert result.outcome is Outcome.REACHED, result.reason
     assert env.task.moves[0] == 48
 
 
@@ -312,7 +313,7 @@ def test_another_registered_move_is_a_failure(mujoxo):
     real = env.description()
     description = moved(real, positions=lambda a: real.point_position(2))
     result = run_touch(env, ArmTouchSkill(), 0, timestep, description=description)
-    assert result.status is Status.FAILURE
+    assert result.outcome is Outcome.FAILED
     assert result.reason.startswith("wrong move")
     assert env.task.moves[0] == 2
 
@@ -324,9 +325,9 @@ def test_a_target_that_never_registers_fails_within_the_step_limit(mujoxo):
     description = moved(env.description(), shift=(0.3, 0.0, 0.0))
     skill = ArmTouchSkill()
     result = run_touch(env, skill, 5, timestep, description=description, t_abs=200)
-    assert result.status is Status.FAILURE
+    assert result.outcome is Outcome.FAILED
     assert env.task.moves_registered == 0
-    assert result.steps <= skill.config.max_steps + 1  # (+ the hold on which it gave up)
+    assert result.duration <= skill.config.max_steps + 1  # (+ the hold on which it gave up)
 
 
 def test_the_episode_ending_first_is_a_failure(mujoxo):

@@ -17,7 +17,8 @@ from envs.mujoban import sources
 from envs.mujoban.levels import Level
 from envs.mujoban.task import Mujoban
 from hier_agents.estimators import OracleEstimator
-from hier_agents.modular.agent import ModularAgent, run_option
+from hier_agents.modular.agent import ModularAgent
+from hier_agents.modular.options import run_option
 from skills.ball import CONTACT, BallConfig, BallSkill
 from skills.ball.controller import carrot, locate, speed_limit, wrap
 from skills.base import Skill, Status

@@ -7,13 +7,14 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 from abstract_planners.sokoban_solver import SokobanSolverPlanner
+from abstract_planners.sokoban import MOVES
 from hier_agents.learning.option_env import OptionEnv, encode_sokoban
 
 
 def _solver_action(env, info):
     subgoal = SokobanSolverPlanner().plan(env.abstract_state)
     move = subgoal.action[0] if isinstance(subgoal.action, tuple) else subgoal.action
-    return env._moves.index(move)
+    return MOVES.index(move)
 
 
 def _record_rewards(env) -> list:

@@ -1,17 +1,22 @@
-"""The option environments (`hier_agents.learning.skill_env`)."""
+"""Skill environments (`hier_agents.learning.skill_env.SkillEnv`) with the ball spec."""
+
+import dataclasses
 
 import gymnasium
 import numpy as np
 import pytest
 
-from hier_agents.learning.skill_env import BallOptionEnv
+from hier_agents.learning.skill_env import SkillEnv
+from hier_agents.learning.skills.ball import BALL_SPEC, BallSceneSource
 from skills.base import Status
 
 
-def _env(**kw):
-    kw.setdefault("sources", ("mujoban/level2-pegs", "mujoban/level1"))
-    kw.setdefault("seed", 0)
-    return BallOptionEnv(**kw)
+def _env(sources=("mujoban/level2-pegs", "mujoban/level1"), seed=0, estimator=None,
+         t_abs=None, **source_kw):
+    """A ball skill environment drawing scenes from ``sources`` only."""
+    spec = dataclasses.replace(
+        BALL_SPEC, scenes=lambda s, est: BallSceneSource(s, est, sources=sources, **source_kw))
+    return SkillEnv(spec, seed=seed, estimator=estimator, t_abs=t_abs)
 
 
 def test_gymnasium_check_env():
@@ -30,7 +35,7 @@ def test_stable_baselines3_check_env():
 
 def test_registered():
     import hier_agents.learning.skill_env  # noqa: F401  (registers the id)
-    env = gymnasium.make("options/ball-push", sources=("mujoban/level1",), seed=1)
+    env = gymnasium.make("options/ball-push", seed=1)
     obs, info = env.reset(seed=1)
     assert env.observation_space.contains(obs)
     assert info["status"] == "running"
@@ -51,9 +56,9 @@ def test_seeded_resets_repeat():
 
 def test_reward_exactly_when_the_subgoal_is_reached():
     """The scripted controller's actions (``info["expert_action"]``) drive
-    options; the success reward comes on the step at which the skill's
-    status turns to SUCCESS, then, and only then, and the estimate then
-    equals the subgoal's abstract state."""
+    options; the success reward comes on the step at which the option is
+    reached, then, and only then, and the estimate then equals the
+    subgoal's abstract state."""
     env = _env(sources=("mujoban/level3-pegs", "boxoban/unfiltered-valid-000"), seed=5)
     successes = 0
     for _ in range(6):
@@ -62,18 +67,19 @@ def test_reward_exactly_when_the_subgoal_is_reached():
         while not done:
             obs, reward, terminated, truncated, info = env.step(info["expert_action"])
             done = terminated or truncated
-            reached = info["status"] == "success"
-            assert info["reward_success"] == (1.0 if reached else 0.0)
-            assert reward == pytest.approx(info["reward_success"] + info["reward_disturb"]
-                                           + info["reward_step"])
-            assert terminated == (info["status"] != "running")
+            reached = info["status"] == "reached"
+            assert reward == pytest.approx(BALL_SPEC.step_cost + (1.0 if reached else 0.0)
+                                           - (1.0 if info["status"] == "failed"
+                                              and reward < -0.5 else 0.0))
+            assert terminated == (info["status"] in ("reached", "failed"))
             if reached:
-                scene = env._src.scene
-                assert frozenset(scene.box_cells) == env.subgoal.state.boxes
-                if not env._src.timestep.last():  # the push that solves a level ends it early
+                start = env._start
+                scene = start.estimator.estimate(start.timestep)
+                assert frozenset(scene.box_cells) == start.subgoal.state.boxes
+                if not start.timestep.last():  # the push that solves a level ends it early
                     assert env.skill.status is Status.SUCCESS
-                    assert scene.state.player == env.subgoal.state.player
-        assert info["is_success"] == (info["status"] == "success")
+                    assert scene.state.player == start.subgoal.state.player
+        assert info["is_success"] == (info["status"] == "reached")
         successes += info["is_success"]
     assert successes >= 5
 
@@ -84,8 +90,8 @@ def test_disturbing_boxes_is_penalised():
     env.skill._fail("box disturbed: box 1 moved 0.3 m but should not have")
     # The next step sees the failure and pays the penalty.
     _, reward, terminated, _, info = env.step([0.0, 0.0])
-    assert terminated and info["status"] == "failure"
-    assert info["reward_disturb"] == -1.0 and reward < -0.9
+    assert terminated and info["status"] == "failed"
+    assert reward == pytest.approx(-1.0 + BALL_SPEC.step_cost)
 
 
 def test_truncated_at_t_abs():

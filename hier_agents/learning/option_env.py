@@ -47,26 +47,14 @@ import gymnasium as gym
 import numpy as np
 
 import envs
-from abstract_planners.base import Subgoal
-from abstract_planners.sokoban import MOVES
 from hier_agents.boundary import BoundaryEnv
-from hier_agents.modular.components import (ESTIMATORS, SKILLS, env_overrides, estimator_name, family,
-                                    is_privileged)
 from hier_agents.estimators.base import EstimationError
-from skills.base import Status
+from hier_agents.modular.components import (ESTIMATORS, SKILLS, env_overrides, estimator_name,
+                                            is_privileged)
+from hier_agents.modular.families import adapter, encode_sokoban, family
+from hier_agents.modular.options import Outcome, OptionRunner
 
 __all__ = ["OptionEnv", "encode_sokoban"]
-
-
-def encode_sokoban(state, shape) -> np.ndarray:
-    """A Sokoban state as ``(4, H, W)`` float32 planes: walls, pads, boxes, player."""
-    height, width = shape
-    planes = np.zeros((4, height, width), np.float32)
-    for k, cells in enumerate((state.walls, state.targets, state.boxes, (state.player,))):
-        for r, c in cells:
-            if 0 <= r < height and 0 <= c < width:
-                planes[k, r, c] = 1.0
-    return planes
 
 
 class OptionEnv(gym.Env):
@@ -113,19 +101,11 @@ class OptionEnv(gym.Env):
                 self._description, seed)
             self.estimator = ESTIMATORS[self.family][self.estimator_name](
                 self._description, seed, self._env if self.privileged else None)
-            if self.family == "mujoban":
-                shape = tuple(int(v) for v in self._description.grid_shape)
-                self._shape = shape
-                self._moves = tuple(MOVES)
-                self.action_space = gym.spaces.Discrete(len(self._moves))
-                self.observation_space = gym.spaces.Box(0.0, 1.0, (4, *shape), np.float32)
-            else:
-                game = self._board_game()
-                self._num_actions = int(game.num_distinct_actions())
-                self.action_space = gym.spaces.Discrete(self._num_actions)
-                obs_shape = tuple(int(v) for v in game.observation_tensor_shape())
-                # OpenSpiel's tic-tac-toe and Go tensors are 0/1 planes.
-                self.observation_space = gym.spaces.Box(0.0, 1.0, obs_shape, np.float32)
+            self.adapter = adapter(self.family)
+            self.action_space, self.observation_space = self.adapter.spaces(
+                self._description, self._initial_state())
+            self._runner = OptionRunner(self.skill, self.adapter, t_abs=self.t_abs,
+                                        gamma=self.gamma)
         except Exception:
             self._env.close()
             raise
@@ -184,57 +164,32 @@ class OptionEnv(gym.Env):
 
     def legal_mask(self) -> np.ndarray:
         """int8 per action: 1 where the option is legal in the current estimate."""
-        state = self._scene.state
-        if self.family == "mujoban":
-            return np.array([state.is_legal(m) for m in self._moves], np.int8)
-        mask = np.zeros(self._num_actions, np.int8)
-        if not state.is_terminal() and state.current_player() == 0:
-            mask[list(state.legal_actions())] = 1
-        return mask
+        return self.adapter.legal_mask(self._scene.state, self.action_space.n)
 
-    def _subgoal(self, action: int) -> Subgoal | None:
-        state = self._scene.state
-        if self.family == "mujoban":
-            move = self._moves[action]
-            if not state.is_legal(move):
-                return None
-            return Subgoal(action=(move,), state=state.apply(move), plan=())
-        if state.is_terminal() or state.current_player() != 0 \
-                or action not in state.legal_actions():
-            return None
-        return Subgoal(action, state.child(action))
-
-    def _step_env(self, action, discount_power: int) -> float:
-        self._timestep = self._view.step(action)
-        self._steps += 1
-        return (self.gamma ** discount_power) * float(self._timestep.reward or 0.0)
+    def _subgoal(self, action: int):
+        return self.adapter.option_subgoal(self._scene.state, action)
 
     def _run_hold(self):
-        reward = self._step_env(self.skill.hold(), 0)
+        self._timestep = self._view.step(self.skill.hold())
+        self._steps += 1
         self._scene = self._estimate_or_keep()
-        return reward, 1
+        return float(self._timestep.reward or 0.0), 1
 
     def _run_option(self, subgoal):
-        skill = self.skill
-        skill.reset(self._description, subgoal, self._scene)
-        reward, duration, seen = 0.0, 0, True
-        while duration < self.t_abs and not self._timestep.last():
-            action = skill.act(self._timestep, self._scene) if seen else skill.hold()
-            if skill.status is not Status.RUNNING:
-                break
-            reward += self._step_env(action, duration)
-            duration += 1
+        runner = self._runner
+        runner.start(self._description, subgoal, self._scene)
+        scene = self._scene
+        while (action := runner.act(self._timestep, scene)) is not None:
+            self._timestep = self._view.step(action)
+            self._steps += 1
             try:
-                self._scene, seen = self.estimator.estimate(self._timestep), True
+                scene = self._scene = self.estimator.estimate(self._timestep)
             except EstimationError:
-                seen = False
-        if self._timestep.last() and seen and skill.status is Status.RUNNING:
-            skill.act(self._timestep, self._scene)  # let the skill see the outcome
-        if not seen:
-            self._scene = self._estimate_or_keep()
-        status = {Status.SUCCESS: "success", Status.FAILURE: "failure"}.get(skill.status,
+                scene = None
+        result = runner.result
+        status = {Outcome.REACHED: "success", Outcome.FAILED: "failure"}.get(result.outcome,
                                                                              "cut off")
-        return reward, duration, status, skill.failure_reason
+        return result.reward, result.duration, status, result.reason
 
     # -- estimates and observations --------------------------------------------------
 
@@ -256,11 +211,7 @@ class OptionEnv(gym.Env):
         raise EstimationError(f"no estimate of the first frames of {self.env_name}")
 
     def _observation(self) -> np.ndarray:
-        state = self._scene.state
-        if self.family == "mujoban":
-            return encode_sokoban(state, self._shape)
-        return np.asarray(state.observation_tensor(0), np.float32).reshape(
-            self.observation_space.shape)
+        return self.adapter.observation(self._scene.state, self.observation_space)
 
     def _info(self, *, status, duration) -> dict:
         info = {"duration": int(duration), "steps": int(self._steps),
@@ -269,15 +220,10 @@ class OptionEnv(gym.Env):
             info["status"] = status
         return info
 
-    def _board_game(self):
-        state = self._initial_board_state()
-        return state.get_game()
-
-    def _initial_board_state(self):
+    def _initial_state(self):
         timestep = self._view.reset()
         self.estimator.reset(self._description, timestep)
-        scene = self.estimator.estimate(timestep)
-        return scene.state
+        return self.estimator.estimate(timestep).state
 
     def __repr__(self) -> str:
         return (f"OptionEnv({self.env_name!r}, skill={type(self.skill).__name__}, "

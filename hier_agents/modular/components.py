@@ -26,15 +26,7 @@ from typing import Callable
 
 from hier_agents.estimators import BoardEstimator, EntityLayerEstimator, OracleEstimator
 from hier_agents.modular.agent import ModularAgent
-
-
-def family(env_name: str) -> str:
-    """``"mujoban"``, ``"mujoxo"`` or ``"mujogo"`` for an environment name."""
-    prefix = env_name.split("/", 1)[0]
-    if prefix not in ("mujoban", "mujoxo", "mujogo"):
-        raise ValueError(f"no modular agent for {env_name!r}; environment families: "
-                         f"mujoban/*, mujoxo/*, mujogo/*")
-    return prefix
+from hier_agents.modular.families import family
 
 
 def _sokoban_solver(description, seed):
@@ -110,6 +102,11 @@ def _arm(description, seed):
     return ArmTouchSkill()
 
 
+def _learned_arm(description, seed):
+    from skills.learned.arm import LearnedArmSkill
+    return LearnedArmSkill()
+
+
 Factory = Callable[..., object]
 
 #: family -> name -> factory(description, seed); the first entry is the default.
@@ -122,8 +119,8 @@ PLANNERS: dict[str, dict[str, Factory]] = {
 }
 SKILLS: dict[str, dict[str, Factory]] = {
     "mujoban": {"ball": _ball, "learned-ball": _learned_ball},
-    "mujoxo": {"arm-touch": _arm},
-    "mujogo": {"arm-touch": _arm},
+    "mujoxo": {"arm-touch": _arm, "learned-arm": _learned_arm},
+    "mujogo": {"arm-touch": _arm, "learned-arm": _learned_arm},
 }
 def _camera(description, seed, simulator=None):
     from hier_agents.estimators.camera import CameraEstimator

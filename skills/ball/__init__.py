@@ -12,7 +12,7 @@ show). Grid geometry comes from the task's public
 `envs.description.MujobanDescription`. ~40 us of Python per ``act``; ~0.2 ms
 per ``reset``.
 
-Usage (the option layer's loop, `hier_agents.modular.agent.run_option`)::
+Usage (the option layer's loop, `hier_agents.modular.options.run_option`)::
 
     skill = BallSkill()
     skill.reset(env.description(), subgoal, scene)   # scene: estimator.estimate(timestep)

@@ -24,15 +24,19 @@ class BallSkill(Skill):
 
     name = "ball"
 
-    def __init__(self, config: BallConfig | None = None, **overrides) -> None:
+    def __init__(self, config: BallConfig | None = None, *, drive=Drive, **overrides) -> None:
         super().__init__()
+        #: Makes the low-level controller (a `skills.ball.controller.Drive`:
+        #: carrot and speed target -> [roll, steer]); a learned skill passes
+        #: its own (`skills.learned.ball.LearnedDrive`).
+        self.make_drive = drive
         if config is None:
             config = BallConfig()
         elif not isinstance(config, BallConfig):
             raise TypeError(f"config must be a BallConfig, got {type(config).__name__}")
         self.config = config.replace(**overrides) if overrides else config
         self._description = None
-        self._drive = Drive()
+        self._drive = self.make_drive()
         self._contact = Contact()
         self._legs: list[legs.Leg] = []
         self._action = np.zeros(2)
@@ -45,6 +49,11 @@ class BallSkill(Skill):
         c = self.config
         return (f"BallSkill(cruise_speed={c.cruise_speed}, push_speed={c.push_speed}, "
                 f"stuck_steps={c.stuck_steps})")
+
+    def forget_history(self) -> None:
+        """The skill did not see the frames before its next ``reset``: no yaw
+        rate from the last heading it saw."""
+        self._drive.prev_heading = None
 
     # -- reset: the trajectory ------------------------------------------------------
 
@@ -66,7 +75,7 @@ class BallSkill(Skill):
         self.failure_reason = None
         if description is not self._description:
             self._description = description
-            self._drive = Drive()
+            self._drive = self.make_drive()
         self._cell = float(description.cell_size)
         self._dt = float(description.control_timestep)
         self._legs = []

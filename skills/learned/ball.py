@@ -47,7 +47,7 @@ The policy's output is ``[throttle, steer]`` in the drive frame; the fixed
 (not learned) map to the environment's action is ``roll = -sign *
 throttle`` (a negative roll rolls towards the face), ``steer = steer``,
 both clipped to [-1, 1]. The option environment
-(`hier_agents.learning.skill_env.BallOptionEnv`) takes the raw ``[roll, steer]``;
+(`hier_agents.learning.skill_env.SkillEnv` with the ``ball`` spec) takes the policy's action;
 `policy_action` / `env_action` convert.
 
 The checkpoint (``ball_policy.pt``, next to this file) is a dict with
@@ -70,6 +70,9 @@ import numpy as np
 
 from skills.ball.controller import Drive
 from skills.ball.skill import BallSkill
+from skills.learned.base import LearnedSkill
+from skills.learned.policy import NumpyPolicy
+from skills.learned.policy import load_policy as _load
 
 __all__ = ["LearnedBallSkill", "LearnedDrive", "NumpyPolicy", "FEATURES", "POLICY_PATH",
            "load_policy", "policy_action", "env_action"]
@@ -99,42 +102,9 @@ def policy_action(roll_steer, sign: float) -> np.ndarray:
     return np.array([-sign * a[0], a[1]])
 
 
-class NumpyPolicy:
-    """The actor's mean network, evaluated in numpy: features -> [throttle, steer].
-
-    ``meta``: the checkpoint's record of its training (``frames``: agent
-    control steps learned from; ``sim_steps``: every control step simulated
-    for it, scene set-up included), empty if unknown.
-    """
-
-    def __init__(self, state_dict, meta: dict | None = None) -> None:
-        self.meta = dict(meta or {})
-        def arr(v):
-            return np.asarray(v.detach().cpu().numpy() if hasattr(v, "detach") else v,
-                              np.float64)
-        keys = sorted({k.rsplit(".", 1)[0] for k in state_dict if k.endswith(".weight")},
-                      key=lambda k: int(k.split(".")[-1]))
-        self.layers = [(arr(state_dict[k + ".weight"]), arr(state_dict[k + ".bias"]))
-                       for k in keys]
-
-    def __call__(self, obs) -> np.ndarray:
-        h = np.asarray(obs, np.float64)
-        for j, (w, b) in enumerate(self.layers):
-            h = w @ h + b
-            if j < len(self.layers) - 1:
-                h = np.tanh(h)
-        return h
-
-
 def load_policy(path=None) -> NumpyPolicy:
-    """The policy of a checkpoint written by ``hier_agents.learning.train_skill``
-    (default: the shipped one)."""
-    import torch
-    ckpt = torch.load(Path(path or POLICY_PATH), map_location="cpu", weights_only=True)
-    if tuple(ckpt.get("features", ())) != FEATURES:
-        raise ValueError(f"{path}: checkpoint features {ckpt.get('features')} do not match "
-                         f"{FEATURES}")
-    return NumpyPolicy(ckpt["actor"], ckpt.get("meta"))
+    """The policy of a ball checkpoint (default: the shipped one)."""
+    return _load(path or POLICY_PATH, FEATURES)
 
 
 class LearnedDrive(Drive):
@@ -187,53 +157,36 @@ class LearnedDrive(Drive):
         return float(roll), float(steer), err, v_scaled, v_along
 
 
-class LearnedBallSkill(BallSkill):
-    """`BallSkill` with its yaw-rate and roll loops replaced by a learned
-    policy (module docstring). Name ``"learned-ball"``.
+class LearnedBallSkill(BallSkill, LearnedSkill):
+    """`BallSkill` whose low-level controller is a learned policy (module
+    docstring), plugged in through `BallSkill`'s ``drive`` hook. Name
+    ``"learned-ball"``; a `skills.learned.base.LearnedSkill`.
 
     Args:
       policy: a callable features -> drive-frame [throttle, steer], a
         checkpoint path, ``"teacher"`` (the scripted loops: behaves as
         `BallSkill`), or None for the shipped checkpoint.
       record_only: act returns zeros and only records ``features`` (the
-        option environment's mode: the RL agent supplies the action).
+        skill environment's mode: the learner supplies the action).
       **overrides: `skills.ball.BallConfig` fields, as for `BallSkill`.
     """
 
     name = "learned-ball"
+    FEATURES = FEATURES
+    ACTION_DIM = 2
 
     def __init__(self, policy=None, *, record_only: bool = False, config=None, **overrides):
-        super().__init__(config, **overrides)
         if record_only:
             policy = None
         elif policy is None or isinstance(policy, (str, Path)) and policy != "teacher":
             policy = load_policy(policy)
+        super().__init__(config, drive=lambda: LearnedDrive(policy), **overrides)
         self.policy = policy
-        self._drive = LearnedDrive(policy)
-
-    @property
-    def training_frames(self) -> int:
-        """Control steps simulated to train this skill's policy (0: not learned).
-
-        The checkpoint's ``sim_steps`` (every control step simulated for its
-        training, scripted scene set-up included; the conservative count for
-        equal-budget comparisons), else its ``frames``.
-        """
-        meta = getattr(self.policy, "meta", None) or {}
-        return int(meta.get("sim_steps", meta.get("frames", 0)))
 
     def __repr__(self) -> str:
         kind = "record-only" if self.policy is None else (
             "teacher" if self.policy == "teacher" else type(self.policy).__name__)
         return f"LearnedBallSkill({kind})"
-
-    def reset(self, description, subgoal, scene) -> None:
-        super().reset(description, subgoal, scene)
-        # BallSkill.reset builds a fresh scripted Drive for a new task.
-        if not isinstance(self._drive, LearnedDrive):
-            old = self._drive
-            self._drive = LearnedDrive(self.policy)
-            self._drive.sign, self._drive.prev_heading = old.sign, old.prev_heading
 
     @property
     def features(self) -> np.ndarray:
@@ -244,3 +197,7 @@ class LearnedBallSkill(BallSkill):
     def teacher_action(self) -> np.ndarray:
         """The scripted loops' drive-frame [throttle, steer] at the last ``act``."""
         return self._drive.teacher.copy()
+
+    def env_action(self, policy_action) -> np.ndarray:
+        """The raw [roll, steer] of a drive-frame [throttle, steer]."""
+        return env_action(policy_action, float(self._drive.obs[SIGN]))
