@@ -64,7 +64,7 @@ from tqdm import tqdm  # noqa: E402
 import envs  # noqa: E402
 from hier_agents.boundary import BoundaryEnv  # noqa: E402
 from hier_agents.modular.components import is_privileged, make_agent  # noqa: E402
-from hier_agents.learning.skill_env import make_source_env  # noqa: E402
+from hier_agents.learning.skills.ball import make_source_env  # noqa: E402
 from hier_agents.stats import wilson_interval  # noqa: E402
 
 MUJOBAN = [f"mujoban/level{d}{p}" for p in ("", "-pegs") for d in range(1, 6)]

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import torch
 
-from hier_agents.learning.train_skill import Agent, TorchPolicy, evaluate, main
+from hier_agents.learning.train_skill import Agent, main
 from skills.learned import POLICY_PATH, LearnedBallSkill, load_policy
 
 
@@ -27,7 +27,7 @@ def test_shipped_checkpoint_solves_a_level1_episode():
 
 
 def test_numpy_policy_matches_torch():
-    agent = Agent()
+    agent = Agent(12, 2)
     from skills.learned.ball import NumpyPolicy
     numpy_policy = NumpyPolicy(agent.actor.state_dict())
     x = np.random.default_rng(0).normal(size=(5, 12)).astype(np.float32)
@@ -62,40 +62,21 @@ def test_teacher_mode_is_the_scripted_skill():
 
 
 def test_cli_trains_checkpoints_and_resumes(tmp_path, capsys):
-    args = ["ball", "--steps", "400", "--bc-steps", "100", "--dagger-steps", "100",
-            "--rollout", "50", "--envs", "2",
+    args = ["ball", "--frames", "400", "--bc-frames", "100", "--dagger-frames", "100",
+            "--rollout", "50", "--envs", "2", "--save-every", "1",
             "--logdir", str(tmp_path), "--eval-episodes", "2", "--seed", "1"]
     assert main(args) == 0
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["frames"] == 400 and summary["bc_frames"] == 200
-    assert (tmp_path / "checkpoint.pt").exists()
-    assert (tmp_path / "progress.csv").read_text().count("\n") == 3  # header + 2 iterations
+    assert summary["iterations"] == 2
+    assert (tmp_path / "checkpoint.pt").exists() and (tmp_path / "config.json").exists()
+    lines = (tmp_path / "scalars.jsonl").read_text().splitlines()
+    assert [json.loads(line)["step"] for line in lines[:2]] == [300, 400]
     load_policy(tmp_path / "ball_policy.pt")
     assert any(p.name.startswith("events.out.tfevents") for p in tmp_path.iterdir())
-    out = capsys.readouterr().out
-    assert "95% Wilson" in out
-    # Resume: two more iterations from the checkpoint, no second BC.
+    assert "95% Wilson" in capsys.readouterr().out
+    # Resume: two more iterations from the checkpoint, no second warm start.
     assert main(args[:2] + ["600"] + args[3:] + ["--resume"]) == 0
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["frames"] == 600 and summary["iterations"] == 4
-    assert "resumed" in capsys.readouterr().out
-
-
-@pytest.mark.slow
-def test_short_training_improves_option_success(tmp_path):
-    """A short seeded run (BC warm start + a few PPO iterations, ~3 minutes)
-    beats the untrained policy on held-out options."""
-    torch.manual_seed(0)
-    untrained = evaluate(TorchPolicy(Agent()), 20, seed=123, sources=("mujoban/level2",))
-    assert main(["ball", "--steps", "6000", "--bc-steps", "3000", "--dagger-steps", "1000",
-                 "--rollout", "250",
-                 "--envs", "2", "--logdir", str(tmp_path), "--eval-episodes", "1"]) == 0
-    policy = _policy(tmp_path)
-    trained = evaluate(lambda obs, info: policy(obs), 20, seed=123, sources=("mujoban/level2",))
-    assert trained["success"] >= untrained["success"] + 0.3, (untrained, trained)
-
-
-def _policy(path):
-    from skills.learned.ball import SIGN, env_action
-    policy = load_policy(path / "ball_policy.pt")
-    return lambda obs: env_action(policy(obs), float(obs[SIGN]))
+    assert summary["bc_frames"] == 200

@@ -29,7 +29,7 @@ from typing import Callable, Protocol
 
 import numpy as np
 
-__all__ = ["SkillSpec", "SceneSource", "OptionStart", "SPECS", "spec"]
+__all__ = ["SkillSpec", "SceneSource", "OptionStart", "SPECS", "spec", "register"]
 
 
 @dataclass
@@ -106,15 +106,35 @@ class SkillSpec:
         return reward
 
 
-#: name -> spec, filled by `spec` on first use.
+#: name -> spec: the shipped ones (`hier_agents.learning.skills`, loaded on
+#: first use) and any added with `register`.
 SPECS: dict[str, SkillSpec] = {}
+_shipped_loaded = False
+
+
+def _load_shipped() -> None:
+    global _shipped_loaded
+    if not _shipped_loaded:
+        from hier_agents.learning.skills import register_all
+        shipped: dict[str, SkillSpec] = {}
+        register_all(shipped)
+        for name, value in shipped.items():
+            SPECS.setdefault(name, value)
+        _shipped_loaded = True
+
+
+def register(skill_spec: SkillSpec) -> SkillSpec:
+    """Adds ``skill_spec`` under its name (replacing one of the same name) so
+    that the trainer and `SkillEnv` find it by name; returns it."""
+    _load_shipped()
+    SPECS[skill_spec.name] = skill_spec
+    return skill_spec
 
 
 def spec(name: str) -> SkillSpec:
-    """The skill spec named ``name`` (``"ball"``, ``"arm"``); ValueError if unknown."""
-    if not SPECS:
-        from hier_agents.learning.skills import register_all
-        register_all(SPECS)
+    """The skill spec named ``name`` (``"ball"``, ``"arm"``, or one added with
+    `register`); ValueError if unknown."""
+    _load_shipped()
     if name not in SPECS:
         raise ValueError(f"unknown skill spec {name!r}; valid: {sorted(SPECS)}")
     return SPECS[name]

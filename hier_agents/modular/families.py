@@ -197,9 +197,15 @@ def adapter(name: str) -> FamilyAdapter:
     return FAMILIES[family(name)]
 
 
+#: The adapter of tasks outside the families: no deviation or end-of-episode rule.
+GENERIC = FamilyAdapter()
+
+
 def adapter_for(description) -> FamilyAdapter:
-    """The adapter for a task's public description (MuJoBan: it has a grid)."""
+    """The adapter for a task's public description: MuJoBan's (it has a
+    grid), the board games' (a board), else `GENERIC`."""
     if hasattr(description, "grid_shape"):
         return FAMILIES["mujoban"]
-    size = int(getattr(description, "board_size", 3))
-    return FAMILIES["mujoxo" if size == 3 else "mujogo"]
+    if hasattr(description, "board_size"):
+        return FAMILIES["mujoxo" if int(description.board_size) == 3 else "mujogo"]
+    return GENERIC

@@ -3,8 +3,8 @@
 * `LearnedBallSkill` (``--skill learned-ball``): MuJoBan's ball skill with
   the scripted geometry (legs, pursuit carrot, speed profile, box contact,
   status) and a learned low-level controller (carrot and speed target ->
-  [roll, steer]), trained with PPO on the option environment
-  `hier_agents.learning.skill_env.BallOptionEnv` by ``python -m
+  [roll, steer]), trained on the ``ball`` skill spec
+  (`hier_agents.learning.skills.ball`) by ``python -m
   hier_agents.learning.train_skill ball``. The trained checkpoint ships as
   ``skills/learned/ball_policy.pt``. See `skills.learned.ball`.
 """
