@@ -1,0 +1,273 @@
+"""One run-directory convention for every trainer.
+
+A run directory holds:
+
+* ``config.json``: the run's configuration (JSON), written at start; on
+  resume the saved one is checked (keys that must not change) and merged
+  (the new values win), then rewritten;
+* ``checkpoint.pt``: the latest checkpoint, written atomically (a temporary
+  file in the same directory, then ``os.replace``): the trainer's payload
+  plus ``config`` and ``rng`` (torch, numpy and python ``random`` states),
+  loadable with ``torch.load(weights_only=True)`` when the payload is;
+  ``checkpoints/NAME.pt``: copies kept on request (learning curves);
+* ``scalars.jsonl``: one JSON object per log call (``{"step": S, ...}``),
+  and the same scalars as TensorBoard events (``torch.utils.tensorboard``).
+
+`RunDir` also draws a progress bar on stderr (tqdm when installed) and, inside
+``with run.interruptible():``, turns SIGINT/SIGTERM into ``run.stop_requested``
+so that the trainer finishes its update, saves and stops (a second SIGINT
+raises ``KeyboardInterrupt``); the previous handlers come back on exit.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+import os
+import random
+import shutil
+import signal
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+CONFIG = "config.json"
+CHECKPOINT = "checkpoint.pt"
+SCALARS = "scalars.jsonl"
+KEPT = "checkpoints"
+
+
+# -- files and random states -----------------------------------------------------------------
+
+def _atomic_write(path: Path, write) -> None:
+    """Calls ``write(tmp_path)`` then renames onto ``path``; on any error the
+    temporary file is removed and ``path`` is untouched."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.close(fd)
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+
+
+def atomic_save(obj, path: str | Path) -> None:
+    """``torch.save(obj)`` to ``path`` atomically (no partial file, ever)."""
+    _atomic_write(Path(path), lambda tmp: torch.save(obj, tmp))
+
+
+def atomic_write_text(text: str, path: str | Path) -> None:
+    """Writes ``text`` to ``path`` atomically."""
+    _atomic_write(Path(path), lambda tmp: Path(tmp).write_text(text))
+
+
+def rng_state() -> dict:
+    """torch, numpy (global) and python ``random`` states, as tensors and
+    python primitives (loadable with ``weights_only=True``)."""
+    _, keys, pos, has_gauss, cached = np.random.get_state()
+    version, internal, gauss = random.getstate()
+    return {"torch": torch.get_rng_state(),
+            "numpy": {"keys": torch.as_tensor(keys.astype(np.int64)), "pos": int(pos),
+                      "has_gauss": int(has_gauss), "cached": float(cached)},
+            "python": [version, list(internal), gauss]}
+
+
+def set_rng_state(state: dict) -> None:
+    """Restores what `rng_state` returned."""
+    torch.set_rng_state(state["torch"])
+    n = state["numpy"]
+    np.random.set_state(("MT19937", n["keys"].numpy().astype(np.uint32), n["pos"],
+                         n["has_gauss"], n["cached"]))
+    version, internal, gauss = state["python"]
+    random.setstate((version, tuple(internal), gauss))
+
+
+def seed_everything(seed: int) -> None:
+    """Seeds torch, numpy's global RNG and python ``random`` with ``seed``."""
+    random.seed(seed)
+    np.random.seed(seed)
+    torch.manual_seed(seed)
+
+
+def jsonable(config: dict) -> dict:
+    """``config`` with paths and other non-JSON values as strings."""
+    return json.loads(json.dumps(config, default=str))
+
+
+# -- progress ------------------------------------------------------------------------------
+
+class _SimpleBar:
+    """A minimal stand-in for tqdm: one stderr line every few seconds."""
+
+    def __init__(self, total, initial=0, desc="", unit="it", disable=False, **_):
+        self.total, self.n, self.desc, self.unit, self.disable = total, initial, desc, unit, disable
+        self.postfix, self._last = "", 0.0
+
+    def update(self, n=1):
+        self.n += n
+        if not self.disable and time.monotonic() - self._last > 5:
+            self._last = time.monotonic()
+            print(f"{self.desc}: {self.n}/{self.total} {self.unit} {self.postfix}", file=sys.stderr)
+
+    def set_postfix(self, values=None, refresh=True, **kw):
+        self.postfix = " ".join(f"{k}={v}" for k, v in {**(values or {}), **kw}.items())
+
+    def close(self):
+        pass
+
+
+def progress_bar(total: int | None, initial: int = 0, desc: str = "", unit: str = "it",
+                 disable: bool = False):
+    """A progress bar on stderr: tqdm when installed, else `_SimpleBar`."""
+    try:
+        from tqdm import tqdm
+    except ImportError:  # pragma: no cover - tqdm is installed here
+        return _SimpleBar(total, initial, desc, unit, disable)
+    return tqdm(total=total, initial=initial, desc=desc, unit=unit, file=sys.stderr,
+                disable=disable, dynamic_ncols=True, mininterval=2, smoothing=0.1)
+
+
+# -- the run directory ---------------------------------------------------------------------
+
+class RunDir:
+    """The run directory ``path`` of a trainer with configuration ``config``
+    (a JSON-able dict). ``resume``: continue a run found there (checked against
+    ``fixed``, the keys that must not change); otherwise a fresh run
+    (``scalars.jsonl`` restarted, an existing checkpoint overwritten at the
+    first save). ``tensorboard``: also write TensorBoard events.
+
+    Raises:
+      ValueError: resuming with a different value of a ``fixed`` key.
+    """
+
+    def __init__(self, path: str | Path, config: dict, *, resume: bool = False,
+                 fixed=(), tensorboard: bool = True) -> None:
+        self.path = Path(path)
+        self.path.mkdir(parents=True, exist_ok=True)
+        self.checkpoint_path = self.path / CHECKPOINT
+        self.resumed = bool(resume) and self.checkpoint_path.exists()
+        config = jsonable(config)
+        if self.resumed:
+            saved = self._saved_config()
+            for key in fixed:
+                if key in saved and saved[key] != config.get(key):
+                    raise ValueError(f"{self.path} was trained with {key}={saved[key]!r}, not "
+                                     f"{config.get(key)!r}; use another directory")
+            config = {**saved, **config}
+        self.config = config
+        atomic_write_text(json.dumps(config, indent=2) + "\n", self.path / CONFIG)
+        self._jsonl = open(self.path / SCALARS, "a" if self.resumed else "w")
+        self._tb = None
+        if tensorboard:
+            try:
+                from torch.utils.tensorboard import SummaryWriter
+                self._tb = SummaryWriter(str(self.path))
+            except ImportError:  # pragma: no cover - tensorboard is a dependency
+                print(f"tensorboard is not installed: scalars go to {SCALARS} only",
+                      file=sys.stderr)
+        self.stop_requested = False
+        self.bar = None
+
+    def _saved_config(self) -> dict:
+        if (self.path / CONFIG).exists():
+            return json.loads((self.path / CONFIG).read_text())
+        if self.checkpoint_path.exists():  # a run from before config.json
+            saved = torch.load(self.checkpoint_path, map_location="cpu", weights_only=False)
+            return dict(saved.get("config") or {}) if isinstance(saved, dict) else {}
+        return {}
+
+    # checkpoints
+
+    def load(self, restore_rng: bool = True) -> dict | None:
+        """The checkpoint's payload when resuming (None for a fresh run);
+        ``restore_rng``: the torch/numpy/python RNGs continue where they were."""
+        if not self.resumed:
+            return None
+        data = torch.load(self.checkpoint_path, map_location="cpu", weights_only=False)
+        if restore_rng and "rng" in data:
+            set_rng_state(data["rng"])
+        return data
+
+    def save(self, payload: dict, keep: str | None = None) -> Path:
+        """Writes ``payload`` + ``config`` + ``rng`` atomically to ``checkpoint.pt``;
+        ``keep``: also as ``checkpoints/KEEP.pt``. Returns the checkpoint's path."""
+        data = {**payload, "config": self.config, "rng": rng_state()}
+        atomic_save(data, self.checkpoint_path)
+        if keep is not None:
+            kept = self.path / KEPT
+            kept.mkdir(exist_ok=True)
+            _atomic_write(kept / f"{keep}.pt",
+                          lambda tmp: shutil.copyfile(self.checkpoint_path, tmp))
+        return self.checkpoint_path
+
+    # scalars and progress
+
+    def log(self, step: int, scalars: dict, tb_prefix: str = "") -> None:
+        """One ``scalars.jsonl`` line ``{"step": step, **scalars}``; the finite
+        numbers also as TensorBoard scalars ``tb_prefix + key`` at ``step``."""
+        self._jsonl.write(json.dumps({"step": int(step), **scalars}, default=float) + "\n")
+        self._jsonl.flush()
+        if self._tb is not None:
+            for key, value in scalars.items():
+                if isinstance(value, (int, float, np.number)) and not isinstance(value, bool) \
+                        and math.isfinite(value):
+                    self._tb.add_scalar(tb_prefix + key, value, step)
+
+    def progress(self, total: int | None, initial: int = 0, desc: str = "", unit: str = "it",
+                 disable: bool = False):
+        """Opens (and returns) the run's progress bar; `close` closes it."""
+        if self.bar is not None:
+            self.bar.close()
+        self.bar = progress_bar(total, initial, desc, unit, disable)
+        return self.bar
+
+    # Ctrl-C
+
+    @contextlib.contextmanager
+    def interruptible(self, signals=(signal.SIGINT, signal.SIGTERM)):
+        """Inside: the first of ``signals`` sets ``stop_requested`` (the trainer
+        finishes its update, saves, stops); a second SIGINT raises
+        KeyboardInterrupt. Outside the main thread: no handlers."""
+        if threading.current_thread() is not threading.main_thread():
+            yield self
+            return
+
+        def handler(signum, frame):
+            if self.stop_requested and signum == signal.SIGINT:
+                raise KeyboardInterrupt
+            self.stop_requested = True
+            print(f"\n{signal.Signals(signum).name}: stopping after this update "
+                  f"(Ctrl-C again to abort)", file=sys.stderr)
+
+        previous = {s: signal.signal(s, handler) for s in signals}
+        try:
+            yield self
+        finally:
+            for s, h in previous.items():
+                signal.signal(s, h)
+
+    def close(self) -> None:
+        """Closes the bar, ``scalars.jsonl`` and the TensorBoard writer."""
+        if self.bar is not None:
+            self.bar.close()
+            self.bar = None
+        if not self._jsonl.closed:
+            self._jsonl.close()
+        if self._tb is not None:
+            self._tb.close()
+            self._tb = None
+
+    def __enter__(self) -> "RunDir":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
