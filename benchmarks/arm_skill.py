@@ -65,7 +65,7 @@ from abstract_planners.epsilon_greedy import EpsilonGreedy  # noqa: E402
 from abstract_planners.go import GnuGoPlanner  # noqa: E402
 from abstract_planners.tictactoe import MinimaxPlanner  # noqa: E402
 from hier_agents.estimators import BoardEstimator, EstimationError  # noqa: E402
-from hier_agents.modular.options import Outcome, run_option  # noqa: E402
+from hier_agents.modular.options import T_ABS, Outcome, run_option  # noqa: E402
 from hier_agents.stats import wilson_interval  # noqa: E402
 from skills.arm import ArmTouchSkill  # noqa: E402
 from skills.base import Status  # noqa: E402
@@ -274,7 +274,7 @@ def main(argv=None) -> int:
     parser.add_argument("--envs", nargs="+", default=DEFAULT_ENVS, metavar="NAME")
     parser.add_argument("--episodes", type=int, default=20, help="games per environment")
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--t-abs", type=int, default=50,
+    parser.add_argument("--t-abs", type=int, default=T_ABS,
                         help="control steps a touch may take before re-planning")
     parser.add_argument("--abstract-games", type=int, default=20_000,
                         help="games for the abstract (no physics) MuJoXO rates")

@@ -64,6 +64,7 @@ from tqdm import tqdm  # noqa: E402
 import envs  # noqa: E402
 from hier_agents.boundary import BoundaryEnv  # noqa: E402
 from hier_agents.modular.components import is_privileged, make_agent  # noqa: E402
+from hier_agents.modular.options import T_ABS  # noqa: E402
 from hier_agents.learning.skills.ball import make_source_env  # noqa: E402
 from hier_agents.stats import wilson_interval  # noqa: E402
 
@@ -156,7 +157,7 @@ def main(argv=None) -> int:
                         help="environment names (see the module docstring)")
     parser.add_argument("--episodes", type=int, default=100, help="episodes per environment")
     parser.add_argument("--seed", type=int, default=0, help="environment seed")
-    parser.add_argument("--t-abs", type=int, default=50,
+    parser.add_argument("--t-abs", type=int, default=T_ABS,
                         help="control steps before the agent re-estimates and replans")
     parser.add_argument("--estimator", default="oracle",
                         help="oracle (default: privileged, isolates the skill), entity-layer "

@@ -63,7 +63,7 @@ def main(argv=None) -> int:
                         help="also keep every checkpoint as LOGDIR/checkpoints/frames-N.pt "
                              "(for benchmarks/learning_curve.py)")
     parser.add_argument("--log-every", type=float, default=10.0,
-                        help="seconds between TensorBoard / progress.jsonl rows")
+                        help="seconds between TensorBoard / scalars.jsonl rows")
     parser.add_argument("--no-progress", action="store_true")
     args = parser.parse_args(argv)
 

@@ -18,14 +18,13 @@ from envs.mujoban.levels import Level
 from envs.mujoban.task import Mujoban
 from hier_agents.estimators import OracleEstimator
 from hier_agents.modular.agent import ModularAgent
-from hier_agents.modular.options import run_option
+from hier_agents.modular.options import T_ABS, run_option
 from skills.ball import CONTACT, BallConfig, BallSkill
 from skills.ball.controller import carrot, locate, speed_limit, wrap
 from skills.base import Skill, Status
 
 NO_CAMERAS = dict(top_camera=None, egocentric_camera=None)
 LIMIT = 900  # MuJoBan's 45 s episode
-T_ABS = 50
 
 
 def make_env(text: str, *, pegs=False, seed=0) -> Environment:

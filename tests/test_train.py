@@ -27,10 +27,14 @@ def test_a_tiny_run_updates_logs_and_checkpoints(tmp_path):
     assert spec.planner_shape is not None
     for name, tensor in net.state_dict().items():
         assert torch.equal(tensor, ckpt["model"][name]), name
-    lines = [json.loads(line) for line in open(tmp_path / "progress.jsonl")]
-    assert [line["frames"] for line in lines] == [10, 20, 30]
+    lines = [json.loads(line) for line in open(tmp_path / "scalars.jsonl")]
+    assert [line["frames"] for line in lines] == [line["step"] for line in lines] == [10, 20, 30]
     assert all(np.isfinite(line["loss/loss"]) for line in lines)
     assert list(tmp_path.glob("events.out.tfevents.*")), "no TensorBoard event file"
+    config = json.loads((tmp_path / "config.json").read_text())
+    assert config["condition"] == "expert-planner" and config["steps"] == 30
+    assert ckpt["config"] == config and set(ckpt["rng"]) == {"torch", "numpy", "python"}
+    assert not list(tmp_path.glob("*.tmp")), "a temporary checkpoint was left behind"
 
 
 def test_a_resumed_run_continues_from_its_step_count(tmp_path):
@@ -39,8 +43,9 @@ def test_a_resumed_run_continues_from_its_step_count(tmp_path):
     assert first["counters"]["frames"] == 20 and first["counters"]["updates"] == 2
     counters = train(TrainConfig(condition="vanilla", steps=40, logdir=str(tmp_path), **TINY))
     assert counters["frames"] == 40 and counters["updates"] == 4
-    frames = [json.loads(line)["frames"] for line in open(tmp_path / "progress.jsonl")]
+    frames = [json.loads(line)["frames"] for line in open(tmp_path / "scalars.jsonl")]
     assert frames == [10, 20, 30, 40]
+    assert json.loads((tmp_path / "config.json").read_text())["steps"] == 40
     # The resumed weights are the saved ones, trained further.
     second = load_checkpoint(tmp_path)
     assert any(not torch.equal(first["model"][k], second["model"][k]) for k in first["model"])
@@ -209,7 +214,7 @@ def test_ctrl_c_saves_a_checkpoint_and_the_run_resumes_from_it(tmp_path):
                             stderr=subprocess.PIPE, text=True,
                             cwd=os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
     try:
-        progress = logdir / "progress.jsonl"
+        progress = logdir / "scalars.jsonl"
         for _ in range(600):  # the first update (start-up takes a few seconds)
             if progress.exists() and progress.read_text().count("\n") >= 2:
                 break
@@ -225,7 +230,7 @@ def test_ctrl_c_saves_a_checkpoint_and_the_run_resumes_from_it(tmp_path):
     saved = load_checkpoint(logdir)["counters"]
     assert saved["frames"] == json.loads(out)["frames"] >= 20
     assert saved["frames"] == 10 * saved["updates"]
-    logged = [json.loads(line)["frames"] for line in open(logdir / "progress.jsonl")]
+    logged = [json.loads(line)["frames"] for line in open(logdir / "scalars.jsonl")]
     assert logged[-1] == saved["frames"]
     counters = train(TrainConfig(condition="vanilla", steps=saved["frames"] + 10,
                                  logdir=str(logdir), **TINY))

@@ -16,6 +16,7 @@ from abstract_planners.learned_options import (SHIPPED, OptionPolicyNet, OptionP
 from abstract_planners.sokoban import MOVES, SokobanState
 from envs.mujoban import generator
 from hier_agents.learning import train_options
+from hier_agents.learning.ppo import gae
 from hier_agents.modular.components import PLANNERS, make_agent
 from hier_agents.learning.option_env import encode_sokoban
 
@@ -51,7 +52,7 @@ def _random_policy(path, seed: int = 0):
 def tiny_run(tmp_path_factory):
     """A few PPO updates: an abstract warm start, then OptionEnv (camera, learned ball)."""
     logdir = tmp_path_factory.mktemp("options_run")
-    code = train_options.main(["mujoban/level1", "--steps", "32", "--envs", "1", "--rollout", "16",
+    code = train_options.main(["mujoban/level1", "--option-steps", "32", "--envs", "1", "--rollout", "16",
                                "--sync", "--abstract-steps", "256", "--abstract-envs", "4",
                                "--seed", "3", "--eval-episodes", "0", "--logdir", str(logdir)])
     assert code == 0
@@ -71,8 +72,13 @@ def test_tiny_run_writes_a_checkpoint_and_a_summary_with_its_counts(tiny_run):
     data = torch.load(tiny_run / "checkpoint.pt", map_location="cpu", weights_only=False)
     assert data["state"]["control_frames"] == summary["control_frames"]
     assert data["policy"]["meta"]["option_steps"] == 32
-    rows = (tiny_run / "progress.csv").read_text().splitlines()
-    assert len(rows) == 1 + 256 // 64 + 32 // 16  # header + abstract and option updates
+    rows = [json.loads(line) for line in (tiny_run / "scalars.jsonl").read_text().splitlines()]
+    # One line per update: 256 // 64 abstract, then 32 // 16 option updates.
+    assert [row["phase"] for row in rows] == ["abstract"] * 4 + ["options"] * 2
+    assert [row["step"] for row in rows] == [64, 128, 192, 256, 272, 288]
+    config = json.loads((tiny_run / "config.json").read_text())
+    assert config["option_steps"] == 32 and config["seed"] == 3
+    assert list(tiny_run.glob("events.out.tfevents.*")), "no TensorBoard event file"
 
 
 def test_the_trained_policy_plays_a_level1_episode_as_a_planner(tiny_run):
@@ -91,7 +97,7 @@ def test_resume_continues_counting_frames_and_cpu(tiny_run, tmp_path):
     shutil.copytree(tiny_run, logdir)
     before = json.loads((logdir / "summary.json").read_text())
     # The default AsyncVectorEnv (one worker process) this time.
-    assert train_options.main(["mujoban/level1", "--steps", "48", "--envs", "1", "--rollout",
+    assert train_options.main(["mujoban/level1", "--option-steps", "48", "--envs", "1", "--rollout",
                                "16", "--abstract-steps", "256", "--resume", "--seed", "3",
                                "--eval-episodes", "0", "--logdir", str(logdir)]) == 0
     after = json.loads((logdir / "summary.json").read_text())
@@ -205,7 +211,7 @@ def test_semi_mdp_gae_discounts_by_duration_and_stops_at_episode_ends():
     discounts = torch.tensor([[0.5], [0.9], [0.8]])  # gamma ** duration per option
     dones = torch.tensor([[0.0], [1.0], [0.0]])
     next_value = torch.tensor([3.0])
-    adv, returns = train_options.gae(rewards, values, discounts, dones, next_value, lam=1.0)
+    adv, returns = gae(rewards, values, discounts, dones, next_value, lam=1.0)
     # lambda = 1: discounted returns; the episode ends after the second option.
     assert returns[2, 0].item() == pytest.approx(2.0 + 0.8 * 3.0)
     assert returns[1, 0].item() == pytest.approx(0.0)
@@ -257,3 +263,26 @@ def test_pruning_follows_the_checkpoint_and_never_proposes_dead_pushes(tmp_path)
             state.is_push(m) and not (state.apply(m).boxes - state.boxes) <= live_cells(state))]
         if new_boxes and alternatives:
             assert new_boxes <= live_cells(state)
+
+
+def test_help_shows_every_default_and_the_option_steps_budget(capsys):
+    with pytest.raises(SystemExit):
+        train_options.parse_args(["--help"])
+    out = capsys.readouterr().out
+    assert "--option-steps" in out and "--steps " not in out
+    assert "(default: 64)" in out and "(default: 0.995)" in out
+
+
+def test_the_shaped_wrapper_adds_the_semi_mdp_potential_difference():
+    env = train_options.AbstractOptionEnv("mujoban/level1", seed=0, duration=18, gamma=0.9)
+    shaped = train_options.Shaped(train_options.AbstractOptionEnv("mujoban/level1", seed=0,
+                                                                  duration=18, gamma=0.9),
+                                  1.0, 0.1, "walk", gamma=0.9)
+    _, info = env.reset(seed=4)
+    _, shaped_info = shaped.reset(seed=4)
+    before = shaped_info["potential"]
+    move = int(np.flatnonzero(info["action_mask"])[0])
+    _, reward, terminated, _, _ = env.step(move)
+    _, shaped_reward, _, _, after_info = shaped.step(move)
+    after = 0.0 if terminated else after_info["potential"]
+    assert shaped_reward == pytest.approx(reward + 0.9 ** 18 * after - before)

@@ -52,7 +52,7 @@ from hier_agents.estimators.base import EstimationError
 from hier_agents.modular.components import (ESTIMATORS, SKILLS, env_overrides, estimator_name,
                                             is_privileged)
 from hier_agents.modular.families import adapter, encode_sokoban, family
-from hier_agents.modular.options import Outcome, OptionRunner
+from hier_agents.modular.options import T_ABS, Outcome, OptionRunner
 
 __all__ = ["OptionEnv", "encode_sokoban"]
 
@@ -75,7 +75,7 @@ class OptionEnv(gym.Env):
 
     def __init__(self, env_name: str, *, skill: str | None = None,
                  estimator: str | None = None, seed: int | None = None, gamma: float = 0.99,
-                 t_abs: int = 50, illegal_penalty: float = 0.0, env_options: dict | None = None):
+                 t_abs: int = T_ABS, illegal_penalty: float = 0.0, env_options: dict | None = None):
         if not 0.0 < float(gamma) <= 1.0:
             raise ValueError(f"gamma must be in (0, 1], got {gamma!r}")
         if int(t_abs) < 1:

@@ -39,7 +39,8 @@ import numpy as np
 from abstract_planners.base import NoPlanError, Planner, Subgoal
 from hier_agents.estimators.base import EstimationError, Estimator
 from hier_agents.modular.families import adapter_for
-from hier_agents.modular.options import Outcome, OptionResult, OptionRunner, failure_kind
+from hier_agents.modular.options import (T_ABS, Outcome, OptionResult, OptionRunner,
+                                         failure_kind)
 from skills.base import Skill
 
 __all__ = ["ModularAgent", "OptionStats"]
@@ -100,7 +101,7 @@ class ModularAgent:
         still on the subgoal's path.
     """
 
-    def __init__(self, estimator: Estimator, planner: Planner, skill: Skill, *, t_abs: int = 50,
+    def __init__(self, estimator: Estimator, planner: Planner, skill: Skill, *, t_abs: int = T_ABS,
                  use_pushes: bool = True, check_every: int = 5):
         self.estimator, self.planner, self.skill = estimator, planner, skill
         self.runner = OptionRunner(skill, t_abs=t_abs, check_every=check_every)

@@ -27,6 +27,7 @@ from typing import Callable
 from hier_agents.estimators import BoardEstimator, EntityLayerEstimator, OracleEstimator
 from hier_agents.modular.agent import ModularAgent
 from hier_agents.modular.families import family
+from hier_agents.modular.options import T_ABS
 
 
 def _sokoban_solver(description, seed):
@@ -181,7 +182,7 @@ def _pick(table: dict[str, dict[str, Factory]], kind: str, fam: str, name: str |
 
 def make_agent(env_name: str, description, *, planner: str | None = None,
                skill: str | None = None, estimator: str | None = None,
-               seed: int | None = None, t_abs: int = 50, simulator=None) -> ModularAgent:
+               seed: int | None = None, t_abs: int = T_ABS, simulator=None) -> ModularAgent:
     """The modular agent for an environment named ``env_name`` with the public
     ``description`` (``env.description()``), with named parts.
 

@@ -6,7 +6,7 @@ and decides when it ends; everything that runs options (the modular agent,
 the semi-MDP environment `hier_agents.learning.option_env`, the skill
 environments, benchmarks and tests) goes through it::
 
-    runner = OptionRunner(skill, family_adapter("mujoban"), t_abs=50)
+    runner = OptionRunner(skill, adapter("mujoban"), t_abs=T_ABS)   # families.adapter
     runner.start(description, subgoal, scene)
     while (action := runner.act(timestep, scene)) is not None:
         timestep = env.step(action)
@@ -47,7 +47,10 @@ import numpy as np
 
 from skills.base import Status
 
-__all__ = ["Outcome", "OptionResult", "OptionRunner", "run_option", "failure_kind"]
+__all__ = ["T_ABS", "Outcome", "OptionResult", "OptionRunner", "run_option", "failure_kind"]
+
+#: The paper's T_abs: control steps an option may take before the agent re-plans.
+T_ABS = 50
 
 
 class Outcome(enum.Enum):
@@ -95,7 +98,7 @@ class OptionRunner:
       check_every: control steps between deviation checks.
     """
 
-    def __init__(self, skill, adapter=None, *, t_abs: int = 50, gamma: float = 1.0,
+    def __init__(self, skill, adapter=None, *, t_abs: int = T_ABS, gamma: float = 1.0,
                  check_every: int = 5):
         if int(t_abs) < 1:
             raise ValueError(f"t_abs must be a positive number of control steps, got {t_abs!r}")
@@ -190,7 +193,7 @@ class OptionRunner:
         return None
 
 
-def run_option(env, estimator, skill, subgoal, timestep, *, adapter=None, t_abs: int = 50,
+def run_option(env, estimator, skill, subgoal, timestep, *, adapter=None, t_abs: int = T_ABS,
                gamma: float = 1.0, scene=None, on_step=None) -> OptionResult:
     """Runs ``skill`` on ``subgoal`` in ``env`` from ``timestep`` until the
     option ends (`OptionRunner`'s rules) and returns its `OptionResult`.

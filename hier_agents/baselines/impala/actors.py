@@ -43,6 +43,8 @@ from typing import Any, Callable
 
 import numpy as np
 
+from hier_agents.modular.options import T_ABS
+
 
 @dataclasses.dataclass
 class ActorConfig:
@@ -55,7 +57,7 @@ class ActorConfig:
     cameras: bool = False
     image_size: int = 96
     state: bool = False
-    t_abs: int = 50
+    t_abs: int = T_ABS
     abs_reward: float = 1.0
     seed: int = 0
     env_overrides: dict = dataclasses.field(default_factory=dict)

@@ -113,8 +113,9 @@ import numpy as np
 import envs
 from abstract_planners.base import NoPlanError, Subgoal
 from abstract_planners.sokoban import MOVES
-from hier_agents.modular.components import family
 from hier_agents.estimators import EstimationError
+from hier_agents.modular.families import family
+from hier_agents.modular.options import T_ABS
 
 __all__ = ["AgentEnv", "CONDITIONS", "DISCOUNTS", "InputSpec", "PLANNER_ACTIONS",
            "PROPRIO_KEYS", "StepResult"]
@@ -209,7 +210,7 @@ class AgentEnv:
 
     def __init__(self, env_name: str, condition: str = "vanilla", *, seed: int | None = 0,
                  cameras: bool = True, image_size: int = 96, state: bool = False,
-                 t_abs: int = 50,
+                 t_abs: int = T_ABS,
                  abs_reward: float = 1.0, gamma_env: float | None = None,
                  gamma_abs: float | None = None, **overrides):
         if condition not in CONDITIONS:

@@ -9,24 +9,22 @@
    the actors' recorded core states;
 3. one RMSProp step on `impala_loss` (V-trace; two value heads and the sum of
    both advantage terms for the planner conditions), gradient norm clipped;
-4. publish the new weights; log scalars to TensorBoard and ``progress.jsonl``;
-   save ``checkpoint.pt`` every ``checkpoint_every_s`` seconds and at the end
-   (with ``keep_checkpoints``, also a copy ``checkpoints/frames-N.pt`` each
-   time, for learning curves: `benchmarks/learning_curve.py`).
+4. publish the new weights; log scalars (`hier_agents.learning.rundir`: the
+   run directory's ``scalars.jsonl`` and TensorBoard); save ``checkpoint.pt``
+   every ``checkpoint_every_s`` seconds, at the end and on Ctrl-C (with
+   ``keep_checkpoints``, also a copy ``checkpoints/frames-N.pt`` each time,
+   for learning curves: `benchmarks/learning_curve.py`).
 
 Frames are environment control steps consumed by the learner. A run whose
 logdir holds a checkpoint of the same environment and condition resumes from
-it: weights, optimiser, frame and update counts, episode statistics.
+it: weights, optimiser, frame and update counts, episode statistics, random
+states (``config.json`` records the configuration).
 """
 
 from __future__ import annotations
 
 import dataclasses
-import json
-import math
 import os
-import shutil
-import signal
 import sys
 import time
 from collections import deque
@@ -35,16 +33,17 @@ from pathlib import Path
 import numpy as np
 
 from hier_agents.baselines.impala.actors import ActorConfig, LocalActors, RayActors, stack_states
+from hier_agents.learning.rundir import CHECKPOINT, KEPT, SCALARS, RunDir
+from hier_agents.modular.options import T_ABS
 
 #: Paper's batch sizes (unrolls per update): board games 64, MuJoBan 128.
 PAPER_BATCH = {"mujoban": 128, "mujoxo": 64, "mujogo": 64}
-CHECKPOINT = "checkpoint.pt"
-KEPT_CHECKPOINTS = "checkpoints"  # folder of `keep_checkpoints` copies, frames-N.pt
+KEPT_CHECKPOINTS = KEPT  # folder of `keep_checkpoints` copies, frames-N.pt
 
 
 @dataclasses.dataclass
 class TrainConfig:
-    """Everything a training run depends on (saved in its checkpoint)."""
+    """Everything a training run depends on (saved in ``config.json`` and its checkpoint)."""
 
     env: str
     condition: str = "vanilla"
@@ -66,7 +65,7 @@ class TrainConfig:
     cameras: bool = False
     image_size: int = 96
     state: bool = False  # observe the current abstract state (AgentEnv(state=True))
-    t_abs: int = 50
+    t_abs: int = T_ABS
     abs_reward: float = 1.0
     seed: int = 0
     checkpoint_every_s: float = 300.0
@@ -168,22 +167,6 @@ def learner_step(net, optimizer, batch, config: TrainConfig,
 # -- checkpoints ------------------------------------------------------------------------------
 
 
-def save_checkpoint(path: Path, net, optimizer, config: TrainConfig, counters: dict,
-                    spec) -> None:
-    """Writes atomically (temporary file, then rename): a crash never leaves half a file."""
-    import torch
-
-    tmp = path.with_suffix(".tmp")
-    torch.save({"format": 1, "model": net.state_dict(), "optimizer": optimizer.state_dict(),
-                "config": dataclasses.asdict(config), "counters": dict(counters),
-                "input_spec": dataclasses.asdict(spec)}, tmp)
-    os.replace(tmp, path)
-    if config.keep_checkpoints:
-        kept = path.parent / KEPT_CHECKPOINTS
-        kept.mkdir(exist_ok=True)
-        shutil.copyfile(path, kept / f"frames-{int(counters['frames'])}.pt")
-
-
 def load_checkpoint(path: str | Path) -> dict:
     import torch
 
@@ -219,50 +202,29 @@ def net_from_checkpoint(ckpt: dict):
 
 # -- the loop ---------------------------------------------------------------------------------
 
+#: Configuration keys a resumed run must share with its run directory.
+FIXED = ("env", "condition", "cameras", "image_size", "state")
+#: The scalars' former file name, kept as a symlink to ``scalars.jsonl`` for readers
+#: that still open it (``benchmarks/learning_curve.py``).
+LEGACY_SCALARS = "progress.jsonl"
 
-class _Log:
-    """TensorBoard scalars plus a JSON-lines copy (easy to plot or diff)."""
 
-    def __init__(self, logdir: Path):
-        self._jsonl = open(logdir / "progress.jsonl", "a")
+def _link_legacy_scalars(logdir: Path) -> None:
+    link = logdir / LEGACY_SCALARS
+    if not link.exists() and not link.is_symlink():
         try:
-            from torch.utils.tensorboard import SummaryWriter
-            self._tb = SummaryWriter(str(logdir))
-        except ImportError:  # pragma: no cover - tensorboard is a dependency
-            print("tensorboard not installed: logging to progress.jsonl only", file=sys.stderr)
-            self._tb = None
-
-    def write(self, frames: int, scalars: dict) -> None:
-        if self._tb is not None:
-            for k, v in scalars.items():
-                if v is not None and math.isfinite(v):
-                    self._tb.add_scalar(k, v, frames)
-        self._jsonl.write(json.dumps({"frames": frames, **scalars}) + "\n")
-        self._jsonl.flush()
-
-    def close(self) -> None:
-        if self._tb is not None:
-            self._tb.close()
-        self._jsonl.close()
+            os.symlink(SCALARS, link)
+        except OSError:  # pragma: no cover - no symlinks on this filesystem
+            pass
 
 
-def train(config: TrainConfig) -> dict:
-    """Runs (or resumes) a training run; returns its final counters."""
+def _build(config: TrainConfig, run: RunDir):
+    """(net, optimiser, input spec, counters, recent episodes), resumed from
+    ``run``'s checkpoint when there is one."""
     import torch
-    from tqdm import tqdm
 
-    from hier_agents.modular.components import family as env_family
     from hier_agents.baselines.impala.agent_env import AgentEnv
     from hier_agents.baselines.impala.network import ImpalaNet
-
-    config.validate()
-    family = env_family(config.env)
-    batch_size = config.resolved_batch(family)
-    logdir = Path(config.logdir)
-    logdir.mkdir(parents=True, exist_ok=True)
-    ckpt_path = logdir / CHECKPOINT
-    torch.manual_seed(config.seed)
-    torch.set_num_threads(1)
 
     # The input spec comes from one environment built here (closed at once).
     probe = AgentEnv(config.env, config.condition, seed=config.seed, cameras=config.cameras,
@@ -270,38 +232,81 @@ def train(config: TrainConfig) -> dict:
                      abs_reward=config.abs_reward, **config.env_overrides)
     spec = probe.input_spec
     probe.close()
-
     net = ImpalaNet(spec, two_values=config.condition != "vanilla")
     optimizer = torch.optim.RMSprop(net.parameters(), lr=config.learning_rate,
                                     alpha=config.rmsprop_alpha, eps=config.rmsprop_eps,
                                     momentum=config.rmsprop_momentum)
     counters = {"frames": 0, "updates": 0, "episodes": 0, "wall_s": 0.0}
     recent: deque = deque(maxlen=100)
-    if ckpt_path.exists():
-        ckpt = load_checkpoint(ckpt_path)
-        saved = ckpt["config"]
-        for key in ("env", "condition", "cameras", "image_size", "state"):
-            if saved.get(key, False if key == "state" else None) != getattr(config, key):
-                raise ValueError(f"{ckpt_path} was trained with {key}={saved[key]!r}, not "
-                                 f"{getattr(config, key)!r}; use another --logdir")
+    ckpt = run.load()
+    if ckpt is not None:
         net.load_state_dict(ckpt["model"])
         optimizer.load_state_dict(ckpt["optimizer"])
         counters.update(ckpt["counters"])
         recent.extend(ckpt["counters"].get("recent_episodes", []))
-        print(f"resuming {ckpt_path} at {counters['frames']:,} frames, "
+        print(f"resuming {run.checkpoint_path} at {counters['frames']:,} frames, "
               f"{counters['updates']:,} updates", file=sys.stderr)
     counters.pop("recent_episodes", None)
-    if counters["frames"] >= config.steps:
-        print(f"{ckpt_path} already has {counters['frames']:,} >= {config.steps:,} frames",
-              file=sys.stderr)
-        return counters
+    return net, optimizer, spec, counters, recent
 
+
+def _gather(actors, pending: list, batch_size: int, counters: dict, recent: deque,
+            run: RunDir) -> None:
+    """Takes unrolls (and their finished episodes) until a batch is pending or a stop."""
+    while len(pending) < batch_size and not run.stop_requested:
+        unrolls = actors.get(should_stop=lambda: run.stop_requested)
+        for u in unrolls or ():
+            for ep in u.pop("episodes"):
+                counters["episodes"] += 1
+                recent.append({"return": float(ep.get("episode_return", 0.0)),
+                               "success": float(bool(ep.get("success", False))),
+                               "steps": int(ep.get("episode_steps", 0)),
+                               "subgoals": int(ep.get("subgoals_reached", 0))})
+            pending.append(u)
+
+
+def _scalars(stats: dict, counters: dict, recent: deque, fps: float, lags: list) -> dict:
+    scalars = {"frames": counters["frames"], **{f"loss/{k}": float(v) for k, v in stats.items()}}
+    scalars.update({"perf/frames_per_s": fps, "perf/updates": counters["updates"],
+                    "perf/policy_lag": float(np.mean(lags)) if lags else 0.0,
+                    "episodes/count": counters["episodes"], "wall_s": counters["wall_s"]})
+    if recent:
+        for key, name in (("success", "success_rate"), ("return", "return"), ("steps", "steps"),
+                          ("subgoals", "subgoals_reached")):
+            scalars[f"episodes/{name}"] = float(np.mean([e.get(key, 0) for e in recent]))
+    return scalars
+
+
+def train(config: TrainConfig) -> dict:
+    """Runs (or resumes) a training run; returns its final counters."""
+    import torch
+
+    from hier_agents.modular.components import family as env_family
+
+    config.validate()
+    batch_size = config.resolved_batch(env_family(config.env))
+    torch.manual_seed(config.seed)
+    torch.set_num_threads(1)
+    run = RunDir(config.logdir, dataclasses.asdict(config), resume=True, fixed=FIXED)
+    try:
+        _link_legacy_scalars(run.path)
+        net, optimizer, spec, counters, recent = _build(config, run)
+        if counters["frames"] >= config.steps:
+            print(f"{run.checkpoint_path} already has {counters['frames']:,} >= "
+                  f"{config.steps:,} frames", file=sys.stderr)
+            return counters
+        return _loop(config, run, net, optimizer, spec, counters, recent, batch_size)
+    finally:
+        run.close()
+
+
+def _loop(config, run: RunDir, net, optimizer, spec, counters, recent, batch_size) -> dict:
+    """Actors, learner steps, logs and checkpoints until the frame budget or a stop."""
     actor_config = ActorConfig(env=config.env, condition=config.condition,
                                unroll_length=config.unroll_length,
                                envs_per_actor=config.envs_per_actor, cameras=config.cameras,
                                image_size=config.image_size, state=config.state,
-                               t_abs=config.t_abs,
-                               abs_reward=config.abs_reward,
+                               t_abs=config.t_abs, abs_reward=config.abs_reward,
                                seed=config.seed * 1000 + counters["updates"],
                                env_overrides=dict(config.env_overrides))
     if config.backend == "ray":
@@ -310,86 +315,57 @@ def train(config: TrainConfig) -> dict:
         actors = LocalActors(actor_config, config.actors, net)
         actors.publish(net)
     published = 1  # weights versions published to the actors in this process
-    log = _Log(logdir)
 
-    interrupted = []
+    def save():
+        run.save({"format": 1, "model": net.state_dict(), "optimizer": optimizer.state_dict(),
+                  "counters": dict(counters, recent_episodes=list(recent)),
+                  "input_spec": dataclasses.asdict(spec)},
+                 keep=f"frames-{int(counters['frames'])}" if config.keep_checkpoints else None)
 
-    def _on_signal(signum, frame):  # finish the update, checkpoint, stop
-        interrupted.append(signum)
-
-    old_handlers = {s: signal.signal(s, _on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
-    bar = tqdm(total=config.steps, initial=counters["frames"], unit="frame", unit_scale=True,
-               desc=f"{config.env} {config.condition}", file=sys.stderr,
-               disable=not config.progress, smoothing=0.1)
-    start = time.perf_counter()
-    wall0 = counters["wall_s"]
-    last_ckpt = last_log = start
-    frames_at_log = counters["frames"]
+    bar = run.progress(config.steps, counters["frames"], desc=f"{config.env} {config.condition}",
+                       unit="frame", disable=not config.progress)
+    start = last_ckpt = last_log = time.perf_counter()
+    wall0, frames_at_log = counters["wall_s"], counters["frames"]
     pending: list[dict] = []
     value_states: dict = {}  # stream -> value-core (h, c) after its last unroll
     stats: dict = {}
     lags: list[int] = []
-    try:
-        while counters["frames"] < config.steps and not interrupted:
-            while len(pending) < batch_size and not interrupted:
-                unrolls = actors.get(should_stop=lambda: bool(interrupted))
-                for u in unrolls or ():
-                    for ep in u.pop("episodes"):
-                        counters["episodes"] += 1
-                        recent.append({"return": float(ep.get("episode_return", 0.0)),
-                                       "success": float(bool(ep.get("success", False))),
-                                       "steps": int(ep.get("episode_steps", 0)),
-                                       "subgoals": int(ep.get("subgoals_reached", 0))})
-                    pending.append(u)
-            if interrupted:  # the partial batch is dropped; the checkpoint is the last update
-                break
-            batch_unrolls, pending = pending[:batch_size], pending[batch_size:]
-            # Updates between the weights an unroll was acted with and now.
-            lags.extend(published - int(u.get("policy_version", 0)) for u in batch_unrolls)
-            batch = make_batch(batch_unrolls, net, value_states)
-            stats = learner_step(net, optimizer, batch, config, value_states)
-            actors.publish(net)
-            published += 1
-            counters["updates"] += 1
-            new_frames = config.unroll_length * len(batch_unrolls)
-            counters["frames"] += new_frames
-            bar.update(new_frames)
-            now = time.perf_counter()
-            counters["wall_s"] = wall0 + (now - start)
-            if recent:
-                bar.set_postfix(success=f"{np.mean([e['success'] for e in recent]):.2f}",
-                                ret=f"{np.mean([e['return'] for e in recent]):.2f}",
-                                refresh=False)
-            if now - last_log >= config.log_every_s or counters["frames"] >= config.steps:
-                fps = (counters["frames"] - frames_at_log) / max(now - last_log, 1e-9)
-                scalars = {f"loss/{k}": float(v) for k, v in stats.items()}
-                scalars.update({"perf/frames_per_s": fps, "perf/updates": counters["updates"],
-                                "perf/policy_lag": float(np.mean(lags)) if lags else 0.0,
-                                "episodes/count": counters["episodes"],
-                                "wall_s": counters["wall_s"]})
+    with run.interruptible():
+        try:
+            while counters["frames"] < config.steps and not run.stop_requested:
+                _gather(actors, pending, batch_size, counters, recent, run)
+                if run.stop_requested:  # the partial batch is dropped
+                    break
+                batch_unrolls, pending = pending[:batch_size], pending[batch_size:]
+                # Updates between the weights an unroll was acted with and now.
+                lags.extend(published - int(u.get("policy_version", 0)) for u in batch_unrolls)
+                batch = make_batch(batch_unrolls, net, value_states)
+                stats = learner_step(net, optimizer, batch, config, value_states)
+                actors.publish(net)
+                published += 1
+                counters["updates"] += 1
+                new_frames = config.unroll_length * len(batch_unrolls)
+                counters["frames"] += new_frames
+                bar.update(new_frames)
+                now = time.perf_counter()
+                counters["wall_s"] = wall0 + (now - start)
                 if recent:
-                    scalars.update({
-                        "episodes/success_rate": float(np.mean([e["success"] for e in recent])),
-                        "episodes/return": float(np.mean([e["return"] for e in recent])),
-                        "episodes/steps": float(np.mean([e["steps"] for e in recent])),
-                        "episodes/subgoals_reached": float(np.mean(
-                            [e.get("subgoals", 0) for e in recent]))})
-                log.write(counters["frames"], scalars)
-                last_log, frames_at_log, lags = now, counters["frames"], []
-            if now - last_ckpt >= config.checkpoint_every_s:
-                save_checkpoint(ckpt_path, net, optimizer, config,
-                                dict(counters, recent_episodes=list(recent)), spec)
-                last_ckpt = now
-    finally:
-        bar.close()
-        actors.close()
-        counters["wall_s"] = wall0 + (time.perf_counter() - start)
-        save_checkpoint(ckpt_path, net, optimizer, config,
-                        dict(counters, recent_episodes=list(recent)), spec)
-        log.close()
-        for s, h in old_handlers.items():
-            signal.signal(s, h)
-    if interrupted:
+                    bar.set_postfix(success=f"{np.mean([e['success'] for e in recent]):.2f}",
+                                    ret=f"{np.mean([e['return'] for e in recent]):.2f}",
+                                    refresh=False)
+                if now - last_log >= config.log_every_s or counters["frames"] >= config.steps:
+                    fps = (counters["frames"] - frames_at_log) / max(now - last_log, 1e-9)
+                    run.log(counters["frames"], _scalars(stats, counters, recent, fps, lags))
+                    last_log, frames_at_log, lags = now, counters["frames"], []
+                if now - last_ckpt >= config.checkpoint_every_s:
+                    save()
+                    last_ckpt = now
+        finally:
+            bar.close()
+            actors.close()
+            counters["wall_s"] = wall0 + (time.perf_counter() - start)
+            save()
+    if run.stop_requested:
         print(f"interrupted: checkpoint saved at {counters['frames']:,} frames; run the same "
               f"command to resume", file=sys.stderr)
     if recent:

@@ -47,7 +47,7 @@ from hier_agents.modular.families import FAMILIES
 from skills.learned.ball import POLICY_PATH
 
 __all__ = ["BALL_SPEC", "BallSceneSource", "TRAIN_SOURCES", "HELDOUT_SOURCES",
-           "make_source_env", "SKIP_T_ABS"]
+           "make_source_env", "TRAIN_T_ABS"]
 
 #: The default training mixture: generated L1-L5 with and without pegs and
 #: the shipped Boxoban files (with and without pegs).
@@ -56,8 +56,8 @@ TRAIN_SOURCES = tuple(f"mujoban/level{d}{p}" for d in range(1, 6) for p in ("", 
     "boxoban/medium-valid-000-pegs")
 #: Held-out evaluation: level-5 with pegs (other seeds than training).
 HELDOUT_SOURCES = ("mujoban/level5-pegs",)
-#: The option layer's T_abs, used by the scripted fast-forward.
-SKIP_T_ABS = 50
+#: The training cut-off of a ball option (control steps; module docstring).
+TRAIN_T_ABS = 150
 
 
 def make_source_env(source: str, seed: int, estimator: str = "oracle"):
@@ -114,7 +114,7 @@ class BallSceneSource:
     """Option starts for the ball skill (module docstring); a `SceneSource`."""
 
     def __init__(self, seed: int, estimator: str = "oracle", *, sources=TRAIN_SOURCES,
-                 t_abs: int = 150, max_skip: int = 6, p_continue: float = 0.7):
+                 t_abs: int = TRAIN_T_ABS, max_skip: int = 6, p_continue: float = 0.7):
         from skills.ball import BallSkill
         self.sources = tuple(sources)
         self.estimator = estimator
@@ -150,7 +150,7 @@ class BallSceneSource:
             subgoal = level.planner.next_push(scene.state)
             result = run_option(level.counted, level.estimator, self._scripted, subgoal,
                                 level.timestep, adapter=FAMILIES["mujoban"],
-                                t_abs=SKIP_T_ABS, scene=scene)
+                                scene=scene)
             if level.timestep.last():
                 return False
         return True
@@ -203,7 +203,7 @@ BALL_SPEC = SkillSpec(
     scenes=lambda seed, estimator="oracle": BallSceneSource(seed, estimator),
     heldout=lambda seed, estimator="oracle": BallSceneSource(
         seed, estimator, sources=HELDOUT_SOURCES, p_continue=0.0),
-    checkpoint=POLICY_PATH, t_abs=150, estimators=("oracle", "camera"),
+    checkpoint=POLICY_PATH, t_abs=TRAIN_T_ABS, estimators=("oracle", "camera"),
     privileged=("oracle",),
     penalties={"box disturbed": -1.0, "box off line": -1.0, "estimate deviates": -1.0,
                "deviation": -1.0},
