@@ -1,6 +1,6 @@
 """Actor-learner throughput against the bare environment, same configuration.
 
-    python benchmarks/learner_speed.py [--env mujoban/level1] [--agent expert-planner]
+    python benchmarks/learner_speed.py [--env mujoban/level1] [--condition expert-planner]
                                       [--frames 200000] [--actors 2] [--envs-per-actor 32]
                                       [--batch-size N] [--backend local|ray] [--json PATH]
 
@@ -100,7 +100,7 @@ def learner_frames_per_s(args) -> dict:
     from hier_agents.baselines.impala.learner import TrainConfig, train
 
     with tempfile.TemporaryDirectory() as logdir:
-        config = TrainConfig(env=args.env, condition=args.agent, steps=args.frames,
+        config = TrainConfig(env=args.env, condition=args.condition, steps=args.frames,
                              actors=args.actors, envs_per_actor=args.envs_per_actor,
                              backend=args.backend, logdir=logdir,
                              batch_size=args.batch_size, cameras=args.cameras,
@@ -123,7 +123,8 @@ def learner_frames_per_s(args) -> dict:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--env", default="mujoban/level1")
-    parser.add_argument("--agent", default="expert-planner")
+    parser.add_argument("--condition", default="expert-planner",
+                        help="the training condition (hier_agents.train --condition)")
     parser.add_argument("--frames", type=int, default=200_000)
     parser.add_argument("--actors", type=int, default=2)
     parser.add_argument("--envs-per-actor", type=int, default=32)
@@ -145,7 +146,7 @@ def main(argv=None) -> int:
     print(f"bare {args.env} in {max(1, args.actors)} processes at once: {parallel:,.0f} "
           f"steps/s in total", flush=True)
     learner = learner_frames_per_s(args)
-    row = {"env": args.env, "agent": args.agent, "cameras": args.cameras,
+    row = {"env": args.env, "agent": args.condition, "cameras": args.cameras,
            "actors": args.actors, "envs_per_actor": args.envs_per_actor,
            "backend": args.backend, "env_steps_per_s": bare, **learner,
            "ratio": learner["learner_frames_per_s"] / bare,

@@ -1,8 +1,8 @@
 """Train the paper's end-to-end agent (IMPALA-style actor-critic, V-trace).
 
-    python -m hier_agents.train mujoban/level1 --agent expert-planner --steps 2000000
-    python -m hier_agents.train mujoban/level1 --agent vanilla --steps 2000000 --logdir runs/vanilla
-    python -m hier_agents.train mujoxo/mixture --agent random-planner --actors 2 --backend ray
+    python -m hier_agents.train mujoban/level1 --condition expert-planner --frames 2000000
+    python -m hier_agents.train mujoban/level1 --condition vanilla --frames 2000000 --logdir runs/vanilla
+    python -m hier_agents.train mujoxo/mixture --condition random-planner --actors 2 --backend ray
     tensorboard --logdir runs                       # the curves
     python -m hier_agents.run mujoban/level1 --agent checkpoint:runs/impala   # evaluate
 
@@ -30,14 +30,19 @@ import envs
 from hier_agents.baselines.impala.agent_env import CONDITIONS
 
 
+class _Formatter(argparse.RawDescriptionHelpFormatter, argparse.ArgumentDefaultsHelpFormatter):
+    """The module docstring as written, and every flag's default."""
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="python -m hier_agents.train",
                                      description=__doc__.split("\n\n")[0],
-                                     formatter_class=argparse.RawDescriptionHelpFormatter,
+                                     formatter_class=_Formatter,
                                      epilog=__doc__.split("\n\n", 1)[1])
     parser.add_argument("env", help="environment name, e.g. mujoban/level1")
-    parser.add_argument("--agent", default="vanilla", help=f"one of {list(CONDITIONS)}")
-    parser.add_argument("--steps", type=int, default=1_000_000,
+    parser.add_argument("--condition", default="vanilla",
+                        help=f"the training condition: one of {list(CONDITIONS)}")
+    parser.add_argument("--frames", type=int, default=1_000_000,
                         help="environment frames (control steps) to train for, in total")
     parser.add_argument("--actors", type=int, default=2, help="actor processes / Ray actors")
     parser.add_argument("--envs-per-actor", type=int, default=32,
@@ -69,13 +74,13 @@ def main(argv=None) -> int:
 
     if args.env not in envs.names():
         parser.error(f"unknown environment {args.env!r}; known: {', '.join(envs.names())}")
-    if args.agent not in CONDITIONS:
-        parser.error(f"unknown agent {args.agent!r}; valid: {', '.join(CONDITIONS)}")
+    if args.condition not in CONDITIONS:
+        parser.error(f"unknown condition {args.condition!r}; valid: {', '.join(CONDITIONS)}")
     if args.backend not in ("local", "ray"):
         parser.error(f"unknown backend {args.backend!r}; valid: local, ray")
     from hier_agents.baselines.impala.learner import TrainConfig, train
 
-    config = TrainConfig(env=args.env, condition=args.agent, steps=args.steps,
+    config = TrainConfig(env=args.env, condition=args.condition, steps=args.frames,
                          actors=args.actors, envs_per_actor=args.envs_per_actor,
                          backend=args.backend, ray_address=args.ray_address,
                          logdir=args.logdir, unroll_length=args.unroll_length,

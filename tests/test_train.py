@@ -96,10 +96,10 @@ def test_a_state_input_run_trains_resumes_only_as_state_and_plays(tmp_path):
 
 
 @pytest.mark.parametrize("argv, message", [
-    (["mujoban/level1", "--agent", "cheater"], "vanilla"),
+    (["mujoban/level1", "--condition", "cheater"], "vanilla"),
     (["mujoban/nope"], "mujoban/level1"),
     (["mujoban/level1", "--backend", "mpi"], "ray"),
-    (["mujoban/level1", "--steps", "0"], "steps"),
+    (["mujoban/level1", "--frames", "0"], "steps"),
 ])
 def test_train_cli_rejects_bad_arguments(argv, message, capsys):
     with pytest.raises(SystemExit) as exc:
@@ -206,8 +206,8 @@ def test_ctrl_c_saves_a_checkpoint_and_the_run_resumes_from_it(tmp_path):
     import time
 
     logdir = tmp_path / "run"
-    cmd = [sys.executable, "-m", "hier_agents.train", "mujoban/level1", "--agent", "vanilla",
-           "--steps", "100000000", "--unroll-length", "5", "--batch-size", "2", "--actors", "1",
+    cmd = [sys.executable, "-m", "hier_agents.train", "mujoban/level1", "--condition", "vanilla",
+           "--frames", "100000000", "--unroll-length", "5", "--batch-size", "2", "--actors", "1",
            "--envs-per-actor", "2", "--log-every", "0", "--logdir", str(logdir),
            "--no-progress"]
     proc = subprocess.Popen(cmd, start_new_session=True, stdout=subprocess.PIPE,
