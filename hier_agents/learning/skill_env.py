@@ -72,7 +72,7 @@ class SkillEnv(gymnasium.Env):
             raise ValueError(f"estimator must be one of {list(spec.estimators)} for the "
                              f"{spec.name} skill, got {estimator!r}")
         #: True when the scene estimate reads the simulator.
-        self.privileged = self.estimator_name in spec.privileged
+        self.privileged = spec.is_privileged(self.estimator_name)
         self.t_abs = int(t_abs if t_abs is not None else spec.t_abs)
         self.heldout = bool(heldout)
         self.skill = spec.make_skill(None)

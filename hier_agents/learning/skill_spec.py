@@ -15,8 +15,11 @@ A spec names:
   ``penalties`` maps failure-reason prefixes to a reward (other failures end
   the option with the step cost only); ``step_cost`` per control step;
 * ``t_abs``: control steps before the option is cut off (truncated);
-* ``estimators``: the scene estimators the scenes can use, the first the
-  default; ``privileged`` those among them that read the simulator;
+* ``family``: the game family whose estimator table
+  (`hier_agents.modular.components.ESTIMATORS`) names ``estimators``, the
+  scene estimators the scenes can use (the first the default); whether one
+  reads the simulator is decided there (`components.is_privileged`); a spec
+  outside the families (``family=""``) has no privileged estimator;
 * ``checkpoint``: the shipped policy's path (used when ``--skill`` names the
   skill without a path).
 """
@@ -78,7 +81,7 @@ class SkillSpec:
     checkpoint: Path
     t_abs: int
     estimators: tuple[str, ...]
-    privileged: tuple[str, ...] = ()
+    family: str = ""
     success_reward: float = 1.0
     penalties: dict = field(default_factory=dict)
     step_cost: float = -0.002
@@ -86,6 +89,13 @@ class SkillSpec:
     skill_name: str = ""
     #: Features are clipped to [-feature_bound, feature_bound].
     feature_bound: float = 4.0
+
+    def is_privileged(self, estimator: str) -> bool:
+        """Whether the named estimator reads the simulator."""
+        if not self.family:
+            return False
+        from hier_agents.modular.components import is_privileged
+        return is_privileged(self.family, estimator)
 
     def reward(self, result) -> float:
         """The reward of one control step: the step cost, plus, when the

@@ -204,7 +204,7 @@ BALL_SPEC = SkillSpec(
     heldout=lambda seed, estimator="oracle": BallSceneSource(
         seed, estimator, sources=HELDOUT_SOURCES, p_continue=0.0),
     checkpoint=POLICY_PATH, t_abs=TRAIN_T_ABS, estimators=("oracle", "camera"),
-    privileged=("oracle",),
+    family="mujoban",
     penalties={"box disturbed": -1.0, "box off line": -1.0, "estimate deviates": -1.0,
                "deviation": -1.0},
     step_cost=-0.002)
