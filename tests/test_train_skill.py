@@ -80,3 +80,20 @@ def test_cli_trains_checkpoints_and_resumes(tmp_path, capsys):
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["frames"] == 600 and summary["iterations"] == 4
     assert summary["bc_frames"] == 200
+
+
+def test_a_resumed_run_continues_bit_identically(tmp_path):
+    """Straight to 500 frames == to 400, stop, resume to 500."""
+    common = ["ball", "--bc-frames", "100", "--dagger-frames", "100", "--rollout", "50",
+              "--envs", "2", "--save-every", "1", "--eval-episodes", "0", "--seed", "2"]
+    assert main(common + ["--frames", "500", "--logdir", str(tmp_path / "straight")]) == 0
+    assert main(common + ["--frames", "400", "--logdir", str(tmp_path / "split")]) == 0
+    torch.manual_seed(12345)  # the resumed run must restore every random state itself
+    np.random.seed(12345)
+    assert main(common + ["--frames", "500", "--logdir", str(tmp_path / "split"),
+                          "--resume"]) == 0
+    a = torch.load(tmp_path / "straight" / "checkpoint.pt", weights_only=False)
+    b = torch.load(tmp_path / "split" / "checkpoint.pt", weights_only=False)
+    assert a["state"]["frames"] == b["state"]["frames"] == 500
+    for key, value in a["agent"].items():
+        assert torch.equal(value, b["agent"][key]), key
