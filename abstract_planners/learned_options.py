@@ -1,4 +1,4 @@
-"""A learned policy over options as a Sokoban planner (issue 15, item 3).
+"""A learned policy over options as a Sokoban planner.
 
 `OptionPolicyPlanner` plays a policy trained with RL on `hier_agents.
 learning.option_env.OptionEnv` (`python -m hier_agents.learning.train_options`): ``plan(state)``

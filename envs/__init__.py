@@ -14,7 +14,7 @@
 from envs import _gl  # noqa: F401  (must run before mujoco picks a GL backend)
 from envs import _malloc
 
-_malloc.apply()  # fixed glibc mmap threshold: no growth over many rebuilds (issue 16)
+_malloc.apply()  # fixed glibc mmap threshold: no growth over many rebuilds
 
 from envs.core import Environment, PhysicsTask
 from envs.registry import (UnknownEnvironmentError, check, describe, load, names, no_cameras,

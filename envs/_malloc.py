@@ -1,4 +1,4 @@
-"""glibc malloc settings that keep long runs from growing (issue 16).
+"""glibc malloc settings that keep long runs from growing.
 
 Every environment makes a few allocations of 13-18 MB: MuJoCo's model
 buffer (17.5 MB in MuJoBan, mostly textures) and mjData's arena (13-14 MB),

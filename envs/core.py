@@ -202,7 +202,7 @@ class Environment(dm_env.Environment):
             try:
                 self._task.close()
             finally:
-                _malloc.trim()  # hand the freed GL buffers back (issue 16)
+                _malloc.trim()  # hand the freed GL buffers back
 
     @property
     def closed(self) -> bool:

@@ -54,10 +54,11 @@ The checkpoint (``ball_policy.pt``, next to this file) is a dict with
 ``"actor"`` (the mean network's state dict: 12 -> 64 -> 64 -> 2, tanh),
 ``"features"`` (the names above, checked on load) and ``"meta"`` (how it
 was trained). At run time the network is evaluated in numpy (~10 us).
-The shipped one was made by (seed 0, 2 vectorised environments, ~7 CPU
-minutes on the 2-core machine; ``results/learned_ball/`` has its numbers)::
+The skill trainer makes one from the ``ball`` spec
+(`hier_agents.learning.skills.ball`; ``results/learned_ball/`` records how the
+shipped one was trained and measured)::
 
-    python -m hier_agents.learning.train_skill ball --steps 80000 --bc-steps 20000 --dagger-steps 20000 --envs 2 --seed 0 --logdir runs/ball --eval-episodes 200
+    python -m hier_agents.learning.train_skill ball --frames 80000 --bc-frames 20000 --dagger-frames 20000 --envs 2 --seed 0 --logdir runs/ball
     cp runs/ball/ball_policy.pt skills/learned/ball_policy.pt
 """
 
