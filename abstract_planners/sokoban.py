@@ -54,6 +54,19 @@ def _cells(cells: Iterable) -> frozenset[Position]:
     return frozenset((int(r), int(c)) for r, c in cells)
 
 
+def _assign(state, walls, targets, boxes, player, height, width) -> None:
+    """Sets the fields of a (frozen, slotted) `SokobanState` (on the solver's
+    hot path: one call per field, no loop)."""
+    _set = object.__setattr__
+    _set(state, "walls", walls)
+    _set(state, "targets", targets)
+    _set(state, "boxes", boxes)
+    _set(state, "player", player)
+    _set(state, "height", height)
+    _set(state, "width", width)
+    _set(state, "_hash", None)
+
+
 class SokobanState:
     """An immutable Sokoban board; equal (and hashing equal) by content.
 
@@ -76,27 +89,13 @@ class SokobanState:
         player = (int(player[0]), int(player[1]))
         height, width = int(height), int(width)
         _validate(walls, targets, boxes, player, height, width)
-        _set = object.__setattr__
-        _set(self, "walls", walls)
-        _set(self, "targets", targets)
-        _set(self, "boxes", boxes)
-        _set(self, "player", player)
-        _set(self, "height", height)
-        _set(self, "width", width)
-        _set(self, "_hash", None)
+        _assign(self, walls, targets, boxes, player, height, width)
 
     @classmethod
     def _make(cls, walls, targets, boxes, player, height, width) -> "SokobanState":
         """A state from already-validated parts (the fast path of `apply`)."""
         state = object.__new__(cls)
-        _set = object.__setattr__
-        _set(state, "walls", walls)
-        _set(state, "targets", targets)
-        _set(state, "boxes", boxes)
-        _set(state, "player", player)
-        _set(state, "height", height)
-        _set(state, "width", width)
-        _set(state, "_hash", None)
+        _assign(state, walls, targets, boxes, player, height, width)
         return state
 
     # -- construction ----------------------------------------------------------

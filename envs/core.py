@@ -312,7 +312,23 @@ class StaleObservationError(RuntimeError):
     """A lazy camera frame was read after its environment stepped on."""
 
 
-class LazyObservation(Mapping):
+class KeyedView(Mapping):
+    """A read-only mapping over the keys in ``self._keys`` (subclasses set it
+    and define ``__getitem__``)."""
+
+    _keys: tuple
+
+    def __iter__(self):
+        return iter(self._keys)
+
+    def __len__(self) -> int:
+        return len(self._keys)
+
+    def __contains__(self, key) -> bool:
+        return key in self._keys
+
+
+class LazyObservation(KeyedView):
     """A timestep's observations whose camera frames render on first read.
 
     Behaves as a read-only mapping (``obs["top_camera"]``, iteration, ``len``,
@@ -336,14 +352,6 @@ class LazyObservation(Mapping):
         self._values[key] = frame
         return frame
 
-    def __iter__(self):
-        return iter(self._keys)
-
-    def __len__(self) -> int:
-        return len(self._keys)
-
-    def __contains__(self, key) -> bool:
-        return key in self._keys
 
     def rendered(self, key) -> bool:
         """Whether frame ``key`` has been rendered (read) already."""

@@ -16,9 +16,10 @@ combination through it.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 
 import dm_env
+
+from envs.core import KeyedView
 
 __all__ = ["BoundaryEnv", "BoundaryViolation", "PRIVILEGED_OBSERVATIONS"]
 
@@ -90,7 +91,7 @@ class BoundaryEnv:
         raise BoundaryViolation(f"an agent may not set env.{name}")
 
 
-class _Without(Mapping):
+class _Without(KeyedView):
     """A view of an observation mapping without some keys; reads pass through
     (so lazily rendered camera frames stay lazy)."""
 
@@ -105,12 +106,4 @@ class _Without(Mapping):
             raise KeyError(key)
         return self._obs[key]
 
-    def __iter__(self):
-        return iter(self._keys)
-
-    def __len__(self) -> int:
-        return len(self._keys)
-
-    def __contains__(self, key) -> bool:
-        return key in self._keys
 
