@@ -22,30 +22,38 @@ __all__ = ["collect", "fit", "clone"]
 
 
 def collect(spec, frames: int, seed: int, *, actor=None, noise: float = 0.2,
-            estimator: str | None = None, t_abs: int | None = None):
-    """``frames`` steps of a `SkillEnv` of ``spec`` driven by the teacher
-    (``actor`` None) or by ``actor.mean`` (a torch module's method), with
-    Gaussian ``noise`` (std, policy units) on the action; every observation
-    labelled with the teacher's action. Returns (observations [F, obs],
-    labels [F, act], simulated control steps)."""
+            noise_prob: float = 1.0, mix: float = 1.0, estimator: str | None = None,
+            t_abs: int | None = None):
+    """``frames`` steps of a `SkillEnv` of ``spec``, every observation
+    labelled with the teacher's action (``info["expert_action"]``).
+
+    Who acts: the teacher when ``actor`` is None; else at every step
+    ``actor.mean`` (a torch module's method) with probability ``mix`` and the
+    teacher otherwise (``mix=1``: the student alone, plain DAgger). Each
+    option is noisy with probability ``noise_prob``: Gaussian ``noise`` (std,
+    policy units) is added to every action it takes (the data then covers
+    recoveries from the states noise leads to). Returns (observations
+    [F, obs], labels [F, act], simulated control steps)."""
     from hier_agents.learning.skill_env import SkillEnv
     env = SkillEnv(spec, seed=seed, estimator=estimator, t_abs=t_abs)
     rng = np.random.default_rng(seed + 1)
     xs, ys = [], []
     try:
         obs, info = env.reset(seed=seed)
+        noisy = rng.random() < noise_prob
         for _ in range(int(frames)):
             xs.append(obs)
             ys.append(info["expert_action"])
-            if actor is None:
-                action = info["expert_action"]
-            else:
+            action = info["expert_action"]
+            if actor is not None and rng.random() < mix:
                 with torch.no_grad():
                     action = actor.mean(torch.as_tensor(obs)[None])[0].numpy()
-            action = np.clip(action + noise * rng.standard_normal(len(action)), -1, 1)
-            obs, _, terminated, truncated, info = env.step(action)
+            if noisy:
+                action = action + noise * rng.standard_normal(len(action))
+            obs, _, terminated, truncated, info = env.step(np.clip(action, -1, 1))
             if terminated or truncated:
                 obs, info = env.reset()
+                noisy = rng.random() < noise_prob
         sim_steps = env.sim_steps
     finally:
         env.close()
@@ -77,21 +85,28 @@ def fit(agent, xs, ys, epochs: int, lr: float = 1e-3, log=print) -> float:
 
 def clone(agent, spec, *, frames: int, seed: int, dagger_frames: int = 0,
           dagger_rounds: int = 1, epochs: int = 60, noise: float = 0.2,
-          dagger_noise: float = 0.1, estimator: str | None = None, log=print) -> tuple[int, int]:
-    """Behaviour cloning on ``frames`` frames of the noisy teacher, then
-    ``dagger_rounds`` rounds of ``dagger_frames`` frames each driven by the
-    cloned policy (noise ``dagger_noise``), labelled by the teacher, refitted
-    on all data so far. Returns (agent frames, simulated control steps)."""
+          noise_prob: float = 1.0, dagger_noise: float = 0.1, dagger_noise_prob: float = 1.0,
+          dagger_mix: float = 1.0, estimator: str | None = None,
+          log=print) -> tuple[int, int]:
+    """Behaviour cloning on ``frames`` frames of the teacher (options noisy with
+    probability ``noise_prob``, std ``noise``), then ``dagger_rounds`` rounds
+    of ``dagger_frames`` frames in which the cloned policy acts (per step with
+    probability ``dagger_mix``, the teacher otherwise; noise
+    ``dagger_noise`` on options noisy with probability ``dagger_noise_prob``),
+    labelled by the teacher, refitted on all data so far (`collect`, `fit`).
+    Returns (agent frames, simulated control steps)."""
     log(f"behaviour cloning: {frames} frames of the {spec.name} skill's teacher "
-        f"(noise {noise})")
-    xs, ys, sim_steps = collect(spec, frames, seed + 1, noise=noise, estimator=estimator)
+        f"(noise {noise} on {noise_prob:.0%} of the options)")
+    xs, ys, sim_steps = collect(spec, frames, seed + 1, noise=noise, noise_prob=noise_prob,
+                                estimator=estimator)
     fit(agent, xs, ys, epochs, log=log)
     total = int(frames)
     for r in range(int(dagger_rounds) if dagger_frames > 0 else 0):
-        log(f"DAgger round {r + 1}/{dagger_rounds}: {dagger_frames} frames of the cloned "
-            f"policy, labelled by the teacher")
+        log(f"DAgger round {r + 1}/{dagger_rounds}: {dagger_frames} frames, the cloned "
+            f"policy acting at {dagger_mix:.0%} of the steps, labelled by the teacher")
         xd, yd, sim_d = collect(spec, dagger_frames, seed + 3 + 2 * r, actor=agent,
-                                noise=dagger_noise, estimator=estimator)
+                                noise=dagger_noise, noise_prob=dagger_noise_prob,
+                                mix=dagger_mix, estimator=estimator)
         xs, ys = np.concatenate([xs, xd]), np.concatenate([ys, yd])
         fit(agent, xs, ys, epochs, log=log)
         total += int(dagger_frames)

@@ -277,7 +277,10 @@ def train(args) -> dict:
         if args.bc_frames > 0 and state["bc_frames"] == 0:
             frames, sim = clone(agent, spec, frames=args.bc_frames, seed=args.seed,
                                 dagger_frames=args.dagger_frames, epochs=args.bc_epochs,
-                                dagger_rounds=args.dagger_rounds, estimator=args.estimator)
+                                dagger_rounds=args.dagger_rounds, noise=args.bc_noise,
+                                noise_prob=args.bc_noise_prob, dagger_noise=args.dagger_noise,
+                                dagger_noise_prob=args.dagger_noise_prob,
+                                dagger_mix=args.dagger_mix, estimator=args.estimator)
             state.update(bc_frames=frames, frames=frames, sim_steps=sim)
             save()
         _ppo(spec, agent, optimizer, state, run, args, save)
@@ -320,9 +323,17 @@ def parse_args(argv=None):
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--resume", action="store_true", help="continue DIR/checkpoint.pt")
     p.add_argument("--bc-frames", type=int, default=20_000, help="frames of the noisy teacher")
-    p.add_argument("--bc-epochs", type=int, default=60)
+    p.add_argument("--bc-epochs", type=int, default=60, help="epochs of every fit")
+    p.add_argument("--bc-noise", type=float, default=0.2, help="action noise std (cloning)")
+    p.add_argument("--bc-noise-prob", type=float, default=1.0,
+                   help="fraction of cloning options with noise")
     p.add_argument("--dagger-frames", type=int, default=20_000, help="frames per DAgger round")
     p.add_argument("--dagger-rounds", type=int, default=1)
+    p.add_argument("--dagger-noise", type=float, default=0.1, help="action noise std (DAgger)")
+    p.add_argument("--dagger-noise-prob", type=float, default=1.0,
+                   help="fraction of DAgger options with noise")
+    p.add_argument("--dagger-mix", type=float, default=1.0,
+                   help="probability that the student (not the teacher) acts, per DAgger step")
     p.add_argument("--hidden", type=int, default=64, help="hidden units per layer")
     p.add_argument("--log-std", type=float, default=None,
                    help="initial log-std (default: -1.6 after a warm start, else -0.5)")
