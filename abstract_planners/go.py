@@ -34,6 +34,7 @@ from abstract_planners.base import Planner, Subgoal
 from abstract_planners.board_random import check_decision_state
 from abstract_planners.gtp import (INSTALL_HINT, GnuGoNotFoundError, GTPClient, GTPError,
                                    default_gnugo_command)
+from abstract_planners.gtp_process import close_quietly
 
 __all__ = [
     "GTP_COLUMNS",
@@ -276,10 +277,7 @@ class GnuGoPlanner(Planner):
             self._moves = None
 
     def __del__(self):
-        try:
-            self.close()
-        except Exception:  # noqa: BLE001 - never raise from a finaliser
-            pass
+        close_quietly(self)
 
     def __repr__(self) -> str:
         return f"GnuGoPlanner(level={self.level}, board_size={self.board_size}, komi={self.komi:g})"

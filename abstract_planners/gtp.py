@@ -40,14 +40,17 @@ message says how to install GNU Go (``sudo apt-get install gnugo``).
 from __future__ import annotations
 
 import collections
-import os
 import queue
 import re
 import shutil
 import subprocess
-import threading
 import time
 from typing import Sequence
+
+from abstract_planners.gtp_process import (DEBIAN_GNUGO, GNUGO_FLAGS,  # noqa: F401 (re-exported)
+                                           INSTALL_HINT, EngineDied, GnuGoNotFoundError,
+                                           GTPError, close_quietly, default_gnugo_command,
+                                           find_gnugo, kill_process, start_process)
 
 __all__ = [
     "GTPError",
@@ -57,70 +60,8 @@ __all__ = [
     "default_gnugo_command",
 ]
 
-#: Where Debian/Ubuntu's ``gnugo`` package installs the binary (not on a
-#: non-login PATH on every system).
-DEBIAN_GNUGO = "/usr/games/gnugo"
-
-INSTALL_HINT = "install it with `sudo apt-get install gnugo` (Debian/Ubuntu)"
-
 _ID_REPLY = re.compile(r"^([=?])(\d*)\s?(.*)$", re.DOTALL)
 _ID_COMMAND = re.compile(r"^(\d+)\s+(.*)$", re.DOTALL)
-
-
-class GTPError(Exception):
-    """A GTP command failed: failure reply, timeout or engine death.
-
-    Attributes:
-      command: the GTP command that failed (without the numeric id), or None.
-      reply: the engine's reply text (after ``?``), or None when there was none.
-    """
-
-    def __init__(self, message: str, command: str | None = None, reply: str | None = None):
-        super().__init__(message)
-        self.command = command
-        self.reply = reply
-
-    def __reduce__(self):
-        return (type(self), (str(self), self.command, self.reply))
-
-
-class GnuGoNotFoundError(GTPError, FileNotFoundError):
-    """The GTP engine executable (GNU Go by default) was not found.
-
-    Subclasses `GTPError` and `FileNotFoundError`; the message carries the
-    ``sudo apt-get install gnugo`` hint.
-    """
-
-
-def find_gnugo() -> str:
-    """The path of the ``gnugo`` executable: ``$PATH`` first, then /usr/games.
-
-    Raises:
-      GnuGoNotFoundError: GNU Go is not installed.
-    """
-    path = shutil.which("gnugo")
-    if path:
-        return path
-    if os.path.isfile(DEBIAN_GNUGO) and os.access(DEBIAN_GNUGO, os.X_OK):
-        return DEBIAN_GNUGO
-    raise GnuGoNotFoundError(
-        f"GNU Go not found (no `gnugo` on PATH, no {DEBIAN_GNUGO}); {INSTALL_HINT}"
-    )
-
-
-#: GNU Go's flags as the original MuJoGo ran it: area (Chinese) scoring, which
-#: agrees with the Tromp-Taylor scoring of the game, and dead stones captured
-#: before the engine passes.
-GNUGO_FLAGS = ("--mode", "gtp", "--chinese-rules", "--capture-all-dead")
-
-
-def default_gnugo_command() -> list[str]:
-    """``[<gnugo>, *GNUGO_FLAGS]`` with the executable resolved by `find_gnugo`."""
-    return [find_gnugo(), *GNUGO_FLAGS]
-
-
-class _EngineDied(Exception):
-    """Internal: the engine process exited or its pipe broke."""
 
 
 # Set-up commands whose last value is replayed on a restarted engine, in this order.
@@ -201,48 +142,11 @@ class GTPClient:
         return list(self._game)
 
     def _start(self) -> None:
-        try:
-            proc = subprocess.Popen(
-                self.command,
-                stdin=subprocess.PIPE,
-                stdout=subprocess.PIPE,
-                stderr=subprocess.PIPE,
-            )
-        except FileNotFoundError as exc:
-            raise GnuGoNotFoundError(
-                f"GTP engine executable {self.command[0]!r} not found ({exc}); "
-                f"for GNU Go, {INSTALL_HINT}"
-            ) from exc
-        except OSError as exc:
-            raise GTPError(f"cannot start {self.name} engine {self.command}: {exc}") from exc
-        lines: queue.Queue = queue.Queue()
-        threading.Thread(target=_pump_lines, args=(proc.stdout, lines),
-                         name=f"gtp-{self.name}-stdout", daemon=True).start()
-        threading.Thread(target=_pump_stderr, args=(proc.stderr, self._stderr_tail),
-                         name=f"gtp-{self.name}-stderr", daemon=True).start()
-        self._proc = proc
-        self._lines = lines
+        self._proc, self._lines = start_process(self.command, self.name, self._stderr_tail)
         self.starts += 1
 
     def _kill(self) -> None:
-        proc = self._proc
-        if proc is None:
-            return
-        if proc.poll() is None:
-            try:
-                proc.kill()
-            except OSError:
-                pass
-        try:
-            proc.wait(timeout=5)
-        except subprocess.TimeoutExpired:  # pragma: no cover - unkillable process
-            pass
-        # stdout/stderr are closed by their reader threads at EOF (closing them
-        # here could race with a blocked read).
-        try:
-            proc.stdin.close()
-        except (OSError, ValueError):
-            pass
+        kill_process(self._proc)
 
     def _restart(self, reason: str) -> None:
         """Kills what is left of the engine, starts a new one and replays the record."""
@@ -253,7 +157,7 @@ class GTPClient:
         for command in replay:
             try:
                 self._exchange(command)
-            except _EngineDied as exc:
+            except EngineDied as exc:
                 raise GTPError(
                     f"{self.name} engine died again while replaying {command!r} after a "
                     f"restart ({reason}): {exc}{self._stderr_hint()}",
@@ -277,12 +181,12 @@ class GTPClient:
         """Sends one command and waits for its reply; no retry, no recording.
 
         Raises:
-          _EngineDied: the process is gone or the pipe broke.
+          EngineDied: the process is gone or the pipe broke.
           GTPError: a failure reply, or a timeout (the engine is then killed).
         """
         proc, lines = self._proc, self._lines
         if proc is None or proc.poll() is not None:
-            raise _EngineDied(f"process exited with code {None if proc is None else proc.returncode}")
+            raise EngineDied(f"process exited with code {None if proc is None else proc.returncode}")
         match = _ID_COMMAND.match(command)
         if match:
             cmd_id, body = int(match.group(1)), match.group(2)
@@ -293,7 +197,7 @@ class GTPClient:
             proc.stdin.write(f"{cmd_id} {body}\n".encode())
             proc.stdin.flush()
         except (BrokenPipeError, ConnectionResetError, OSError, ValueError) as exc:
-            raise _EngineDied(f"cannot write to the engine: {exc!r}") from None
+            raise EngineDied(f"cannot write to the engine: {exc!r}") from None
 
         deadline = time.monotonic() + self.timeout
         reply_lines: list[str] | None = None
@@ -309,7 +213,7 @@ class GTPClient:
                     command=body,
                 ) from None
             if line is None:  # EOF
-                raise _EngineDied(f"engine closed its output (exit code {proc.poll()})"
+                raise EngineDied(f"engine closed its output (exit code {proc.poll()})"
                                   f"{self._stderr_hint()}")
             line = line.rstrip("\r\n").replace("\t", " ")
             if reply_lines is None:
@@ -381,7 +285,7 @@ class GTPClient:
                 if not self.alive:
                     self._restart("engine was not running")
                 reply = self._exchange(command)
-            except _EngineDied as exc:
+            except EngineDied as exc:
                 if attempt == 1:
                     raise GTPError(
                         f"{self.name} engine died on {command!r} twice (restarted and "
@@ -465,10 +369,7 @@ class GTPClient:
         self.close()
 
     def __del__(self):
-        try:
-            self.close()
-        except Exception:  # noqa: BLE001 - never raise from a finaliser
-            pass
+        close_quietly(self)
 
     def __repr__(self) -> str:
         state = "closed" if self._closed else f"pid={self.pid}"
@@ -482,32 +383,3 @@ def _color(color: str) -> str:
     if text in ("w", "white"):
         return "w"
     raise ValueError(f"color must be 'b'/'black' or 'w'/'white', got {color!r}")
-
-
-def _pump_lines(stream, lines: queue.Queue) -> None:
-    """Reader thread: engine stdout lines into the queue, then None at EOF."""
-    try:
-        for raw in iter(stream.readline, b""):
-            lines.put(raw.decode("utf-8", errors="replace"))
-    except (OSError, ValueError):
-        pass
-    finally:
-        lines.put(None)
-        try:
-            stream.close()
-        except (OSError, ValueError):
-            pass
-
-
-def _pump_stderr(stream, tail: collections.deque) -> None:
-    """Reader thread: keeps the last stderr lines (for error messages), never blocks the engine."""
-    try:
-        for raw in iter(stream.readline, b""):
-            tail.append(raw.decode("utf-8", errors="replace").strip())
-    except (OSError, ValueError):
-        pass
-    finally:
-        try:
-            stream.close()
-        except (OSError, ValueError):
-            pass

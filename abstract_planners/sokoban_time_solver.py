@@ -55,6 +55,53 @@ def _layers(board, player: int, boxes: int) -> list[int]:
     return layers
 
 
+def _pushes_to(parents: dict, key: int) -> list:
+    """The pushes (box cell, direction) from the root to node ``key``, following
+    ``parents`` (key -> (parent key or -1 at the root, push))."""
+    pushes = []
+    while parents[key][0] != -1:
+        key, push = parents[key][0], parents[key][1]
+        pushes.append(push)
+    pushes.reverse()
+    return pushes
+
+
+def _successors(board, boxes: int, player: int, last: tuple, bound, costs: tuple) -> list:
+    """The pushes open to the player at ``player`` with ``boxes`` (bitboard),
+    in search order: a list of (cost, h, new boxes, box cell, box's new cell,
+    direction). ``last`` is the previous push's (box cell after it, direction);
+    ``bound(boxes)`` the heuristic (``_INF``: dead); ``costs`` the (walk,
+    push, stroke, turn) weights. Pushes into walls, dead squares, other boxes,
+    freeze deadlocks or dead bounds are left out."""
+    w_walk, w_push, w_stroke, w_turn = costs
+    layers = _layers(board, player, boxes)
+    reach = 0
+    for layer in layers:
+        reach |= layer
+    blocked = board.wall | board.dead | boxes
+    out = []
+    for b in _bits(boxes):
+        for d, s in enumerate(board.steps):
+            stand = b - s
+            if not (reach >> stand) & 1 or (blocked >> (b + s)) & 1:
+                continue
+            to = b + s
+            new_boxes = boxes ^ (1 << b) ^ (1 << to)
+            if _freeze_deadlock(board, to, new_boxes):
+                continue
+            h = bound(new_boxes)
+            if h >= _INF:
+                continue
+            walk = next(k for k, layer in enumerate(layers) if (layer >> stand) & 1)
+            cost = w_push + walk * w_walk
+            if not (walk == 0 and last == (b, d)):
+                cost += w_stroke
+            if walk > 0:
+                cost += w_turn
+            out.append((cost, h, new_boxes, b, to, d))
+    return out
+
+
 def solve_for_time(state, *, weights: Mapping[str, float] = DEFAULT_WEIGHTS,
                    weight: float = 2.0, time_limit: float | None = 10.0,
                    max_nodes: int | None = None) -> SolveResult:
@@ -76,12 +123,12 @@ def solve_for_time(state, *, weights: Mapping[str, float] = DEFAULT_WEIGHTS,
         return result(True, "solved")
     w_walk, w_push = float(weights["walk"]), float(weights["push"])
     w_stroke, w_turn = float(weights["stroke"]), float(weights["turn"])
+    costs = (w_walk, w_push, w_stroke, w_turn)
     boxes0 = _mask(board.index(r, c) for r, c in state.boxes)
     if boxes0 & board.dead or any(_freeze_deadlock(board, b, boxes0) for b in _bits(boxes0)):
         return result(False, "unsolvable")
     matching = _Matching(board)
     goal = board.target_mask
-    steps, wall, dead = board.steps, board.wall, board.dead
 
     def bound(boxes: int) -> float:
         pushes = matching(boxes)
@@ -112,47 +159,20 @@ def solve_for_time(state, *, weights: Mapping[str, float] = DEFAULT_WEIGHTS,
         if deadline is not None and nodes % 256 == 0 and time.perf_counter() > deadline:
             return result(False, "budget", nodes=nodes)
         if boxes == goal:
-            pushes = []
-            k = key
-            while parents[k][0] != -1:
-                k, push = parents[k][0], parents[k][1]
-                pushes.append(push)
-            pushes.reverse()
+            pushes = _pushes_to(parents, key)
             moves = _walk_and_push(board, state, pushes)
             if not replay(state, moves).is_solved():  # pragma: no cover - a solver bug
                 raise AssertionError("time solver produced a non-solution: " + "".join(moves))
             return result(True, "solved", moves, len(pushes), nodes)
-        layers = _layers(board, player, boxes)
-        reach = 0
-        for layer in layers:
-            reach |= layer
-        blocked = wall | dead | boxes
-        for b in _bits(boxes):
-            for d, s in enumerate(steps):
-                stand = b - s
-                if not (reach >> stand) & 1 or (blocked >> (b + s)) & 1:
-                    continue
-                to = b + s
-                new_boxes = boxes ^ (1 << b) ^ (1 << to)
-                if _freeze_deadlock(board, to, new_boxes):
-                    continue
-                h = bound(new_boxes)
-                if h >= _INF:
-                    continue
-                walk = next(k for k, layer in enumerate(layers) if (layer >> stand) & 1)
-                cost = w_push + walk * w_walk
-                if not (walk == 0 and last == (b, d)):
-                    cost += w_stroke
-                if walk > 0:
-                    cost += w_turn
-                g1 = g + cost
-                new_key = (new_boxes << shift) | b
-                if g1 >= best.get(new_key, _INF):
-                    continue
-                best[new_key] = g1
-                counter += 1
-                heapq.heappush(heap, (g1 + weight * h, counter, g1, new_boxes, b, (to, d),
-                                      key, (b, d)))
+        for cost, h, new_boxes, b, to, d in _successors(board, boxes, player, last, bound, costs):
+            g1 = g + cost
+            new_key = (new_boxes << shift) | b
+            if g1 >= best.get(new_key, _INF):
+                continue
+            best[new_key] = g1
+            counter += 1
+            heapq.heappush(heap, (g1 + weight * h, counter, g1, new_boxes, b, (to, d),
+                                  key, (b, d)))
     return result(False, "unsolvable", nodes=nodes)
 
 

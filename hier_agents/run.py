@@ -37,24 +37,20 @@ count), wall_s, control_steps_per_s, plus planner, skill, seed and per-episode r
 
 from __future__ import annotations
 
-import argparse
-import ast
 import json
 import sys
 import time
 
-import numpy as np
 from tqdm import tqdm
 
 import envs
 from hier_agents.boundary import BoundaryEnv
-from hier_agents.modular.components import (ESTIMATORS, PLANNERS, SKILLS, env_overrides,
-                                    estimator_name, family, is_privileged, make_agent)
 from hier_agents.modular.agent import OptionStats
-from hier_agents.stats import wilson_interval
-
-DEFAULT_ENV = "mujoban/level3"
-DEFAULT_EPISODES = 5
+from hier_agents.modular.components import (env_overrides, estimator_name, family,
+                                            is_privileged, make_agent)
+from hier_agents.run_cli import (DEFAULT_ENV, DEFAULT_EPISODES,  # noqa: F401 (re-exported)
+                                 build_parser, check_args, print_components)
+from hier_agents.run_report import format_table, postfix, summarize  # noqa: F401
 
 
 def run(env_name: str, episodes: int, seed: int = 0, *, planner: str | None = None,
@@ -107,7 +103,7 @@ def run(env_name: str, episodes: int, seed: int = 0, *, planner: str | None = No
             rows.append(row)
             totals.add(stats)
             bar.update(1)
-            bar.set_postfix(_postfix(rows, fam))
+            bar.set_postfix(postfix(rows, fam))
     except KeyboardInterrupt:
         # Ctrl-C: the episodes played so far make the table (the one under way is dropped).
         interrupted = True
@@ -123,7 +119,7 @@ def run(env_name: str, episodes: int, seed: int = 0, *, planner: str | None = No
         import imageio.v2 as imageio
         imageio.mimwrite(video, frames, fps=int(round(1 / env.control_timestep)),
                          macro_block_size=1)
-    summary = _summary(env_name, fam, rows, totals, seed, planner, skill)
+    summary = summarize(env_name, fam, rows, totals, seed, planner, skill)
     summary["training_frames"] = training_frames(made)
     summary["estimator"] = estimator_name(fam, estimator)
     summary["privileged"] = is_privileged(fam, estimator)
@@ -215,209 +211,22 @@ def _run_policy(env_name, fam, episodes, seed, agent, levels, video, progress,
         totals.issued += row["subgoals_issued"]
         totals.reached += row["subgoals_reached"]
     totals.unfinished = totals.issued - totals.reached
-    summary = _summary(env_name, fam, rows, totals, seed, "-", agent)
+    summary = summarize(env_name, fam, rows, totals, seed, "-", agent)
     summary["agent"] = agent
     summary.update(info)
     return summary
 
 
-def _postfix(rows, fam) -> dict:
-    if fam == "mujoban":
-        return {"solved": f"{sum(r['solved'] for r in rows)}/{len(rows)}"}
-    return {"wins": f"{sum(r['outcome'] == 'win' for r in rows)}/{len(rows)}"}
-
-
-def _mean(values):
-    return float(np.mean(values)) if len(values) else None
-
-
-def _summary(env_name, fam, rows, totals: OptionStats, seed, planner, skill) -> dict:
-    n = len(rows)
-    out = {"env": env_name, "episodes": n, "seed": seed, "agent": "modular",
-           "planner": planner or next(iter(PLANNERS[fam])),
-           "skill": skill or next(iter(SKILLS[fam]))}
-    if n == 0:  # e.g. interrupted before the first episode ended
-        for key in (("success_rate",) if fam == "mujoban" else
-                    ("win_rate", "draw_rate", "loss_rate", "success_rate")):
-            out[key] = None
-        out.update(mean_return=None, mean_steps=None, subgoal_success_rate=None,
-                   subgoals={}, episode_failures={}, errors=0, wall_s=None,
-                   control_steps_per_s=None, rows=[])
-        return out
-    if fam == "mujoban":
-        solved = sum(r["solved"] for r in rows)
-        out["success_rate"] = solved / n
-        out["success_interval"] = wilson_interval(solved, n)
-        solved_steps = [r["steps"] for r in rows if r["solved"]]
-        out["mean_steps_solved"] = float(np.mean(solved_steps)) if solved_steps else None
-    else:
-        for outcome in ("win", "draw", "loss"):
-            count = sum(r["outcome"] == outcome for r in rows)
-            out[f"{outcome}_rate"] = count / n
-            out[f"{outcome}_interval"] = wilson_interval(count, n)
-        out["success_rate"] = out["win_rate"]
-    out["mean_return"] = float(np.mean([r["return"] for r in rows]))
-    out["mean_steps"] = float(np.mean([r["steps"] for r in rows]))
-    rate = totals.success_rate
-    out["subgoal_success_rate"] = None if rate != rate else rate  # NaN is not JSON
-    out["subgoals"] = {"issued": totals.issued, "reached": totals.reached,
-                       "failed": totals.failed, "cut_off": totals.cut_off,
-                       "unfinished": totals.unfinished,
-                       "failures": totals.failures,
-                       "estimation_failures": totals.estimation_failures}
-    reasons = {}
-    for row in rows:
-        if "failure_reason" in row:
-            kind = row["failure_reason"].split(":", 1)[0]
-            reasons[kind] = reasons.get(kind, 0) + 1
-    out["episode_failures"] = reasons
-    out["errors"] = sum("error" in row for row in rows)
-    out["wall_s"] = float(np.mean([r["wall_s"] for r in rows]))
-    wall = sum(r["wall_s"] for r in rows)
-    out["control_steps_per_s"] = sum(r["steps"] for r in rows) / wall if wall > 0 else None
-    out["rows"] = rows
-    return out
-
-
-def _pct(rate, interval) -> str:
-    return f"{100 * rate:5.1f}% [{100 * interval[0]:5.1f}, {100 * interval[1]:5.1f}]"
-
-
-def format_table(summary: dict) -> str:
-    if summary.get("agent", "modular") == "modular":
-        who = (f"estimator {summary.get('estimator', '?')}"
-               f"{' (PRIVILEGED: reads the simulator)' if summary.get('privileged') else ''}, "
-               f"planner {summary['planner']}, skill {summary['skill']}")
-        if summary.get("training_frames"):
-            who += f" (learned parts trained on {summary['training_frames']:,} frames)"
-    elif summary["agent"].startswith("random"):
-        who = summary["condition"]
-    else:
-        who = (f"{summary['agent']} ({summary['condition']}, trained "
-               f"{summary['training_frames']:,} frames on {summary['trained_env']})")
-    lines = [f"{summary['env']}: {who}, {summary['episodes']} episodes, seed {summary['seed']}"]
-    if summary.get("interrupted"):
-        lines.append(f"  INTERRUPTED (Ctrl-C): {summary['episodes']} of "
-                     f"{summary.get('episodes_requested', '?')} episodes played")
-    if not summary["episodes"]:
-        return "\n".join(lines)
-    if "win_rate" in summary:
-        lines.append(f"  win   {_pct(summary['win_rate'], summary['win_interval'])}")
-        lines.append(f"  draw  {_pct(summary['draw_rate'], summary['draw_interval'])}")
-        lines.append(f"  loss  {_pct(summary['loss_rate'], summary['loss_interval'])}")
-    else:
-        lines.append(f"  solved            {_pct(summary['success_rate'], summary['success_interval'])}")
-    lines.append(f"  mean return       {summary['mean_return']:.2f}")
-    lines.append(f"  mean steps        {summary['mean_steps']:.1f}")
-    if summary["subgoal_success_rate"] is not None:
-        lines.append(f"  subgoal success   {100 * summary['subgoal_success_rate']:.1f}% "
-                     f"({summary['subgoals']['reached']}/{summary['subgoals']['issued']} issued)")
-    else:
-        lines.append("  subgoal success   - (no subgoals)")
-    if summary.get("episode_failures"):
-        lines.append("  unsolved because  " + ", ".join(
-            f"{k} x{v}" for k, v in sorted(summary["episode_failures"].items())))
-    if summary.get("errors"):
-        first = next(r["error"] for r in summary["rows"] if "error" in r)
-        lines.append(f"  errors            {summary['errors']} episode(s) ended by an error "
-                     f"(first: {first[:120]})")
-    lines.append(f"  wall s / episode  {summary['wall_s']:.2f}")
-    if summary.get("control_steps_per_s"):
-        lines.append(f"  control steps / s {summary['control_steps_per_s']:.0f} "
-                     f"(environment and agent, one process)")
-    return "\n".join(lines)
-
-
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m hier_agents.run",
-                                     description=__doc__.split("\n\n")[0])
-    parser.add_argument("env", nargs="?", default=None,
-                        help=f"environment name (default: {DEFAULT_ENV}, {DEFAULT_EPISODES} episodes)")
-    parser.add_argument("--episodes", type=int, default=None)
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--agent", default="modular",
-                        help="modular (default), checkpoint:PATH (a hier_agents.train run "
-                             "directory or checkpoint file), random or random:HOLD (uniform random "
-                             "actions, each held HOLD control steps)")
-    parser.add_argument("--stochastic", action="store_true",
-                        help="checkpoint agents: sample actions from the policy instead of "
-                             "taking its mean")
-    parser.add_argument("--planner", help="planner name (see --list)")
-    parser.add_argument("--skill", help="skill name (see --list)")
-    parser.add_argument("--estimator", help="estimator name (see --list)")
-    parser.add_argument("--levels", help="MuJoBan: a Boxoban file to play in order")
-    parser.add_argument("--env-option", action="append", default=[], metavar="KEY=VALUE",
-                        help="an envs.load override for the modular agent's environment, e.g. "
-                             "physics_timestep=0.005 or sleep=True (repeatable; VALUE is a "
-                             "Python literal)")
-    parser.add_argument("--video", help="write an MP4 of the first episode here")
-    parser.add_argument("--json", help="write the summary here")
-    parser.add_argument("--list", action="store_true", help="list planners and skills and exit")
+    """``python -m hier_agents.run``: plays, prints the table, writes
+    ``--json``; returns the exit status (130 when interrupted by Ctrl-C).
+    Usage errors exit with status 2 (`hier_agents.run_cli`)."""
+    parser = build_parser(__doc__.split("\n\n")[0])
     args = parser.parse_args(argv)
     if args.list:
-        for fam in PLANNERS:
-            names = [f"{name} (privileged)" if getattr(factory, "privileged", False) else name
-                     for name, factory in ESTIMATORS[fam].items()]
-            planners = list(PLANNERS[fam]) + (["learned:PATH"] if fam == "mujoban" else [])
-            print(f"{fam}: planners {planners}, skills {list(SKILLS[fam])}, "
-                  f"estimators {names}")
+        print_components()
         return 0
-    env_name = args.env or DEFAULT_ENV
-    episodes = args.episodes if args.episodes is not None else (
-        DEFAULT_EPISODES if args.env is None else 10)
-    if env_name not in envs.names():
-        parser.error(f"unknown environment {env_name!r}; known: {', '.join(envs.names())}")
-    if episodes < 1:
-        parser.error("--episodes must be >= 1")
-    try:
-        fam = family(env_name)
-    except ValueError as exc:
-        parser.error(str(exc))
-    for kind, table, name in (("planner", PLANNERS, args.planner), ("skill", SKILLS, args.skill),
-                              ("estimator", ESTIMATORS, args.estimator)):
-        if name is not None and name not in table[fam]:
-            extra = " or learned:PATH" if kind == "planner" and fam == "mujoban" else ""
-            parser.error(f"unknown {kind} {name!r} for {fam}; valid: {sorted(table[fam])}{extra}")
-    if args.planner and args.planner.startswith("learned:") and fam == "mujoban":
-        from abstract_planners.learned_options import load_option_policy
-        try:  # a missing or foreign checkpoint fails here, with a usage error
-            load_option_policy(args.planner[len("learned:"):])
-        except (FileNotFoundError, ValueError) as exc:
-            parser.error(f"--planner {args.planner}: {exc}")
-    if args.levels is not None and fam != "mujoban":
-        parser.error("--levels only applies to mujoban environments")
-    env_options = {}
-    for item in args.env_option:
-        key, sep, text = item.partition("=")
-        if not sep or key not in envs.overrides(env_name) or key.endswith("_camera"):
-            valid = [k for k in envs.overrides(env_name) if not k.endswith("_camera")]
-            parser.error(f"--env-option must be KEY=VALUE with KEY one of {valid}, got {item!r}")
-        try:
-            env_options[key] = ast.literal_eval(text)
-        except (ValueError, SyntaxError):
-            env_options[key] = text
-    if env_options:
-        try:  # a bad value fails here, with the environment's own message
-            envs.load(env_name, **envs.no_cameras(env_name), **env_options).close()
-        except (TypeError, ValueError) as exc:
-            parser.error(f"--env-option: {exc}")
-    if args.stochastic and not args.agent.startswith("checkpoint:"):
-        parser.error("--stochastic applies to checkpoint:PATH agents")
-    if args.agent != "modular":
-        if args.agent.startswith("random"):
-            from hier_agents.baselines.impala.evaluate import parse_random
-            try:
-                parse_random(args.agent)
-            except ValueError as exc:
-                parser.error(str(exc))
-        elif not args.agent.startswith("checkpoint:") or args.agent == "checkpoint:":
-            parser.error(f"--agent must be modular, random[:HOLD] or checkpoint:PATH, "
-                         f"got {args.agent!r}")
-        for flag, value in (("--planner", args.planner), ("--skill", args.skill),
-                            ("--estimator", args.estimator), ("--levels", args.levels),
-                            ("--env-option", args.env_option or None)):
-            if value is not None:
-                parser.error(f"{flag} applies to the modular agent, not to {args.agent}")
+    env_name, episodes, env_options = check_args(parser, args)
     try:
         summary = run(env_name, episodes, args.seed, planner=args.planner, skill=args.skill,
                       estimator=args.estimator, levels=args.levels, video=args.video,

@@ -94,6 +94,29 @@ class BoardArena(composer.Arena):
         #: Half-size of a touch sensor's site: a press registers inside it.
         self.pad_half = SENSOR_FRACTION * half
 
+        self._add_scene(offscreen_size, physics_timestep)
+        board, sensor_mat = self._add_points()
+        self.pass_geom = self.pass_site = None
+        if kind == "go":
+            self._add_go_markings(board, sensor_mat)
+        radius, piece_half_height = PIECE_SIZE[kind]
+        if kind == "go" and n != GO_REFERENCE_SIZE:
+            radius *= GO_REFERENCE_SIZE / n
+        self.piece_radius, self.piece_half_height = radius, piece_half_height
+        self.pieces = [
+            root.worldbody.add("geom", name=f"piece_{a}", type="cylinder",
+                               size=(radius, piece_half_height), pos=(0, 0, -1),
+                               group=HIDDEN_GROUP, contype=0, conaffinity=0,
+                               rgba=COLOURS[kind][0])
+            for a in range(n * n)]
+        # The original's front camera, facing the arm and the board (fovy 45).
+        self.front_camera = root.worldbody.add(
+            "camera", name="front_camera", pos=(0.0, -0.6, 0.75),
+            xyaxes=(1.0, 0.0, 0.0, 0.0, 0.7, 0.75))
+
+    def _add_scene(self, offscreen_size, physics_timestep) -> None:
+        """Physics and rendering options, the sky, the ground and the light."""
+        root = self._mjcf_root
         root.option.timestep = float(physics_timestep)
         root.visual.quality.shadowsize = 0
         root.visual.quality.offsamples = 0
@@ -115,6 +138,11 @@ class BoardArena(composer.Arena):
                            specular=(0.3, 0.3, 0.3), directional=False, castshadow=False)
         root.statistic.center = (0.0, 0.0, 0.0)
 
+    def _add_points(self):
+        """The board body: per point a square geom and a touch-sensor site (a
+        wooden board under Go's invisible squares). Returns (board body, the
+        sensor sites' material)."""
+        root, kind, n, half = self._mjcf_root, self.kind, self.size, self.square_half
         cx, cy = self.centre
         board = root.worldbody.add("body", name="board")
         self.board_body = board
@@ -143,41 +171,32 @@ class BoardArena(composer.Arena):
                              pos=(x, y, BOARD_TOP), material=sensor_mat,
                              group=composer.SENSOR_SITES_GROUP)
             self.sensor_sites.append(site)
-        self.pass_geom = self.pass_site = None
-        if kind == "go":
-            pass_size = (2 * half * n, half * n, 0.5 * SQUARE_HALF_HEIGHT)
-            self.pass_geom = board.add("geom", name="pass", type="box", size=pass_size,
-                                       pos=(cx, cy, 0.0), rgba=(0, 1, 0, 0),
-                                       group=HIDDEN_GROUP)
-            self.pass_site = board.add("site", name="pass", type="box", size=pass_size,
-                                       pos=(cx, cy, 0.0), material=sensor_mat,
-                                       group=composer.SENSOR_SITES_GROUP)
-            line_rgba = (0.1, 0.08, 0.05, 1)
-            line_half = 0.002
-            extent = (n - 1) * half
-            z = BOARD_TOP + 0.0005
-            for k in range(n):
-                o = (k - (n - 1) / 2) * self.spacing
-                board.add("geom", name=f"line_x_{k}", type="box", pos=(cx, cy + o, z),
-                          size=(extent + line_half, line_half, 0.0005), rgba=line_rgba,
-                          contype=0, conaffinity=0)
-                board.add("geom", name=f"line_y_{k}", type="box", pos=(cx + o, cy, z),
-                          size=(line_half, extent + line_half, 0.0005), rgba=line_rgba,
-                          contype=0, conaffinity=0)
-        radius, piece_half_height = PIECE_SIZE[kind]
-        if kind == "go" and n != GO_REFERENCE_SIZE:
-            radius *= GO_REFERENCE_SIZE / n
-        self.piece_radius, self.piece_half_height = radius, piece_half_height
-        self.pieces = [
-            root.worldbody.add("geom", name=f"piece_{a}", type="cylinder",
-                               size=(radius, piece_half_height), pos=(0, 0, -1),
-                               group=HIDDEN_GROUP, contype=0, conaffinity=0,
-                               rgba=COLOURS[kind][0])
-            for a in range(n * n)]
-        # The original's front camera, facing the arm and the board (fovy 45).
-        self.front_camera = root.worldbody.add(
-            "camera", name="front_camera", pos=(0.0, -0.6, 0.75),
-            xyaxes=(1.0, 0.0, 0.0, 0.0, 0.7, 0.75))
+        return board, sensor_mat
+
+    def _add_go_markings(self, board, sensor_mat) -> None:
+        """Go's pass area (a hidden geom and its sensor site around the board)
+        and the board's lines."""
+        cx, cy = self.centre
+        n, half = self.size, self.square_half
+        pass_size = (2 * half * n, half * n, 0.5 * SQUARE_HALF_HEIGHT)
+        self.pass_geom = board.add("geom", name="pass", type="box", size=pass_size,
+                                   pos=(cx, cy, 0.0), rgba=(0, 1, 0, 0),
+                                   group=HIDDEN_GROUP)
+        self.pass_site = board.add("site", name="pass", type="box", size=pass_size,
+                                   pos=(cx, cy, 0.0), material=sensor_mat,
+                                   group=composer.SENSOR_SITES_GROUP)
+        line_rgba = (0.1, 0.08, 0.05, 1)
+        line_half = 0.002
+        extent = (n - 1) * half
+        z = BOARD_TOP + 0.0005
+        for k in range(n):
+            o = (k - (n - 1) / 2) * self.spacing
+            board.add("geom", name=f"line_x_{k}", type="box", pos=(cx, cy + o, z),
+                      size=(extent + line_half, line_half, 0.0005), rgba=line_rgba,
+                      contype=0, conaffinity=0)
+            board.add("geom", name=f"line_y_{k}", type="box", pos=(cx + o, cy, z),
+                      size=(line_half, extent + line_half, 0.0005), rgba=line_rgba,
+                      contype=0, conaffinity=0)
 
     def point_position(self, action: int) -> tuple[float, float]:
         """World (x, y) of board point ``action``."""

@@ -121,6 +121,24 @@ class MujobanArena(composer.Arena):
         if sleep:  # a deviation: resting bodies are frozen until touched
             root.option.flag.sleep = "enable"
 
+        self._set_visual(offscreen_size, multisamples)
+        self._add_textures_and_floor()
+        maze_size = max(height, width) * cell_size
+        fovy = float(np.rad2deg(2 * np.arctan2(TOP_CAMERA_PADDING * maze_size / 2,
+                                               TOP_CAMERA_DISTANCE)))
+        self.top_camera = root.worldbody.add(
+            "camera", name="top_camera", pos=(0, 0, TOP_CAMERA_DISTANCE),
+            xyaxes=(1, 0, 0, 0, 1, 0), fovy=fovy)
+
+        self._add_cells(wall_slabs)
+        self.pegs = []
+        if pegs:
+            self._add_pegs()
+
+    def _set_visual(self, offscreen_size, multisamples) -> None:
+        """Rendering options: no shadows, ``multisamples``, the offscreen
+        buffer size, the headlight (the scene's only light)."""
+        root = self._mjcf_root
         root.visual.quality.shadowsize = 0
         self.multisamples = int(multisamples)
         root.visual.quality.offsamples = self.multisamples
@@ -131,6 +149,11 @@ class MujobanArena(composer.Arena):
         root.visual.headlight.specular = (0.0, 0.0, 0.0)
         root.visual.map.znear = 0.01
 
+    def _add_textures_and_floor(self) -> None:
+        """The sky, every wall and floor texture of the style, the wall and
+        floor materials and the floor plane."""
+        root, cell_size = self._mjcf_root, self.cell_size
+        height, width = self.grid_shape
         sky = labmaze_assets.get_sky_texture_paths(SKY_STYLE)
         root.asset.add("texture", name="skybox", type="skybox", fileleft=sky.left,
                        fileright=sky.right, fileup=sky.up, filedown=sky.down,
@@ -158,13 +181,11 @@ class MujobanArena(composer.Arena):
             # boxes touch the floor only through the task's contact pairs.
             condim=3, friction=(1.0, 0.005, 0.0001))
 
-        maze_size = max(height, width) * cell_size
-        fovy = float(np.rad2deg(2 * np.arctan2(TOP_CAMERA_PADDING * maze_size / 2,
-                                               TOP_CAMERA_DISTANCE)))
-        self.top_camera = root.worldbody.add(
-            "camera", name="top_camera", pos=(0, 0, TOP_CAMERA_DISTANCE),
-            xyaxes=(1, 0, 0, 0, 1, 0), fovy=fovy)
-
+    def _add_cells(self, wall_slabs) -> None:
+        """Per cell a hidden collision box (a wall when the level says so), a
+        pool of render-only wall slabs and one target pad per box."""
+        root, cell_size = self._mjcf_root, self.cell_size
+        height, width = self.grid_shape
         hc = cell_size / 2
         self.wall_cells = []  # [row][col] collision geoms
         for r in range(height):
@@ -202,27 +223,30 @@ class MujobanArena(composer.Arena):
                                rgba=PAD_RGBA)
             for i in range(self.max_boxes)]
 
-        self.pegs = []
-        if pegs:
-            centres = []
-            for r in range(1, height):
-                for c in range(1, width):
-                    x, y = self.cell_centre(r, c)
-                    x, y = x - hc, y + hc  # top-left corner of cell (r, c)
-                    centres.append((x, y))
-                    half = PEG_RADIUS / np.sqrt(2)
-                    self.pegs.append(root.worldbody.add(
-                        "geom", name=f"peg_{r}_{c}", type="box",
-                        size=(half, half, PEG_HEIGHT / 2), pos=(x, y, PEG_HEIGHT / 2),
-                        quat=(np.cos(np.pi / 8), 0, 0, np.sin(np.pi / 8)),
-                        group=HIDDEN_GROUP, rgba=(0, 0, 0, 0),
-                        contype=0, conaffinity=WALKER_BIT | BOX_BIT, condim=3))
-            # Four sides with corners on the grid lines: the turned square.
-            vert, face = _peg_mesh(np.asarray(centres), PEG_RADIUS, PEG_HEIGHT, sides=4)
-            root.asset.add("mesh", name="pegs_mesh", vertex=vert, face=face)
-            root.worldbody.add("geom", name="pegs_visual", type="mesh", mesh="pegs_mesh",
-                               contype=0, conaffinity=0, rgba=PEG_RGBA,
-                               mass=0, density=0)
+    def _add_pegs(self) -> None:
+        """Pegs at the inner grid corners: hidden collision boxes turned 45
+        degrees and one visual mesh of all of them."""
+        root, hc = self._mjcf_root, self.cell_size / 2
+        height, width = self.grid_shape
+        centres = []
+        for r in range(1, height):
+            for c in range(1, width):
+                x, y = self.cell_centre(r, c)
+                x, y = x - hc, y + hc  # top-left corner of cell (r, c)
+                centres.append((x, y))
+                half = PEG_RADIUS / np.sqrt(2)
+                self.pegs.append(root.worldbody.add(
+                    "geom", name=f"peg_{r}_{c}", type="box",
+                    size=(half, half, PEG_HEIGHT / 2), pos=(x, y, PEG_HEIGHT / 2),
+                    quat=(np.cos(np.pi / 8), 0, 0, np.sin(np.pi / 8)),
+                    group=HIDDEN_GROUP, rgba=(0, 0, 0, 0),
+                    contype=0, conaffinity=WALKER_BIT | BOX_BIT, condim=3))
+        # Four sides with corners on the grid lines: the turned square.
+        vert, face = _peg_mesh(np.asarray(centres), PEG_RADIUS, PEG_HEIGHT, sides=4)
+        root.asset.add("mesh", name="pegs_mesh", vertex=vert, face=face)
+        root.worldbody.add("geom", name="pegs_visual", type="mesh", mesh="pegs_mesh",
+                           contype=0, conaffinity=0, rgba=PEG_RGBA,
+                           mass=0, density=0)
 
     def cell_centre(self, row: int, col: int) -> tuple[float, float]:
         height, width = self.grid_shape

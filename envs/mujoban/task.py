@@ -291,6 +291,33 @@ class Mujoban(PhysicsTask):
         self._box_qpos, self._box_dof = box_qpos[:, :2], box_dof[:, :2]  # x, y
         self._box_z_qpos, self._box_all_dof = box_qpos[:, 2], box_dof
 
+        self._bind_walker(bind)
+        self._box_qpos_list = [tuple(map(int, row)) for row in self._box_qpos]
+        self._active_box_qpos = []
+        self._box_reference = []
+        # Views of MjData's arrays (mj_resetData keeps the buffers), so the
+        # per-step code skips the attribute lookups.
+        d = self._data
+        self._qpos, self._qvel, self._qfrc_actuator = d.qpos, d.qvel, d.qfrc_actuator
+        self._xpos, self._xmat, self._sensordata, self._ctrl = d.xpos, d.xmat, d.sensordata, d.ctrl
+        # Constants of world -> cell rounding, for the per-step estimate.
+        self._rounding = (1.0 / self.cell_size, (width - 1) / 2, (height - 1) / 2,
+                          height - 1, width - 1)
+        self._static_layer = np.zeros((height, width, 4), bool)
+        self._targets: list[tuple[int, int]] = []
+        self._target_xy: list[tuple[float, float]] = []
+        self._player_cell = (0, 0)
+        self._box_cells: tuple[tuple[int, int], ...] = ()
+        self._covered: tuple[bool, ...] = ()
+        self._set_layers((), (0, 0))
+        self._num_boxes = 0
+        self._reward = 0.0
+        self._solved = False
+        self._fell = False
+
+    def _bind_walker(self, bind) -> None:
+        """Compiled addresses of the walker's joints, actuators, head body and
+        sensors (``bind`` = ``physics.bind``), and its aliveness rule."""
         walker_model = self._walker.mjcf_model
         root_joints = self._walker._root_joints  # pylint: disable=protected-access
         self._walker_root_qpos = [int(a) for a in np.ravel([bind(j).qposadr for j in root_joints])]
@@ -327,28 +354,6 @@ class Mujoban(PhysicsTask):
             "walker/sensors_gyro": sensor_slice("sensor_torso_gyro"),
             "walker/sensors_velocimeter": sensor_slice("sensor_torso_vel"),
         }
-        self._box_qpos_list = [tuple(map(int, row)) for row in self._box_qpos]
-        self._active_box_qpos = []
-        self._box_reference = []
-        # Views of MjData's arrays (mj_resetData keeps the buffers), so the
-        # per-step code skips the attribute lookups.
-        d = self._data
-        self._qpos, self._qvel, self._qfrc_actuator = d.qpos, d.qvel, d.qfrc_actuator
-        self._xpos, self._xmat, self._sensordata, self._ctrl = d.xpos, d.xmat, d.sensordata, d.ctrl
-        # Constants of world -> cell rounding, for the per-step estimate.
-        self._rounding = (1.0 / self.cell_size, (width - 1) / 2, (height - 1) / 2,
-                          height - 1, width - 1)
-        self._static_layer = np.zeros((height, width, 4), bool)
-        self._targets: list[tuple[int, int]] = []
-        self._target_xy: list[tuple[float, float]] = []
-        self._player_cell = (0, 0)
-        self._box_cells: tuple[tuple[int, int], ...] = ()
-        self._covered: tuple[bool, ...] = ()
-        self._set_layers((), (0, 0))
-        self._num_boxes = 0
-        self._reward = 0.0
-        self._solved = False
-        self._fell = False
 
     def initialize_episode(self, physics, random_state):
         level = self._level_source(random_state)

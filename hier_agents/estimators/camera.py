@@ -31,16 +31,10 @@ are measured shrunk by `CameraDescription.coverage_inset`.
 
 ``reset`` reads the static grid from the first frame:
 
-* targets: cells at least 12% pad-coloured or covered by a box in its
-  on-a-pad colour (a centred box leaves a thin ring of the pad visible);
-* walls: every wall cell shows the same texture (one copy per cell, the
-  same phase), and the floor cells another. The grid's outer ring is walls
-  (Boxoban levels have a wall border; smaller generated levels are padded
-  with walls), so a cell is a wall when its colour distribution (7
-  quantiles per channel over its top, at wall height) is within
-  `WALL_MATCH` (mean absolute difference) of one ring cell's, and all its
-  colours are wall colours (none more than ~8 levels from every ring
-  colour). Walls and targets are static: read once per episode.
+* targets (pads) and walls, by their colours and textures
+  (`hier_agents.estimators.camera_grid`: the grid's outer ring is walls, and
+  a cell is a wall when its colour distribution matches a ring cell's).
+  Walls and targets are static: read once per episode.
 * boxes: as below; their number must equal the number of pads, and their
   order is by cell (the task's order).
 
@@ -53,14 +47,16 @@ Per frame (``estimate``):
   visible ear outlines (least squares); then refine to sub-pixel by matching
   rendered silhouettes (frames are not antialiased: a pixel shows an ear
   when its centre is on it; nearer ear in front, walls hiding both) over a
-  grid of candidate centres, keeping the mean of the best.
+  grid of candidate centres, keeping the mean of the best
+  (`hier_agents.estimators.camera_ears`).
 * boxes: connected components of box-coloured pixels inside non-wall cells;
   a component holding several touching boxes (by area) is split by k-means.
   A box is an axis-aligned 0.8-cell square that never turns: along each axis
   the first and last box pixel bound each edge within a pixel and the known
   side length narrows the centre to their intersection (the frame size,
   199 px, makes the side 14.5 px, which halves that interval); when an ear
-  hides one side, the far edge minus half the side. Boxes keep their order
+  hides one side, the far edge minus half the side
+  (`hier_agents.estimators.camera_boxes`). Boxes keep their order
   (optimal assignment to the previous positions).
 * heading and velocity: proprioception (`skills.scene.heading_from_orientation`,
   `skills.scene.world_velocity`).
@@ -100,10 +96,15 @@ original environment's own frames: ``benchmarks/original_env.py``.
 from __future__ import annotations
 
 import numpy as np
-from scipy import ndimage
 from scipy.optimize import linear_sum_assignment
 
 from hier_agents.estimators.base import EstimationError, Estimator
+from hier_agents.estimators.camera_boxes import find_boxes
+from hier_agents.estimators.camera_ears import (EAR_HEIGHT, EAR_OFFSET, EAR_RADIUS,  # noqa: F401
+                                                locate_walker)
+from hier_agents.estimators.camera_grid import (QUANTILES as _QUANTILES,  # noqa: F401
+                                                WALL_MATCH, cell_pixel_index, grid_to_world,
+                                                read_targets, read_walls, wall_footprint)
 from hier_agents.estimators.colours import masks as _masks
 from hier_agents.estimators.grid import rounded_state
 from skills.scene import BallScene, heading_from_orientation, world_velocity
@@ -130,22 +131,8 @@ BOX_DECEL = 4.9
 #: The walker counts as touching a box up to this far (m) beyond contact.
 CONTACT_SLACK = 0.03
 
-# Scene geometry (metres) the estimator relies on; public facts of the walker
-# model (dm_control's RollingBallWithHead with ears) and the props.
-EAR_RADIUS = 0.26
-EAR_OFFSET = 0.22
-EAR_HEIGHT = 0.6
+#: Wall tops (m) above the floor.
 WALL_HEIGHT = 1.0
-#: Quantiles (percent) of a cell's colours compared between cells, and the
-#: largest mean absolute difference (0..255 units) of a wall match. With the
-#: environment's 8 wall and 6 floor textures (all 48 pairs, 6 Boxoban levels,
-#: pegs and not) wall cells differ from the ring's by at most 0.54 (sub-pixel
-#: sampling), free floor cells by at least 7.5 (blue walls on the blue_team
-#: floor; every other pair >= 15.9); the threshold sits between, nearer the
-#: walls. A floor cell below it is still told apart when some of its colours
-#: are not wall colours at all (`CameraEstimator._foreign_fraction`).
-_QUANTILES = (2, 10, 25, 50, 75, 90, 98)
-WALL_MATCH = 3.0
 
 
 class CameraEstimator(Estimator):
@@ -241,107 +228,33 @@ class CameraEstimator(Estimator):
         self._walker_reads = 0    # frames read since the walker was last located
 
     def _read_static(self, frame, masks):
-        desc = self._desc
-        height, width = desc.grid_shape
-        # Pads (z = 0): a cell is a target when enough of it is pad-coloured
-        # (a centred box leaves a 0.1-cell ring of the pad visible).
-        pr, pc, pin = self._cell_index(0.0, margin=0.05)
-        ok = pin & (pr >= 0) & (pr < height) & (pc >= 0) & (pc < width)
-        pad_count = np.zeros((height, width))
-        all_count = np.zeros((height, width))
-        # A box's top in its on-a-pad colour shows a pad under it too (with
-        # multisampling the covered pad's ring is only ~1 pixel wide).
-        np.add.at(pad_count, (pr[ok], pc[ok]), (masks["pad"] | masks["box_on_pad"])[ok])
-        np.add.at(all_count, (pr[ok], pc[ok]), 1)
-        pad_frac = pad_count / np.maximum(all_count, 1)
-        targets = frozenset((int(r), int(c)) for r, c in zip(*np.nonzero(pad_frac > 0.12)))
-
-        # Every wall cell shows one copy of the episode's wall texture, every
-        # floor cell one of its floor texture. A cell is a wall when the distribution of its
-        # colours (per-channel quantiles over the cell's top at wall height)
-        # matches one of the outer ring's cells, which are all walls.
-        sig = self._signatures(frame)
-        ring = np.zeros((height, width), bool)
-        ring[0, :] = ring[-1, :] = ring[:, 0] = ring[:, -1] = True
-        ring_sigs = sig[ring]
-        pair = np.abs(ring_sigs[:, None, :] - ring_sigs[None, :, :]).mean(-1)
-        np.fill_diagonal(pair, np.inf)
-        unmatched = int(np.sum(pair.min(1) >= WALL_MATCH))
-        if unmatched > len(ring_sigs) // 10:
-            raise EstimationError(f"reset: {unmatched} of the grid's {len(ring_sigs)} outer "
-                                  f"cells do not look like the others (no wall border?)")
-        dist = np.abs(sig[:, :, None, :] - ring_sigs[None, None, :, :]).mean(-1).min(-1)
-        walls = (dist < WALL_MATCH) & (self._foreign_fraction(frame, ring) < 0.02)
-        walls[0, :] = walls[-1, :] = walls[:, 0] = walls[:, -1] = True
-        for t in targets:
-            walls[t] = False
-        return (frozenset((int(r), int(c)) for r, c in zip(*np.nonzero(walls))), targets)
-
-    def _foreign_fraction(self, frame, ring) -> np.ndarray:
-        """(H, W): per cell, the fraction of its pixels (as in `_signatures`)
-        whose colour is more than ~8 levels (any channel) from every colour
-        of the ring cells. A wall cell has none (measured: exactly 0)."""
-        height, width = self._desc.grid_shape
-        order, starts = self._sig_index
-        q = frame.reshape(-1, 3)[order] // 4
-        code = (q[:, 0].astype(np.int32) * 64 + q[:, 1]) * 64 + q[:, 2]
-        seen = np.zeros(64 ** 3, np.uint8)
-        for k in np.flatnonzero(ring.ravel()):
-            seen[code[starts[k]:starts[k + 1]]] = 1
-        seen = ndimage.maximum_filter(seen.reshape(64, 64, 64), size=5).ravel().astype(bool)
-        out = np.zeros(height * width)
-        for k in range(height * width):
-            if starts[k + 1] > starts[k]:
-                out[k] = 1.0 - seen[code[starts[k]:starts[k + 1]]].mean()
-        return out.reshape(height, width)
-
-    def _signatures(self, frame) -> np.ndarray:
-        """(H, W, 21): per cell, the 2/10/25/50/75/90/98 % quantiles of each
-        colour channel over the cell's central 0.9 x 0.9 at wall-top height."""
-        height, width = self._desc.grid_shape
+        """(walls, targets): frozensets of (row, col) cells read from the
+        reset frame (`hier_agents.estimators.camera_grid`)."""
+        shape = self._desc.grid_shape
+        # Pads (z = 0). A box's top in its on-a-pad colour shows a pad under
+        # it too (with multisampling the covered pad's ring is ~1 pixel wide).
+        targets = read_targets(masks["pad"] | masks["box_on_pad"],
+                               self._cell_index(0.0, margin=0.05), shape)
+        # Walls: per-cell colour distributions at wall-top height.
         if self._sig_index is None:
-            r, c, inside = self._cell_index(WALL_HEIGHT, margin=0.05)
-            ok = inside & (r >= 0) & (r < height) & (c >= 0) & (c < width)
-            flat = np.where(ok, r * width + c, -1).ravel()
-            order = np.argsort(flat, kind="stable")
-            flat_sorted = flat[order]
-            starts = np.searchsorted(flat_sorted, np.arange(height * width + 1))
-            self._sig_index = (order, starts)
-        order, starts = self._sig_index
-        pixels = frame.reshape(-1, 3)[order].astype(np.float32)
-        out = np.zeros((height * width, 3 * len(_QUANTILES)), np.float32)
-        for k in range(height * width):
-            px = pixels[starts[k]:starts[k + 1]]
-            if len(px):
-                out[k] = np.percentile(px, _QUANTILES, axis=0).T.ravel()
-        return out.reshape(height, width, -1)
+            self._sig_index = cell_pixel_index(self._cell_index(WALL_HEIGHT, margin=0.05), shape)
+        return read_walls(frame, self._sig_index, targets, shape), targets
 
     def _precompute_masks(self) -> None:
         """Pixel masks of the wall footprint: the cells whose walls hide the
         ears (z 0.34..0.86 m) and a safety band around walls for boxes."""
         height, width = self._desc.grid_shape
-
-        def wall_at(z, margin=0.0):
-            g = self._grid[z]
-            out = np.zeros(g.shape[:2], bool)
-            rc = np.floor(g + 0.5 + margin).astype(int), np.floor(g + 0.5 - margin).astype(int)
-            for a in rc:
-                for b in rc:
-                    r, c = a[..., 0], b[..., 1]
-                    ok = (r >= 0) & (r < height) & (c >= 0) & (c < width)
-                    hit = np.zeros_like(out)
-                    hit[ok] = self._wall_grid[r[ok], c[ok]]
-                    out |= hit
-            return out
-
         g0 = self._grid[0.0]
         outside = ((g0[..., 0] < -0.5) | (g0[..., 0] > height - 0.5)
                    | (g0[..., 1] < -0.5) | (g0[..., 1] > width - 0.5))
-        self._occluder = wall_at(WALL_HEIGHT) | wall_at(EAR_HEIGHT)
+        walls = self._wall_grid
+        self._occluder = (wall_footprint(self._grid[WALL_HEIGHT], walls)
+                          | wall_footprint(self._grid[EAR_HEIGHT], walls))
         # Box pixels must lie (at box height) in a non-wall cell, away from
         # the walls' footprint by a small band.
-        self._box_allowed = ~(wall_at(self._box_z, margin=0.04)
-                              | wall_at(WALL_HEIGHT, margin=0.04) | outside)
+        self._box_allowed = ~(wall_footprint(self._grid[self._box_z], walls, margin=0.04)
+                              | wall_footprint(self._grid[WALL_HEIGHT], walls, margin=0.04)
+                              | outside)
 
     # -- per frame ----------------------------------------------------------
 
@@ -352,198 +265,27 @@ class CameraEstimator(Estimator):
             return None
 
     def _find_walker(self, masks, timestep) -> np.ndarray:
-        """World (x, y) of the walker from its ears' silhouettes."""
-        red, blue = masks["red_ear"], masks["blue_ear"]
-        ears = red | blue
-        n = int(ears.sum())
-        px_area = self._m_per_px[EAR_HEIGHT] ** 2
-        full = (2 * np.pi * EAR_RADIUS ** 2) / px_area
-        if n < 0.1 * full:
-            raise EstimationError(f"walker not found: {n} ear pixels (expected ~{full:.0f})")
-        rows, cols = np.nonzero(ears)
-        grid = self._grid[EAR_HEIGHT]
-        obs_g = grid[rows, cols].mean(axis=0)            # grid coords (row, col)
-        centre = self._grid_to_world(obs_g)
+        """World (x, y) of the walker from its ears' silhouettes
+        (`hier_agents.estimators.camera_ears.locate_walker`)."""
         heading = heading_from_orientation(timestep.observation["walker/orientation"])
-        lateral = np.array([np.sin(heading), -np.cos(heading)])
-        # Refine against the wall occlusion (only when walls are near).
-        r0, r1 = rows.min(), rows.max() + 1
-        c0, c1 = cols.min(), cols.max() + 1
-        pad = int(np.ceil(EAR_RADIUS * 2 / self._m_per_px[EAR_HEIGHT])) + 2
-        h, w = ears.shape
-        r0, c0 = max(r0 - pad, 0), max(c0 - pad, 0)
-        r1, c1 = min(r1 + pad, h), min(c1 + pad, w)
-        occ = self._occluder[r0:r1, c0:c1] | masks["unsure"][r0:r1, c0:c1]
-        world = self._grid_to_world(grid[r0:r1, c0:c1])
-        red_w, blue_w = red[r0:r1, c0:c1], blue[r0:r1, c0:c1]
-        if occ.any():
-            centre = self._fit_ears(centre, lateral, red_w, blue_w, occ, world, self._ear_radius)
-        step = self._m_per_px[EAR_HEIGHT]
-        for span, n in ((1.0, 17), (0.15, 13)):
-            centre = self._match_ears(centre, lateral, red_w, blue_w, occ, world, self._ear_radius,
-                                      np.linspace(-span, span, n) * step)
-        return centre
-
-    @staticmethod
-    def _match_ears(centre, lateral, red, blue, occ, world, radius, offsets):
-        """Sub-pixel refinement: a pixel shows an ear when its centre is on
-        the ear's disk of ``radius`` (the outline shrunk by the coverage
-        inset); among candidate centres (``centre`` + a grid of ``offsets``)
-        keep those whose silhouettes (nearer ear in front, walls hiding both)
-        disagree with the observed ones on fewest pixels, and return their
-        mean. Only pixels whose prediction can differ between candidates are
-        compared: within the largest shift of an ear's outline or of the line
-        between the ears (the others add the same count to every candidate)."""
-        vis = ~occ
-        pts = world[vis]                                   # (n, 2)
-        shift = float(np.max(np.abs(offsets))) * np.sqrt(2.0) + 1e-9
-        dr0 = np.linalg.norm(pts - (np.asarray(centre) + EAR_OFFSET * lateral), axis=1)
-        db0 = np.linalg.norm(pts - (np.asarray(centre) - EAR_OFFSET * lateral), axis=1)
-        near = ((np.abs(dr0 - radius) <= shift) | (np.abs(db0 - radius) <= shift)
-                | (np.abs(dr0 - db0) <= 2 * shift))
-        vis[vis] = near
-        pts = pts[near]
-        obs_r, obs_b = red[vis], blue[vis]
-        dx, dy = np.meshgrid(offsets, offsets, indexing="ij")
-        cands = np.asarray(centre)[None, :] + np.stack([dx.ravel(), dy.ravel()], 1)
-        er = cands + EAR_OFFSET * lateral                  # (m, 2)
-        eb = cands - EAR_OFFSET * lateral
-        dr = ((pts[None, :, 0] - er[:, None, 0]) ** 2 + (pts[None, :, 1] - er[:, None, 1]) ** 2)
-        db = ((pts[None, :, 0] - eb[:, None, 0]) ** 2 + (pts[None, :, 1] - eb[:, None, 1]) ** 2)
-        r2 = radius ** 2
-        pred_r = (dr <= r2) & (dr <= db)
-        pred_b = (db <= r2) & (db < dr)
-        miss = (pred_r != obs_r[None]).sum(1) + (pred_b != obs_b[None]).sum(1)
-        best = cands[miss == miss.min()]
-        return best.mean(axis=0)
-
-    @staticmethod
-    def _fit_ears(centre, lateral, red, blue, occ, world, radius):
-        """Least-squares fit of the walker's centre to the ears' visible
-        outlines: every ear pixel next to a pixel that is neither ear nor wall
-        gives an edge point (the two pixels' midpoint) that lies on its ear's
-        circle. Used when walls hide part of an ear (the centroid is then
-        biased)."""
-        points, signs = [], []
-        for ear, other, sign in ((red, blue, 1.0), (blue, red, -1.0)):
-            for dr, dc in ((1, 0), (-1, 0), (0, 1), (0, -1)):
-                inner = ear[max(-dr, 0):ear.shape[0] - max(dr, 0),
-                            max(-dc, 0):ear.shape[1] - max(dc, 0)]
-                sl = (slice(max(dr, 0), ear.shape[0] + min(dr, 0)),
-                      slice(max(dc, 0), ear.shape[1] + min(dc, 0)))
-                outer_ok = ~ear[sl] & ~other[sl] & ~occ[sl]
-                hit = inner & outer_ok
-                if not hit.any():
-                    continue
-                pin = world[max(-dr, 0):ear.shape[0] - max(dr, 0),
-                            max(-dc, 0):ear.shape[1] - max(dc, 0)][hit]
-                pout = world[sl][hit]
-                points.append(0.5 * (pin + pout))
-                signs.append(np.full(len(pin), sign))
-        if not points:
-            return centre
-        pts = np.concatenate(points)
-        off = np.concatenate(signs)[:, None] * EAR_OFFSET * lateral[None, :]
-        keep = np.ones(len(pts), bool)
-        c = np.asarray(centre, float)
-        for it in range(8):
-            d = pts - (c + off)
-            dist = np.linalg.norm(d, axis=1)
-            res = dist - radius
-            if it >= 2:
-                keep = np.abs(res) < 0.06
-            if keep.sum() < 6:
-                break
-            jac = -d[keep] / np.maximum(dist[keep], 1e-9)[:, None]
-            step, *_ = np.linalg.lstsq(jac, -res[keep], rcond=None)
-            c = c + step
-            if np.abs(step).max() < 1e-5:
-                break
-        return c
+        return locate_walker(masks["red_ear"], masks["blue_ear"],
+                             self._occluder | masks["unsure"], self._grid[EAR_HEIGHT],
+                             self._m_per_px[EAR_HEIGHT], heading, self._ear_radius,
+                             self._grid_to_world)
 
     def _grid_to_world(self, g) -> np.ndarray:
-        desc = self._desc
-        height, width = desc.grid_shape
-        g = np.asarray(g, float)
-        x = (g[..., 1] - (width - 1) / 2) * desc.cell_size
-        y = ((height - 1) / 2 - g[..., 0]) * desc.cell_size
-        return np.stack([x, y], axis=-1)
+        return grid_to_world(self._desc, g)
 
     def _detect_boxes(self, frame, masks, walker_xy) -> list:
         """World (x, y) of every box seen."""
         desc = self._desc
-        box = masks["box"] & self._box_allowed
-        labels, n = ndimage.label(box)
-        if n == 0:
-            return []
-        grid = self._grid[self._box_z]
         px = self._m_per_px[self._box_z] / desc.cell_size          # cells per pixel
         # box side (cells) as seen: pixels fully covered by the box's top
         side = 2 * desc.box_half / desc.cell_size - 2 * self._inset * px
-        area1 = (side / px) ** 2                             # pixels per box
-        objs = ndimage.find_objects(labels)
         walker_g = (None if walker_xy is None else desc.world_to_grid(np.asarray(walker_xy)))
-        found = []
-        for k, sl in enumerate(objs, start=1):
-            comp = labels[sl] == k
-            area = comp.sum()
-            if area < 0.12 * area1:
-                continue
-            g = grid[sl][comp]                                # (n, 2) grid coords
-            count = max(1, int(round(area / (0.93 * area1))))
-            if count == 1:
-                groups = [g]
-            else:
-                groups = self._split(g, count)
-            for pts in groups:
-                found.append(self._box_centre(pts, side, px, walker_g))
+        found = find_boxes(masks["box"] & self._box_allowed, self._grid[self._box_z], side, px,
+                           walker_g)
         return [self._grid_to_world(c) for c in found]
-
-    @staticmethod
-    def _split(points, k):
-        """k-means (a few iterations) of pixel grid coordinates."""
-        # Initialise with farthest-point seeding.
-        centres = [points[0]]
-        for _ in range(1, k):
-            d = np.min([np.sum((points - c) ** 2, 1) for c in centres], axis=0)
-            centres.append(points[int(np.argmax(d))])
-        centres = np.asarray(centres, float)
-        for _ in range(10):
-            d = np.stack([np.sum((points - c) ** 2, 1) for c in centres], 1)
-            lab = np.argmin(d, 1)
-            new = np.asarray([points[lab == j].mean(0) if np.any(lab == j) else centres[j]
-                              for j in range(k)])
-            if np.allclose(new, centres):
-                break
-            centres = new
-        return [points[lab == j] for j in range(k) if np.any(lab == j)]
-
-    @staticmethod
-    def _box_centre(pts, side, px, walker_g):
-        """Grid (row, col) of a box's centre from its visible pixels (their
-        centres' grid coordinates ``pts``; ``px`` cells per pixel).
-
-        Frames are not antialiased: a pixel is box-coloured when its centre
-        lies on the box, so the first and last box pixel along an axis bound
-        each edge within one pixel; with the known side length the centre
-        lies in the intersection of the two bounds (its midpoint is taken).
-        When the blob is shorter than the box (an ear hides one side) only
-        the far edge is used.
-        """
-        centre = np.empty(2)
-        for axis in range(2):
-            v = pts[:, axis]
-            vmin, vmax = v.min(), v.max()
-            span = vmax - vmin + px
-            if span >= side - 1.2 * px or walker_g is None:
-                lo = max(vmin - px + side / 2, vmax - side / 2)
-                hi = min(vmin + side / 2, vmax + px - side / 2)
-                centre[axis] = 0.5 * (lo + hi) if lo <= hi else 0.5 * (vmin + vmax)
-            elif abs(walker_g[axis] - vmin) < abs(walker_g[axis] - vmax):
-                centre[axis] = vmax + px / 2 - side / 2   # near side hidden
-            else:
-                centre[axis] = vmin - px / 2 + side / 2
-        return centre
 
     def estimate(self, timestep) -> BallScene:
         """The scene of ``timestep``: from its frame when one is due (see

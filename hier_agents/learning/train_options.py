@@ -35,15 +35,15 @@ Sokoban move ``U``/``D``/``L``/``R`` that the ball skill carries out in MuJoCo
 * **Reward** = the environment's (+1 when a box comes onto a pad, -1 when
   one leaves, +10 when the level is solved) **plus potential-based shaping**
   in its semi-MDP form (Ng et al. 1999; the optimal policy is unchanged),
-  added by the `Shaped` wrapper: ``F = gamma^d Phi(s') - Phi(s)``,
-  ``Phi(s) = -(--shape-box * sum over boxes off pads of the box's distance
-  to the nearest pad + --shape-player * the player's walking distance to a
-  cell next to a box off its pad)`` (1.0 and 0.1; ``Phi`` of a solved or
-  terminal state is 0). ``--box-distance walk`` (default) is the walking
-  distance around walls; ``push`` counts the pushes that bring the box alone
-  onto a pad (dead cells far). ``push`` learned *slower* (level-2 greedy
-  solve rate on abstract levels after 150k steps: 53% against 81% with
-  ``walk``; ``results/option_policy/README.md``).
+  added by the `Shaped` wrapper (`hier_agents.learning.option_shaping`):
+  ``F = gamma^d Phi(s') - Phi(s)``, ``Phi(s) = -(--shape-box * sum over
+  boxes off pads of the box's distance to the nearest pad + --shape-player *
+  the player's walking distance to a cell next to a box off its pad)`` (1.0
+  and 0.1; ``Phi`` of a solved or terminal state is 0). ``--box-distance
+  walk`` (default) is the walking distance around walls; ``push`` counts
+  the pushes that bring the box alone onto a pad (dead cells far). ``push``
+  learned *slower* (level-2 greedy solve rate on abstract levels after 150k
+  steps: 53% against 81% with ``walk``; ``results/option_policy/README.md``).
 * **Optional abstract warm start** (``--abstract-steps A``, default 0): PPO
   first runs the same network for ``A`` option steps on `AbstractOptionEnv`
   (the same levels without MuJoCo: the planners' Sokoban model, the
@@ -86,7 +86,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
 import resource
 import shlex
 import sys
@@ -94,231 +93,27 @@ import time
 from collections import deque
 from pathlib import Path
 
-import gymnasium as gym
 import numpy as np
 import torch
 from torch import nn
 
 from abstract_planners.learned_options import (OptionPolicyNet, policy_input,
                                                save_option_policy)
-from abstract_planners.sokoban import MOVES, SokobanState
+from abstract_planners.sokoban import MOVES
 from hier_agents.learning import ppo
+from hier_agents.learning.option_shaping import (ABSTRACT_DURATION,  # noqa: F401 (re-exported)
+                                                  TIME_LIMIT_STEPS, AbstractOptionEnv, Shaped,
+                                                  difficulty_of, potential)
+# (the shaping, the abstract environment and the vector environments live in
+# option_shaping and option_workers; their names stay importable from here)
+from hier_agents.learning.option_workers import (CpuClock, WorkerClock,  # noqa: F401
+                                                 make_abstract_env, make_option_env,
+                                                 make_vector)
 from hier_agents.learning.rundir import RunDir, seed_everything
 from hier_agents.stats import wilson_interval
 
 #: Seed of the end-of-training evaluation (hier_agents.run seeds its environment with it).
 HELDOUT_SEED = 10_000
-#: Control steps per option assumed by the abstract warm start (measured mean, level 1-2).
-ABSTRACT_DURATION = 18
-#: The MuJoBan time limit in control steps (45 s of 0.05 s).
-TIME_LIMIT_STEPS = 900
-
-
-# -- shaping potential ------------------------------------------------------------------------
-
-_STEPS = ((-1, 0), (1, 0), (0, -1), (0, 1))
-
-
-def _bfs(starts, free) -> dict:
-    """Walking distances from ``starts`` over the cells for which ``free(cell)``."""
-    dist = {cell: 0 for cell in starts}
-    frontier = list(starts)
-    while frontier:
-        nxt = []
-        for r, c in frontier:
-            for dr, dc in _STEPS:
-                cell = (r + dr, c + dc)
-                if cell not in dist and free(cell):
-                    dist[cell] = dist[(r, c)] + 1
-                    nxt.append(cell)
-        frontier = nxt
-    return dist
-
-
-_PAD_DISTANCES: dict = {}
-
-
-def _push_distances(state: SokobanState, floor) -> dict:
-    """Pushes needed to bring a lone box from each cell onto the nearest pad
-    (other boxes ignored): a reverse search from the pads, a box at ``p``
-    reaching ``p + d`` with the player at ``p - d``. Cells missing from the
-    result are dead: no pad can be reached from them."""
-    dist = {cell: 0 for cell in state.targets}
-    frontier = list(state.targets)
-    while frontier:
-        nxt = []
-        for r, c in frontier:
-            for dr, dc in _STEPS:
-                before, player = (r - dr, c - dc), (r - 2 * dr, c - 2 * dc)
-                if before not in dist and floor(before) and floor(player):
-                    dist[before] = dist[(r, c)] + 1
-                    nxt.append(before)
-        frontier = nxt
-    return dist
-
-
-def potential(state: SokobanState, box_weight: float, player_weight: float,
-              box_distance: str = "push") -> float:
-    """Phi(s) of the module docstring (0 for a solved state)."""
-    loose = state.boxes - state.targets
-    if not loose:
-        return 0.0
-    height, width = state.height, state.width
-
-    def floor(cell):
-        return cell not in state.walls and 0 <= cell[0] < height and 0 <= cell[1] < width
-
-    key = (state.walls, state.targets, box_distance)
-    to_pad = _PAD_DISTANCES.get(key)
-    if to_pad is None:
-        if len(_PAD_DISTANCES) > 4096:
-            _PAD_DISTANCES.clear()
-        to_pad = _PAD_DISTANCES[key] = (_push_distances(state, floor) if box_distance == "push"
-                                        else _bfs(state.targets, floor))
-    far = height + width
-    box_term = sum(to_pad.get(box, far) for box in loose)
-    player_term = 0.0
-    if player_weight:
-        beside = {(r + dr, c + dc) for r, c in loose for dr, dc in _STEPS}
-        walk = _bfs([state.player], lambda cell: floor(cell) and cell not in state.boxes)
-        player_term = min((walk[c] for c in beside if c in walk), default=far)
-    return -(box_weight * box_term + player_weight * player_term)
-
-
-
-
-class Shaped(gym.Wrapper):
-    """Adds the shaping ``gamma ** info["duration"] * Phi(s') - Phi(s)`` to the
-    reward (``Phi(s') = 0`` when the episode terminates) and ``info["potential"]``
-    (Phi of the estimated abstract state)."""
-
-    def __init__(self, env, box_weight: float, player_weight: float, box_distance: str = "push",
-                 gamma: float = 0.995):
-        super().__init__(env)
-        self.weights = (float(box_weight), float(player_weight), box_distance)
-        self.gamma = float(gamma)
-        self._potential = 0.0
-
-    def _with_potential(self, info):
-        info["potential"] = self._potential = potential(self.env.unwrapped.abstract_state,
-                                                        *self.weights)
-        return info
-
-    def reset(self, **kwargs):
-        obs, info = self.env.reset(**kwargs)
-        return obs, self._with_potential(info)
-
-    def step(self, action):
-        before = self._potential
-        obs, reward, terminated, truncated, info = self.env.step(action)
-        after = self._with_potential(info)["potential"]
-        discount = self.gamma ** info.get("duration", 1)
-        shaped = reward + discount * (0.0 if terminated else after) - before
-        return obs, float(shaped), terminated, truncated, info
-
-
-# -- the abstract warm-start environment ---------------------------------------------------
-
-def difficulty_of(env_name: str) -> int:
-    """``mujoban/level2`` (or ``-pegs``) -> 2."""
-    tail = env_name.split("/", 1)[-1]
-    if not tail.startswith("level"):
-        raise ValueError(f"the abstract warm start needs generated levels "
-                         f"(mujoban/levelN), got {env_name!r}")
-    return int(tail[len("level"):].split("-")[0])
-
-
-class AbstractOptionEnv(gym.Env):
-    """`OptionEnv`'s interface without physics: generated levels of one
-    difficulty padded into the 10x10 arena as MuJoBan pads them, moves applied
-    by `SokobanState`, MuJoBan's rewards, every option lasting ``duration``
-    control steps (see the module docstring)."""
-
-    metadata = {"render_modes": []}
-
-    def __init__(self, env_name: str, seed: int, duration: int = ABSTRACT_DURATION,
-                 gamma: float = 0.995):
-        from envs.mujoban.sources import ARENA_SHAPE
-        self.difficulty = difficulty_of(env_name)
-        self.shape = ARENA_SHAPE
-        self.duration, self.gamma = int(duration), float(gamma)
-        self.max_options = TIME_LIMIT_STEPS // self.duration
-        self.rng = np.random.default_rng(seed)
-        self.action_space = gym.spaces.Discrete(len(MOVES))
-        self.observation_space = gym.spaces.Box(0.0, 1.0, (4, *self.shape), np.float32)
-        self.abstract_state = None
-
-    def reset(self, *, seed=None, options=None):
-        from envs.mujoban import generator
-        super().reset(seed=seed)
-        if seed is not None:
-            self.rng = np.random.default_rng(seed)
-        level = generator.generate_level(self.difficulty, rng=self.rng).padded(*self.shape)
-        self.abstract_state = SokobanState.from_level(level)
-        self.options = 0
-        return self._obs(), self._info(0)
-
-    def step(self, action):
-        state, move = self.abstract_state, MOVES[int(action)]
-        if not state.is_legal(move):
-            raise ValueError(f"illegal move {move!r} (the trainer masks them)")
-        new = state.apply(move)
-        on = len(new.boxes & new.targets) - len(state.boxes & state.targets)
-        solved = new.is_solved()
-        # The reward arrives at the option's last control step.
-        reward = (self.gamma ** (self.duration - 1)) * (on + (10.0 if solved else 0.0))
-        self.abstract_state = new
-        self.options += 1
-        truncated = not solved and self.options >= self.max_options
-        return self._obs(), float(reward), bool(solved), bool(truncated), \
-            self._info(self.duration)
-
-    def _obs(self):
-        from hier_agents.learning.option_env import encode_sokoban
-        return encode_sokoban(self.abstract_state, self.shape)
-
-    def _info(self, duration):
-        state = self.abstract_state
-        return {"duration": duration,
-                "action_mask": np.array([state.is_legal(m) for m in MOVES], np.int8)}
-
-
-# -- environments ------------------------------------------------------------------------------
-
-def make_option_env(env_name: str, seed: int, args):
-    def thunk():
-        torch.set_num_threads(1)
-        from hier_agents.learning.option_env import OptionEnv
-        env = OptionEnv(env_name, skill=args.skill, estimator=args.estimator, seed=seed,
-                        gamma=args.gamma, t_abs=args.t_abs)
-        return Shaped(env, args.shape_box, args.shape_player, args.box_distance, args.gamma)
-    return thunk
-
-
-def make_abstract_env(env_name: str, seed: int, args):
-    def thunk():
-        env = AbstractOptionEnv(env_name, seed, args.abstract_duration, args.gamma)
-        return Shaped(env, args.shape_box, args.shape_player, args.box_distance, args.gamma)
-    return thunk
-
-
-class WorkerClock:
-    """CPU seconds (user + system) of live worker processes, from /proc."""
-
-    def __init__(self, pids):
-        self.pids = list(pids)
-        self.tick = os.sysconf("SC_CLK_TCK")
-        self.last = {pid: 0.0 for pid in self.pids}
-
-    def seconds(self) -> float:
-        for pid in self.pids:
-            try:
-                with open(f"/proc/{pid}/stat") as f:
-                    fields = f.read().rsplit(")", 1)[1].split()
-                self.last[pid] = (int(fields[11]) + int(fields[12])) / self.tick
-            except (OSError, IndexError, ValueError):
-                pass  # exited: keep its last reading
-        return sum(self.last.values())
 
 
 def skill_record(skill: str | None) -> dict:
@@ -478,29 +273,6 @@ def parse_args(argv=None):
     return args
 
 
-def make_vector(phase: str, names, state, args):
-    """The phase's vector env, its env names (dealt in turn) and its worker pids."""
-    if phase == "abstract":
-        n = args.abstract_envs
-        phase_names = [names[k % len(names)] for k in range(n)]
-        thunks = [make_abstract_env(phase_names[k], state["env_seed"] + 500 + k, args)
-                  for k in range(n)]
-        return ppo.make_vector_env(thunks), phase_names, []
-    phase_names = [names[k % len(names)] for k in range(args.envs)]
-    seed0 = state["env_seed"] + state["updates"]
-    thunks = [make_option_env(phase_names[k], seed0 + k, args) for k in range(args.envs)]
-    if args.sync:
-        return ppo.make_vector_env(thunks), phase_names, []
-    vec = ppo.make_vector_env(thunks, asynchronous=True, context="forkserver")
-    pids = [p.pid for p in vec.processes]
-    try:  # the forkserver that forks the workers (imports once) counts too
-        from multiprocessing import forkserver
-        pids.append(forkserver._forkserver._forkserver_pid)
-    except Exception:  # noqa: BLE001 - private API: best effort
-        pass
-    return vec, phase_names, [p for p in pids if p]
-
-
 def meta(state, args, names, skill) -> dict:
     """The policy file's training record."""
     return {"trained_with": "hier_agents.learning.train_options", "envs": names,
@@ -512,22 +284,6 @@ def meta(state, args, names, skill) -> dict:
             "shaping": {"box": args.shape_box, "player": args.shape_player,
                         "box_distance": args.box_distance},
             "commands": state["commands"]}
-
-
-class CpuClock:
-    """CPU seconds of this process and its live vector-env workers, on top of
-    ``base`` (earlier phases and runs)."""
-
-    def __init__(self, base: float) -> None:
-        self.base, self.main0, self.workers = float(base), time.process_time(), []
-
-    def now(self) -> float:
-        return self.base + time.process_time() - self.main0 + sum(
-            w.seconds() for w in self.workers)
-
-    def freeze(self) -> None:
-        """Folds the workers' last readings into ``base`` (before they exit)."""
-        self.base, self.main0, self.workers = self.now(), time.process_time(), []
 
 
 def train(run: RunDir, args, names, command: str):

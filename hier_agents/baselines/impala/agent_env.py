@@ -182,6 +182,20 @@ def _gamma(value, default: float, name: str) -> float:
     return value
 
 
+def _load_env(env_name: str, seed, image_size: int, cameras: bool, overrides: dict):
+    """``envs.load(env_name)`` with every camera at ``image_size`` squared (or
+    off without ``cameras``) and physics errors not raised, unless
+    ``overrides`` say otherwise. KeyError for an unknown name."""
+    valid = envs.overrides(env_name)  # KeyError for an unknown name
+    kwargs = dict(overrides)
+    for name in valid:
+        if name.endswith("_camera"):
+            kwargs.setdefault(name, (int(image_size), int(image_size)) if cameras else None)
+    if "raise_on_physics_error" in valid:
+        kwargs.setdefault("raise_on_physics_error", False)
+    return envs.load(env_name, seed=seed, **kwargs)
+
+
 class AgentEnv:
     """An `envs` environment for an end-to-end agent (see the module docstring).
 
@@ -227,14 +241,7 @@ class AgentEnv:
         self.gamma_env = _gamma(gamma_env, DISCOUNTS[fam][0], "gamma_env")
         self.gamma_abs = _gamma(gamma_abs, DISCOUNTS[fam][1], "gamma_abs")
 
-        valid = envs.overrides(env_name)  # KeyError for an unknown name
-        kwargs = dict(overrides)
-        for name in valid:
-            if name.endswith("_camera"):
-                kwargs.setdefault(name, (int(image_size), int(image_size)) if cameras else None)
-        if "raise_on_physics_error" in valid:
-            kwargs.setdefault("raise_on_physics_error", False)
-        self.env = envs.load(env_name, seed=self.seed, **kwargs)
+        self.env = _load_env(env_name, self.seed, image_size, cameras, overrides)
         task = self.env.task
 
         try:
@@ -251,33 +258,7 @@ class AgentEnv:
             self._half = ((high - low) / 2.0).ravel().tolist()
             self._action_shape = tuple(action_spec.shape)
 
-            self.planner = self.estimator = None
-            self._planning = condition != "vanilla"
-            planner_shape, planner_action_dim = None, 0
-            if self._planning:
-                from hier_agents.modular.components import ESTIMATORS, PLANNERS
-
-                planners = PLANNERS[fam]
-                # The expert is the paper's: MuJoBan's exact Sokoban solver
-                # (not the library's default, the execution-time planner).
-                expert = planners.get(EXPERT_PLANNER.get(fam, ""),
-                                      next(iter(planners.values())))
-                factory = expert if condition == "expert-planner" else planners["random"]
-                description = self.env.description()
-                self.planner = factory(description, self.seed)
-                # The paper's planner conditions read the ground-truth abstract
-                # state: the privileged entity-layer estimator (board games:
-                # the game record, observation-only).
-                name = "entity-layer" if fam == "mujoban" else "board"
-                self.estimator = ESTIMATORS[fam][name](description, self.seed, self.env)
-                if fam == "mujoban":
-                    h, w = task.grid_shape
-                    planner_shape, planner_action_dim = (8, int(h), int(w)), len(PLANNER_ACTIONS)
-                else:
-                    n = int(task.game.size)
-                    planner_shape = (6, n, n)
-                self._planes = np.zeros(planner_shape, np.float32)
-                self._onehot = np.zeros(planner_action_dim, np.float32)
+            planner_shape, planner_action_dim = self._setup_planning(condition, task)
             self._state_key = None
             state_shape = None
             if state:
@@ -299,6 +280,40 @@ class AgentEnv:
         self.subgoal: Subgoal | None = None
         self.abstract_state = None
         self._closed = False
+
+    def _setup_planning(self, condition: str, task) -> tuple:
+        """The auxiliary task's planner and estimator (None for vanilla) and
+        the planner-input buffers; returns (planner_shape or None,
+        planner_action_dim)."""
+        fam = self.family
+        self.planner = self.estimator = None
+        self._planning = condition != "vanilla"
+        planner_shape, planner_action_dim = None, 0
+        if self._planning:
+            from hier_agents.modular.components import ESTIMATORS, PLANNERS
+
+            planners = PLANNERS[fam]
+            # The expert is the paper's: MuJoBan's exact Sokoban solver
+            # (not the library's default, the execution-time planner).
+            expert = planners.get(EXPERT_PLANNER.get(fam, ""),
+                                  next(iter(planners.values())))
+            factory = expert if condition == "expert-planner" else planners["random"]
+            description = self.env.description()
+            self.planner = factory(description, self.seed)
+            # The paper's planner conditions read the ground-truth abstract
+            # state: the privileged entity-layer estimator (board games:
+            # the game record, observation-only).
+            name = "entity-layer" if fam == "mujoban" else "board"
+            self.estimator = ESTIMATORS[fam][name](description, self.seed, self.env)
+            if fam == "mujoban":
+                h, w = task.grid_shape
+                planner_shape, planner_action_dim = (8, int(h), int(w)), len(PLANNER_ACTIONS)
+            else:
+                n = int(task.game.size)
+                planner_shape = (6, n, n)
+            self._planes = np.zeros(planner_shape, np.float32)
+            self._onehot = np.zeros(planner_action_dim, np.float32)
+        return planner_shape, planner_action_dim
 
     # -- API --------------------------------------------------------------------------------
 

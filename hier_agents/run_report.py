@@ -1,0 +1,126 @@
+"""The results of `hier_agents.run`: the JSON-able summary of the episodes
+played (`summarize`), the printed table (`format_table`) and the progress
+bar's postfix (`postfix`). Episode rows are the dicts `hier_agents.run`
+records (``return``, ``steps``, ``wall_s``, ``solved`` or ``outcome``, ...).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from hier_agents.modular.agent import OptionStats
+from hier_agents.modular.components import PLANNERS, SKILLS
+from hier_agents.stats import wilson_interval
+
+__all__ = ["summarize", "format_table", "postfix"]
+
+
+def postfix(rows, fam) -> dict:
+    """The progress bar's postfix: solved (MuJoBan) or won (board games) of ``rows``."""
+    if fam == "mujoban":
+        return {"solved": f"{sum(r['solved'] for r in rows)}/{len(rows)}"}
+    return {"wins": f"{sum(r['outcome'] == 'win' for r in rows)}/{len(rows)}"}
+
+
+def summarize(env_name, fam, rows, totals: OptionStats, seed, planner, skill) -> dict:
+    """The JSON-able summary of episode ``rows`` (dicts as `hier_agents.run`
+    plays them) of family ``fam``: rates with 95% Wilson intervals, means,
+    subgoal counters (``totals``), failure reasons, per-episode rows. All
+    rates and means are None when no episode was played."""
+    n = len(rows)
+    out = {"env": env_name, "episodes": n, "seed": seed, "agent": "modular",
+           "planner": planner or next(iter(PLANNERS[fam])),
+           "skill": skill or next(iter(SKILLS[fam]))}
+    if n == 0:  # e.g. interrupted before the first episode ended
+        for key in (("success_rate",) if fam == "mujoban" else
+                    ("win_rate", "draw_rate", "loss_rate", "success_rate")):
+            out[key] = None
+        out.update(mean_return=None, mean_steps=None, subgoal_success_rate=None,
+                   subgoals={}, episode_failures={}, errors=0, wall_s=None,
+                   control_steps_per_s=None, rows=[])
+        return out
+    if fam == "mujoban":
+        solved = sum(r["solved"] for r in rows)
+        out["success_rate"] = solved / n
+        out["success_interval"] = wilson_interval(solved, n)
+        solved_steps = [r["steps"] for r in rows if r["solved"]]
+        out["mean_steps_solved"] = float(np.mean(solved_steps)) if solved_steps else None
+    else:
+        for outcome in ("win", "draw", "loss"):
+            count = sum(r["outcome"] == outcome for r in rows)
+            out[f"{outcome}_rate"] = count / n
+            out[f"{outcome}_interval"] = wilson_interval(count, n)
+        out["success_rate"] = out["win_rate"]
+    out["mean_return"] = float(np.mean([r["return"] for r in rows]))
+    out["mean_steps"] = float(np.mean([r["steps"] for r in rows]))
+    rate = totals.success_rate
+    out["subgoal_success_rate"] = None if rate != rate else rate  # NaN is not JSON
+    out["subgoals"] = {"issued": totals.issued, "reached": totals.reached,
+                       "failed": totals.failed, "cut_off": totals.cut_off,
+                       "unfinished": totals.unfinished,
+                       "failures": totals.failures,
+                       "estimation_failures": totals.estimation_failures}
+    reasons = {}
+    for row in rows:
+        if "failure_reason" in row:
+            kind = row["failure_reason"].split(":", 1)[0]
+            reasons[kind] = reasons.get(kind, 0) + 1
+    out["episode_failures"] = reasons
+    out["errors"] = sum("error" in row for row in rows)
+    out["wall_s"] = float(np.mean([r["wall_s"] for r in rows]))
+    wall = sum(r["wall_s"] for r in rows)
+    out["control_steps_per_s"] = sum(r["steps"] for r in rows) / wall if wall > 0 else None
+    out["rows"] = rows
+    return out
+
+
+def _pct(rate, interval) -> str:
+    """``rate`` and its interval (fractions) as percentages."""
+    return f"{100 * rate:5.1f}% [{100 * interval[0]:5.1f}, {100 * interval[1]:5.1f}]"
+
+
+def format_table(summary: dict) -> str:
+    """The printed results table of a `hier_agents.run.run` summary."""
+    if summary.get("agent", "modular") == "modular":
+        who = (f"estimator {summary.get('estimator', '?')}"
+               f"{' (PRIVILEGED: reads the simulator)' if summary.get('privileged') else ''}, "
+               f"planner {summary['planner']}, skill {summary['skill']}")
+        if summary.get("training_frames"):
+            who += f" (learned parts trained on {summary['training_frames']:,} frames)"
+    elif summary["agent"].startswith("random"):
+        who = summary["condition"]
+    else:
+        who = (f"{summary['agent']} ({summary['condition']}, trained "
+               f"{summary['training_frames']:,} frames on {summary['trained_env']})")
+    lines = [f"{summary['env']}: {who}, {summary['episodes']} episodes, seed {summary['seed']}"]
+    if summary.get("interrupted"):
+        lines.append(f"  INTERRUPTED (Ctrl-C): {summary['episodes']} of "
+                     f"{summary.get('episodes_requested', '?')} episodes played")
+    if not summary["episodes"]:
+        return "\n".join(lines)
+    if "win_rate" in summary:
+        lines.append(f"  win   {_pct(summary['win_rate'], summary['win_interval'])}")
+        lines.append(f"  draw  {_pct(summary['draw_rate'], summary['draw_interval'])}")
+        lines.append(f"  loss  {_pct(summary['loss_rate'], summary['loss_interval'])}")
+    else:
+        lines.append("  solved            "
+                     + _pct(summary["success_rate"], summary["success_interval"]))
+    lines.append(f"  mean return       {summary['mean_return']:.2f}")
+    lines.append(f"  mean steps        {summary['mean_steps']:.1f}")
+    if summary["subgoal_success_rate"] is not None:
+        lines.append(f"  subgoal success   {100 * summary['subgoal_success_rate']:.1f}% "
+                     f"({summary['subgoals']['reached']}/{summary['subgoals']['issued']} issued)")
+    else:
+        lines.append("  subgoal success   - (no subgoals)")
+    if summary.get("episode_failures"):
+        lines.append("  unsolved because  " + ", ".join(
+            f"{k} x{v}" for k, v in sorted(summary["episode_failures"].items())))
+    if summary.get("errors"):
+        first = next(r["error"] for r in summary["rows"] if "error" in r)
+        lines.append(f"  errors            {summary['errors']} episode(s) ended by an error "
+                     f"(first: {first[:120]})")
+    lines.append(f"  wall s / episode  {summary['wall_s']:.2f}")
+    if summary.get("control_steps_per_s"):
+        lines.append(f"  control steps / s {summary['control_steps_per_s']:.0f} "
+                     f"(environment and agent, one process)")
+    return "\n".join(lines)
