@@ -11,7 +11,7 @@
    environment frames into a temporary log directory; its throughput is the
    frames the learner consumed per wall-clock second between its first and
    last log lines (start-up -- process spawn, imports -- excluded), as
-   written in ``progress.jsonl``.
+   written in ``scalars.jsonl``.
 3. **The comparison**: the bare environment in as many processes as the run
    has actors (``--actors``), stepping at the same time on the same machine,
    their summed steps/s. The learner's frames/s divided by that is the
@@ -42,6 +42,7 @@ from _common import write_json  # noqa: E402
 import numpy as np  # noqa: E402
 
 import envs  # noqa: E402
+from hier_agents.learning.rundir import SCALARS  # noqa: E402
 
 
 def _make_env(name: str, cameras: bool, seed: int):
@@ -109,7 +110,7 @@ def learner_frames_per_s(args) -> dict:
         start = time.perf_counter()
         counters = train(config)
         total_s = time.perf_counter() - start
-        lines = [json.loads(line) for line in open(Path(logdir) / "progress.jsonl")]
+        lines = [json.loads(line) for line in open(Path(logdir) / SCALARS)]
     if len(lines) < 2:
         raise SystemExit(f"only {len(lines)} log lines: raise --frames for a steady-state rate")
     first, last = lines[0], lines[-1]

@@ -6,7 +6,7 @@
 
 For each run directory (a ``--logdir`` of `hier_agents.train`):
 
-1. **Training curve**, from its ``progress.jsonl``: one row per
+1. **Training curve**, from its ``scalars.jsonl``: one row per
    ``--every-frames`` frames (the last log line at or before each mark, and
    the run's last line): wall minutes, the success rate and return of the
    last 100 training episodes (actions sampled from the policy, as trained),
@@ -38,12 +38,15 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from _common import write_json  # noqa: E402
+from hier_agents.learning.rundir import SCALARS  # noqa: E402
 
 
 def training_curve(logdir: Path, every: int) -> list[dict]:
-    path = logdir / "progress.jsonl"
+    path = logdir / SCALARS
     if not path.exists():
-        raise SystemExit(f"{logdir}: no progress.jsonl (is it a hier_agents.train --logdir?)")
+        path = logdir / "progress.jsonl"  # runs written before the shared run directory
+    if not path.exists():
+        raise SystemExit(f"{logdir}: no {SCALARS} (is it a hier_agents.train --logdir?)")
     lines = [json.loads(line) for line in open(path) if line.strip()]
     if not lines:
         return []

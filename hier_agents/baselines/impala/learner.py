@@ -24,7 +24,6 @@ states (``config.json`` records the configuration).
 from __future__ import annotations
 
 import dataclasses
-import os
 import sys
 import time
 from collections import deque
@@ -204,20 +203,6 @@ def net_from_checkpoint(ckpt: dict):
 
 #: Configuration keys a resumed run must share with its run directory.
 FIXED = ("env", "condition", "cameras", "image_size", "state")
-#: The scalars' former file name, kept as a symlink to ``scalars.jsonl`` for readers
-#: that still open it (``benchmarks/learning_curve.py``).
-LEGACY_SCALARS = "progress.jsonl"
-
-
-def _link_legacy_scalars(logdir: Path) -> None:
-    link = logdir / LEGACY_SCALARS
-    if not link.exists() and not link.is_symlink():
-        try:
-            os.symlink(SCALARS, link)
-        except OSError:  # pragma: no cover - no symlinks on this filesystem
-            pass
-
-
 def _build(config: TrainConfig, run: RunDir):
     """(net, optimiser, input spec, counters, recent episodes), resumed from
     ``run``'s checkpoint when there is one."""
@@ -289,7 +274,6 @@ def train(config: TrainConfig) -> dict:
     torch.set_num_threads(1)
     run = RunDir(config.logdir, dataclasses.asdict(config), resume=True, fixed=FIXED)
     try:
-        _link_legacy_scalars(run.path)
         net, optimizer, spec, counters, recent = _build(config, run)
         if counters["frames"] >= config.steps:
             print(f"{run.checkpoint_path} already has {counters['frames']:,} >= "
