@@ -25,7 +25,8 @@ def collect(spec, frames: int, seed: int, *, actor=None, noise: float = 0.2,
             noise_prob: float = 1.0, mix: float = 1.0, estimator: str | None = None,
             t_abs: int | None = None):
     """``frames`` steps of a `SkillEnv` of ``spec``, every observation
-    labelled with the teacher's action (``info["expert_action"]``).
+    labelled with the teacher's action (``info["expert_action"]``; a step
+    without one, where the teacher cannot plan, is not kept).
 
     Who acts: the teacher when ``actor`` is None; else at every step
     ``actor.mean`` (a torch module's method) with probability ``mix`` and the
@@ -41,11 +42,14 @@ def collect(spec, frames: int, seed: int, *, actor=None, noise: float = 0.2,
     try:
         obs, info = env.reset(seed=seed)
         noisy = rng.random() < noise_prob
+        zero = np.zeros(env.action_space.shape, np.float32)
         for _ in range(int(frames)):
-            xs.append(obs)
-            ys.append(info["expert_action"])
-            action = info["expert_action"]
-            if actor is not None and rng.random() < mix:
+            label = info.get("expert_action")  # None where the teacher cannot plan
+            if label is not None:
+                xs.append(obs)
+                ys.append(label)
+            action = zero if label is None else label
+            if actor is not None and (label is None or rng.random() < mix):
                 with torch.no_grad():
                     action = actor.mean(torch.as_tensor(obs)[None])[0].numpy()
             if noisy:

@@ -103,9 +103,10 @@ def export_policy(agent: Agent, features, path: Path, meta: dict) -> None:
     torch.save({"actor": actor, "features": tuple(features), "meta": meta}, path)
 
 
-def teacher_policy(obs, info) -> np.ndarray:
-    """The skill's teacher: the environment's ``expert_action``."""
-    return info["expert_action"]
+def teacher_policy(obs, info) -> np.ndarray | None:
+    """The skill's teacher: the environment's ``expert_action`` (None where
+    the teacher cannot plan: the evaluation then holds still)."""
+    return info.get("expert_action")
 
 
 def evaluate(spec, policy, episodes: int, *, seed: int = HELDOUT_SEED,
@@ -124,7 +125,10 @@ def evaluate(spec, policy, episodes: int, *, seed: int = HELDOUT_SEED,
     for _ in range(episodes):
         done = False
         while not done:
-            obs, _, terminated, truncated, info = env.step(policy(obs, info))
+            action = policy(obs, info)
+            if action is None:
+                action = np.zeros(env.action_space.shape, np.float32)
+            obs, _, terminated, truncated, info = env.step(action)
             done = terminated or truncated
         successes += info["is_success"]
         if info["is_success"]:
