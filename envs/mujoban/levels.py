@@ -39,17 +39,27 @@ A multi-level file (the Boxoban layout) puts a header line starting with
 
 Blank lines between levels are ignored. Coordinates are ``(row, col)`` with
 row 0 the first line of the level's text and column 0 its first character.
+
+This module holds the `Level` type, `LevelError` and reading and writing
+level files; the character grammar (the characters above, row checks, the
+splitting of a file into levels) is `envs.mujoban.levels_text`.
 """
 
 from __future__ import annotations
 
 import os
 import pathlib
-from collections import Counter
 from dataclasses import dataclass, field
-from typing import IO, Iterable, Iterator
+from typing import IO, Iterable
 
 import numpy as np
+
+# The character grammar of level text; its names stay importable from here.
+from envs.mujoban.levels_text import (_CANONICAL, _VALID_TEXT, BOX,  # noqa: F401
+                                      BOX_ON_TARGET, FLOOR, FLOOR_ALIASES, PLAYER,
+                                      PLAYER_ON_TARGET, TARGET, WALL, _blocks,
+                                      _check_characters, _check_rectangular, _collect,
+                                      _index_from_name, _split_rows)
 
 __all__ = [
     "BOXOBAN_DIR",
@@ -66,12 +76,6 @@ BOXOBAN_DIR = pathlib.Path(__file__).parent / "data" / "boxoban"
 
 #: A grid cell as (row, col); row 0 is the top line of the level text.
 Position = tuple[int, int]
-
-WALL, FLOOR, PLAYER, BOX, TARGET, BOX_ON_TARGET, PLAYER_ON_TARGET = "# @$.*+"
-#: Characters that are read as plain floor besides the space.
-FLOOR_ALIASES = ("-", "_")
-_CANONICAL = (WALL, FLOOR, PLAYER, BOX, TARGET, BOX_ON_TARGET, PLAYER_ON_TARGET)
-_VALID_TEXT = ", ".join(repr(ch) for ch in _CANONICAL)
 
 #: Channel order of `Level.entity_layers` (the paper's ``full_entity_layer``).
 ENTITY_CHANNELS = ("wall", "target", "player", "box")
@@ -304,86 +308,7 @@ class Level:
         return self.boxes == self.targets
 
 
-# -- parsing helpers -----------------------------------------------------------
-
-def _split_rows(text: str) -> list[str]:
-    """Lines of ``text`` without line ends; trailing empty lines dropped."""
-    rows = [line[:-1] if line.endswith("\r") else line for line in text.split("\n")]
-    while rows and rows[-1] == "":
-        rows.pop()
-    return rows
-
-
-def _check_characters(rows: list[str], first_line: int, error) -> None:
-    allowed = set(_CANONICAL) | set(FLOOR_ALIASES)
-    for r, row in enumerate(rows):
-        for c, char in enumerate(row):
-            if char not in allowed:
-                raise error(f"unknown character {char!r} (valid: {_VALID_TEXT})",
-                            first_line + r, c + 1)
-
-
-def _check_rectangular(rows: list[str], first_line: int, error) -> None:
-    """Every row as long as the most common row length (ties: the first row's)."""
-    counts = Counter(len(row) for row in rows)
-    top = max(counts.values())
-    expected = next(len(row) for row in rows if counts[len(row)] == top)
-    for r, row in enumerate(rows):
-        if len(row) != expected:
-            kind = "shorter" if len(row) < expected else "longer"
-            raise error(f"ragged rows: this row has {len(row)} characters, {kind} than "
-                        f"the level's {expected}", first_line + r,
-                        min(len(row), expected) + 1)
-
-
-def _collect(rows: list[str]):
-    """Walls, targets, boxes and player cells (in reading order) of valid rows."""
-    walls, targets, boxes, players = [], [], [], []
-    for r, row in enumerate(rows):
-        for c, char in enumerate(row):
-            if char == WALL:
-                walls.append((r, c))
-            if char in (TARGET, BOX_ON_TARGET, PLAYER_ON_TARGET):
-                targets.append((r, c))
-            if char in (BOX, BOX_ON_TARGET):
-                boxes.append((r, c))
-            if char in (PLAYER, PLAYER_ON_TARGET):
-                players.append((r, c))
-    return walls, targets, boxes, players
-
-
-def _index_from_name(name: str | None) -> int | None:
-    """The integer a ``; N`` header name stands for, else None."""
-    if name is None:
-        return None
-    try:
-        return int(name)
-    except ValueError:
-        return None
-
-
-def _blocks(text: str) -> Iterator[tuple[str | None, int, list[str]]]:
-    """(header name, first line number, rows) for each level of a file's text.
-
-    A level is a maximal run of lines that are neither blank (whitespace
-    only) nor ``;`` headers. A header names the level that follows it.
-    """
-    name: str | None = None
-    start, rows = 0, []
-    lines = text.split("\n")
-    for number, line in enumerate(lines + [""], start=1):
-        line = line[:-1] if line.endswith("\r") else line
-        if line.startswith(";") or not line.strip():
-            if rows:
-                yield name, start, rows
-                name, rows = None, []
-            if line.startswith(";"):
-                name = line[1:].strip()
-            continue
-        if not rows:
-            start = number
-        rows.append(line)
-
+# -- files ---------------------------------------------------------------------
 
 def parse_levels(text: str, path: str | os.PathLike | None = None) -> list[Level]:
     """All levels of a multi-level text (Boxoban layout, see module docstring).

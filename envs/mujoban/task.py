@@ -49,41 +49,25 @@ import numbers
 from typing import Callable, Mapping
 
 import numpy as np
-from dm_control.locomotion.walkers import jumping_ball, legacy_base
+from dm_control.locomotion.walkers import jumping_ball
 from dm_env import specs
 
 from envs.core import PhysicsTask
 from envs.mujoban import arena as arena_lib
-from envs.mujoban.levels import Level, LevelError
+from envs.mujoban.levels import Level, LevelError  # noqa: F401  (LevelError: re-export)
 from envs.mujoban.props import BOX_FLOOR_FRICTION, Box
+# The task's parts by concern; their public names stay importable from here.
+from envs.mujoban.task_layout import _PARKED_Z, LayoutMixin  # noqa: F401
+from envs.mujoban.task_looks import (_TEXROLE_RGB, BALL_RADIUS, EAR_RGBA,  # noqa: F401
+                                     LooksMixin)
+from envs.mujoban.task_observations import (_CHANNEL_WEIGHTS, _COLOUR_TABLE,  # noqa: F401
+                                            BOX, ENTITY_CHANNELS, PIXEL_COLOURS, PLAYER,
+                                            TARGET, WALL, ObservationsMixin, _as_slice,
+                                            _build_colour_table, entity_layer_to_pixels)
 from envs.rendering import CameraConfig
-
-#: Channels of ``full_entity_layer``.
-ENTITY_CHANNELS = ("wall", "target", "player", "box")
-WALL, TARGET, PLAYER, BOX = range(4)
-
-#: Colours of ``pixel_layer``, one pixel per grid cell: the original's (the
-#: player blue whether on a target or not).
-PIXEL_COLOURS = {
-    "floor": (0, 0, 0),
-    "wall": (128, 128, 128),
-    "target": (255, 0, 0),
-    "box": (255, 255, 0),
-    "box_on_target": (0, 255, 0),
-    "player": (0, 0, 255),
-    "player_on_target": (0, 0, 255),
-}
 
 LevelSource = Callable[[np.random.Generator], Level]
 
-_PARKED_Z = -20.0
-#: MuJoCo's texture role of a material's base colour (``mjTEXROLE_RGB``).
-_TEXROLE_RGB = 1
-#: The rolling ball's radius (dm_control's ``RollingBallWithHead`` shell), metres.
-BALL_RADIUS = 0.2
-#: Its ear spheres' colours (dm_control's ``add_ears``): red at the head's +x,
-#: blue at -x.
-EAR_RGBA = ((0.7, 0.0, 0.0, 1.0), (0.0, 0.0, 0.7, 1.0))
 #: Aliveness in [-1, 0] below which the walker counts as dead (the original's
 #: ``_ALIVE_THRESHOLD``).
 ALIVE_THRESHOLD = -0.5
@@ -94,18 +78,14 @@ ALIVE_THRESHOLD = -0.5
 _PARKED_DAMPING = 1e6
 
 
-def _as_slice(index: np.ndarray):
-    """``index`` as an equivalent slice when it is a run of step +1 or -1."""
-    index = [int(i) for i in index]
-    if len(index) >= 2 and all(b - a == index[1] - index[0] for a, b in zip(index, index[1:])) \
-            and abs(index[1] - index[0]) == 1:
-        stop = index[-1] + (index[1] - index[0])
-        return slice(index[0], None if stop < 0 else stop, index[1] - index[0])
-    return np.asarray(index)
-
-
-class Mujoban(PhysicsTask):
+class Mujoban(ObservationsMixin, LooksMixin, LayoutMixin, PhysicsTask):
     """MuJoBan as a composer task.
+
+    Observations and state accessors come from `ObservationsMixin`
+    (`envs.mujoban.task_observations`), the description, textures and pad
+    colours from `LooksMixin` (`envs.mujoban.task_looks`), level loading from
+    `LayoutMixin` (`envs.mujoban.task_layout`); the rules (pads, reward,
+    termination) and the composer hooks are here.
 
     Args:
       level_source: called with the environment's random generator at every
@@ -204,14 +184,7 @@ class Mujoban(PhysicsTask):
         self.time_limit_steps = int(round(time_limit / control_timestep))
         self.level: Level | None = None
 
-    # -- construction helpers ----------------------------------------------
-
-    def _add_walker_touch_sensor(self) -> None:
-        model = self._walker.mjcf_model
-        shell_body = model.find("geom", "shell").parent
-        site = shell_body.add("site", name="touch_site", type="sphere", size=(0.21,),
-                              group=arena_lib.HIDDEN_GROUP, rgba=(0, 0, 0, 0))
-        model.sensor.add("touch", name="sensor_touch", site=site)
+    # -- parts and sizes ----------------------------------------------------
 
     @property
     def root_entity(self):
@@ -240,31 +213,6 @@ class Mujoban(PhysicsTask):
     @property
     def cell_size(self) -> float:
         return self._arena.cell_size
-
-    def description(self):
-        """The public `envs.description.MujobanDescription` of this task."""
-        from envs.description import CameraDescription, MujobanDescription, MujobanLooks
-        arena = self._arena
-        cam = arena.top_camera
-        top = CameraDescription(
-            "top_camera", tuple(float(v) for v in cam.pos), tuple(float(v) for v in cam.xyaxes),
-            float(cam.fovy), (self._cameras["top_camera"].height, self._cameras["top_camera"].width)
-            if "top_camera" in self._cameras else None, multisamples=arena.multisamples)
-        box = self._boxes[0]
-        return MujobanDescription(
-            grid_shape=tuple(arena.grid_shape), cell_size=float(arena.cell_size),
-            pegs=bool(arena.pegs), max_boxes=len(self._boxes),
-            control_timestep=float(self.control_timestep),
-            time_limit_steps=int(self.time_limit_steps),
-            pad_tolerance=self._pad_tolerance / arena.cell_size,
-            box_half=float(box.half_size), box_half_height=float(box.half_height),
-            ball_radius=BALL_RADIUS, peg_radius=arena_lib.PEG_RADIUS, top_camera=top,
-            looks=MujobanLooks(
-                box=arena_lib.BOX_RGBA, box_on_pad=arena_lib.BOX_ON_PAD_RGBA,
-                pad=arena_lib.PAD_RGBA, pad_covered=arena_lib.PAD_COVERED_RGBA,
-                right_ear=EAR_RGBA[0], left_ear=EAR_RGBA[1],
-                headlight_ambient=arena_lib.HEADLIGHT_AMBIENT,
-                headlight_diffuse=arena_lib.HEADLIGHT_DIFFUSE))
 
     # -- composer hooks -----------------------------------------------------
 
@@ -314,46 +262,6 @@ class Mujoban(PhysicsTask):
         self._reward = 0.0
         self._solved = False
         self._fell = False
-
-    def _bind_walker(self, bind) -> None:
-        """Compiled addresses of the walker's joints, actuators, head body and
-        sensors (``bind`` = ``physics.bind``), and its aliveness rule."""
-        walker_model = self._walker.mjcf_model
-        root_joints = self._walker._root_joints  # pylint: disable=protected-access
-        self._walker_root_qpos = [int(a) for a in np.ravel([bind(j).qposadr for j in root_joints])]
-        self._walker_root_dof = np.array([bind(j).dofadr for j in root_joints]).ravel()
-        all_joints = walker_model.find_all("joint")
-        self._walker_joint_qpos = np.array([bind(j).qposadr for j in all_joints]).ravel()
-        self._walker_joint_dof = np.array([bind(j).dofadr for j in all_joints]).ravel()
-        self._steer_qpos = int(bind(walker_model.find("joint", "steer")).qposadr)
-        actuators = self._walker.actuators
-        self._act_ids = np.array([bind(a).element_id for a in actuators])
-        act_joints = [walker_model.find("joint", a.joint.name if hasattr(a.joint, "name") else a.joint)
-                      for a in actuators]
-        # Slices where the addresses are consecutive: a view and a copy are
-        # cheaper than fancy indexing, and observe() runs every step.
-        self._act_qpos = _as_slice(np.array([bind(j).qposadr for j in act_joints]).ravel())
-        self._act_dof = _as_slice(np.array([bind(j).dofadr for j in act_joints]).ravel())
-        self._head_body = int(bind(self._walker.root_body).element_id)
-        # The original's termination rule, walker aliveness < -0.5. dm_control's
-        # legacy walkers (the rolling ball among them) return a constant 0: then
-        # there is nothing to evaluate per step.
-        aliveness = getattr(type(self._walker), "aliveness", None)
-        self._aliveness = None
-        if aliveness is not None and aliveness is not legacy_base.Walker.aliveness:
-            self._aliveness = self._walker.aliveness
-
-        def sensor_slice(name):
-            sensor = bind(walker_model.find("sensor", name))
-            adr, dim = int(sensor.adr), int(sensor.dim)
-            return slice(adr, adr + dim)
-
-        self._sensor_slices = {
-            "walker/sensors_touch": sensor_slice("sensor_touch"),
-            "walker/sensors_accelerometer": sensor_slice("sensor_torso_accel"),
-            "walker/sensors_gyro": sensor_slice("sensor_torso_gyro"),
-            "walker/sensors_velocimeter": sensor_slice("sensor_torso_vel"),
-        }
 
     def initialize_episode(self, physics, random_state):
         level = self._level_source(random_state)
@@ -453,86 +361,7 @@ class Mujoban(PhysicsTask):
         return specs.BoundedArray((len(self._act_ids),), np.float64, ranges[:, 0], ranges[:, 1],
                                   name=names)
 
-    # -- observations -------------------------------------------------------
-
-    def observation_spec(self):
-        height, width = self.grid_shape
-        n_act = len(self._act_ids)
-        spec = {
-            "walker/joints_pos": specs.Array((n_act,), np.float64, "walker/joints_pos"),
-            "walker/joints_vel": specs.Array((n_act,), np.float64, "walker/joints_vel"),
-            "walker/joints_torque": specs.Array((n_act,), np.float64, "walker/joints_torque"),
-            "walker/orientation": specs.Array((9,), np.float64, "walker/orientation"),
-        }
-        for name, sl in self._sensor_slices.items():
-            spec[name] = specs.Array((sl.stop - sl.start,), np.float64, name)
-        spec["full_entity_layer"] = specs.Array((height, width, 4), bool, "full_entity_layer")
-        spec["pixel_layer"] = specs.BoundedArray((height, width, 3), np.uint8, 0, 255, "pixel_layer")
-        return spec
-
-    def observe(self, physics):
-        obs = {
-            "walker/joints_pos": self._qpos[self._act_qpos].copy(),
-            "walker/joints_vel": self._qvel[self._act_dof].copy(),
-            "walker/joints_torque": self._qfrc_actuator[self._act_dof].copy(),
-            "walker/orientation": self._xmat[self._head_body].copy(),
-        }
-        sensordata = self._sensordata.copy()
-        for name, sl in self._sensor_slices.items():
-            obs[name] = sensordata[sl]
-        # Rebuilt only when the abstract state changes; every observation
-        # gets its own copy (users keep observations, e.g. in replay buffers).
-        obs["full_entity_layer"] = self._entity_layer.copy()
-        obs["pixel_layer"] = self._pixel_layer.copy()
-        return obs
-
-    # -- state accessors (used by estimators, skills and tests) -------------
-
-    def box_positions(self, physics=None) -> np.ndarray:
-        """World (x, y) of the level's boxes, shape (num_boxes, 2)."""
-        return self._data.qpos[self._box_qpos[: self._num_boxes]].copy()
-
-    def walker_position(self, physics=None) -> np.ndarray:
-        """World (x, y) of the walker (its root joints' position)."""
-        return self._qpos[self._walker_root_qpos[:2]]
-
-    def walker_velocity(self, physics=None) -> np.ndarray:
-        """World (vx, vy) of the walker's root."""
-        return self._data.qvel[self._walker_root_dof[:2]].copy()
-
-    def walker_heading(self, physics=None) -> float:
-        """Heading of the walker's face in the world frame, radians from +x."""
-        xmat = self._data.xmat[self._head_body]
-        # The face sits on the head body's local +y axis (column 1 of xmat).
-        return float(np.arctan2(xmat[4], xmat[1]))
-
-    def world_to_cell(self, xy) -> tuple[int, int]:
-        """Nearest grid cell (row, col) to a world point, clipped to the grid."""
-        inv, cx, cy, rmax, cmax = self._rounding
-        x, y = float(xy[0]), float(xy[1])
-        return min(max(round(cy - y * inv), 0), rmax), min(max(round(x * inv + cx), 0), cmax)
-
-    @property
-    def abstract_cells(self) -> tuple[tuple[tuple[int, int], ...], tuple[int, int]]:
-        """The current estimate: (box cells in box order, player cell)."""
-        return self._box_cells, self._player_cell
-
-    def cell_to_world(self, row: int, col: int) -> tuple[float, float]:
-        return self._arena.cell_centre(row, col)
-
-    @property
-    def pads_covered(self) -> np.ndarray:
-        """Per target pad (in `level.targets` sorted order), covered or not."""
-        return np.array(self._covered, bool)
-
-    @property
-    def appearance(self) -> tuple[str, str]:
-        """This episode's (wall texture, floor texture): labmaze ``style_01``
-        names such as ``("yellow", "blue_team")`` (see `appearances`)."""
-        m = self._model
-        walls, floors = self.appearances()
-        return (walls[self._wall_tex_ids.index(int(m.mat_texid[self._wall_mats[0], _TEXROLE_RGB]))],
-                floors[self._floor_tex_ids.index(int(m.mat_texid[self._floor_mat, _TEXROLE_RGB]))])
+    # -- rules: state of the pads ------------------------------------------
 
     @property
     def solved(self) -> bool:
@@ -553,90 +382,6 @@ class Mujoban(PhysicsTask):
 
     # -- internals ----------------------------------------------------------
 
-    def _set_level(self, level: Level) -> None:
-        height, width = self.grid_shape
-        if level.height > height or level.width > width:
-            raise LevelError(f"level is {level.height}x{level.width}, larger than the arena's "
-                             f"{height}x{width} (raise grid_shape)", path=None, index=None)
-        if len(level.boxes) > len(self._boxes):
-            raise LevelError(f"level has {len(level.boxes)} boxes, the arena holds at most "
-                             f"{len(self._boxes)} (raise max_boxes)", path=None, index=None)
-        if (level.height, level.width) != (height, width):
-            level = level.padded(height, width)
-        self.level = level
-        m = self._model
-        walls = np.zeros((height, width), bool)
-        for r, c in level.walls:
-            walls[r, c] = True
-        ids = self._wall_ids.ravel()
-        m.geom_contype[ids] = np.where(walls.ravel(), arena_lib.WALKER_BIT, 0)
-        m.geom_conaffinity[ids] = np.where(walls.ravel(),
-                                           arena_lib.WALKER_BIT | arena_lib.BOX_BIT, 0)
-        cell = self.cell_size
-        rects = arena_lib.wall_rectangles(walls)
-        self._walls_drawn_per_cell = len(rects) > len(self._slab_ids)
-        if self._walls_drawn_per_cell:
-            rects = []
-            m.geom_group[ids] = np.where(walls.ravel(), 0, arena_lib.HIDDEN_GROUP)
-        else:
-            m.geom_group[ids] = arena_lib.HIDDEN_GROUP
-        for k, slab in enumerate(self._slab_ids):
-            if k < len(rects):
-                r0, c0, r1, c1 = rects[k]
-                x0, y0 = self._arena.cell_centre(r0, c0)
-                x1, y1 = self._arena.cell_centre(r1 - 1, c1 - 1)
-                m.geom_pos[slab] = ((x0 + x1) / 2, (y0 + y1) / 2, arena_lib.WALL_HEIGHT / 2)
-                m.geom_size[slab] = ((c1 - c0) * cell / 2, (r1 - r0) * cell / 2,
-                                     arena_lib.WALL_HEIGHT / 2)
-                m.mat_texrepeat[self._slab_mats[k]] = (c1 - c0, r1 - r0)
-                m.geom_group[slab] = 0
-            else:
-                m.geom_pos[slab] = (0, 0, _PARKED_Z)
-                m.geom_group[slab] = arena_lib.HIDDEN_GROUP
-        self._targets = sorted(level.targets)
-        self._num_boxes = len(level.boxes)
-        self._initial_box_cells = sorted(level.boxes)
-        self._active_box_qpos = self._box_qpos_list[: self._num_boxes]
-        self._box_cells = tuple(self._initial_box_cells)
-        self._target_xy = [self._arena.cell_centre(r, c) for r, c in self._targets]
-        for k, pad in enumerate(self._pad_ids):
-            if k < len(self._targets):
-                m.geom_pos[pad] = (*self._target_xy[k], 0.004)
-                m.geom_group[pad] = 0
-            else:
-                m.geom_pos[pad] = (0, 0, _PARKED_Z)
-                m.geom_group[pad] = arena_lib.HIDDEN_GROUP
-        layer = np.zeros((height, width, 4), bool)
-        layer[..., WALL] = walls
-        for r, c in self._targets:
-            layer[r, c, TARGET] = True
-        self._static_layer = layer
-
-    def _draw_appearance(self, rng: np.random.Generator) -> None:
-        """Draws one labmaze texture for the walls and one for the floor from
-        ``rng`` (the original draws them from numpy's global generator)."""
-        walls, floors = self.appearances()
-        self.set_appearance(walls[int(rng.integers(len(walls)))],
-                            floors[int(rng.integers(len(floors)))])
-
-    def appearances(self) -> tuple[tuple[str, ...], tuple[str, ...]]:
-        """The wall and floor texture names an episode may draw."""
-        arena = self._arena
-        return (tuple(t.name.removeprefix("wall_") for t in arena.wall_textures),
-                tuple(t.name.removeprefix("floor_") for t in arena.floor_textures))
-
-    def set_appearance(self, wall: str, floor: str) -> None:
-        """Shows the walls with texture ``wall`` and the floor with ``floor``
-        (names from `appearances`) until the next episode draws again.
-        Raises ValueError for an unknown name."""
-        walls, floors = self.appearances()
-        for kind, name, names in (("wall", wall, walls), ("floor", floor, floors)):
-            if name not in names:
-                raise ValueError(f"unknown {kind} texture {name!r}; one of {', '.join(names)}")
-        m = self._model
-        m.mat_texid[self._wall_mats, _TEXROLE_RGB] = self._wall_tex_ids[walls.index(wall)]
-        m.mat_texid[self._floor_mat, _TEXROLE_RGB] = self._floor_tex_ids[floors.index(floor)]
-
     def _box_xy(self) -> list[tuple[float, float]]:
         qpos = self._qpos.tolist()
         return [(qpos[ix], qpos[iy]) for ix, iy in self._active_box_qpos]
@@ -645,58 +390,3 @@ class Mujoban(PhysicsTask):
         tol = self._pad_tolerance
         return tuple(any(abs(tx - bx) <= tol and abs(ty - by) <= tol for bx, by in boxes)
                      for tx, ty in self._target_xy)
-
-    def _paint_pads(self) -> None:
-        """The original's colours: a covered pad green and the box covering
-        it (the first in box order) blue, other pads red, other boxes yellow."""
-        rgba = self._model.geom_rgba
-        rgba[self._box_geom_ids[: self._num_boxes]] = arena_lib.BOX_RGBA
-        tol = self._pad_tolerance
-        boxes = self._box_reference
-        for k, covered in enumerate(self._covered):
-            rgba[self._pad_ids[k]] = arena_lib.PAD_COVERED_RGBA if covered else arena_lib.PAD_RGBA
-            if covered:
-                tx, ty = self._target_xy[k]
-                i = next(i for i, (bx, by) in enumerate(boxes)
-                         if abs(tx - bx) <= tol and abs(ty - by) <= tol)
-                rgba[self._box_geom_ids[i]] = arena_lib.BOX_ON_PAD_RGBA
-
-    def _set_layers(self, box_cells, player) -> None:
-        self._box_cells = tuple(box_cells)
-        self._player_cell = tuple(player)
-        layer = self._static_layer.copy()
-        for r, c in box_cells:
-            layer[r, c, BOX] = True
-        layer[player[0], player[1], PLAYER] = True
-        pixels = entity_layer_to_pixels(layer)
-        layer.flags.writeable = False
-        pixels.flags.writeable = False
-        self._entity_layer, self._pixel_layer = layer, pixels
-
-
-_COLOUR_TABLE = np.zeros((16, 3), np.uint8)
-
-
-def _build_colour_table() -> None:
-    for code in range(16):
-        wall, target, player, box = (bool(code >> k & 1) for k in range(4))
-        if wall:
-            name = "wall"
-        elif box:
-            name = "box_on_target" if target else "box"
-        elif player:
-            name = "player_on_target" if target else "player"
-        elif target:
-            name = "target"
-        else:
-            name = "floor"
-        _COLOUR_TABLE[code] = PIXEL_COLOURS[name]
-
-
-_build_colour_table()
-_CHANNEL_WEIGHTS = np.array([1, 2, 4, 8], np.uint8)
-
-
-def entity_layer_to_pixels(layer: np.ndarray) -> np.ndarray:
-    """``pixel_layer`` from ``full_entity_layer``: one RGB pixel per cell."""
-    return _COLOUR_TABLE[layer.astype(np.uint8) @ _CHANNEL_WEIGHTS]

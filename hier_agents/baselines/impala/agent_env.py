@@ -105,99 +105,28 @@ simulation ends the episode (reward 0) instead of killing an actor.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import NamedTuple
-
 import numpy as np
 
-import envs
-from abstract_planners.base import NoPlanError, Subgoal
-from abstract_planners.sokoban import MOVES
-from hier_agents.estimators import EstimationError
+from abstract_planners.base import Subgoal
+# The inputs and outputs, and the auxiliary task, live in modules of their
+# own; every name stays importable from here.
+from hier_agents.baselines.impala.agent_env_spec import (  # noqa: F401
+    _BOARD_PROPRIO, _BOX, _MUJOBAN_PROPRIO, _PLAYER, CONDITIONS, DISCOUNTS, EXPERT_PLANNER,
+    PLANNER_ACTIONS, PROPRIO_KEYS, InputSpec, StepResult, _gamma, _load_env)
+from hier_agents.baselines.impala.agent_env_subepisodes import SubEpisodeMixin
 from hier_agents.modular.families import family
 from hier_agents.modular.options import T_ABS
 
 __all__ = ["AgentEnv", "CONDITIONS", "DISCOUNTS", "InputSpec", "PLANNER_ACTIONS",
            "PROPRIO_KEYS", "StepResult"]
 
-CONDITIONS = ("vanilla", "random-planner", "expert-planner")
-#: The expert-planner condition's planner per family (others: the family's default).
-EXPERT_PLANNER = {"mujoban": "sokoban-solver"}
 
-#: Default (gamma_env, gamma_abs) per family (the paper's table).
-DISCOUNTS = {"mujoban": (0.99, 0.9), "mujoxo": (0.99, 0.98), "mujogo": (0.99, 0.98)}
-
-#: Order of the MuJoBan ``planner_action`` one-hot.
-PLANNER_ACTIONS = MOVES
-
-_MUJOBAN_PROPRIO = ("walker/joints_pos", "walker/joints_vel", "walker/joints_torque",
-                    "walker/orientation", "walker/sensors_touch",
-                    "walker/sensors_accelerometer", "walker/sensors_gyro",
-                    "walker/sensors_velocimeter")
-_BOARD_PROPRIO = ("arm/joints_pos", "arm/joints_vel", "arm/joints_torque",
-                  "arm/pinch_site_pos", "arm/pinch_site_rmat")
-#: Proprioceptive observations concatenated into ``"proprio"``, per family, in order.
-PROPRIO_KEYS = {"mujoban": _MUJOBAN_PROPRIO, "mujoxo": _BOARD_PROPRIO, "mujogo": _BOARD_PROPRIO}
-
-_PLAYER, _BOX = 2, 3  # full_entity_layer channels (envs.mujoban.task)
-
-
-@dataclass(frozen=True)
-class InputSpec:
-    """What the network gets (see the module docstring).
-
-    Attributes:
-      images: ``(camera name, (3, H, W))`` per uint8 image, possibly empty.
-      proprio_dim: length of ``"proprio"``.
-      planner_shape: ``(C, H, W)`` of ``"planner"``, None without a planner.
-      planner_action_dim: length of the ``"planner_action"`` one-hot, 0 if absent.
-      action_dim: action size A.
-      state_shape: ``(C, H, W)`` of ``"state"``, None unless ``state=True``.
-    """
-
-    images: tuple[tuple[str, tuple[int, int, int]], ...]
-    proprio_dim: int
-    planner_shape: tuple[int, int, int] | None
-    planner_action_dim: int
-    action_dim: int
-    state_shape: tuple[int, int, int] | None = None
-
-
-class StepResult(NamedTuple):
-    """One `AgentEnv.step` (see the module docstring for the semantics)."""
-
-    obs: dict[str, np.ndarray]
-    reward_env: float
-    discount_env: float
-    reward_abs: float
-    discount_abs: float
-    last: bool
-    info: dict
-
-
-def _gamma(value, default: float, name: str) -> float:
-    value = default if value is None else float(value)
-    if not 0.0 <= value <= 1.0:
-        raise ValueError(f"{name} must be in [0, 1], got {value!r}")
-    return value
-
-
-def _load_env(env_name: str, seed, image_size: int, cameras: bool, overrides: dict):
-    """``envs.load(env_name)`` with every camera at ``image_size`` squared (or
-    off without ``cameras``) and physics errors not raised, unless
-    ``overrides`` say otherwise. KeyError for an unknown name."""
-    valid = envs.overrides(env_name)  # KeyError for an unknown name
-    kwargs = dict(overrides)
-    for name in valid:
-        if name.endswith("_camera"):
-            kwargs.setdefault(name, (int(image_size), int(image_size)) if cameras else None)
-    if "raise_on_physics_error" in valid:
-        kwargs.setdefault("raise_on_physics_error", False)
-    return envs.load(env_name, seed=seed, **kwargs)
-
-
-class AgentEnv:
+class AgentEnv(SubEpisodeMixin):
     """An `envs` environment for an end-to-end agent (see the module docstring).
+
+    The auxiliary task's sub-episodes and the observations come from
+    `SubEpisodeMixin` (`agent_env_subepisodes`); `InputSpec`, `StepResult` and
+    the constants from `agent_env_spec`.
 
     Args:
       env_name: an `envs.names()` name (``mujoban/*``, ``mujoxo/*``, ``mujogo/*``).
@@ -281,40 +210,6 @@ class AgentEnv:
         self.abstract_state = None
         self._closed = False
 
-    def _setup_planning(self, condition: str, task) -> tuple:
-        """The auxiliary task's planner and estimator (None for vanilla) and
-        the planner-input buffers; returns (planner_shape or None,
-        planner_action_dim)."""
-        fam = self.family
-        self.planner = self.estimator = None
-        self._planning = condition != "vanilla"
-        planner_shape, planner_action_dim = None, 0
-        if self._planning:
-            from hier_agents.modular.components import ESTIMATORS, PLANNERS
-
-            planners = PLANNERS[fam]
-            # The expert is the paper's: MuJoBan's exact Sokoban solver
-            # (not the library's default, the execution-time planner).
-            expert = planners.get(EXPERT_PLANNER.get(fam, ""),
-                                  next(iter(planners.values())))
-            factory = expert if condition == "expert-planner" else planners["random"]
-            description = self.env.description()
-            self.planner = factory(description, self.seed)
-            # The paper's planner conditions read the ground-truth abstract
-            # state: the privileged entity-layer estimator (board games:
-            # the game record, observation-only).
-            name = "entity-layer" if fam == "mujoban" else "board"
-            self.estimator = ESTIMATORS[fam][name](description, self.seed, self.env)
-            if fam == "mujoban":
-                h, w = task.grid_shape
-                planner_shape, planner_action_dim = (8, int(h), int(w)), len(PLANNER_ACTIONS)
-            else:
-                n = int(task.game.size)
-                planner_shape = (6, n, n)
-            self._planes = np.zeros(planner_shape, np.float32)
-            self._onehot = np.zeros(planner_action_dim, np.float32)
-        return planner_shape, planner_action_dim
-
     # -- API --------------------------------------------------------------------------------
 
     def reset(self) -> dict[str, np.ndarray]:
@@ -395,101 +290,3 @@ class AgentEnv:
     def __repr__(self) -> str:
         return (f"AgentEnv({self.env_name!r}, {self.condition!r}, seed={self.seed}, "
                 f"images={[name for name, _ in self.input_spec.images]})")
-
-    # -- internals ------------------------------------------------------------------------------
-
-    def _observe(self, observation) -> dict[str, np.ndarray]:
-        obs = {"proprio": np.concatenate([observation[k] for k in self._proprio_keys],
-                                         dtype=np.float32)}
-        for name in self._cameras:
-            obs[name] = np.ascontiguousarray(observation[name].transpose(2, 0, 1))
-        if self._planning:
-            obs["planner"] = self._planes.copy()
-            if self._mujoban:
-                obs["planner_action"] = self._onehot.copy()
-        if self._state_key is not None:
-            obs["state"] = observation[self._state_key].transpose(2, 0, 1).astype(np.float32)
-        return obs
-
-    def _check(self) -> tuple[bool, bool]:
-        """(target reached, sub-episode over for another reason) after a step."""
-        task = self.env.task
-        if self._mujoban:
-            cells, player = task.abstract_cells
-            if self.subgoal is not None:
-                target = self.subgoal.state
-                return (player == target.player and frozenset(cells) == target.boxes), False
-            # No target: try again once the abstract state changes.
-            return False, (cells, player) != self._start_cells
-        if task.moves_registered == self._start_registered:
-            return False, False
-        if self.subgoal is None:
-            return False, True
-        moves = task.moves
-        move = moves[self._start_moves] if len(moves) > self._start_moves else None
-        reached = move == int(self.subgoal.action)
-        return reached, not reached
-
-    def _start_subepisode(self, timestep) -> None:
-        """Estimates the abstract state, asks for a target and builds the planner inputs."""
-        task = self.env.task
-        self._sub_steps = 0
-        try:
-            state = self.estimator.estimate(timestep).state
-        except (EstimationError, ValueError):
-            # Physics can put the rounded cells in a state no Sokoban board has
-            # (two boxes in one cell, the walker on a box after a diagonal
-            # shove): no target until the next sub-episode.
-            state = None
-        self.abstract_state = state
-        subgoal = None
-        if state is not None and not (state.is_solved() if self._mujoban
-                                      else state.is_terminal()):
-            try:
-                subgoal = self.planner.plan(state)
-            except (NoPlanError, ValueError):
-                subgoal = None
-        self.subgoal = subgoal
-        if subgoal is None:
-            self._unplanned += 1
-        else:
-            self._issued += 1
-        planes, onehot = self._planes, self._onehot
-        observation = timestep.observation
-        if self._mujoban:
-            self._start_cells = task.abstract_cells
-            c = planes.shape[0] // 2
-            planes[:c] = observation["full_entity_layer"].transpose(2, 0, 1)
-            planes[c:] = planes[:c]
-            onehot[:] = 0.0
-            if subgoal is not None:
-                target = subgoal.state
-                planes[c + _PLAYER] = 0.0
-                planes[c + _BOX] = 0.0
-                planes[c + _PLAYER][target.player] = 1.0
-                for cell in target.boxes:
-                    planes[c + _BOX][cell] = 1.0
-                onehot[PLANNER_ACTIONS.index(subgoal.action)] = 1.0
-        else:
-            self._start_registered = task.moves_registered
-            self._start_moves = len(task.moves)
-            planes[:3] = observation["board_state"].transpose(2, 0, 1)
-            if subgoal is None:
-                planes[3:] = planes[:3]
-            else:
-                planes[3:] = task.game.board_planes(subgoal.state).transpose(2, 0, 1)
-
-    def _episode_info(self) -> dict:
-        task, physics = self.env.task, self.env.physics
-        terminated = bool(task.should_terminate_episode(physics))
-        if self._mujoban:
-            success = bool(task.solved)
-        else:
-            success = task.outcome == "win"  # a resignation by the opponent included
-        info = {"episode_return": self._return, "episode_steps": self._steps,
-                "success": success,
-                "truncated": not terminated and self.env.step_count >= task.time_limit_steps}
-        if self._planning:
-            info.update(subgoals_issued=self._issued, subgoals_reached=self._reached,
-                        subgoals_unplanned=self._unplanned)
-        return info

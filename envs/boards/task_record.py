@@ -1,0 +1,192 @@
+"""The game record of the board task (`envs.boards.task.BoardTask`): the
+touch and contact sensors, which move a control step's touches register,
+playing it and the opponent's reply (the OpenSpiel state, the pieces on the
+board), and the game's accessors.
+
+`GameRecordMixin` is one of `BoardTask`'s bases; it reads the attributes
+`BoardTask.after_compile` sets (sensor history indices, ``_model``,
+``_data``, piece geom ids, point positions) and keeps the game's state
+(``state``, ``_moves``, ``_history``, ``_owners``, ``_planes``,
+``_game_over``, ``_reward``, ``_resigned``, ``moves_registered``).
+"""
+
+from __future__ import annotations
+
+import re
+
+import mujoco
+import numpy as np
+
+from envs.boards import arena as arena_lib
+from envs.boards.games import AGENT
+
+#: Piece jitter as a fraction of the sensor's half-size (the original's).
+PIECE_NOISE = {"tic_tac_toe": 1.0, "go": 0.25}
+
+
+class GameRecordMixin:
+    """Touch registration, moves and the game record of `BoardTask`."""
+
+    def _add_sensors(self, nsample: int) -> None:
+        """Touch and contact sensors that keep every substep's reading."""
+        sensor = self._arena.mjcf_model.sensor
+        arena = self._arena
+        self._touch_sensors, self._pos_sensors, self._finger_sensors = [], [], []
+        zones = list(zip(arena.squares, arena.sensor_sites))
+        if arena.pass_geom is not None:
+            zones.append((arena.pass_geom, arena.pass_site))
+        # One sensor per finger: a knuckle body's subtree holds its tip too.
+        pattern = re.compile(r"b_finger_\d+$" if self._registering == "fingers"
+                             else r"b_finger_tip_\d+$")
+        finger_bodies = [b for b in self._hand.mjcf_model.find_all("body")
+                         if b.name and pattern.match(b.name)]
+        for k, (geom, site) in enumerate(zones):
+            self._touch_sensors.append(sensor.add("touch", name=f"touch_{k}", site=site,
+                                                  nsample=nsample))
+            self._pos_sensors.append(sensor.add("contact", name=f"contact_{k}", geom1=geom,
+                                                data="found pos", nsample=nsample))
+            if self._registering != "arm":
+                self._finger_sensors.append([
+                    sensor.add("contact", name=f"finger_{k}_{j}", geom1=geom, subtree2=body,
+                               data="found", nsample=nsample)
+                    for j, body in enumerate(finger_bodies)])
+
+    def registered_move(self, pressure: np.ndarray, order: np.ndarray):
+        """The first substep's move that registers: (action, piece (x, y) or None), or None.
+
+        ``pressure`` holds the zones' (squares, then pass) touch readings per
+        substep, oldest first; ``order`` maps those substeps to history slots.
+        """
+        n2, threshold = self._num_squares, arena_lib.TOUCH_THRESHOLD
+        squares = pressure[:n2]
+        best = squares.argmax(axis=0)
+        best_value = squares[best, self._arange]
+        candidate = np.where(best_value > threshold, best, -1)
+        if self._has_pass:
+            passing = pressure[n2]
+            candidate = np.where((passing > best_value) & (passing > threshold), n2, candidate)
+        steps = np.flatnonzero(candidate >= 0)
+        if not steps.size:
+            return None
+        zones = candidate[steps]
+        if self._finger_idx is not None:
+            # A finger geom in contact with that square's geom in that substep.
+            fingers = self._data.history[self._finger_idx[zones, :, order[steps]]]
+            keep = fingers.max(axis=1) > 0
+            steps, zones = steps[keep], zones[keep]
+        if not steps.size:
+            return None
+        legal = np.zeros(n2 + 1, bool)
+        legal[self.state.legal_actions()] = True
+        if self._has_pass and self._last_agent_move_passed and not self._allow_double_pass:
+            legal[n2] = False
+        keep = np.flatnonzero(legal[zones])
+        if not keep.size:
+            return None
+        step, zone = int(steps[keep[0]]), int(zones[keep[0]])
+        action = self.game.pass_action if zone == n2 else zone
+        piece_xy = None
+        if zone < n2:
+            found, x, y, _ = self._data.history[self._pos_idx[zone, order[step]]]
+            piece_xy = (float(x), float(y)) if found > 0 else tuple(self._point_xy[zone])
+        return action, piece_xy
+
+    def _play_agent_move(self, action: int, piece_xy, rng) -> None:
+        self._apply(action, piece_xy=piece_xy)
+        self._last_agent_move_passed = action == self.game.pass_action
+        self.moves_registered += 1
+        if not self.state.is_terminal():
+            subgoal = self.opponent.plan(self.state)
+            if subgoal.info.get("resigned"):
+                # The opponent (GNU Go) resigned: the game ends as the agent's
+                # win (OpenSpiel's go has no resign action, so nothing is played).
+                self._resigned = True
+                self._game_over = True
+                self._reward = 1.0
+                return
+            self._apply(int(subgoal.action), piece_xy=None, rng=rng)
+        if self.state.is_terminal():
+            self._game_over = True
+            self._reward = self.game.final_reward(self.state)
+        elif self._arm_reset:
+            self._place_arm(rng)
+
+    def _apply(self, action: int, *, piece_xy, rng=None) -> None:
+        """Plays ``action`` for the player to move and updates the pieces."""
+        player = self.state.current_player()
+        self.state.apply_action(action)
+        self._history[len(self._moves)] = action
+        self._moves.append(action)
+        owners = self.game.owners(self.state)
+        changed = np.flatnonzero(owners != self._owners)
+        m = self._model
+        colours = arena_lib.COLOURS[self.game.name]
+        half = self._arena.pad_half
+        for point in changed:
+            geom = self._piece_ids[point]
+            owner = owners[point]
+            if owner < 0:  # captured
+                m.geom_group[geom] = arena_lib.HIDDEN_GROUP
+                continue
+            px, py = self._point_xy[point]
+            if point == action and player == AGENT and piece_xy is not None:
+                x, y = piece_xy
+            else:
+                noise = (rng.uniform(-1, 1, 2) * self._piece_noise * half
+                         if rng is not None else (0.0, 0.0))
+                x, y = px + noise[0], py + noise[1]
+            m.geom_pos[geom] = (x, y, arena_lib.BOARD_TOP)
+            m.geom_rgba[geom] = colours[owner]
+            m.geom_group[geom] = 0
+        self._owners = owners
+        self._planes = self.game.board_planes(self.state)
+
+    # -- the game, for agents and tests -------------------------------------
+
+    def play_moves(self, actions) -> None:
+        """Sets up a position: plays ``actions`` for both sides in turn, no replies.
+
+        For tests, demonstrations and curricula; call after ``reset()``. The
+        pieces appear at their points (opponent noise applies to none). The
+        agent must be the player to move afterwards.
+
+        Raises:
+          ValueError: an illegal action, a finished game, or a position where
+            the opponent would be to move.
+        """
+        actions = [int(a) for a in actions]
+        probe = self.state.clone()
+        for a in actions:
+            if probe.is_terminal() or a not in probe.legal_actions():
+                raise ValueError(f"action {a} is illegal after {list(probe.history())}")
+            probe.apply_action(a)
+        if probe.is_terminal() or probe.current_player() != AGENT:
+            raise ValueError(f"after {actions} the agent must be to move in a running game")
+        for a in actions:
+            self._apply(a, piece_xy=None)
+        mujoco.mj_forward(self._model, self._data)
+
+    @property
+    def moves(self) -> tuple[int, ...]:
+        """Actions played so far in this game, both players, in order."""
+        return tuple(self._moves)
+
+    @property
+    def game_over(self) -> bool:
+        return self._game_over
+
+    @property
+    def resigned(self) -> bool:
+        """Whether the opponent resigned this game (it ended as the agent's win)."""
+        return self._resigned
+
+    @property
+    def outcome(self) -> str | None:
+        """``"win"``, ``"draw"`` or ``"loss"`` for the agent once the game is
+        over (an opponent's resignation is a win), else None."""
+        if self._resigned:
+            return "win"
+        if self.state is None or not self.state.is_terminal():
+            return None
+        value = self.state.returns()[AGENT]
+        return "win" if value > 0 else ("draw" if value == 0 else "loss")

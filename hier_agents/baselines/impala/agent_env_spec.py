@@ -1,0 +1,92 @@
+"""Inputs and outputs of `hier_agents.baselines.impala.agent_env.AgentEnv`:
+the experimental conditions, default discounts, proprioceptive keys and
+planner-action order, the network's `InputSpec`, the per-step `StepResult`,
+and how the underlying environment is loaded (see `agent_env`'s module
+docstring for the semantics). Everything public here is re-exported by
+`agent_env`, where it is imported from.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+import envs
+from abstract_planners.sokoban import MOVES
+
+CONDITIONS = ("vanilla", "random-planner", "expert-planner")
+#: The expert-planner condition's planner per family (others: the family's default).
+EXPERT_PLANNER = {"mujoban": "sokoban-solver"}
+
+#: Default (gamma_env, gamma_abs) per family (the paper's table).
+DISCOUNTS = {"mujoban": (0.99, 0.9), "mujoxo": (0.99, 0.98), "mujogo": (0.99, 0.98)}
+
+#: Order of the MuJoBan ``planner_action`` one-hot.
+PLANNER_ACTIONS = MOVES
+
+_MUJOBAN_PROPRIO = ("walker/joints_pos", "walker/joints_vel", "walker/joints_torque",
+                    "walker/orientation", "walker/sensors_touch",
+                    "walker/sensors_accelerometer", "walker/sensors_gyro",
+                    "walker/sensors_velocimeter")
+_BOARD_PROPRIO = ("arm/joints_pos", "arm/joints_vel", "arm/joints_torque",
+                  "arm/pinch_site_pos", "arm/pinch_site_rmat")
+#: Proprioceptive observations concatenated into ``"proprio"``, per family, in order.
+PROPRIO_KEYS = {"mujoban": _MUJOBAN_PROPRIO, "mujoxo": _BOARD_PROPRIO, "mujogo": _BOARD_PROPRIO}
+
+_PLAYER, _BOX = 2, 3  # full_entity_layer channels (envs.mujoban.task)
+
+
+@dataclass(frozen=True)
+class InputSpec:
+    """What the network gets (see the module docstring).
+
+    Attributes:
+      images: ``(camera name, (3, H, W))`` per uint8 image, possibly empty.
+      proprio_dim: length of ``"proprio"``.
+      planner_shape: ``(C, H, W)`` of ``"planner"``, None without a planner.
+      planner_action_dim: length of the ``"planner_action"`` one-hot, 0 if absent.
+      action_dim: action size A.
+      state_shape: ``(C, H, W)`` of ``"state"``, None unless ``state=True``.
+    """
+
+    images: tuple[tuple[str, tuple[int, int, int]], ...]
+    proprio_dim: int
+    planner_shape: tuple[int, int, int] | None
+    planner_action_dim: int
+    action_dim: int
+    state_shape: tuple[int, int, int] | None = None
+
+
+class StepResult(NamedTuple):
+    """One `AgentEnv.step` (see the module docstring for the semantics)."""
+
+    obs: dict[str, np.ndarray]
+    reward_env: float
+    discount_env: float
+    reward_abs: float
+    discount_abs: float
+    last: bool
+    info: dict
+
+
+def _gamma(value, default: float, name: str) -> float:
+    value = default if value is None else float(value)
+    if not 0.0 <= value <= 1.0:
+        raise ValueError(f"{name} must be in [0, 1], got {value!r}")
+    return value
+
+
+def _load_env(env_name: str, seed, image_size: int, cameras: bool, overrides: dict):
+    """``envs.load(env_name)`` with every camera at ``image_size`` squared (or
+    off without ``cameras``) and physics errors not raised, unless
+    ``overrides`` say otherwise. KeyError for an unknown name."""
+    valid = envs.overrides(env_name)  # KeyError for an unknown name
+    kwargs = dict(overrides)
+    for name in valid:
+        if name.endswith("_camera"):
+            kwargs.setdefault(name, (int(image_size), int(image_size)) if cameras else None)
+    if "raise_on_physics_error" in valid:
+        kwargs.setdefault("raise_on_physics_error", False)
+    return envs.load(env_name, seed=seed, **kwargs)
