@@ -65,11 +65,13 @@ def collect(spec, frames: int, seed: int, *, actor=None, noise: float = 0.2,
 
 
 def fit(agent, xs, ys, epochs: int, lr: float = 1e-3, log=print) -> float:
-    """Regresses ``agent.mean`` on the labels (MSE; only ``agent.actor``'s
+    """Regresses ``agent.mean`` on the labels (MSE, Adam from ``lr`` with a
+    cosine decay over the epochs, minibatches of 256; only ``agent.actor``'s
     parameters move). Returns the last epoch's mean squared error."""
     x = torch.as_tensor(xs, dtype=torch.float32)
     y = torch.as_tensor(ys, dtype=torch.float32)
     opt = torch.optim.Adam(agent.actor.parameters(), lr=lr)
+    schedule = torch.optim.lr_scheduler.CosineAnnealingLR(opt, max(int(epochs), 1))
     n, mse = len(x), float("nan")
     for epoch in range(int(epochs)):
         perm = torch.randperm(n)
@@ -81,6 +83,7 @@ def fit(agent, xs, ys, epochs: int, lr: float = 1e-3, log=print) -> float:
             loss.backward()
             opt.step()
             total += loss.item() * len(idx)
+        schedule.step()
         mse = total / max(n, 1)
         if epoch % 10 == 9 or epoch == epochs - 1:
             log(f"fit epoch {epoch + 1}/{epochs}: mse {mse:.5f} on {n} frames")

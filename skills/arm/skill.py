@@ -22,6 +22,26 @@ from skills.base import Skill, Status
 _NUM_ACTIONS = 9
 
 
+def touch_outcome(moves, moves_before: int, action, last: bool) -> tuple[Status, str | None]:
+    """A touch's outcome from the game record: (status, failure reason).
+
+    SUCCESS when the first move of ``moves`` after the ``moves_before``
+    present when the touch started is ``action``; FAILURE (``"wrong move"``)
+    when it is another, or (``"episode ended"``) when the episode ended
+    (``last``) first; else RUNNING. Shared by `ArmTouchSkill` and the learned
+    arm skill (`skills.learned.arm`).
+    """
+    action = int(action)
+    if len(moves) > moves_before:
+        played = moves[moves_before]
+        if played == action:
+            return Status.SUCCESS, None
+        return Status.FAILURE, f"wrong move: registered {played} instead of {action}"
+    if last:
+        return Status.FAILURE, "episode ended before the move registered"
+    return Status.RUNNING, None
+
+
 class ArmTouchSkill(Skill):
     """Touches the subgoal's board point (or pass area) with the closed fingertips.
 
@@ -338,19 +358,13 @@ class ArmTouchSkill(Skill):
         return False
 
     def _check_outcome(self, timestep, scene) -> None:
-        """SUCCESS when the game record's first move after those present at
-        `reset` is the subgoal's; FAILURE when it is another, or when the
-        episode ended first."""
-        moves = scene.moves
-        if len(moves) > self._moves_before:
-            played = moves[self._moves_before]
-            if played == int(self.subgoal.action):
-                self.status = Status.SUCCESS
-            else:
-                self._fail(f"wrong move: registered {played} instead of "
-                           f"{int(self.subgoal.action)}")
-        elif timestep is not None and timestep.last():
-            self._fail("episode ended before the move registered")
+        """The outcome rule (`touch_outcome`) applied to this timestep."""
+        status, reason = touch_outcome(scene.moves, self._moves_before, self.subgoal.action,
+                                       timestep is not None and timestep.last())
+        if status is Status.SUCCESS:
+            self.status = Status.SUCCESS
+        elif status is Status.FAILURE:
+            self._fail(reason)
 
     def __repr__(self) -> str:
         return (f"ArmTouchSkill(pre_height={self.config.pre_height:g}, "
