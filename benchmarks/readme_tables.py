@@ -254,6 +254,38 @@ def learned_ball(results: Path) -> list[str]:
     return lines
 
 
+def _wdl(s: dict) -> str:
+    return (f"{100 * s['win_rate']:.0f}% / {100 * s['draw_rate']:.0f}% / "
+            f"{100 * s['loss_rate']:.0f}%")
+
+
+@table("learned-arm")
+def learned_arm(results: Path) -> list[str]:
+    """Default planner + learned arm skill on the board games, beside the
+    scripted (mink) skill's rows, and the skill alone on held-out options."""
+    lines = ["| environment | games | learned arm: win / draw / loss | touches registered "
+             "| scripted arm (results/agent): win / draw / loss | touches registered |",
+             "| --- | --- | --- | --- | --- | --- |"]
+    for path in sorted((results / "learned_arm").glob("run_*.json")):
+        s = _load(path)
+        if s.get("skill") != "learned-arm" or s.get("privileged"):
+            raise ValueError(f"{path}: not an observation-only learned-arm run")
+        ref_path = results / "agent" / (s["env"].replace("/", "_") + ".json")
+        ref = _load(ref_path) if ref_path.exists() else None
+        lines.append(f"| `{s['env']}` | {s['episodes']} | {_wdl(s)} "
+                     f"| {100 * s['subgoal_success_rate']:.1f}% | "
+                     + (f"{_wdl(ref)} | {100 * ref['subgoal_success_rate']:.1f}% |" if ref
+                        else "- | - |"))
+    opt_path = results / "learned_arm" / "option_success.json"
+    if opt_path.exists():
+        opt = _load(opt_path)
+        for name, r in opt["rows"].items():
+            lines.append(f"| held-out options (MuJoXO and MuJoGo scenes), {name} | {r['episodes']} "
+                         f"| - | {_ci(r['success'], (r['wilson_low'], r['wilson_high']))} "
+                         f"| - | - |")
+    return lines
+
+
 @table("option-policy")
 def option_policy(results: Path) -> list[str]:
     """The learned policy over options as a planner (`results/option_policy/`)."""

@@ -34,7 +34,9 @@ def test_checkpoint_loads_with_the_skills_features():
     assert POLICY_PATH.stat().st_size < 200_000
     policy = load_policy(POLICY_PATH, FEATURES)
     assert policy.obs_dim == len(FEATURES) and policy.action_dim == ACTION_DIM
-    assert policy.meta.get("sim_steps", 0) > 0 and "recipe" in policy.meta
+    assert policy.meta.get("sim_steps", 0) > 0
+    assert policy.meta["trained_with"] == "hier_agents.learning.train_skill"  # the shared trainer
+    assert policy.meta["command"].startswith("python -m hier_agents.learning.train_skill arm")
     out = policy(np.zeros(len(FEATURES)))
     assert out.shape == (ACTION_DIM,) and np.all(np.isfinite(out))
     with pytest.raises(ValueError):

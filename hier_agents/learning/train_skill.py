@@ -274,7 +274,8 @@ def train(args) -> dict:
         export_policy(agent, probe.FEATURES, policy_path,
                       {"frames": state["frames"], "sim_steps": state["sim_steps"],
                        "bc_frames": state["bc_frames"], "seed": args.seed, "spec": spec.name,
-                       "iteration": state["iteration"], "command": " ".join(sys.argv),
+                       "iteration": state["iteration"], "command": " ".join(["python -m hier_agents.learning.train_skill",
+                                             *sys.argv[1:]]),
                        "trained_with": "hier_agents.learning.train_skill"})
 
     with run, run.interruptible():

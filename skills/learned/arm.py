@@ -53,13 +53,8 @@ Features (`FEATURES`, float32, 30 values)
 ======  ====================  =================================================
 
 No velocities: the joint velocities (and the tool's) are left out on
-purpose. The teacher's commands are smooth, so a policy that sees the
-current velocities learns to copy them (the "copycat" shortcut): trained
-with them (39 features: these plus the six joint velocities / their limits
-and the tool velocity / 0.5 m/s) it stalled, stopped a centimetre above a
-Go pad, where the teacher's data only has the arm moving down; without them
-the same data gave 96% of held-out Go touches instead of 89-90%
-(``meta["recipe"]`` of the checkpoint has the figures).
+purpose: a policy that sees them learns to copy the teacher's smooth current
+motion and stalls just above a Go pad (measured: ``results/learned_arm/``).
 
 Action
 ======
@@ -99,18 +94,13 @@ Checkpoint
 ==========
 
 ``arm_policy.pt`` (next to this file; `skills.learned.policy` format) holds
-the network (30 -> 160 -> 160 -> 6, tanh, linear output; 133 KB), the
-feature names (checked on load) and ``meta`` (``frames``, ``sim_steps``,
-``recipe``, ``findings``, held-out and game figures). The shipped one is
-behaviour cloning of the teacher plus DAgger data: 45k teacher-driven
-control steps from `hier_agents.learning.skills.arm.ArmSceneSource` scenes
-with Gaussian noise on the executed action in half or more of the options
-(the teacher keeps correcting and labelling), and 20k steps driven per step
-by the student with probability 0.5 (else by the teacher), labelled by the
-teacher; one MSE fit (Adam, 40 epochs). 72k simulated control steps in
-all. In 100-game runs with the ``board`` estimator: MuJoXO vs optimal and
-mixture no loss, every touch registered; MuJoGo 7x7 vs GNU Go level 10 100
-wins, 99.4% of touches (the rest cut off by the option layer and retried).
+the network (30 -> 160 -> 160 -> 6, tanh, linear output), the feature names
+(checked on load) and ``meta`` (``frames``, ``sim_steps``, the training
+command). It is trained by the shared skill trainer on the ``arm`` spec
+(`hier_agents.learning.skills.arm`): behaviour cloning of the noisy teacher,
+then DAgger rounds in which the student acts at a fraction of the steps
+(``python -m hier_agents.learning.train_skill arm ...``; the README and
+``results/learned_arm/`` hold the command and the figures).
 """
 
 from __future__ import annotations
