@@ -25,6 +25,7 @@ here knows about a particular environment.
 
 from __future__ import annotations
 
+import argparse
 import dataclasses
 from typing import Callable, Protocol
 
@@ -90,6 +91,35 @@ class PPOConfig:
     ent_coef: float = 0.0
     max_grad_norm: float = 0.5
     norm_adv: bool = True
+
+
+def add_arguments(parser, **defaults) -> None:
+    """Adds the PPO flags (``--rollout --epochs --minibatches --lr --[no-]anneal-lr
+    --gamma --lam --clip --ent-coef --vf-coef --max-grad-norm``) to an argparse
+    ``parser``; ``defaults`` override `PPOConfig`'s (and ``rollout``, default 128)."""
+    base = {**dataclasses.asdict(PPOConfig()), "rollout": 128, **defaults}
+    add = parser.add_argument
+    add("--rollout", type=int, default=base["rollout"], help="steps per environment per update")
+    add("--epochs", type=int, default=base["epochs"], help="PPO epochs per update")
+    add("--minibatches", type=int, default=base["minibatches"], help="minibatches per epoch")
+    add("--lr", type=float, default=base["lr"], help="Adam learning rate")
+    add("--anneal-lr", action=argparse.BooleanOptionalAction, default=base["anneal_lr"],
+        help="anneal the learning rate linearly over the budget")
+    add("--gamma", type=float, default=base["gamma"], help="discount per control step")
+    add("--lam", type=float, default=base["lam"], help="GAE lambda")
+    add("--clip", type=float, default=base["clip"], help="PPO ratio clip")
+    add("--ent-coef", type=float, default=base["ent_coef"], help="entropy bonus")
+    add("--vf-coef", type=float, default=base["vf_coef"], help="value-loss weight")
+    add("--max-grad-norm", type=float, default=base["max_grad_norm"], help="gradient-norm clip")
+
+
+def config_from_args(args, **fixed) -> PPOConfig:
+    """The `PPOConfig` of flags added by `add_arguments` (``fixed``: fields
+    without a flag, e.g. ``lr_floor``)."""
+    return PPOConfig(gamma=args.gamma, lam=args.lam, clip=args.clip, epochs=args.epochs,
+                     minibatches=args.minibatches, lr=args.lr, anneal_lr=args.anneal_lr,
+                     vf_coef=args.vf_coef, ent_coef=args.ent_coef,
+                     max_grad_norm=args.max_grad_norm, **fixed)
 
 
 @dataclasses.dataclass

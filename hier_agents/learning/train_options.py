@@ -110,6 +110,7 @@ from hier_agents.learning.option_workers import (CpuClock, WorkerClock,  # noqa:
                                                  make_abstract_env, make_option_env,
                                                  make_vector)
 from hier_agents.learning.rundir import RunDir, seed_everything
+from hier_agents.modular.options import T_ABS
 from hier_agents.stats import wilson_interval
 
 #: Seed of the end-of-training evaluation (hier_agents.run seeds its environment with it).
@@ -147,10 +148,7 @@ class OptionActorCritic(nn.Module):
 
 
 def ppo_config(args) -> ppo.PPOConfig:
-    return ppo.PPOConfig(gamma=args.gamma, lam=args.lam, clip=args.clip, epochs=args.epochs,
-                         minibatches=args.minibatches, lr=args.lr, anneal_lr=args.anneal_lr,
-                         lr_floor=0.05, vf_coef=args.vf_coef, ent_coef=args.ent_coef,
-                         max_grad_norm=args.max_grad_norm)
+    return ppo.config_from_args(args, lr_floor=0.05)
 
 
 def run_phase(phase, vec, names, policy, optimizer, state, args, *, target, run, cpu_now, save):
@@ -245,24 +243,15 @@ def parse_args(argv=None):
     p.add_argument("--abstract-envs", type=int, default=16, help="abstract env copies")
     p.add_argument("--abstract-duration", type=int, default=ABSTRACT_DURATION,
                    help="control steps per abstract option")
-    p.add_argument("--rollout", type=int, default=64, help="options per copy per update")
-    p.add_argument("--epochs", type=int, default=4, help="PPO epochs per update")
-    p.add_argument("--minibatches", type=int, default=4, help="minibatches per epoch")
-    p.add_argument("--lr", type=float, default=5e-4, help="Adam learning rate")
-    p.add_argument("--no-anneal-lr", dest="anneal_lr", action="store_false",
-                   help="constant learning rate")
-    p.add_argument("--gamma", type=float, default=0.995, help="discount per control step")
-    p.add_argument("--lam", type=float, default=0.95, help="GAE lambda")
-    p.add_argument("--clip", type=float, default=0.2, help="PPO ratio clip")
-    p.add_argument("--ent-coef", type=float, default=0.01, help="entropy bonus")
-    p.add_argument("--vf-coef", type=float, default=0.5, help="value-loss weight")
-    p.add_argument("--max-grad-norm", type=float, default=0.5, help="gradient-norm clip")
+    ppo.add_arguments(p, rollout=64, epochs=4, minibatches=4, lr=5e-4, anneal_lr=True,
+                      gamma=0.995, lam=0.95, clip=0.2, ent_coef=0.01, vf_coef=0.5,
+                      max_grad_norm=0.5)
     p.add_argument("--shape-box", type=float, default=1.0, help="shaping: box distance weight")
     p.add_argument("--shape-player", type=float, default=0.1,
                    help="shaping: player distance weight")
     p.add_argument("--box-distance", choices=("walk", "push"), default="walk",
                    help="shaping's box-to-pad distance: walking or pushes (dead cells far)")
-    p.add_argument("--t-abs", type=int, default=50, help="control steps per option at most")
+    p.add_argument("--t-abs", type=int, default=T_ABS, help="control steps per option at most")
     p.add_argument("--radius", type=int, default=6, help="egocentric crop radius (cells)")
     p.add_argument("--hidden", type=int, default=128, help="network width")
     p.add_argument("--save-every", type=int, default=10, help="updates between checkpoints")

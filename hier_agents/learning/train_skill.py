@@ -196,11 +196,6 @@ def evaluate_only(args, spec) -> int:
     return 0
 
 
-def _ppo_config(args) -> ppo.PPOConfig:
-    return ppo.PPOConfig(gamma=args.gamma, lam=0.95, clip=0.1, epochs=5, minibatches=4,
-                         lr=args.lr, vf_coef=0.5, ent_coef=0.0, max_grad_norm=0.5)
-
-
 def _vector_env(spec, args, seed: int):
     thunks = [(lambda k=k: SkillEnv(spec, seed=seed + k, estimator=args.estimator,
                                     t_abs=args.t_abs)) for k in range(args.envs)]
@@ -209,7 +204,7 @@ def _vector_env(spec, args, seed: int):
 
 def _ppo(spec, agent, optimizer, state, run, args, save) -> None:
     """PPO iterations until ``args.frames`` frames (the counters in ``state``)."""
-    cfg, per_iter = _ppo_config(args), args.envs * args.rollout
+    cfg, per_iter = ppo.config_from_args(args), args.envs * args.rollout
     envs = _vector_env(spec, args, args.seed * 1000 + 100)
     collector = ppo.RolloutCollector(envs, agent, args.rollout)
     collector.reset(seed=args.seed * 1000 + 100 + state["iteration"])
@@ -342,9 +337,9 @@ def parse_args(argv=None):
     p.add_argument("--hidden", type=int, default=64, help="hidden units per layer")
     p.add_argument("--log-std", type=float, default=None,
                    help="initial log-std (default: -1.6 after a warm start, else -0.5)")
-    p.add_argument("--rollout", type=int, default=256, help="steps per env per iteration")
-    p.add_argument("--lr", type=float, default=1e-4)
-    p.add_argument("--gamma", type=float, default=0.99, help="discount per control step")
+    ppo.add_arguments(p, rollout=256, epochs=5, minibatches=4, lr=1e-4, anneal_lr=False,
+                      gamma=0.99, lam=0.95, clip=0.1, ent_coef=0.0, vf_coef=0.5,
+                      max_grad_norm=0.5)
     p.add_argument("--critic-warmup", type=int, default=3,
                    help="critic-only PPO iterations after a warm start")
     p.add_argument("--t-abs", type=int, default=None, help="option cut-off (default: the spec's)")
