@@ -319,6 +319,7 @@ def test_a_dead_or_failing_actor_stops_the_learner_with_a_clear_error():
         bad.close()
 
 
+@pytest.mark.slow
 def test_learner_speed_benchmark_writes_its_row(tmp_path):
     import subprocess
     import sys

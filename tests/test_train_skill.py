@@ -82,8 +82,10 @@ def test_cli_trains_checkpoints_and_resumes(tmp_path, capsys):
     assert summary["bc_frames"] == 200
 
 
+@pytest.mark.slow
 def test_a_resumed_run_continues_bit_identically(tmp_path):
-    """Straight to 500 frames == to 400, stop, resume to 500."""
+    """Straight to 500 frames == to 400, stop, resume to 500 (slow: three
+    trainer runs; tests/test_rundir.py checks the convention quickly)."""
     common = ["ball", "--bc-frames", "100", "--dagger-frames", "100", "--rollout", "50",
               "--envs", "2", "--save-every", "1", "--eval-episodes", "0", "--seed", "2"]
     assert main(common + ["--frames", "500", "--logdir", str(tmp_path / "straight")]) == 0
