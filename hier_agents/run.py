@@ -48,6 +48,7 @@ from hier_agents.boundary import BoundaryEnv
 from hier_agents.modular.agent import OptionStats
 from hier_agents.modular.components import (env_overrides, estimator_name, family,
                                             is_privileged, make_agent)
+from hier_agents.modular.families import adapter
 from hier_agents.run_cli import (DEFAULT_ENV, DEFAULT_EPISODES,  # noqa: F401 (re-exported)
                                  build_parser, check_args, print_components)
 from hier_agents.run_report import format_table, postfix, summarize  # noqa: F401
@@ -77,7 +78,7 @@ def run(env_name: str, episodes: int, seed: int = 0, *, planner: str | None = No
     overrides = {**env_overrides(env_name, estimator), "raise_on_physics_error": False,
                  **env_options}
     if levels is not None:
-        if fam != "mujoban":
+        if not adapter(fam).level_files:
             raise ValueError("--levels only applies to mujoban environments")
         overrides["levels"] = levels
     totals = OptionStats()
@@ -174,7 +175,7 @@ def _play_episode(env, view, agent, description, fam, episode, seed, frames):
            "wall_s": time.perf_counter() - start,
            "subgoals_issued": stats.issued, "subgoals_reached": stats.reached,
            "estimation_failures": stats.estimation_failures}
-    if fam == "mujoban":
+    if not adapter(fam).games:
         # (after a failed reset the task still shows the last episode's end)
         row["solved"] = timestep is not None and bool(getattr(env.task, "solved", False))
         if not row["solved"]:

@@ -11,6 +11,7 @@ import ast
 
 import envs
 from hier_agents.modular.components import ESTIMATORS, PLANNERS, SKILLS, family
+from hier_agents.modular.families import adapter
 
 __all__ = ["DEFAULT_ENV", "DEFAULT_EPISODES", "build_parser", "print_components", "check_args"]
 
@@ -54,7 +55,7 @@ def print_components() -> None:
     for fam in PLANNERS:
         names = [f"{name} (privileged)" if getattr(factory, "privileged", False) else name
                  for name, factory in ESTIMATORS[fam].items()]
-        planners = list(PLANNERS[fam]) + (["learned:PATH"] if fam == "mujoban" else [])
+        planners = list(PLANNERS[fam]) + (["learned:PATH"] if adapter(fam).level_files else [])
         print(f"{fam}: planners {planners}, skills {list(SKILLS[fam])}, "
               f"estimators {names}")
 
@@ -79,15 +80,16 @@ def check_args(parser: argparse.ArgumentParser, args) -> tuple:
     for kind, table, name in (("planner", PLANNERS, args.planner), ("skill", SKILLS, args.skill),
                               ("estimator", ESTIMATORS, args.estimator)):
         if name is not None and name not in table[fam]:
-            extra = " or learned:PATH" if kind == "planner" and fam == "mujoban" else ""
+            extra = (" or learned:PATH" if kind == "planner" and adapter(fam).level_files
+                     else "")
             parser.error(f"unknown {kind} {name!r} for {fam}; valid: {sorted(table[fam])}{extra}")
-    if args.planner and args.planner.startswith("learned:") and fam == "mujoban":
+    if args.planner and args.planner.startswith("learned:") and adapter(fam).level_files:
         from abstract_planners.learned_options import load_option_policy
         try:  # a missing or foreign checkpoint fails here, with a usage error
             load_option_policy(args.planner[len("learned:"):])
         except (FileNotFoundError, ValueError) as exc:
             parser.error(f"--planner {args.planner}: {exc}")
-    if args.levels is not None and fam != "mujoban":
+    if args.levels is not None and not adapter(fam).level_files:
         parser.error("--levels only applies to mujoban environments")
     env_options = {}
     for item in args.env_option:

@@ -10,6 +10,7 @@ import numpy as np
 
 from hier_agents.modular.agent import OptionStats
 from hier_agents.modular.components import PLANNERS, SKILLS
+from hier_agents.modular.families import adapter
 from hier_agents.stats import wilson_interval
 
 __all__ = ["summarize", "format_table", "postfix"]
@@ -17,7 +18,7 @@ __all__ = ["summarize", "format_table", "postfix"]
 
 def postfix(rows, fam) -> dict:
     """The progress bar's postfix: solved (MuJoBan) or won (board games) of ``rows``."""
-    if fam == "mujoban":
+    if not adapter(fam).games:
         return {"solved": f"{sum(r['solved'] for r in rows)}/{len(rows)}"}
     return {"wins": f"{sum(r['outcome'] == 'win' for r in rows)}/{len(rows)}"}
 
@@ -32,14 +33,14 @@ def summarize(env_name, fam, rows, totals: OptionStats, seed, planner, skill) ->
            "planner": planner or next(iter(PLANNERS[fam])),
            "skill": skill or next(iter(SKILLS[fam]))}
     if n == 0:  # e.g. interrupted before the first episode ended
-        for key in (("success_rate",) if fam == "mujoban" else
+        for key in (("success_rate",) if not adapter(fam).games else
                     ("win_rate", "draw_rate", "loss_rate", "success_rate")):
             out[key] = None
         out.update(mean_return=None, mean_steps=None, subgoal_success_rate=None,
                    subgoals={}, episode_failures={}, errors=0, wall_s=None,
                    control_steps_per_s=None, rows=[])
         return out
-    if fam == "mujoban":
+    if not adapter(fam).games:
         solved = sum(r["solved"] for r in rows)
         out["success_rate"] = solved / n
         out["success_interval"] = wilson_interval(solved, n)

@@ -21,6 +21,9 @@ option-env actions         the four moves ``MOVES``    OpenSpiel's distinct
                                                        actions
 option-env observation     ``(4, H, W)`` planes:       OpenSpiel's observation
                            walls, pads, boxes, player  tensor for player 0
+scored by                  solved or not               win / draw / loss (games)
+level files, learned       yes (``level_files``)       no
+option-policy planners
 =========================  ==========================  ==========================
 
 `family(env_name)` names an environment's family; `adapter(family)` returns
@@ -43,6 +46,12 @@ class FamilyAdapter:
     """The family-specific rules (module docstring). Stateless."""
 
     name = ""
+    #: Episodes are games against an opponent, scored win / draw / loss;
+    #: otherwise puzzles, scored solved or not.
+    games = False
+    #: Levels can come from a file (``--levels``) and policies over options
+    #: can plan (``learned:PATH`` planners).
+    level_files = False
 
     # -- the option runner and the agent --------------------------------------
 
@@ -100,6 +109,7 @@ class SokobanAdapter(FamilyAdapter):
     """MuJoBan: Sokoban states (module docstring)."""
 
     name = "mujoban"
+    level_files = True
 
     def expected(self, state, subgoal) -> frozenset | None:
         """Box placements the subgoal's moves pass through (where the walker is
@@ -149,6 +159,8 @@ class SokobanAdapter(FamilyAdapter):
 
 class BoardAdapter(FamilyAdapter):
     """MuJoXO and MuJoGo: OpenSpiel states; the agent is player 0."""
+
+    games = True
 
     def __init__(self, name: str) -> None:
         self.name = name
