@@ -52,10 +52,29 @@ def parse_random(spec: str) -> int:
     return value
 
 
+def _play_episodes(desc: str, episodes: int, progress: bool, play_one, close) -> list[dict]:
+    """``play_one(episode) -> row`` for every episode, each row given its
+    ``wall_s``, under a progress bar; ``close()`` runs at the end, even on an
+    error."""
+    from tqdm import tqdm
+    rows = []
+    bar = tqdm(total=episodes, unit="episode", desc=desc, file=sys.stderr, disable=not progress)
+    try:
+        for episode in range(episodes):
+            start = time.perf_counter()
+            row = play_one(episode)
+            row["wall_s"] = time.perf_counter() - start
+            rows.append(row)
+            bar.update(1)
+    finally:
+        bar.close()
+        close()
+    return rows
+
+
 def play_random(env_name: str, episodes: int, seed: int = 0, *, hold: int = 1,
                 progress: bool = True) -> tuple[list[dict], dict]:
     """Uniformly random actions, a new draw every ``hold`` steps (cameras off)."""
-    from tqdm import tqdm
 
     import envs
     from hier_agents.modular.components import family
@@ -65,28 +84,20 @@ def play_random(env_name: str, episodes: int, seed: int = 0, *, hold: int = 1,
     spec = env.action_spec()
     low, high = np.broadcast_to(spec.minimum, spec.shape), np.broadcast_to(spec.maximum, spec.shape)
     rng = np.random.default_rng(seed)
-    rows = []
-    bar = tqdm(total=episodes, unit="episode", desc=f"{env_name} random", file=sys.stderr,
-               disable=not progress)
-    try:
-        for episode in range(episodes):
-            start = time.perf_counter()
-            timestep = env.reset()
-            ret, steps = 0.0, 0
-            while not timestep.last():
-                if steps % hold == 0:
-                    action = rng.uniform(low, high)
-                timestep = env.step(action)
-                ret += float(timestep.reward)
-                steps += 1
-            rows.append(_outcome_row({"episode": episode, "return": ret, "steps": steps,
-                                      "wall_s": time.perf_counter() - start,
-                                      "subgoals_issued": 0, "subgoals_reached": 0},
-                                     env.task, fam))
-            bar.update(1)
-    finally:
-        bar.close()
-        env.close()
+
+    def one(episode: int) -> dict:
+        timestep = env.reset()
+        ret, steps = 0.0, 0
+        while not timestep.last():
+            if steps % hold == 0:
+                action = rng.uniform(low, high)
+            timestep = env.step(action)
+            ret += float(timestep.reward)
+            steps += 1
+        return _outcome_row({"episode": episode, "return": ret, "steps": steps,
+                             "subgoals_issued": 0, "subgoals_reached": 0}, env.task, fam)
+
+    rows = _play_episodes(f"{env_name} random", episodes, progress, one, env.close)
     return rows, {"condition": f"uniform random actions, held {hold} steps", "trained_env": "-",
                   "training_frames": 0, "training_updates": 0}
 
@@ -96,7 +107,6 @@ def play_checkpoint(env_name: str, path: str, episodes: int, seed: int = 0, *,
                     progress: bool = True) -> tuple[list[dict], dict]:
     """Plays ``episodes`` episodes; returns (rows, info about the checkpoint)."""
     import torch
-    from tqdm import tqdm
 
     from hier_agents.modular.components import family
     from hier_agents.baselines.impala.agent_env import AgentEnv
@@ -119,39 +129,33 @@ def play_checkpoint(env_name: str, path: str, episodes: int, seed: int = 0, *,
         raise ValueError(f"{env_name!r} gives inputs {env.input_spec}, the checkpoint expects "
                          f"{spec}")
     generator = torch.Generator().manual_seed(seed)
-    rows, frames = [], []
-    bar = tqdm(total=episodes, unit="episode", desc=f"{env_name} checkpoint", file=sys.stderr,
-               disable=not progress)
-    try:
-        for episode in range(episodes):
-            start = time.perf_counter()
-            obs = env.reset()
-            state = net.initial_state(1)
-            first = np.ones(1, dtype=bool)
-            ret, steps, info = 0.0, 0, {}
-            while True:
-                if video and episode == 0:
-                    frames.append(env.env.render(env.env.task.main_camera, 256, 256))
-                batch = {k: v[None] for k, v in obs.items()}
-                action, _, state = net.act(batch, first, state,
-                                           deterministic=not stochastic, generator=generator)
-                result = env.step(action[0])
-                ret += float(result.reward_env)
-                steps += 1
-                first[0] = False
-                obs = result.obs
-                if result.last:
-                    info = result.info
-                    break
-            row = {"episode": episode, "return": ret, "steps": steps,
-                   "wall_s": time.perf_counter() - start,
-                   "subgoals_issued": int(info.get("subgoals_issued", 0)),
-                   "subgoals_reached": int(info.get("subgoals_reached", 0))}
-            rows.append(_outcome_row(row, env.env.task, fam))
-            bar.update(1)
-    finally:
-        bar.close()
-        env.close()
+    frames = []
+
+    def one(episode: int) -> dict:
+        obs = env.reset()
+        state = net.initial_state(1)
+        first = np.ones(1, dtype=bool)
+        ret, steps, info = 0.0, 0, {}
+        while True:
+            if video and episode == 0:
+                frames.append(env.env.render(env.env.task.main_camera, 256, 256))
+            batch = {k: v[None] for k, v in obs.items()}
+            action, _, state = net.act(batch, first, state,
+                                       deterministic=not stochastic, generator=generator)
+            result = env.step(action[0])
+            ret += float(result.reward_env)
+            steps += 1
+            first[0] = False
+            obs = result.obs
+            if result.last:
+                info = result.info
+                break
+        row = {"episode": episode, "return": ret, "steps": steps,
+               "subgoals_issued": int(info.get("subgoals_issued", 0)),
+               "subgoals_reached": int(info.get("subgoals_reached", 0))}
+        return _outcome_row(row, env.env.task, fam)
+
+    rows = _play_episodes(f"{env_name} checkpoint", episodes, progress, one, env.close)
     if video and frames:
         import imageio.v2 as imageio
         imageio.mimwrite(video, frames, fps=20, macro_block_size=1)
