@@ -10,6 +10,7 @@ import torch
 from torch import nn
 
 from hier_agents.learning import ppo
+from toy_rl import Gaussian, Target
 
 
 class OptionChain(gym.Env):
@@ -41,21 +42,6 @@ class OptionChain(gym.Env):
                                                "duration": 1}
 
 
-class Target(gym.Env):
-    """One-step episodes: observe a target x in [-1, 1], act a, reward -(a - x)^2."""
-
-    observation_space = gym.spaces.Box(-1.0, 1.0, (1,), np.float32)
-    action_space = gym.spaces.Box(-3.0, 3.0, (1,), np.float32)
-
-    def reset(self, *, seed=None, options=None):
-        super().reset(seed=seed)
-        self.x = self.np_random.uniform(-1, 1, size=1).astype(np.float32)
-        return self.x.copy(), {}
-
-    def step(self, action):
-        return self.x.copy(), -float((np.asarray(action)[0] - self.x[0]) ** 2), True, False, {}
-
-
 class Walk(gym.Env):
     """Observation = steps taken; truncated after 3 steps, each of duration 2."""
 
@@ -78,19 +64,6 @@ class Discrete(nn.Module):
 
     def policy_dist(self, obs, mask):
         return ppo.masked_categorical(self.pi(obs), mask)
-
-    def value(self, obs):
-        return self.v(obs).squeeze(-1)
-
-
-class Gaussian(nn.Module):
-    def __init__(self):
-        super().__init__()
-        self.mean, self.v = nn.Linear(1, 1), nn.Linear(1, 1)
-        self.log_std = nn.Parameter(torch.zeros(1))
-
-    def policy_dist(self, obs, mask):
-        return ppo.diag_gaussian(self.mean(obs), self.log_std)
 
     def value(self, obs):
         return self.v(obs).squeeze(-1)

@@ -8,42 +8,13 @@ import os
 import random
 import signal
 
-import gymnasium as gym
 import numpy as np
 import pytest
 import torch
-from torch import nn
 
 from hier_agents.learning import ppo, rundir
 from hier_agents.learning.rundir import RunDir
-
-
-class Target(gym.Env):
-    """One-step episodes: observe x in [-1, 1], act a, reward -(a - x)^2."""
-
-    observation_space = gym.spaces.Box(-1.0, 1.0, (1,), np.float32)
-    action_space = gym.spaces.Box(-3.0, 3.0, (1,), np.float32)
-
-    def reset(self, *, seed=None, options=None):
-        super().reset(seed=seed)
-        self.x = self.np_random.uniform(-1, 1, size=1).astype(np.float32)
-        return self.x.copy(), {}
-
-    def step(self, action):
-        return self.x.copy(), -float((np.asarray(action)[0] - self.x[0]) ** 2), True, False, {}
-
-
-class Policy(nn.Module):
-    def __init__(self):
-        super().__init__()
-        self.mean, self.v = nn.Linear(1, 1), nn.Linear(1, 1)
-        self.log_std = nn.Parameter(torch.zeros(1))
-
-    def policy_dist(self, obs, mask):
-        return ppo.diag_gaussian(self.mean(obs), self.log_std)
-
-    def value(self, obs):
-        return self.v(obs).squeeze(-1)
+from toy_rl import Gaussian, Target
 
 
 def toy_trainer(path, updates: int, resume: bool = False, on_update=None):
@@ -51,7 +22,7 @@ def toy_trainer(path, updates: int, resume: bool = False, on_update=None):
     from the update count each update, so that their state is a function of
     the checkpoint (what exact resume needs). Returns (policy, optimiser, run)."""
     rundir.seed_everything(0)
-    policy = Policy()
+    policy = Gaussian()
     cfg = ppo.PPOConfig(lr=0.01, anneal_lr=True, epochs=2, minibatches=2)
     optimizer = torch.optim.Adam(policy.parameters(), lr=cfg.lr)
     run = RunDir(path, {"updates": updates, "lr": cfg.lr, "width": 1}, resume=resume,
