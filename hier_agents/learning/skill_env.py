@@ -45,9 +45,6 @@ from hier_agents.modular.options import Outcome, OptionRunner
 
 __all__ = ["SkillEnv"]
 
-_STATUS = {Outcome.REACHED: "reached", Outcome.FAILED: "failed", Outcome.CUT_OFF: "cut off",
-           Outcome.INTERRUPTED: "interrupted"}
-
 
 class SkillEnv(gymnasium.Env):
     """One option of a learned skill per episode (module docstring).
@@ -164,7 +161,7 @@ class SkillEnv(gymnasium.Env):
 
     def _info(self, result) -> dict:
         teacher = self.skill.teacher_action
-        info = {"status": "running" if result is None else _STATUS[result.outcome],
+        info = {"status": "running" if result is None else result.outcome.value,
                 "reason": None if result is None else result.reason,
                 "source": self._start.source, "steps": self._runner.duration,
                 "is_success": bool(result is not None and result.reached),
