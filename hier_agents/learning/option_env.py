@@ -52,7 +52,7 @@ from hier_agents.estimators.base import EstimationError
 from hier_agents.modular.components import (ESTIMATORS, SKILLS, env_overrides, estimator_name,
                                             is_privileged)
 from hier_agents.modular.families import adapter, encode_sokoban, family
-from hier_agents.modular.options import T_ABS, Outcome, OptionRunner
+from hier_agents.modular.options import T_ABS, Outcome, run_option
 
 __all__ = ["OptionEnv", "encode_sokoban"]
 
@@ -104,8 +104,6 @@ class OptionEnv(gym.Env):
             self.adapter = adapter(self.family)
             self.action_space, self.observation_space = self.adapter.spaces(
                 self._description, self._initial_state())
-            self._runner = OptionRunner(self.skill, self.adapter, t_abs=self.t_abs,
-                                        gamma=self.gamma)
         except Exception:
             self._env.close()
             raise
@@ -176,17 +174,13 @@ class OptionEnv(gym.Env):
         return float(self._timestep.reward or 0.0), 1
 
     def _run_option(self, subgoal):
-        runner = self._runner
-        runner.start(self._description, subgoal, self._scene)
-        scene = self._scene
-        while (action := runner.act(self._timestep, scene)) is not None:
-            self._timestep = self._view.step(action)
-            self._steps += 1
-            try:
-                scene = self._scene = self.estimator.estimate(self._timestep)
-            except EstimationError:
-                scene = None
-        result = runner.result
+        def keep(timestep, scene):  # the last frame that could be estimated
+            self._scene = scene
+        result = run_option(self._view, self.estimator, self.skill, subgoal, self._timestep,
+                            adapter=self.adapter, t_abs=self.t_abs, gamma=self.gamma,
+                            scene=self._scene, on_step=keep, description=self._description)
+        self._timestep = result.timestep
+        self._steps += result.duration
         status = {Outcome.REACHED: "success", Outcome.FAILED: "failure"}.get(result.outcome,
                                                                              "cut off")
         return result.reward, result.duration, status, result.reason

@@ -194,7 +194,7 @@ class OptionRunner:
 
 
 def run_option(env, estimator, skill, subgoal, timestep, *, adapter=None, t_abs: int = T_ABS,
-               gamma: float = 1.0, scene=None, on_step=None) -> OptionResult:
+               gamma: float = 1.0, scene=None, on_step=None, description=None) -> OptionResult:
     """Runs ``skill`` on ``subgoal`` in ``env`` from ``timestep`` until the
     option ends (`OptionRunner`'s rules) and returns its `OptionResult`.
 
@@ -203,13 +203,16 @@ def run_option(env, estimator, skill, subgoal, timestep, *, adapter=None, t_abs:
     `EstimationError` makes the skill hold still for that step. ``scene``
     (default: an estimate of ``timestep``) is the scene the subgoal was
     planned from. ``on_step(timestep, scene)``, if given, is called after
-    every step (tests that disturb the scene mid-option).
+    every step with a scene (tests that disturb the scene mid-option; callers
+    that keep the last estimate). ``description`` (default:
+    ``env.description()``) is passed to the skill: give the same object across
+    options of an episode so that skills keep their per-task state.
     """
     from hier_agents.estimators.base import EstimationError
     if scene is None:
         scene = estimator.estimate(timestep)
     runner = OptionRunner(skill, adapter, t_abs=t_abs, gamma=gamma)
-    runner.start(env.description(), subgoal, scene)
+    runner.start(env.description() if description is None else description, subgoal, scene)
     while (action := runner.act(timestep, scene)) is not None:
         timestep = env.step(action)
         try:
