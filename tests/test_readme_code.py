@@ -1,0 +1,156 @@
+"""Every code block of the README runs as written, or says it is an excerpt.
+
+A block whose first line is ``# excerpt: WHY`` is documentation only (it
+needs something the suite does not have, such as the original environment
+built by ``../shared/peer/setup.sh``). Every other block runs:
+
+- ``python`` blocks in a fresh interpreter, as written (fast);
+- ``bash`` blocks command by command, in order, in one scratch folder per
+  block (slow: they play and train), with two rewrites so that they fit the
+  suite: budgets shrink (`SMALL_BUDGETS`: ``--episodes 100`` plays 1 episode,
+  ``--frames 5000000`` trains the smallest budget the trainer accepts) and
+  output paths (``runs/...``, ``--json``/``--video``/``--picture`` files) go to
+  the scratch folder. The set-up block's ``bash scripts/install.sh`` is what
+  CI itself runs first (``.ci/run``), so here only the job after it runs.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shlex
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+README = ROOT / "README.md"
+_BLOCK = re.compile(r"^```(\w*)\n(.*?)^```", re.M | re.S)
+INSTALL = "bash scripts/install.sh && "
+
+#: flag -> value that replaces the README's budget when the suite runs it.
+SMALL_BUDGETS = {
+    "--episodes": "1",
+    "--levels": "1",
+    "--frames": "2048",
+    "--bc-frames": "256",
+    "--dagger-frames": "256",
+    "--dagger-rounds": "1",
+    "--bc-epochs": "2",
+    "--eval-episodes": "2",
+    "--seeds": "1",
+}
+#: flags whose value is an output file, sent to the scratch folder.
+OUTPUT_FLAGS = ("--json", "--video", "--picture", "--logdir")
+
+
+def readme_blocks() -> list[tuple[int, str, str]]:
+    """(line number, language, body) of every fenced block of the README."""
+    text = README.read_text()
+    return [(text.count("\n", 0, m.start()) + 1, m.group(1), m.group(2))
+            for m in _BLOCK.finditer(text)]
+
+
+def is_excerpt(body: str) -> bool:
+    return body.lstrip().startswith("# excerpt")
+
+
+def commands(body: str) -> list[str]:
+    """The block's commands: continuation lines joined, comments and blank
+    lines dropped."""
+    joined = re.sub(r"\\\n\s*", " ", body)
+    out = []
+    for line in joined.splitlines():
+        line = line.strip()
+        if line and not line.startswith("#"):
+            out.append(line)
+    return out
+
+
+def shrink(command: str, scratch: Path) -> str:
+    """`command` with `SMALL_BUDGETS` applied and its outputs in `scratch`."""
+    if command.startswith(INSTALL):
+        command = command[len(INSTALL):]
+    words = shlex.split(command, comments=True)
+    out = []
+    i = 0
+    while i < len(words):
+        word = words[i]
+        flag, eq, value = word.partition("=")
+        if word in SMALL_BUDGETS and i + 1 < len(words):
+            out += [word, SMALL_BUDGETS[word]]
+            i += 2
+            continue
+        if eq and flag in SMALL_BUDGETS:
+            out.append(f"{flag}={SMALL_BUDGETS[flag]}")
+            i += 1
+            continue
+        if word in OUTPUT_FLAGS and i + 1 < len(words):
+            out += [word, str(scratch / words[i + 1])]
+            i += 2
+            continue
+        out.append(re.sub(r"(^|:)(runs/)", lambda m: f"{m.group(1)}{scratch}/runs/", word))
+        i += 1
+    return shlex.join(out)
+
+
+def _env() -> dict:
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), env.get("PYTHONPATH")]))
+    env.setdefault("MUJOCO_GL", "egl")
+    return env
+
+
+PYTHON_BLOCKS = [(line, body) for line, lang, body in readme_blocks()
+                 if lang == "python" and not is_excerpt(body)]
+BASH_BLOCKS = [(line, body) for line, lang, body in readme_blocks()
+               if lang == "bash" and not is_excerpt(body)]
+
+
+def test_every_block_is_python_bash_or_a_listing():
+    for line, lang, body in readme_blocks():
+        assert lang in ("python", "bash", ""), f"README line {line}: unknown language {lang!r}"
+        if lang == "":  # a listing (the layout), not code
+            assert not re.search(r"^\s*(python|bash|import) ", body, re.M), (
+                f"README line {line}: code in a block without a language")
+
+
+def test_the_set_up_commands_are_what_ci_runs():
+    bodies = [body.strip() for _, lang, body in readme_blocks() if lang == "bash"]
+    assert bodies[0].startswith(INSTALL), bodies[0]
+    test_command = bodies[1]
+    ci = (ROOT / ".ci" / "run").read_text().splitlines()
+    assert "bash scripts/install.sh" in ci
+    assert test_command in ci
+
+
+def test_shrink_rewrites_budgets_and_outputs(tmp_path):
+    got = shrink("python -m hier_agents.train mujoban/level1 --frames 5000000 "
+                 "--logdir runs/x --json out/a.json", tmp_path)
+    assert got == (f"python -m hier_agents.train mujoban/level1 --frames "
+                   f"{SMALL_BUDGETS['--frames']} --logdir {tmp_path}/runs/x "
+                   f"--json {tmp_path}/out/a.json")
+    got = shrink("python -m hier_agents.run mujoban/level1 --agent checkpoint:runs/e "
+                 "--episodes=100", tmp_path)
+    assert f"checkpoint:{tmp_path}/runs/e" in got and "--episodes=1" in got
+    assert shrink(INSTALL + "python -m hier_agents.run", tmp_path) == "python -m hier_agents.run"
+
+
+@pytest.mark.parametrize("line,body", PYTHON_BLOCKS, ids=[f"line{l}" for l, _ in PYTHON_BLOCKS])
+def test_python_block_runs(line, body, tmp_path):
+    result = subprocess.run([sys.executable, "-c", body], cwd=ROOT, env=_env(),
+                            capture_output=True, text=True, timeout=600)
+    assert result.returncode == 0, f"README line {line}:\n{result.stderr[-3000:]}"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("line,body", BASH_BLOCKS, ids=[f"line{l}" for l, _ in BASH_BLOCKS])
+def test_bash_block_runs(line, body, tmp_path):
+    for command in commands(body):
+        small = shrink(command, tmp_path)
+        result = subprocess.run(small, shell=True, cwd=ROOT, env=_env(), capture_output=True,
+                                text=True, timeout=1200)
+        assert result.returncode == 0, (
+            f"README line {line}: {small}\n{result.stdout[-2000:]}\n{result.stderr[-3000:]}")
