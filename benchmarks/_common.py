@@ -1,15 +1,43 @@
 """Helpers shared by the benchmark scripts (imported as ``_common``: each
-script's own folder is on ``sys.path`` when it runs)."""
+script's own folder is on ``sys.path`` when it runs).
+
+Every benchmark follows the command-line conventions of `envs.cli`:
+
+    PROG = prog(__file__)                    # "python benchmarks/NAME.py"
+    def _main(argv):
+        parser = make_parser(__file__, __doc__)
+        ...                                  # raise UsageError for bad input
+    def main(argv=None) -> int:
+        return cli.run_main(PROG, _main, argv)
+
+so its usage line names the script as users start it, its help shows the
+defaults and the docstring's usage block, and bad input ends in one line on
+stderr and exit status 2 before anything is measured.
+"""
 
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from envs import cli  # noqa: E402
 from hier_agents.provenance import provenance  # noqa: E402
+
+__all__ = ["cli", "make_parser", "prog", "write_json"]
+
+
+def prog(file: str) -> str:
+    """How users start the benchmark at ``file``: ``python benchmarks/NAME.py``."""
+    return f"python benchmarks/{Path(file).name}"
+
+
+def make_parser(file: str, doc: str) -> cli.Parser:
+    """The benchmark's `envs.cli.Parser`: usage ``python benchmarks/NAME.py``,
+    the docstring's first paragraph as description and the rest as epilog."""
+    first, _, rest = doc.strip().partition("\n\n")
+    return cli.Parser(prog(file), description=first, epilog=rest or None)
 
 
 def write_json(path: Path, data, indent: int = 2) -> None:
@@ -17,12 +45,13 @@ def write_json(path: Path, data, indent: int = 2) -> None:
 
     A dict gets a ``"provenance"`` key (command, commit, date, machine: see
     `hier_agents.provenance`); a list of rows is written as
-    ``{"provenance": ..., "rows": [...]}``.
+    ``{"provenance": ..., "rows": [...]}``. The file is replaced in one step
+    (`envs.cli.write_json`). Check the path up front with `envs.cli.output_file`.
     """
     record = provenance()
     data = {**data, "provenance": record} if isinstance(data, dict) else {
         "provenance": record, "rows": list(data)}
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(data, indent=indent) + "\n")
+    cli.write_json(path, data, indent=indent)
     print(f"wrote {path}")

@@ -13,10 +13,15 @@ from a file that records its command, commit and date.
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from _common import cli, make_parser, prog  # noqa: E402
+
+PROG = prog(__file__)
 
 #: MuJoBan's default planner (`hier_agents.modular.components.PLANNERS`); rows name any other.
 DEFAULT_MUJOBAN_PLANNER = "sokoban-solver:time"
@@ -64,21 +69,35 @@ def _order(path: Path):
     return (not text.startswith("mujoban"), "boxoban" in text, text)
 
 
-def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--dir", type=Path, default=Path("results/agent"))
+def _main(argv=None) -> int:
+    parser = make_parser(__file__, __doc__)
+    parser.add_argument("--dir", type=Path, default=Path("results/agent"),
+                        help="the folder of hier_agents.run --json files")
     args = parser.parse_args(argv)
+    if not args.dir.is_dir():
+        raise cli.UsageError(f"--dir {str(args.dir)!r} is not a folder")
     files = sorted(args.dir.glob("*.json"), key=_order)
     oracle = sorted((args.dir / "oracle").glob("*.json"), key=_order)
     files += sorted((args.dir / "push-planner").glob("*.json"), key=_order)
     if not files and not oracle:
-        parser.error(f"no JSON files under {args.dir}")
+        raise cli.UsageError(f"no JSON files under {args.dir}")
+    lines = []
+    for path in files + oracle:
+        try:
+            lines.append(row(path))
+        except (ValueError, KeyError, TypeError) as exc:
+            raise cli.UsageError(f"{path} is not a hier_agents.run --json summary "
+                                 f"({type(exc).__name__}: {exc})") from None
     print("| environment | estimator | solved / won [95% CI] | mean steps | subgoal success "
           "| control steps / s | unsolved because | paper's best RL agent |")
     print("| --- | --- | --- | --- | --- | --- | --- | --- |")
-    for path in files + oracle:
-        print(row(path))
+    print("\n".join(lines))
     return 0
+
+
+def main(argv=None) -> int:
+    """Prints the table; bad input: one line on stderr, exit status 2."""
+    return cli.run_main(PROG, _main, argv)
 
 
 if __name__ == "__main__":

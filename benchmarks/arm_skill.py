@@ -46,7 +46,6 @@ planning), mean_plan_ms (the abstract planner), wall_s_per_game.
 
 from __future__ import annotations
 
-import argparse
 import math
 import sys
 import time
@@ -55,7 +54,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from _common import write_json  # noqa: E402
+from _common import cli, make_parser, prog, write_json  # noqa: E402
 
 import numpy as np  # noqa: E402
 from tqdm import tqdm  # noqa: E402
@@ -70,6 +69,7 @@ from hier_agents.stats import wilson_interval  # noqa: E402
 from skills.arm import ArmTouchSkill  # noqa: E402
 from skills.base import Status  # noqa: E402
 
+PROG = prog(__file__)
 DEFAULT_ENVS = ["mujoxo/mixture", "mujogo/7x7"]
 #: Opponent epsilon of the MuJoXO environments (for the abstract comparison).
 MUJOXO_EPSILON = {"mujoxo/mixture": 0.25, "mujoxo/optimal": 0.0, "mujoxo/random": 1.0}
@@ -269,19 +269,23 @@ def format_table(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
-def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--envs", nargs="+", default=DEFAULT_ENVS, metavar="NAME")
-    parser.add_argument("--episodes", type=int, default=20, help="games per environment")
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--t-abs", type=int, default=T_ABS,
+def _main(argv=None) -> int:
+    parser = make_parser(__file__, __doc__)
+    parser.add_argument("--envs", nargs="+", default=DEFAULT_ENVS, metavar="NAME",
+                        help="MuJoXO / MuJoGo environments")
+    parser.add_argument("--episodes", type=cli.positive_int, default=20,
+                        help="games per environment")
+    parser.add_argument("--seed", type=cli.non_negative_int, default=0)
+    parser.add_argument("--t-abs", type=cli.positive_int, default=T_ABS,
                         help="control steps a touch may take before re-planning")
-    parser.add_argument("--abstract-games", type=int, default=20_000,
-                        help="games for the abstract (no physics) MuJoXO rates")
+    parser.add_argument("--abstract-games", type=cli.non_negative_int, default=20_000,
+                        help="games for the abstract (no physics) MuJoXO rates (0: none)")
     parser.add_argument("--json", type=Path, help="write the results here")
     args = parser.parse_args(argv)
-    if args.episodes < 1:
-        parser.error("--episodes must be >= 1")
+    boards = [n for n in envs.names() if n.startswith(("mujoxo/", "mujogo/"))]
+    for name in args.envs:
+        cli.environment(name, boards)
+    cli.output_file(args.json, "--json")
     rows = [run_env(name, args.episodes, args.seed, args.t_abs) for name in args.envs]
     print(format_table(rows))
     abstract = {}
@@ -295,6 +299,12 @@ def main(argv=None) -> int:
     if args.json:
         write_json(args.json, {"rows": rows, "abstract": abstract})
     return 0
+
+
+def main(argv=None) -> int:
+    """Plays, prints the table, writes ``--json``; bad input: one line on
+    stderr, exit status 2."""
+    return cli.run_main(PROG, _main, argv)
 
 
 if __name__ == "__main__":

@@ -48,7 +48,6 @@ of wall time, a level-1 episode ~0.04 s; ``--episodes 30`` for a quick look.
 
 from __future__ import annotations
 
-import argparse
 import sys
 import time
 from collections import Counter
@@ -56,18 +55,20 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from _common import write_json  # noqa: E402
+from _common import cli, make_parser, prog, write_json  # noqa: E402
 
 import numpy as np  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
 import envs  # noqa: E402
 from hier_agents.boundary import BoundaryEnv  # noqa: E402
-from hier_agents.modular.components import is_privileged, make_agent  # noqa: E402
+from envs.mujoban.levels import BOXOBAN_DIR  # noqa: E402
+from hier_agents.modular.components import check, is_privileged, make_agent  # noqa: E402
 from hier_agents.modular.options import T_ABS  # noqa: E402
 from hier_agents.learning.skills.ball import make_source_env  # noqa: E402
 from hier_agents.stats import wilson_interval  # noqa: E402
 
+PROG = prog(__file__)
 MUJOBAN = [f"mujoban/level{d}{p}" for p in ("", "-pegs") for d in range(1, 6)]
 BOXOBAN = ["boxoban/unfiltered-valid-000", "boxoban/unfiltered-valid-000-pegs"]
 
@@ -151,27 +152,39 @@ def measure(name: str, episodes: int, seed: int, t_abs: int, estimator: str = "o
     }
 
 
-def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--envs", nargs="*", default=MUJOBAN + BOXOBAN,
-                        help="environment names (see the module docstring)")
-    parser.add_argument("--episodes", type=int, default=100, help="episodes per environment")
-    parser.add_argument("--seed", type=int, default=0, help="environment seed")
-    parser.add_argument("--t-abs", type=int, default=T_ABS,
+def check_source(name: str) -> str:
+    """``name`` if it is a MuJoBan environment or ``boxoban/<file>[-pegs]``
+    with ``<file>.txt`` in `BOXOBAN_DIR`; else `envs.cli.UsageError`."""
+    if name.startswith("boxoban/"):
+        stem = name[len("boxoban/"):].removesuffix("-pegs")
+        files = sorted(f"boxoban/{p.stem}" for p in BOXOBAN_DIR.glob("*.txt"))
+        if not (BOXOBAN_DIR / f"{stem}.txt").is_file():
+            raise cli.UsageError(f"unknown level source {name!r}{cli.close_hint(name, files)}; "
+                                 f"valid: boxoban/<file>[-pegs] with <file> one of "
+                                 f"{', '.join(p.split('/')[1] for p in files)}")
+        return name
+    mujoban = [n for n in envs.names() if n.startswith("mujoban/")]
+    return cli.environment(name, mujoban + ["boxoban/<file>[-pegs]"])
+
+
+def _main(argv=None) -> int:
+    parser = make_parser(__file__, __doc__)
+    parser.add_argument("--envs", nargs="+", default=MUJOBAN + BOXOBAN, metavar="NAME",
+                        help="MuJoBan environments or boxoban/<file>[-pegs] level files")
+    parser.add_argument("--episodes", type=cli.positive_int, default=100,
+                        help="episodes per environment")
+    parser.add_argument("--seed", type=cli.non_negative_int, default=0, help="environment seed")
+    parser.add_argument("--t-abs", type=cli.positive_int, default=T_ABS,
                         help="control steps before the agent re-estimates and replans")
     parser.add_argument("--estimator", default="oracle",
-                        help="oracle (default: privileged, isolates the skill), entity-layer "
+                        help="oracle (privileged, isolates the skill), entity-layer "
                              "(privileged) or camera (observation-only)")
     parser.add_argument("--json", type=Path, help="write the rows here")
     args = parser.parse_args(argv)
-    try:
-        is_privileged("mujoban", args.estimator)
-    except ValueError as exc:
-        parser.error(str(exc))
+    check("estimator", "mujoban", args.estimator)
     for name in args.envs:
-        if not name.startswith("boxoban/") and name not in envs.names():
-            parser.error(f"unknown environment {name!r}; known: {envs.names()} "
-                         f"or boxoban/<file>[-pegs]")
+        check_source(name)
+    cli.output_file(args.json, "--json")
     header = (f"{'env':<34} {'eps':>4} {'solved%':>8} {'95% CI':>13} {'steps':>6} "
               f"{'p95':>5} {'subgoal%':>9} {'s/ep':>6}  failures")
     print(header)
@@ -192,6 +205,12 @@ def main(argv=None) -> int:
     if args.json:
         write_json(args.json, rows)
     return 0
+
+
+def main(argv=None) -> int:
+    """Measures, prints the table, writes ``--json``; bad input: one line on
+    stderr, exit status 2."""
+    return cli.run_main(PROG, _main, argv)
 
 
 if __name__ == "__main__":

@@ -50,7 +50,6 @@ while the others, whose checkpoints may be gone, stay as measured.
 
 from __future__ import annotations
 
-import argparse
 import json
 import re
 import sys
@@ -58,17 +57,21 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from _common import write_json  # noqa: E402
+from _common import cli, make_parser, prog, write_json  # noqa: E402
 
-import envs  # noqa: E402
+from hier_agents.modular.components import check, family  # noqa: E402
 from hier_agents.run import run  # noqa: E402
 
+PROG = prog(__file__)
 _SPEC_KEYS = ("planner", "skill", "estimator")
 _KEPT = re.compile(r"frames-(\d+)\.pt$")
 
 
-def parse_modular(spec: str) -> dict:
-    """``"default"`` or ``"planner=X,skill=Y,estimator=Z"`` -> keyword arguments of `run`."""
+def parse_modular(spec: str, fam: str | None = None) -> dict:
+    """``"default"`` or ``"planner=X,skill=Y,estimator=Z"`` -> keyword arguments
+    of `run`. With a family ``fam``, each name is checked
+    (`hier_agents.modular.components.check`: ``NAME:ARG`` parsed, checkpoints
+    loaded). Raises ValueError (`envs.cli.UsageError`) for a bad spec."""
     spec = spec.strip()
     if spec in ("", "default"):
         return {}
@@ -77,10 +80,13 @@ def parse_modular(spec: str) -> dict:
         key, sep, value = part.partition("=")
         key, value = key.strip(), value.strip()
         if not sep or key not in _SPEC_KEYS or not value:
-            raise ValueError(f"bad --modular part {part!r} in {spec!r}: expected "
-                             f"{'/'.join(_SPEC_KEYS)}=NAME, comma-separated, or 'default'")
+            raise cli.UsageError(f"bad --modular part {part!r} in {spec!r}: expected "
+                                 f"{'/'.join(_SPEC_KEYS)}=NAME[:ARG], comma-separated, or "
+                                 f"'default'")
         if key in out:
-            raise ValueError(f"--modular {spec!r} gives {key} twice")
+            raise cli.UsageError(f"--modular {spec!r} gives {key} twice")
+        if fam is not None:
+            check(key, fam, value)
         out[key] = value
     return out
 
@@ -233,31 +239,33 @@ def _label(row: dict) -> str:
     return f"end-to-end {row['condition']} ({row['series']})"
 
 
-def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
-                                     formatter_class=argparse.RawDescriptionHelpFormatter,
-                                     epilog=__doc__.split("\n\n", 1)[1])
-    parser.add_argument("env")
-    parser.add_argument("--episodes", type=int, default=20)
-    parser.add_argument("--seed", type=int, default=0)
+def _main(argv=None) -> int:
+    parser = make_parser(__file__, __doc__)
+    parser.add_argument("env", help="environment name (see python -m envs --list)")
+    parser.add_argument("--episodes", type=cli.positive_int, default=20,
+                        help="episodes per agent")
+    parser.add_argument("--seed", type=cli.non_negative_int, default=0)
     parser.add_argument("--modular", nargs="*", default=None, metavar="SPEC",
-                        help="modular agents: 'default' or planner=..,skill=..,estimator=..")
+                        help="modular agents: 'default' or planner=..,skill=..,estimator=.. "
+                             "(NAME or NAME:ARG; default: one default agent)")
     parser.add_argument("--no-modular", action="store_true", help="leave the modular agents out")
-    parser.add_argument("--checkpoint", nargs="*", default=[],
+    parser.add_argument("--checkpoint", nargs="*", default=[], metavar="PATH",
                         help="hier_agents.train run directories or checkpoint files")
     parser.add_argument("--curve", action="store_true",
                         help="a run directory stands for all its kept checkpoints")
-    parser.add_argument("--max-frames", type=int, default=None,
+    parser.add_argument("--max-frames", type=cli.positive_int, default=None,
                         help="leave out checkpoints trained on more frames")
-    parser.add_argument("--budgets", type=int, nargs="*", default=None, metavar="FRAMES",
+    parser.add_argument("--budgets", type=cli.positive_int, nargs="*", default=None,
+                        metavar="FRAMES",
                         help="with --curve: per run, only the last checkpoint within each "
                              "of these frame budgets")
-    parser.add_argument("--random", type=int, nargs="*", default=[1, 10], metavar="HOLD",
+    parser.add_argument("--random", type=cli.positive_int, nargs="*", default=[1, 10],
+                        metavar="HOLD",
                         help="random-action rows, one per hold (control steps per draw); "
                              "give the flag alone for none")
     parser.add_argument("--stochastic", action="store_true",
                         help="checkpoints sample from their policy instead of taking its mean")
-    parser.add_argument("--json", type=Path)
+    parser.add_argument("--json", type=Path, help="write the rows here")
     parser.add_argument("--plot", type=Path, help="PNG of success against training frames")
     parser.add_argument("--reuse", type=Path, metavar="EARLIER_JSON",
                         help="reuse the rows of an earlier run for the agents it played")
@@ -265,23 +273,18 @@ def main(argv=None) -> int:
                         help="also keep the earlier run's rows of agents not named here")
     parser.add_argument("--no-progress", action="store_true")
     args = parser.parse_args(argv)
-    if args.env not in envs.names():
-        parser.error(f"unknown environment {args.env!r}; known: {', '.join(envs.names())}")
-    if any(h < 1 for h in args.random):
-        parser.error(f"--random holds must be >= 1, got {args.random}")
-    if args.episodes < 1:
-        parser.error(f"--episodes must be >= 1, got {args.episodes}")
+    cli.environment(args.env)
+    fam = family(args.env)
     specs = [] if args.no_modular else (args.modular if args.modular else ["default"])
-    try:
-        modular = [(spec, parse_modular(spec)) for spec in specs]
-        checkpoints = expand_checkpoints(args.checkpoint, args.curve, args.max_frames,
-                                         args.budgets)
-    except (ValueError, FileNotFoundError) as exc:
-        parser.error(str(exc))
+    modular = [(spec, parse_modular(spec, fam)) for spec in specs]
+    checkpoints = expand_checkpoints(args.checkpoint, args.curve, args.max_frames,
+                                     args.budgets)
     if not modular and not checkpoints and not args.keep_rows_of:
-        parser.error("nothing to compare: give --checkpoint PATH or drop --no-modular")
+        raise cli.UsageError("nothing to compare: give --checkpoint PATH or drop --no-modular")
     if args.reuse and args.keep_rows_of and args.reuse != args.keep_rows_of:
-        parser.error("--reuse and --keep-rows-of must name the same earlier run")
+        raise cli.UsageError("--reuse and --keep-rows-of must name the same earlier run")
+    cli.output_file(args.json, "--json")
+    cli.output_file(args.plot, "--plot")
 
     from hier_agents.baselines.impala.learner import load_checkpoint
 
@@ -292,10 +295,12 @@ def main(argv=None) -> int:
         try:
             old = json.loads(source.read_text())
         except (OSError, ValueError) as exc:
-            parser.error(f"{flag} {source}: {exc}")
+            raise cli.UsageError(f"{flag} {source}: {exc}") from None
+        if not isinstance(old, dict) or not isinstance(old.get("rows"), list):
+            raise cli.UsageError(f"{flag} {source} is not a compare_agents.py --json file")
         if (old.get("env"), old.get("episodes"), old.get("seed")) != (
                 args.env, args.episodes, args.seed):
-            parser.error(f"{flag} {source} played {old.get('env')}, {old.get('episodes')} "
+            raise cli.UsageError(f"{flag} {source} played {old.get('env')}, {old.get('episodes')} "
                          f"episodes, seed {old.get('seed')}: not this comparison")
         reused_from = {"path": str(source), "provenance": old.get("provenance")}
         if old.get("reused_from"):  # the earlier run's own reused rows keep their origin
@@ -374,6 +379,12 @@ def main(argv=None) -> int:
     if args.plot:
         plot(rows, args.plot, f"{args.env}: {args.episodes} episodes per point, seed {args.seed}")
     return 0
+
+
+def main(argv=None) -> int:
+    """Plays every agent, prints the table, writes ``--json`` and ``--plot``;
+    bad input: one line on stderr, exit status 2, before anything is played."""
+    return cli.run_main(PROG, _main, argv)
 
 
 if __name__ == "__main__":

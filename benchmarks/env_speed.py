@@ -37,8 +37,6 @@ steps, build_s).
 
 from __future__ import annotations
 
-import argparse
-import ast
 import math
 import sys
 import time
@@ -46,12 +44,13 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from _common import write_json  # noqa: E402
+from _common import cli, make_parser, prog, write_json  # noqa: E402
 
 import envs  # noqa: E402
 import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
+PROG = prog(__file__)
 MUJOBAN = [f"mujoban/level{d}{p}" for p in ("", "-pegs") for d in range(1, 6)]
 BOARDS = ["mujoxo/mixture", "mujoxo/optimal", "mujoxo/random", "mujogo/7x7",
           "mujogo/7x7-mixture", "mujogo/9x9"]
@@ -169,17 +168,19 @@ def measure(name: str, cameras: str, steps: int, seed: int = 0,
     }
 
 
-def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+def _main(argv=None) -> int:
+    parser = make_parser(__file__, __doc__)
     parser.add_argument("--json", type=Path, help="write the rows here")
-    parser.add_argument("--steps", type=int, default=2000, help="control steps per row")
-    parser.add_argument("--envs", nargs="*", default=MUJOBAN + BOARDS,
+    parser.add_argument("--steps", type=cli.positive_int, default=2000,
+                        help="control steps per row")
+    parser.add_argument("--envs", nargs="+", default=MUJOBAN + BOARDS, metavar="NAME",
                         help="environment names")
     all_settings = sorted({k for family in CAMERA_SETTINGS.values() for k in family})
-    parser.add_argument("--cameras", nargs="*",
+    parser.add_argument("--cameras", nargs="+", metavar="SETTING",
                         default=["none", "top_camera", "front_camera", "front_camera+second_view"],
-                        choices=all_settings)
-    parser.add_argument("--physics-timestep", type=float, default=None,
+                        help=f"camera settings, of {', '.join(all_settings)} (each measured "
+                             f"where the environment has it)")
+    parser.add_argument("--physics-timestep", type=cli.positive_float, default=None,
                         help="physics timestep in seconds (default: each environment's own, "
                              "the original's); x_original is only given at the original's")
     parser.add_argument("--env-option", action="append", default=[], metavar="KEY=VALUE",
@@ -187,20 +188,17 @@ def main(argv=None) -> int:
                              "(repeatable; VALUE is a Python literal); rows measured with one "
                              "get no x_original")
     args = parser.parse_args(argv)
+    for setting in args.cameras:
+        cli.choice("camera setting", setting, all_settings)
     env_options = {}
-    for item in args.env_option:
-        key, sep, text = item.partition("=")
-        if not sep or not key:
-            parser.error(f"--env-option must be KEY=VALUE, got {item!r}")
-        try:
-            env_options[key] = ast.literal_eval(text)
-        except (ValueError, SyntaxError):
-            env_options[key] = text
-    if args.physics_timestep is not None and not args.physics_timestep > 0:
-        parser.error(f"--physics-timestep must be positive, got {args.physics_timestep}")
-    unknown = [n for n in args.envs if n not in envs.names()]
-    if unknown:
-        parser.error(f"unknown environments {unknown}; known: {envs.names()}")
+    for name in args.envs:
+        cli.environment(name)
+        env_options = cli.env_options(name, args.env_option,
+                                      exclude=lambda key: key.endswith("_camera"))
+        if args.physics_timestep is not None:
+            cli.env_options(name, [f"physics_timestep={args.physics_timestep!r}"],
+                            flag="--physics-timestep")
+    cli.output_file(args.json, "--json")
 
     header = (f"{'env':<22} {'cameras':<26} {'dt ms':>5} {'steps/s':>9} {'limit/s':>9} "
               f"{'ratio':>6} {'x orig':>7} {'reset ms':>9}")
@@ -221,6 +219,12 @@ def main(argv=None) -> int:
     if args.json:
         write_json(args.json, rows)
     return 0
+
+
+def main(argv=None) -> int:
+    """Measures, prints the table, writes ``--json``; bad input: one line on
+    stderr, exit status 2, before anything is measured."""
+    return cli.run_main(PROG, _main, argv)
 
 
 if __name__ == "__main__":

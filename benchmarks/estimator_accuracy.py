@@ -47,7 +47,6 @@ Prints a table and writes ``{"provenance", "frame_shape", "frames", "seed",
 
 from __future__ import annotations
 
-import argparse
 import math
 from collections import Counter
 import sys
@@ -56,7 +55,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from _common import write_json  # noqa: E402
+from _common import cli, make_parser, prog, write_json  # noqa: E402
 
 import envs  # noqa: E402
 import numpy as np  # noqa: E402
@@ -66,6 +65,8 @@ from hier_agents.estimators.base import EstimationError  # noqa: E402
 from hier_agents.estimators.camera import FRAME_SHAPE, CameraEstimator  # noqa: E402
 from hier_agents.estimators.grid import cells_of  # noqa: E402
 from hier_agents.estimators.mujoban import OracleEstimator  # noqa: E402
+
+PROG = prog(__file__)
 
 BOXOBAN = Path(envs.__file__).resolve().parent / "mujoban" / "data" / "boxoban"
 #: (label, env name, levels file or None)
@@ -253,17 +254,17 @@ def render_cost(steps: int = 200, seed: int = 0) -> dict:
     return out
 
 
-def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+def _main(argv=None) -> int:
+    parser = make_parser(__file__, __doc__)
     parser.add_argument("--json", type=Path, help="write the results here")
-    parser.add_argument("--frames", type=int, default=1000, help="frames scored in all")
-    parser.add_argument("--seed", type=int, default=0,
+    parser.add_argument("--frames", type=cli.positive_int, default=1000,
+                        help="frames scored in all")
+    parser.add_argument("--seed", type=cli.non_negative_int, default=0,
                         help=f"base seed (episodes use seeds from seed + {SEED_OFFSET})")
-    parser.add_argument("--render-steps", type=int, default=200,
+    parser.add_argument("--render-steps", type=cli.non_negative_int, default=200,
                         help="env.step calls per render-cost setting (0: skip)")
     args = parser.parse_args(argv)
-    if args.frames < 1:
-        parser.error("--frames must be >= 1")
+    cli.output_file(args.json, "--json")
 
     per_source_frames = math.ceil(args.frames / len(SOURCES))
     totals = {}
@@ -330,6 +331,12 @@ def main(argv=None) -> int:
             "sources": [label for label, _, _ in SOURCES], "render_ms_per_step": render,
             "rows": rows, "per_source": per_source})
     return 0
+
+
+def main(argv=None) -> int:
+    """Scores the estimators, prints the table, writes ``--json``; bad input:
+    one line on stderr, exit status 2."""
+    return cli.run_main(PROG, _main, argv)
 
 
 if __name__ == "__main__":

@@ -32,14 +32,13 @@ writes ``{"provenance", "summary", "rows"}``.
 
 from __future__ import annotations
 
-import argparse
 import sys
 import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from _common import write_json  # noqa: E402
+from _common import cli, make_parser, prog, write_json  # noqa: E402
 
 import numpy as np  # noqa: E402
 from tqdm import tqdm  # noqa: E402
@@ -51,8 +50,11 @@ from abstract_planners.sokoban_time import (DEFAULT_WEIGHTS, FEATURES, estimate_
                                             fit_weights, plan_features)
 from envs.mujoban.levels import BOXOBAN_DIR, read_levels  # noqa: E402
 from hier_agents.boundary import BoundaryEnv  # noqa: E402
-from hier_agents.modular.components import PLANNERS, env_overrides, is_privileged, make_agent  # noqa: E402
+from hier_agents.modular.components import (PLANNERS, check, env_overrides,  # noqa: E402
+                                            is_privileged, make_agent)
 from hier_agents.stats import wilson_interval  # noqa: E402
+
+PROG = prog(__file__)
 
 DEFAULT_LEVELS = BOXOBAN_DIR / "medium-valid-000.txt"
 
@@ -118,28 +120,27 @@ def summarise(rows: list[dict], fit: bool) -> dict:
     return out
 
 
-def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--levels", type=Path, default=DEFAULT_LEVELS)
-    parser.add_argument("--episodes", type=int, default=100, help="levels from the file's start")
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--estimator", default="camera")
+def _main(argv=None) -> int:
+    parser = make_parser(__file__, __doc__)
+    parser.add_argument("--levels", type=Path, default=DEFAULT_LEVELS, metavar="FILE",
+                        help="a Boxoban level file")
+    parser.add_argument("--episodes", type=cli.positive_int, default=100,
+                        help="levels from the file's start")
+    parser.add_argument("--seed", type=cli.non_negative_int, default=0)
+    parser.add_argument("--estimator", default="camera", help="a MuJoBan estimator")
     parser.add_argument("--planner", default=None,
                         help="sokoban-solver:time (estimated time; the default) or "
                              "sokoban-solver (the exact push solver)")
     parser.add_argument("--no-pegs", action="store_true")
     parser.add_argument("--fit", action="store_true", help="fit the time model's weights")
-    parser.add_argument("--json", type=Path)
+    parser.add_argument("--json", type=Path, help="write the summary and rows here")
     args = parser.parse_args(argv)
-    if not args.levels.exists():
-        parser.error(f"no level file {args.levels}")
-    if args.episodes < 1:
-        parser.error("--episodes must be >= 1")
-    try:
-        privileged = is_privileged("mujoban", args.estimator)
-    except ValueError as exc:
-        parser.error(str(exc))
     name = "mujoban/level5" if args.no_pegs else "mujoban/level5-pegs"
+    cli.levels_file(name, args.levels)
+    check("estimator", "mujoban", args.estimator)
+    check("planner", "mujoban", args.planner)
+    privileged = is_privileged("mujoban", args.estimator)
+    cli.output_file(args.json, "--json")
     levels = read_levels(args.levels)[:args.episodes]
     env = envs.load(name, seed=args.seed, levels=str(args.levels),
                     **env_overrides(name, args.estimator))
@@ -147,9 +148,9 @@ def main(argv=None) -> int:
     try:
         agent = make_agent(name, view.description(), estimator=args.estimator, seed=args.seed,
                            planner=args.planner, simulator=env if privileged else None)
-    except ValueError as exc:
+    except BaseException:
         env.close()
-        parser.error(str(exc))
+        raise
     rows = []
     bar = tqdm(levels, desc=args.levels.name, unit="level", file=sys.stderr)
     try:
@@ -183,6 +184,12 @@ def main(argv=None) -> int:
     if args.json:
         write_json(args.json, {"summary": summary, "rows": rows})
     return 0
+
+
+def main(argv=None) -> int:
+    """Plays the levels, prints the summary, writes ``--json``; bad input: one
+    line on stderr, exit status 2, before anything is played."""
+    return cli.run_main(PROG, _main, argv)
 
 
 if __name__ == "__main__":

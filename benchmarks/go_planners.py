@@ -38,7 +38,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from _common import write_json  # noqa: E402
+from _common import cli, make_parser, prog, write_json  # noqa: E402
 
 import numpy as np  # noqa: E402
 from tqdm import tqdm  # noqa: E402
@@ -46,24 +46,45 @@ from tqdm import tqdm  # noqa: E402
 from abstract_planners.board_random import RandomMovePlanner  # noqa: E402
 from abstract_planners.go import GnuGoPlanner, MCTSPlanner, go_game  # noqa: E402
 
+PROG = prog(__file__)
+
+
+def parse_spec(spec: str) -> tuple[str, tuple[int, ...]]:
+    """(name, integer arguments) of a planner spec (module docstring).
+
+    Raises:
+      envs.cli.UsageError: an unknown planner, too many arguments, or an
+        argument out of range (GNU Go level 1..10, simulations and rollouts >= 1).
+    """
+    name, *texts = spec.strip().lower().split(":")
+    forms = {"random": 0, "gnugo": 1, "mcts": 2}
+    if name not in forms or len(texts) > forms[name]:
+        raise cli.UsageError(f"bad planner spec {spec!r}"
+                             f"{cli.close_hint(name, forms) if name not in forms else ''}; "
+                             f"use random, gnugo[:LEVEL] or mcts[:SIMULATIONS[:ROLLOUTS]]")
+    limits = {"gnugo": [(1, 10)], "mcts": [(1, None), (1, None)]}.get(name, [])
+    args = []
+    for text, (low, high) in zip(texts, limits):
+        value = int(text) if text.strip().lstrip("-").isdigit() else None
+        if value is None or value < low or (high is not None and value > high):
+            allowed = f"{low}..{high}" if high is not None else f">= {low}"
+            raise cli.UsageError(f"bad planner spec {spec!r}: {text!r} is not an integer "
+                                 f"{allowed}")
+        args.append(value)
+    return name, tuple(args)
+
 
 def make_planner(spec: str, *, board_size: int, komi: float, cleanup: bool = True):
-    """A planner from a spec string (see the module docstring)."""
-    name, *args = spec.strip().lower().split(":")
-    try:
-        if name == "random" and not args:
-            return RandomMovePlanner()
-        if name == "gnugo" and len(args) <= 1:
-            level = int(args[0]) if args else 10
-            return GnuGoPlanner(level, board_size=board_size, komi=komi, cleanup=cleanup)
-        if name == "mcts" and len(args) <= 2:
-            simulations = int(args[0]) if args else 1000
-            rollouts = int(args[1]) if len(args) > 1 else 1
-            return MCTSPlanner(simulations, rollouts=rollouts)
-    except ValueError as exc:
-        raise SystemExit(f"bad planner spec {spec!r}: {exc}") from None
-    raise SystemExit(f"bad planner spec {spec!r}: use random, gnugo[:LEVEL] or "
-                     f"mcts[:SIMULATIONS[:ROLLOUTS]]")
+    """A planner from a spec string (see the module docstring; `parse_spec`)."""
+    name, args = parse_spec(spec)
+    if name == "random":
+        return RandomMovePlanner()
+    if name == "gnugo":
+        level = args[0] if args else 10
+        return GnuGoPlanner(level, board_size=board_size, komi=komi, cleanup=cleanup)
+    simulations = args[0] if args else 1000
+    rollouts = args[1] if len(args) > 1 else 1
+    return MCTSPlanner(simulations, rollouts=rollouts)
 
 
 def wilson_interval(wins: int, n: int, z: float = 1.959964) -> tuple[float, float]:
@@ -100,38 +121,42 @@ def _fmt(value, digits=0):
     return "-" if value is None else f"{value:.{digits}f}"
 
 
-def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--games", type=int, default=10, help="games per Black spec")
-    parser.add_argument("--board-size", type=int, default=7)
+def _main(argv=None) -> int:
+    parser = make_parser(__file__, __doc__)
+    parser.add_argument("--games", type=cli.positive_int, default=10,
+                        help="games per Black spec")
+    parser.add_argument("--board-size", type=cli.positive_int, default=7)
     parser.add_argument("--komi", type=float, default=5.5)
-    parser.add_argument("--black", nargs="*", default=None,
+    parser.add_argument("--black", nargs="+", default=None, metavar="SPEC",
                         help="Black planner specs (default: random, unless --mcts-sweep)")
-    parser.add_argument("--white", default="gnugo:10", help="the White planner spec")
-    parser.add_argument("--mcts-sweep", default=None,
+    parser.add_argument("--white", default="gnugo:10", metavar="SPEC",
+                        help="the White planner spec")
+    parser.add_argument("--mcts-sweep", default=None, metavar="N,N,...",
                         help="comma-separated MCTS simulation counts to play as Black")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=cli.non_negative_int, default=0)
     parser.add_argument("--no-cleanup", action="store_true",
                         help="GNU Go uses genmove instead of kgs-genmove_cleanup")
     parser.add_argument("--json", type=Path, default=None, help="write the rows here")
     args = parser.parse_args(argv)
-    if args.games < 1:
-        parser.error("--games must be >= 1")
     try:
         game = go_game(args.board_size, args.komi)
     except ValueError as exc:
-        parser.error(str(exc))
+        raise cli.UsageError(str(exc)) from None
 
     sweep = []
     if args.mcts_sweep:
         try:
-            sweep = [int(x) for x in args.mcts_sweep.split(",") if x.strip()]
-        except ValueError:
-            parser.error(f"--mcts-sweep takes comma-separated integers, got {args.mcts_sweep!r}")
+            sweep = [cli.positive_int(x) for x in args.mcts_sweep.split(",") if x.strip()]
+        except argparse.ArgumentTypeError:
+            raise cli.UsageError(f"--mcts-sweep takes comma-separated integers >= 1, got "
+                                 f"{args.mcts_sweep!r}") from None
     blacks = list(args.black) if args.black is not None else ([] if sweep else ["random"])
     blacks += [f"mcts:{n}" for n in sweep]
     if not blacks:
-        parser.error("no Black planner: give --black or --mcts-sweep")
+        raise cli.UsageError("no Black planner: give --black or --mcts-sweep")
+    for spec in blacks + [args.white]:
+        parse_spec(spec)
+    cli.output_file(args.json, "--json")
 
     kwargs = dict(board_size=args.board_size, komi=args.komi, cleanup=not args.no_cleanup)
     white = make_planner(args.white, **kwargs)
@@ -193,6 +218,12 @@ def main(argv=None) -> int:
     if args.json:
         write_json(args.json, rows)
     return 0
+
+
+def main(argv=None) -> int:
+    """Plays the matches, prints the table, writes ``--json``; bad input: one
+    line on stderr, exit status 2, before any game."""
+    return cli.run_main(PROG, _main, argv)
 
 
 if __name__ == "__main__":

@@ -28,7 +28,6 @@ Prints a table and, with ``--json``, writes {"env", "agent",
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 import tempfile
@@ -37,12 +36,14 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from _common import write_json  # noqa: E402
+from _common import cli, make_parser, prog, write_json  # noqa: E402
 
 import numpy as np  # noqa: E402
 
 import envs  # noqa: E402
 from hier_agents.learning.rundir import SCALARS  # noqa: E402
+
+PROG = prog(__file__)
 
 
 def _make_env(name: str, cameras: bool, seed: int):
@@ -121,23 +122,30 @@ def learner_frames_per_s(args) -> dict:
             "policy_lag_updates": last.get("perf/policy_lag")}
 
 
-def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--env", default="mujoban/level1")
+def _main(argv=None) -> int:
+    from hier_agents.baselines.impala.agent_env_spec import CONDITIONS
+
+    parser = make_parser(__file__, __doc__)
+    parser.add_argument("--env", default="mujoban/level1", help="environment name")
     parser.add_argument("--condition", default="expert-planner",
-                        help="the training condition (hier_agents.train --condition)")
-    parser.add_argument("--frames", type=int, default=200_000)
-    parser.add_argument("--actors", type=int, default=2)
-    parser.add_argument("--envs-per-actor", type=int, default=32)
-    parser.add_argument("--batch-size", type=int, default=None)
-    parser.add_argument("--backend", default="local")
+                        help=f"the training condition (hier_agents.train --condition: "
+                             f"{', '.join(CONDITIONS)})")
+    parser.add_argument("--frames", type=cli.positive_int, default=200_000,
+                        help="frames the learner trains on")
+    parser.add_argument("--actors", type=cli.positive_int, default=2)
+    parser.add_argument("--envs-per-actor", type=cli.positive_int, default=32)
+    parser.add_argument("--batch-size", type=cli.positive_int, default=None)
+    parser.add_argument("--backend", default="local", help="local or ray")
     parser.add_argument("--cameras", action="store_true")
-    parser.add_argument("--bare-steps", type=int, default=10_000)
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--json", type=Path)
+    parser.add_argument("--bare-steps", type=cli.positive_int, default=10_000,
+                        help="control steps of the bare-environment measurement")
+    parser.add_argument("--seed", type=cli.non_negative_int, default=0)
+    parser.add_argument("--json", type=Path, help="write the row here")
     args = parser.parse_args(argv)
-    if args.env not in envs.names():
-        parser.error(f"unknown environment {args.env!r}; known: {', '.join(envs.names())}")
+    cli.environment(args.env)
+    cli.choice("condition", args.condition, CONDITIONS)
+    cli.choice("backend", args.backend, ("local", "ray"))
+    cli.output_file(args.json, "--json")
 
     bare = bare_env_steps_per_s(args.env, args.cameras, args.bare_steps, args.seed)
     print(f"bare {args.env} (cameras {'on' if args.cameras else 'off'}): {bare:,.0f} steps/s",
@@ -168,6 +176,12 @@ def main(argv=None) -> int:
     if args.json:
         write_json(args.json, row)
     return 0
+
+
+def main(argv=None) -> int:
+    """Measures, prints the table, writes ``--json``; bad input: one line on
+    stderr, exit status 2, before anything is measured."""
+    return cli.run_main(PROG, _main, argv)
 
 
 if __name__ == "__main__":

@@ -29,7 +29,6 @@ Prints the tables and, with ``--json``, writes
 
 from __future__ import annotations
 
-import argparse
 import json
 import re
 import sys
@@ -37,8 +36,10 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from _common import write_json  # noqa: E402
+from _common import cli, make_parser, prog, write_json  # noqa: E402
 from hier_agents.learning.rundir import SCALARS  # noqa: E402
+
+PROG = prog(__file__)
 
 
 def training_curve(logdir: Path, every: int) -> list[dict]:
@@ -142,17 +143,27 @@ def _pct_or_dash(x, width: int) -> str:
     return f"{'-':>{width}}" if x is None else f"{100 * x:>{width - 1}.1f}%"
 
 
-def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("runs", nargs="+", type=Path, help="hier_agents.train --logdir folders")
-    parser.add_argument("--every-frames", type=int, default=1_000_000)
-    parser.add_argument("--eval-episodes", type=int, default=0)
-    parser.add_argument("--stochastic", action="store_true")
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--json", type=Path)
+def _main(argv=None) -> int:
+    parser = make_parser(__file__, __doc__)
+    parser.add_argument("runs", nargs="+", type=Path, metavar="RUN",
+                        help="hier_agents.train --logdir folders")
+    parser.add_argument("--every-frames", type=cli.positive_int, default=1_000_000,
+                        help="frames between curve points")
+    parser.add_argument("--eval-episodes", type=cli.non_negative_int, default=0,
+                        help="episodes per kept checkpoint to evaluate (0: training curve only)")
+    parser.add_argument("--stochastic", action="store_true",
+                        help="evaluation samples from the policy instead of taking its mean")
+    parser.add_argument("--seed", type=cli.non_negative_int, default=0)
+    parser.add_argument("--json", type=Path, help="write the curves here")
     args = parser.parse_args(argv)
-    if args.every_frames < 1 or args.eval_episodes < 0:
-        parser.error("--every-frames must be >= 1 and --eval-episodes >= 0")
+    for logdir in args.runs:
+        if not any((logdir / name).is_file() for name in (SCALARS, "progress.jsonl")):
+            raise cli.UsageError(f"{logdir} is not a hier_agents.train run directory (no "
+                                 f"{SCALARS} in it)")
+        if args.eval_episodes and not (logdir / "checkpoint.pt").is_file():
+            raise cli.UsageError(f"{logdir}: no checkpoint.pt to evaluate yet "
+                                 f"(drop --eval-episodes for the training curve)")
+    cli.output_file(args.json, "--json")
 
     from hier_agents.baselines.impala.learner import load_checkpoint
 
@@ -161,8 +172,6 @@ def main(argv=None) -> int:
         try:
             config = load_checkpoint(logdir)["config"]
         except FileNotFoundError:  # a run still before its first checkpoint
-            if args.eval_episodes:
-                raise SystemExit(f"{logdir}: no checkpoint.pt to evaluate yet")
             config = {k: "?" for k in ("env", "condition", "batch_size", "learning_rate",
                                        "actors", "envs_per_actor")}
         result = {"logdir": str(logdir), "env": config["env"],
@@ -200,6 +209,12 @@ def main(argv=None) -> int:
                                "eval_episodes": args.eval_episodes, "seed": args.seed,
                                "stochastic": args.stochastic, "runs": out})
     return 0
+
+
+def main(argv=None) -> int:
+    """Reads (and evaluates) the runs, prints their curves, writes ``--json``;
+    bad input: one line on stderr, exit status 2, before any evaluation."""
+    return cli.run_main(PROG, _main, argv)
 
 
 if __name__ == "__main__":

@@ -31,14 +31,13 @@ the rendered colours of box, pad, covered pad and box on a pad in both
 
 from __future__ import annotations
 
-import argparse
 import sys
 import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from _common import write_json  # noqa: E402
+from _common import cli, make_parser, prog, write_json  # noqa: E402
 
 import numpy as np  # noqa: E402
 from tqdm import tqdm  # noqa: E402
@@ -50,6 +49,8 @@ from hier_agents.boundary import PRIVILEGED_OBSERVATIONS  # noqa: E402
 from hier_agents.modular.components import make_agent  # noqa: E402
 from hier_agents.estimators.grid import cells_of  # noqa: E402
 from hier_agents.stats import wilson_interval  # noqa: E402
+
+PROG = prog(__file__)
 
 FRAME = (199, 199)
 CONTROL_TIMESTEP = 0.05
@@ -63,9 +64,9 @@ def _import_original():
         from physics_planning_games.mujoban import mujoban as original
         from physics_planning_games.mujoban.mujoban_level import MujobanLevel
     except ImportError as exc:
-        raise SystemExit(f"original_env: the original physics_planning_games is not importable "
-                         f"({exc}); build it with ../shared/peer/setup.sh and run with "
-                         f"PYTHONPATH=/tmp/peer") from None
+        raise cli.UsageError(f"the original physics_planning_games is not importable ({exc}); "
+                             f"build it with ../shared/peer/setup.sh and run with "
+                             f"PYTHONPATH=/tmp/peer") from None
     return composer, walkers, original, MujobanLevel
 
 
@@ -242,28 +243,27 @@ def side_by_side(level, seed: int, path: Path) -> dict:
     return {"wall_texture": wall, "floor_texture": floor_name, "heading": heading, **comparison}
 
 
-def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="python benchmarks/original_env.py",
-                                     description=__doc__.split("\n\n")[0],
-                                     formatter_class=argparse.ArgumentDefaultsHelpFormatter)
-    parser.add_argument("--levels", type=int, default=20, help="Boxoban levels per setting")
+def _main(argv=None) -> int:
+    parser = make_parser(__file__, __doc__)
+    parser.add_argument("--levels", type=cli.positive_int, default=20,
+                        help="Boxoban levels per setting")
     parser.add_argument("--file", type=Path, default=BOXOBAN_DIR / "unfiltered-valid-000.txt",
                         help="Boxoban levels file (its first --levels levels are played)")
-    parser.add_argument("--pegs", choices=("both", "yes", "no"), default="both")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--pegs", choices=("both", "yes", "no"), default="both",
+                        help="play with pegs, without, or both")
+    parser.add_argument("--seed", type=cli.non_negative_int, default=0)
     parser.add_argument("--picture", type=Path, help="write the side-by-side picture here")
     parser.add_argument("--json", type=Path, help="write the results here")
     args = parser.parse_args(argv)
-    if args.levels < 1:
-        parser.error(f"--levels must be >= 1, got {args.levels}")
-    if not args.file.is_file():
-        parser.error(f"--file {args.file} does not exist")
+    cli.levels_file("mujoban/level5", args.file, flag="--file")
+    cli.output_file(args.picture, "--picture")
+    cli.output_file(args.json, "--json")
+    _import_original()
     levels = read_levels(args.file)[: args.levels]
     out = {"levels_file": str(args.file.name), "levels": len(levels), "seed": args.seed,
            "frame_shape": list(FRAME), "agent": "modular: camera + sokoban-solver:time + ball",
            "privileged": False}
     if args.picture:
-        args.picture.parent.mkdir(parents=True, exist_ok=True)
         out["picture"] = {"path": str(args.picture), **side_by_side(levels[0], args.seed,
                                                                      args.picture)}
         print(f"wrote {args.picture}: " + ", ".join(
@@ -285,5 +285,12 @@ def main(argv=None) -> int:
     return 0
 
 
+def main(argv=None) -> int:
+    """Plays (or draws) both implementations, prints the table, writes
+    ``--json``; bad input or a missing original: one line on stderr, exit
+    status 2, before anything is played."""
+    return cli.run_main(PROG, _main, argv)
+
+
 if __name__ == "__main__":
-    raise SystemExit(main())
+    sys.exit(main())

@@ -21,7 +21,6 @@ or the README has markers no generator knows.
 
 from __future__ import annotations
 
-import argparse
 import contextlib
 import io
 import json
@@ -37,6 +36,9 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import agent_table  # noqa: E402
+from _common import cli, make_parser, prog  # noqa: E402
+
+PROG = prog(__file__)
 
 #: name -> function(results_dir) -> list of Markdown lines.
 TABLES: dict[str, Callable[[Path], list[str]]] = {}
@@ -428,17 +430,23 @@ def write(readme_text: str, tables: dict[str, str]) -> str:
     return _BLOCK.sub(replace, readme_text)
 
 
-def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+def _main(argv=None) -> int:
+    parser = make_parser(__file__, __doc__)
     mode = parser.add_mutually_exclusive_group()
     mode.add_argument("--check", action="store_true",
                       help="exit 1 when a README table disagrees with the JSON")
     mode.add_argument("--write", action="store_true", help="rewrite the README's tables")
-    parser.add_argument("--readme", type=Path, default=ROOT / "README.md")
-    parser.add_argument("--results", type=Path, default=ROOT / "results")
-    parser.add_argument("--table", action="append", choices=sorted(TABLES),
-                        help="only this table (repeatable)")
+    parser.add_argument("--readme", type=cli.existing_file, default=ROOT / "README.md")
+    parser.add_argument("--results", type=Path, default=ROOT / "results",
+                        help="the folder of committed results JSON")
+    parser.add_argument("--table", action="append", metavar="NAME",
+                        help=f"only this table, of {', '.join(sorted(TABLES))} (repeatable; "
+                             f"default: all)")
     args = parser.parse_args(argv)
+    for name in args.table or ():
+        cli.choice("table", name, sorted(TABLES))
+    if not args.results.is_dir():
+        raise cli.UsageError(f"--results {str(args.results)!r} is not a folder")
     tables = generate(args.results, args.table)
     if not (args.check or args.write):
         for name, text in tables.items():
@@ -460,6 +468,12 @@ def main(argv=None) -> int:
     if not problems:
         print(f"{len(tables)} README table(s) agree with {args.results}")
     return 1 if problems else 0
+
+
+def main(argv=None) -> int:
+    """Prints, checks (exit 1 on a difference) or writes the README tables;
+    bad input: one line on stderr, exit status 2."""
+    return cli.run_main(PROG, _main, argv)
 
 
 if __name__ == "__main__":

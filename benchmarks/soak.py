@@ -31,7 +31,6 @@ the resident memory of this soak grew by ~274 MB from episode 100 to 1000
 
 from __future__ import annotations
 
-import argparse
 import gc
 import os
 import sys
@@ -40,11 +39,13 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from _common import write_json  # noqa: E402
+from _common import cli, make_parser, prog, write_json  # noqa: E402
 
 import numpy as np  # noqa: E402
 
 import envs  # noqa: E402
+
+PROG = prog(__file__)
 
 #: (name, cameras on) configurations, cycled in this order.
 CONFIGS = [("mujoban/level1", False), ("mujoban/level3-pegs", True),
@@ -214,25 +215,29 @@ def summarise(samples: list[dict], after_close: dict) -> dict:
     return out
 
 
-def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--episodes", type=int, default=1000)
-    parser.add_argument("--sample-every", type=int, default=50)
-    parser.add_argument("--rebuild-every", type=int, default=25)
-    parser.add_argument("--steps", type=int, default=20, help="random control steps per episode")
-    parser.add_argument("--moves", type=int, default=4,
+def _main(argv=None) -> int:
+    parser = make_parser(__file__, __doc__)
+    parser.add_argument("--episodes", type=cli.positive_int, default=1000)
+    parser.add_argument("--sample-every", type=cli.positive_int, default=50,
+                        help="episodes between resource samples")
+    parser.add_argument("--rebuild-every", type=cli.positive_int, default=25,
+                        help="episodes between environment rebuilds")
+    parser.add_argument("--steps", type=cli.positive_int, default=20,
+                        help="random control steps per episode")
+    parser.add_argument("--moves", type=cli.positive_int, default=4,
                         help="abstract agent moves (each answered) per board-game episode")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=cli.non_negative_int, default=0)
     parser.add_argument("--only", action="append", default=[], metavar="SUBSTRING",
                         help="soak only the configurations whose name contains this "
                              "('cameras-on'/'cameras-off' select by camera setting); repeatable")
-    parser.add_argument("--json", type=Path)
+    parser.add_argument("--json", type=Path, help="write the samples and summary here")
     args = parser.parse_args(argv)
-    if args.episodes < 1 or args.sample_every < 1 or args.rebuild_every < 1:
-        parser.error("--episodes, --sample-every and --rebuild-every must be >= 1")
     configs = select(args.only)
     if not configs:
-        parser.error(f"--only {args.only} matches none of {CONFIGS}")
+        names = sorted({name for name, _ in CONFIGS})
+        raise cli.UsageError(f"--only {' '.join(args.only)} matches none of the "
+                             f"configurations: {', '.join(names)}, cameras-on, cameras-off")
+    cli.output_file(args.json, "--json")
     result = soak(args.episodes, sample_every=args.sample_every,
                   rebuild_every=args.rebuild_every, steps=args.steps, moves=args.moves,
                   seed=args.seed, configs=configs)
@@ -247,6 +252,12 @@ def main(argv=None) -> int:
     if args.json:
         write_json(args.json, result)
     return 0 if not result["errors"] else 1
+
+
+def main(argv=None) -> int:
+    """Soaks, prints the summary, writes ``--json``; returns 1 when an episode
+    errored. Bad input: one line on stderr, exit status 2, before anything runs."""
+    return cli.run_main(PROG, _main, argv)
 
 
 if __name__ == "__main__":

@@ -26,7 +26,6 @@ shipped ``medium-valid-000.txt`` is the harder set.
 
 from __future__ import annotations
 
-import argparse
 import math
 import statistics
 import sys
@@ -34,7 +33,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from _common import write_json  # noqa: E402
+from _common import cli, make_parser, prog, write_json  # noqa: E402
 
 from tqdm import tqdm  # noqa: E402
 
@@ -42,6 +41,8 @@ from abstract_planners.sokoban import SokobanState  # noqa: E402
 from abstract_planners.sokoban_solver import solve  # noqa: E402
 from abstract_planners.sokoban_time import estimate_steps, plan_features  # noqa: E402
 from envs.mujoban.levels import BOXOBAN_DIR, read_levels  # noqa: E402
+
+PROG = prog(__file__)
 
 DEFAULT_LEVELS = BOXOBAN_DIR / "unfiltered-valid-000.txt"
 
@@ -109,25 +110,29 @@ def print_summary(summary: dict) -> None:
     print("  ".join(v.rjust(w) for v, w in zip(values, widths)))
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--levels", type=Path, default=DEFAULT_LEVELS,
-                        help=f"Boxoban level file (default: {DEFAULT_LEVELS})")
-    parser.add_argument("--time-limit", type=float, default=10.0,
-                        help="seconds per level (default: 10)")
-    parser.add_argument("--limit", type=int, default=None,
-                        help="solve only the first N levels")
+def _main(argv=None) -> int:
+    parser = make_parser(__file__, __doc__)
+    parser.add_argument("--levels", type=cli.existing_file, default=DEFAULT_LEVELS,
+                        metavar="FILE", help="Boxoban level file")
+    parser.add_argument("--time-limit", type=cli.positive_float, default=10.0,
+                        help="seconds per level")
+    parser.add_argument("--limit", type=cli.positive_int, default=None,
+                        help="solve only the first N levels (default: all)")
     parser.add_argument("--json", type=Path, default=None, help="write results to PATH")
     args = parser.parse_args(argv)
-    if args.time_limit <= 0:
-        parser.error("--time-limit must be positive")
-    if args.limit is not None and args.limit < 1:
-        parser.error("--limit must be at least 1")
+    read_levels(args.levels)  # a malformed file fails here (LevelError: one line)
+    cli.output_file(args.json, "--json")
     summary = run(args.levels, args.time_limit, args.limit)
     print_summary(summary)
     if args.json is not None:
         write_json(args.json, summary, indent=1)
     return 0 if summary["solved"] == summary["total"] else 1
+
+
+def main(argv=None) -> int:
+    """Solves the levels, prints the summary, writes ``--json``; returns 1
+    unless every level was solved. Bad input: one line on stderr, exit status 2."""
+    return cli.run_main(PROG, _main, argv)
 
 
 if __name__ == "__main__":

@@ -8,10 +8,17 @@
   the user can fix; `run_main` turns it (and the input errors listed in
   `INPUT_ERRORS`) into that one line.
 - Argument types that fail with the setting's name and the allowed range:
-  `non_negative_int`, `positive_int`, `positive_float`, `fraction`,
-  `existing_file`; `choice` for names with a close-match hint;
+  `non_negative_int`, `positive_int`, `positive_float`, `non_negative_float`,
+  `fraction`, `existing_file`; `choice` for names with a close-match hint
+  (`Parser` also names the closest option of an unrecognized one);
   `output_file` creates the folder of an output path up front and fails
   before any work is done when it cannot be written.
+- Environment inputs checked without building anything (`envs.check`):
+  `environment` (a registered name, with a close-match hint),
+  `env_options` (``--env-option KEY=VALUE`` items), `levels_file`
+  (``--levels``: a Boxoban file that exists and parses).
+- `write_json`: replaces a JSON file in one step, so a reader (or a run
+  stopped mid-write) never sees half a file.
 - `plural`: ``plural(1, "episode")`` is ``"1 episode"``.
 
 Unexpected exceptions (bugs) keep their traceback.
@@ -20,15 +27,19 @@ Unexpected exceptions (bugs) keep their traceback.
 from __future__ import annotations
 
 import argparse
+import ast
+import copy
 import difflib
+import json
 import os
 import sys
 from pathlib import Path
 from typing import Callable, Iterable, Sequence
 
-__all__ = ["INPUT_ERRORS", "Parser", "UsageError", "choice", "close_hint", "existing_file",
-           "fraction", "non_negative_int", "output_file", "plural", "positive_float",
-           "positive_int", "run_main"]
+__all__ = ["INPUT_ERRORS", "Parser", "UsageError", "choice", "close_hint", "env_options",
+           "environment", "existing_file", "fail", "fraction", "levels_file",
+           "non_negative_float", "non_negative_int", "output_file", "plural", "positive_float",
+           "positive_int", "run_main", "write_json"]
 
 
 class UsageError(ValueError):
@@ -65,6 +76,17 @@ class _HelpFormatter(argparse.RawDescriptionHelpFormatter):
         return text
 
 
+    def _format_action(self, action: argparse.Action) -> str:
+        # argparse prints nothing after an option without help text; the
+        # default and "(required)" are shown for those too.
+        if action.help is None:
+            text = self._get_help_string(action)
+            if text:
+                action = copy.copy(action)
+                action.help = text
+        return super()._format_action(action)
+
+
 class Parser(argparse.ArgumentParser):
     """An argument parser that follows the project's conventions (module
     name in usage, defaults in help, one-line errors).
@@ -80,6 +102,12 @@ class Parser(argparse.ArgumentParser):
         super().__init__(prog=prog, description=description, epilog=epilog, **kwargs)
 
     def error(self, message: str):  # noqa: D102 - argparse's contract: never returns
+        prefix = "unrecognized arguments: "
+        if message.startswith(prefix):  # name the closest option of each unknown one
+            options = [o for o in self._option_string_actions if o.startswith("--")]
+            hints = [close_hint(word.split("=", 1)[0], options)
+                     for word in message[len(prefix):].split() if word.startswith("-")]
+            message += "".join(h for h in hints if h)
         fail(self.prog, message)
 
 
@@ -145,6 +173,7 @@ non_negative_int = _number(int, lambda v: v >= 0, "an integer >= 0")
 positive_int = _number(int, lambda v: v >= 1, "an integer >= 1")
 positive_float = _number(float, lambda v: v > 0 and v == v and v != float("inf"),
                          "a number > 0")
+non_negative_float = _number(float, lambda v: v >= 0 and v != float("inf"), "a number >= 0")
 fraction = _number(float, lambda v: 0.0 <= v <= 1.0, "a number in [0, 1]")
 
 
@@ -179,7 +208,84 @@ def output_file(path: str | os.PathLike | None, flag: str) -> Path | None:
     return path
 
 
-def plural(count: int | float, noun: str, plural_form: str | None = None) -> str:
-    """``"1 episode"``, ``"2 episodes"``, ``"0 episodes"``."""
+def environment(name: str, allowed: Iterable[str] | None = None) -> str:
+    """``name`` if it is a registered environment (or one of ``allowed``),
+    else `UsageError` naming the closest and listing the valid ones."""
+    import envs
+    allowed = list(envs.names() if allowed is None else allowed)
+    if name not in allowed:
+        raise UsageError(f"unknown environment {name!r}{close_hint(name, allowed)}; "
+                         f"valid: {', '.join(allowed)}")
+    return name
+
+
+def env_options(env_name: str, items: Iterable[str], flag: str = "--env-option",
+                exclude: Callable[[str], bool] = lambda key: False) -> dict:
+    """The `envs.load` overrides of ``KEY=VALUE`` items (VALUE a Python
+    literal, else the text), checked by `envs.check` without building the
+    environment.
+
+    Args:
+      exclude: keys the command does not let users set (e.g. cameras).
+
+    Raises:
+      UsageError: an item without ``=``, a key the environment does not have
+        (with the valid keys and the closest one), or a value it refuses (its
+        own message: which setting, what is allowed).
+    """
+    import envs
+    valid = [key for key in envs.overrides(env_name) if not exclude(key)]
+    options = {}
+    for item in items:
+        key, sep, text = item.partition("=")
+        if not sep or not key:
+            raise UsageError(f"{flag} must be KEY=VALUE, got {item!r}; keys for {env_name}: "
+                             f"{', '.join(valid)}")
+        if key not in valid:
+            raise UsageError(f"{flag} {item!r}: unknown key {key!r} for {env_name}"
+                             f"{close_hint(key, valid)}; valid: {', '.join(valid)}")
+        try:
+            options[key] = ast.literal_eval(text)
+        except (ValueError, SyntaxError):
+            options[key] = text
+    try:
+        envs.check(env_name, **options)
+    except (TypeError, ValueError) as exc:
+        raise UsageError(f"{flag}: {exc}") from None
+    return options
+
+
+def levels_file(env_name: str, path: str | os.PathLike, flag: str = "--levels") -> str:
+    """``path`` if it is a level file ``env_name`` can play (it exists and
+    every level in it parses and fits), else `UsageError` naming the file and,
+    for a malformed level, the level, line and column."""
+    import envs
+    try:
+        envs.check(env_name, levels=os.fspath(path))
+    except TypeError:
+        raise UsageError(f"{flag} does not apply to {env_name} (it has no level files)") from None
+    except ValueError as exc:
+        raise UsageError(f"{flag}: {exc}") from None
+    return os.fspath(path)
+
+
+def write_json(path: str | os.PathLike, data, indent: int = 2) -> Path:
+    """Writes ``data`` as JSON to ``path`` through a temporary file in the
+    same folder and an atomic rename (the old file stays whole until the new
+    one is complete). Returns the path."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        tmp.write_text(json.dumps(data, indent=indent) + "\n")
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+    return path
+
+
+def plural(count: int | float, noun: str, plural_form: str | None = None, spec: str = "") -> str:
+    """``"1 episode"``, ``"2 episodes"``, ``"0 episodes"``; ``spec`` formats
+    the count (``plural(12000, "frame", spec=",")`` is ``"12,000 frames"``)."""
     word = noun if count == 1 else (plural_form or f"{noun}s")
-    return f"{count} {word}"
+    return f"{count:{spec}} {word}"

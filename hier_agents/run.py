@@ -5,10 +5,13 @@
     python -m hier_agents.run mujoxo/mixture --episodes 50
     python -m hier_agents.run mujogo/7x7 --episodes 20 --video go.mp4
     python -m hier_agents.run mujoban/level5 --planner random      # swap a part
+    python -m hier_agents.run mujoxo/mixture --planner mcts:3000   # a part with a parameter
+    python -m hier_agents.run mujoban/level5 --skill learned-ball:runs/ball/ball_policy.pt
     python -m hier_agents.run mujoban/level5 --estimator oracle    # privileged upper bound
     python -m hier_agents.run mujoban/level1 --agent checkpoint:runs/impala   # a trained agent
     python -m hier_agents.run mujoban/level1 --agent random        # uniform random actions
     python -m hier_agents.run mujoban/level1 --agent random:10     # ... each held 10 steps
+    python -m hier_agents.run --list                               # the parts by family
 
 The modular agent sits behind the observation boundary: it is given the
 task's public description (``env.description()``) and timesteps. The
@@ -28,52 +31,84 @@ diverging simulation ends its episode. Ctrl-C ends the run with the table
 130). The environment and the agent (planner, skill, estimator) are closed
 whatever happened, so no GNU Go process outlives a run.
 
+Bad input (an unknown name, a negative seed, a missing or malformed
+``--levels`` file, an output path that cannot be written, ...) ends the
+command before anything is played with one line on stderr (what was wrong,
+what is allowed, the closest name) and exit status 2 (`envs.cli`). Output
+folders are created up front; ``--json`` is rewritten after every episode
+(``"finished": false`` until the run ends; checkpoint and random agents write
+it at the end), the ``--video`` after the first.
+
 MuJoBan rows report the solved fraction; board games win/draw/loss rates. All
 rates carry 95% Wilson intervals. JSON keys: env, episodes, estimator,
 privileged, success_rate, win_rate, draw_rate, loss_rate (board games),
 mean_return, mean_steps, subgoal_success_rate, episode_failures (reason ->
-count), wall_s, control_steps_per_s, plus planner, skill, seed and per-episode rows.
+count), wall_s, control_steps_per_s, plus planner, skill, seed, env_options,
+levels, episodes_requested, interrupted, finished, provenance and per-episode
+rows; checkpoint agents add their condition, training frames, ``observations``
+(the input keys the policy reads) and ``privileged``.
 """
 
 from __future__ import annotations
 
-import json
 import sys
 import time
+from typing import Callable
 
 from tqdm import tqdm
 
 import envs
+from envs import cli
 from hier_agents.boundary import BoundaryEnv
 from hier_agents.modular.agent import OptionStats
 from hier_agents.modular.components import (env_overrides, estimator_name, family,
                                             is_privileged, make_agent)
 from hier_agents.modular.families import adapter
-from hier_agents.run_cli import (DEFAULT_ENV, DEFAULT_EPISODES,  # noqa: F401 (re-exported)
+from hier_agents.run_cli import (DEFAULT_ENV, DEFAULT_EPISODES, PROG,  # noqa: F401 (re-exported)
                                  build_parser, check_args, print_components)
 from hier_agents.run_report import format_table, postfix, summarize  # noqa: F401
+
+Progress = Callable[[dict], None]
 
 
 def run(env_name: str, episodes: int, seed: int = 0, *, planner: str | None = None,
         skill: str | None = None, estimator: str | None = None, levels: str | None = None,
         video: str | None = None, progress: bool = True, agent: str = "modular",
-        stochastic: bool = False, env_options: dict | None = None) -> dict:
+        stochastic: bool = False, env_options: dict | None = None,
+        on_progress: Progress | None = None) -> dict:
     """Plays ``episodes`` episodes; returns the JSON-able summary.
 
-    ``agent`` is ``"modular"`` (estimator + planner + skill),
-    ``"checkpoint:PATH"`` (a trained end-to-end agent, `hier_agents.train`;
-    its policy's mean, or samples with ``stochastic``) or ``"random"``
-    (uniformly random actions). ``env_options`` are extra `envs.load`
-    keyword overrides for the modular agent's environment (e.g.
-    ``{"physics_timestep": 0.005}``); the summary records them.
+    Args:
+      agent: ``"modular"`` (estimator + planner + skill, named as
+        `hier_agents.modular.components.resolve` reads them),
+        ``"checkpoint:PATH"`` (a trained end-to-end agent, `hier_agents.train`;
+        its policy's mean, or samples with ``stochastic``) or
+        ``"random[:HOLD]"`` (uniformly random actions).
+      levels: MuJoBan: a level file played in order (modular and checkpoint agents).
+      env_options: extra `envs.load` overrides of the played environment
+        (e.g. ``{"physics_timestep": 0.005}``; modular and checkpoint agents);
+        the summary records them.
+      video: an MP4 of the first episode, written when it ends.
+      on_progress: modular agent: called with the summary so far
+        (``"finished": False``) once the agent is built and after every
+        episode. (Checkpoint and random agents report only at the end.)
+
+    Returns:
+      The summary (`hier_agents.run_report.summarize` plus the keys in the
+      module docstring), ``"finished": True``.
+
+    Raises:
+      ValueError: an environment without a modular agent, a bad component
+        name, ``levels``, ``env_options`` or ``video`` with the random agent;
+        `envs.cli.UsageError` (a ValueError) for a checkpoint that does not
+        load or fit the environment (`play_checkpoint`).
+      FileNotFoundError: a checkpoint that does not exist.
     """
     fam = family(env_name)
     env_options = dict(env_options or {})
     if agent != "modular":
-        if env_options:
-            raise ValueError("env_options apply to the modular agent only")
         return _run_policy(env_name, fam, episodes, seed, agent, levels, video, progress,
-                           stochastic)
+                           stochastic, env_options)
     # A diverging simulation ends its episode (reward 0) instead of the run.
     overrides = {**env_overrides(env_name, estimator), "raise_on_physics_error": False,
                  **env_options}
@@ -85,6 +120,16 @@ def run(env_name: str, episodes: int, seed: int = 0, *, planner: str | None = No
     rows, frames = [], []
     interrupted = False
     env = made = None
+
+    def summary_now(finished: bool) -> dict:
+        out = summarize(env_name, fam, rows, totals, seed, planner, skill)
+        out.update(training_frames=training_frames(made),
+                   estimator=estimator_name(fam, estimator),
+                   privileged=is_privileged(fam, estimator), env_options=env_options,
+                   levels=levels, episodes_requested=episodes, interrupted=interrupted,
+                   finished=finished)
+        return out
+
     bar = tqdm(total=episodes, unit="episode", desc=env_name, file=sys.stderr,
                disable=not progress)
     try:
@@ -98,13 +143,20 @@ def run(env_name: str, episodes: int, seed: int = 0, *, planner: str | None = No
         # estimator is handed the simulator, on purpose.
         made = make_agent(env_name, description, planner=planner, skill=skill,
                           estimator=estimator, seed=seed, simulator=env if privileged else None)
+        if on_progress is not None:
+            on_progress(summary_now(False))
         for episode in range(episodes):
             row, stats = _play_episode(env, view, made, description, fam, episode, seed,
                                        frames if video and episode == 0 else None)
             rows.append(row)
             totals.add(stats)
+            if video and episode == 0 and frames:
+                _write_video(video, frames, env.control_timestep)
+                frames = []
             bar.update(1)
             bar.set_postfix(postfix(rows, fam))
+            if on_progress is not None:
+                on_progress(summary_now(False))
     except KeyboardInterrupt:
         # Ctrl-C: the episodes played so far make the table (the one under way is dropped).
         interrupted = True
@@ -116,18 +168,12 @@ def run(env_name: str, episodes: int, seed: int = 0, *, planner: str | None = No
         finally:
             if env is not None:
                 env.close()
-    if video and frames:
-        import imageio.v2 as imageio
-        imageio.mimwrite(video, frames, fps=int(round(1 / env.control_timestep)),
-                         macro_block_size=1)
-    summary = summarize(env_name, fam, rows, totals, seed, planner, skill)
-    summary["training_frames"] = training_frames(made)
-    summary["estimator"] = estimator_name(fam, estimator)
-    summary["privileged"] = is_privileged(fam, estimator)
-    summary["env_options"] = env_options
-    summary["episodes_requested"] = episodes
-    summary["interrupted"] = interrupted
-    return summary
+    return summary_now(True)
+
+
+def _write_video(path, frames, control_timestep: float) -> None:
+    import imageio.v2 as imageio
+    imageio.mimwrite(path, frames, fps=int(round(1 / control_timestep)), macro_block_size=1)
 
 
 def training_frames(agent) -> int:
@@ -194,56 +240,68 @@ def _play_episode(env, view, agent, description, fam, episode, seed, frames):
 
 
 def _run_policy(env_name, fam, episodes, seed, agent, levels, video, progress,
-                stochastic) -> dict:
-    from hier_agents.baselines.impala.evaluate import parse_agent, parse_random, play_checkpoint, play_random
+                stochastic, env_options) -> dict:
+    """`run` for ``checkpoint:PATH`` and ``random[:HOLD]`` agents
+    (`hier_agents.baselines.impala.evaluate`)."""
+    from hier_agents.baselines.impala.evaluate import (parse_agent, parse_random,
+                                                       play_checkpoint, play_random)
 
-    if levels is not None:
-        raise ValueError(f"--levels is not supported with --agent {agent}")
-    if agent.startswith("random"):
+    if agent == "random" or agent.startswith("random:"):
         hold = parse_random(agent)
-        if video:
-            raise ValueError(f"--video is not supported with --agent {agent}")
+        if video or levels is not None or env_options:
+            raise ValueError(f"--video, --levels and --env-option do not apply to "
+                             f"--agent {agent}")
         rows, info = play_random(env_name, episodes, seed, hold=hold, progress=progress)
     else:
-        rows, info = play_checkpoint(env_name, parse_agent(agent), episodes, seed,
-                                     video=video, progress=progress, stochastic=stochastic)
+        options = {**env_options, **({"levels": levels} if levels is not None else {})}
+        rows, info = play_checkpoint(env_name, parse_agent(agent), episodes, seed, video=video,
+                                     progress=progress, stochastic=stochastic,
+                                     env_options=options)
     totals = OptionStats()
     for row in rows:  # auxiliary sub-episodes: reached, or not within T_abs
         totals.issued += row["subgoals_issued"]
         totals.reached += row["subgoals_reached"]
     totals.unfinished = totals.issued - totals.reached
     summary = summarize(env_name, fam, rows, totals, seed, "-", agent)
-    summary["agent"] = agent
+    summary.update(agent=agent, env_options=env_options, levels=levels,
+                   episodes_requested=episodes, interrupted=False, finished=True)
     summary.update(info)
     return summary
 
 
-def main(argv=None) -> int:
-    """``python -m hier_agents.run``: plays, prints the table, writes
-    ``--json``; returns the exit status (130 when interrupted by Ctrl-C).
-    Usage errors exit with status 2 (`hier_agents.run_cli`)."""
-    parser = build_parser(__doc__.split("\n\n")[0])
+def _main(argv=None) -> int:
+    parser = build_parser(__doc__.split("\n\n")[0],
+                          epilog="examples:\n" + __doc__.split("\n\n")[1])
     args = parser.parse_args(argv)
     if args.list:
         print_components()
         return 0
-    env_name, episodes, env_options = check_args(parser, args)
-    try:
-        summary = run(env_name, episodes, args.seed, planner=args.planner, skill=args.skill,
-                      estimator=args.estimator, levels=args.levels, video=args.video,
-                      agent=args.agent, stochastic=args.stochastic, env_options=env_options)
-    except (FileNotFoundError, ValueError) as exc:
-        if args.agent == "modular":
-            raise
-        parser.error(str(exc))
-    print(format_table(summary))
-    if args.json:
+    checked = check_args(args)
+    save = None
+    if checked.json is not None:
         from hier_agents.provenance import provenance
-        summary["provenance"] = provenance()
-        with open(args.json, "w") as f:
-            json.dump(summary, f, indent=2)
-        print(f"wrote {args.json}")
+        record = provenance()
+
+        def save(summary: dict) -> None:
+            cli.write_json(checked.json, {**summary, "provenance": record})
+    summary = run(checked.env, checked.episodes, args.seed, planner=args.planner,
+                  skill=args.skill, estimator=args.estimator, levels=checked.levels,
+                  video=None if checked.video is None else str(checked.video),
+                  agent=args.agent, stochastic=args.stochastic,
+                  env_options=checked.env_options, on_progress=save)
+    print(format_table(summary))
+    if save is not None:
+        save(summary)
+        print(f"wrote {checked.json}")
     return 130 if summary.get("interrupted") else 0
+
+
+def main(argv=None) -> int:
+    """``python -m hier_agents.run``: plays, prints the table, writes
+    ``--json`` (after every episode) and ``--video``; returns the exit status
+    (0; 130 when interrupted by Ctrl-C). Bad input: one line on stderr and
+    `SystemExit` with status 2 before anything is played (`envs.cli.run_main`)."""
+    return cli.run_main(PROG, _main, argv)
 
 
 if __name__ == "__main__":

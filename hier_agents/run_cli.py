@@ -1,126 +1,168 @@
 """The command line of `hier_agents.run` (``python -m hier_agents.run``): its
 argument parser (`build_parser`), ``--list`` (`print_components`) and the
-checks that turn bad arguments into usage errors before anything is played
-(`check_args`).
+checks that turn bad arguments into one-line usage errors before anything is
+played (`check_args`). Conventions: `envs.cli`; component names:
+`hier_agents.modular.components.resolve`.
 """
 
 from __future__ import annotations
 
 import argparse
-import ast
+from dataclasses import dataclass, field
+from pathlib import Path
 
-import envs
-from hier_agents.modular.components import ESTIMATORS, PLANNERS, SKILLS, family
+from envs import cli
+from envs.cli import UsageError
+from hier_agents.modular import components
+from hier_agents.modular.components import ESTIMATORS, PLANNERS, family
 from hier_agents.modular.families import adapter
 
-__all__ = ["DEFAULT_ENV", "DEFAULT_EPISODES", "build_parser", "print_components", "check_args"]
+__all__ = ["DEFAULT_ENV", "DEFAULT_EPISODES", "PROG", "Checked", "build_parser",
+           "print_components", "check_args"]
 
+PROG = "python -m hier_agents.run"
 DEFAULT_ENV = "mujoban/level3"
 DEFAULT_EPISODES = 5
+#: Episodes when an environment is named but ``--episodes`` is not.
+NAMED_ENV_EPISODES = 10
+
+_AGENTS = "modular, checkpoint:PATH or random[:HOLD]"
 
 
-def build_parser(description: str) -> argparse.ArgumentParser:
-    """The ``python -m hier_agents.run`` argument parser."""
-    parser = argparse.ArgumentParser(prog="python -m hier_agents.run",
-                                     description=description)
+def build_parser(description: str, epilog: str | None = None) -> argparse.ArgumentParser:
+    """The ``python -m hier_agents.run`` argument parser (`envs.cli.Parser`)."""
+    parser = cli.Parser(PROG, description=description, epilog=epilog)
     parser.add_argument("env", nargs="?", default=None,
-                        help=f"environment name (default: {DEFAULT_ENV}, "
-                             f"{DEFAULT_EPISODES} episodes)")
-    parser.add_argument("--episodes", type=int, default=None)
-    parser.add_argument("--seed", type=int, default=0)
+                        help=f"environment name, see python -m envs --list (default: "
+                             f"{DEFAULT_ENV})")
+    parser.add_argument("--episodes", type=cli.positive_int, default=None,
+                        help=f"episodes to play (default: {DEFAULT_EPISODES} with the default "
+                             f"environment, {NAMED_ENV_EPISODES} with a named one)")
+    parser.add_argument("--seed", type=cli.non_negative_int, default=0,
+                        help="seed of the environment and the agent")
     parser.add_argument("--agent", default="modular",
-                        help="modular (default), checkpoint:PATH (a hier_agents.train run "
-                             "directory or checkpoint file), random or random:HOLD (uniform random "
-                             "actions, each held HOLD control steps)")
+                        help="modular (estimator + planner + skill), checkpoint:PATH (a "
+                             "hier_agents.train run directory or checkpoint file), random or "
+                             "random:HOLD (uniform random actions, each held HOLD control steps)")
     parser.add_argument("--stochastic", action="store_true",
                         help="checkpoint agents: sample actions from the policy instead of "
                              "taking its mean")
-    parser.add_argument("--planner", help="planner name (see --list)")
-    parser.add_argument("--skill", help="skill name (see --list)")
-    parser.add_argument("--estimator", help="estimator name (see --list)")
-    parser.add_argument("--levels", help="MuJoBan: a Boxoban file to play in order")
+    parser.add_argument("--planner", metavar="NAME[:ARG]",
+                        help="modular agent: the planner, e.g. mcts:3000 or learned:PATH "
+                             "(see --list; default: the family's first)")
+    parser.add_argument("--skill", metavar="NAME[:ARG]",
+                        help="modular agent: the skill, e.g. learned-ball:PATH (see --list; "
+                             "default: the family's first)")
+    parser.add_argument("--estimator", metavar="NAME",
+                        help="modular agent: the estimator (see --list; default: the "
+                             "family's first, observation-only)")
+    parser.add_argument("--levels", metavar="FILE",
+                        help="MuJoBan, modular and checkpoint agents: a Boxoban level file to "
+                             "play in order")
     parser.add_argument("--env-option", action="append", default=[], metavar="KEY=VALUE",
-                        help="an envs.load override for the modular agent's environment, e.g. "
-                             "physics_timestep=0.005 or sleep=True (repeatable; VALUE is a "
-                             "Python literal)")
-    parser.add_argument("--video", help="write an MP4 of the first episode here")
-    parser.add_argument("--json", help="write the summary here")
-    parser.add_argument("--list", action="store_true", help="list planners and skills and exit")
+                        help="an envs.load override of the played environment, e.g. "
+                             "physics_timestep=0.005 or time_limit=5 (repeatable; VALUE is a "
+                             "Python literal; modular and checkpoint agents)")
+    parser.add_argument("--video", metavar="MP4",
+                        help="write an MP4 of the first episode here (its folder is created)")
+    parser.add_argument("--json", metavar="FILE",
+                        help="write the summary here, rewritten after every episode "
+                             "(\"finished\": false until the run ends; its folder is created)")
+    parser.add_argument("--list", action="store_true",
+                        help="list each family's planners, skills and estimators and exit")
     return parser
 
 
 def print_components() -> None:
-    """``--list``: per game family, its planners, skills and estimators
-    (privileged ones marked)."""
+    """``--list``: per game family, its planners, skills and estimators in
+    the form the flags take them (``NAME``, ``NAME:ARG``; the first is the
+    default; privileged estimators marked)."""
     for fam in PLANNERS:
-        names = [f"{name} (privileged)" if getattr(factory, "privileged", False) else name
-                 for name, factory in ESTIMATORS[fam].items()]
-        planners = list(PLANNERS[fam]) + (["learned:PATH"] if adapter(fam).level_files else [])
-        print(f"{fam}: planners {planners}, skills {list(SKILLS[fam])}, "
-              f"estimators {names}")
+        estimators = [f"{name} (privileged)" if getattr(factory, "privileged", False) else name
+                      for name, factory in ESTIMATORS[fam].items()]
+        print(f"{fam}:")
+        print(f"  planners    {', '.join(components.forms('planner', fam))}")
+        print(f"  skills      {', '.join(components.forms('skill', fam))}")
+        print(f"  estimators  {', '.join(estimators)}")
+    print("ARG: learned*:PATH a checkpoint file or run directory; mcts:N tree simulations "
+          "per move; gnugo:LEVEL 1..10")
 
 
-def check_args(parser: argparse.ArgumentParser, args) -> tuple:
-    """(env name, episodes, env options dict) from parsed ``args``; every
-    invalid combination exits through ``parser.error`` (status 2): unknown
-    environment, planner, skill or estimator, a learned planner file that
-    does not load, ``--levels`` outside MuJoBan, a bad ``--env-option``,
-    modular-agent flags given with another agent."""
-    env_name = args.env or DEFAULT_ENV
+@dataclass
+class Checked:
+    """Arguments that passed `check_args`.
+
+    Attributes:
+      env: the environment's name.
+      episodes: episodes to play (>= 1).
+      env_options: `envs.load` overrides from ``--env-option`` (checked).
+      levels: ``--levels`` (checked: it exists and parses) or None.
+      json, video: output paths (folders created) or None.
+    """
+
+    env: str
+    episodes: int
+    env_options: dict = field(default_factory=dict)
+    levels: str | None = None
+    json: Path | None = None
+    video: Path | None = None
+
+
+def check_args(args) -> Checked:
+    """Checks parsed ``args`` before anything is played; raises `UsageError`
+    (one line: what is wrong, what is allowed, the closest name) for an
+    unknown environment, planner, skill or estimator, a bad ``NAME:ARG`` or a
+    checkpoint that does not load, ``--levels`` that is missing, malformed or
+    outside MuJoBan, a bad ``--env-option``, an output path that cannot be
+    written, an unknown ``--agent``, or a flag that does not apply to the
+    agent. Creates the output folders."""
+    env_name = cli.environment(args.env or DEFAULT_ENV)
     episodes = args.episodes if args.episodes is not None else (
-        DEFAULT_EPISODES if args.env is None else 10)
-    if env_name not in envs.names():
-        parser.error(f"unknown environment {env_name!r}; known: {', '.join(envs.names())}")
-    if episodes < 1:
-        parser.error("--episodes must be >= 1")
-    try:
-        fam = family(env_name)
-    except ValueError as exc:
-        parser.error(str(exc))
-    for kind, table, name in (("planner", PLANNERS, args.planner), ("skill", SKILLS, args.skill),
-                              ("estimator", ESTIMATORS, args.estimator)):
-        if name is not None and name not in table[fam]:
-            extra = (" or learned:PATH" if kind == "planner" and adapter(fam).level_files
-                     else "")
-            parser.error(f"unknown {kind} {name!r} for {fam}; valid: {sorted(table[fam])}{extra}")
-    if args.planner and args.planner.startswith("learned:") and adapter(fam).level_files:
-        from abstract_planners.learned_options import load_option_policy
-        try:  # a missing or foreign checkpoint fails here, with a usage error
-            load_option_policy(args.planner[len("learned:"):])
-        except (FileNotFoundError, ValueError) as exc:
-            parser.error(f"--planner {args.planner}: {exc}")
-    if args.levels is not None and not adapter(fam).level_files:
-        parser.error("--levels only applies to mujoban environments")
-    env_options = {}
-    for item in args.env_option:
-        key, sep, text = item.partition("=")
-        if not sep or key not in envs.overrides(env_name) or key.endswith("_camera"):
-            valid = [k for k in envs.overrides(env_name) if not k.endswith("_camera")]
-            parser.error(f"--env-option must be KEY=VALUE with KEY one of {valid}, got {item!r}")
-        try:
-            env_options[key] = ast.literal_eval(text)
-        except (ValueError, SyntaxError):
-            env_options[key] = text
-    if env_options:
-        try:  # a bad value fails here, with the environment's own message
-            envs.load(env_name, **envs.no_cameras(env_name), **env_options).close()
-        except (TypeError, ValueError) as exc:
-            parser.error(f"--env-option: {exc}")
-    if args.stochastic and not args.agent.startswith("checkpoint:"):
-        parser.error("--stochastic applies to checkpoint:PATH agents")
-    if args.agent != "modular":
-        if args.agent.startswith("random"):
-            from hier_agents.baselines.impala.evaluate import parse_random
-            try:
-                parse_random(args.agent)
-            except ValueError as exc:
-                parser.error(str(exc))
-        elif not args.agent.startswith("checkpoint:") or args.agent == "checkpoint:":
-            parser.error(f"--agent must be modular, random[:HOLD] or checkpoint:PATH, "
-                         f"got {args.agent!r}")
+        DEFAULT_EPISODES if args.env is None else NAMED_ENV_EPISODES)
+    fam = family(env_name)
+    agent = args.agent
+    random_agent = agent == "random" or agent.startswith("random:")
+    checkpoint_agent = agent.startswith("checkpoint:")
+    if agent != "modular" and not random_agent and not checkpoint_agent:
+        hint = cli.close_hint(agent, ("modular", "random", "checkpoint:"))
+        raise UsageError(f"unknown --agent {agent!r}{hint}; valid: {_AGENTS}")
+    if checkpoint_agent:
+        path = Path(agent[len("checkpoint:"):])
+        if not path.exists():
+            raise UsageError(f"--agent {agent}: no checkpoint or run directory at "
+                             f"{str(path) or '(empty path)'!r}")
+    if random_agent:
+        from hier_agents.baselines.impala.evaluate import parse_random
+        parse_random(agent)  # UsageError for a bad HOLD
+    if args.stochastic and not checkpoint_agent:
+        raise UsageError("--stochastic applies to --agent checkpoint:PATH only")
+    if agent != "modular":
         for flag, value in (("--planner", args.planner), ("--skill", args.skill),
-                            ("--estimator", args.estimator), ("--levels", args.levels),
-                            ("--env-option", args.env_option or None)):
+                            ("--estimator", args.estimator)):
             if value is not None:
-                parser.error(f"{flag} applies to the modular agent, not to {args.agent}")
-    return env_name, episodes, env_options
+                raise UsageError(f"{flag} applies to the modular agent, not to --agent {agent}")
+    if random_agent:
+        for flag, value in (("--levels", args.levels), ("--env-option", args.env_option or None),
+                            ("--video", args.video)):
+            if value is not None:
+                raise UsageError(f"{flag} applies to the modular and checkpoint agents, not to "
+                                 f"--agent {agent}")
+    for kind, spec in (("planner", args.planner), ("skill", args.skill),
+                       ("estimator", args.estimator)):
+        if spec is not None:
+            components.check(kind, fam, spec)
+    levels = None
+    if args.levels is not None:
+        if not adapter(fam).level_files:
+            raise UsageError(f"--levels only applies to mujoban environments, not {env_name}")
+        levels = cli.levels_file(env_name, args.levels)
+    for item in args.env_option:
+        key = item.partition("=")[0]
+        if key == "levels" or key.endswith("_camera"):
+            why = ("give a level file with --levels FILE" if key == "levels"
+                   else "the cameras are the estimator's (or the checkpoint's)")
+            raise UsageError(f"--env-option {item!r}: {why}")
+    options = cli.env_options(env_name, args.env_option,
+                              exclude=lambda key: key.endswith("_camera") or key == "levels")
+    return Checked(env_name, episodes, options, levels,
+                   cli.output_file(args.json, "--json"), cli.output_file(args.video, "--video"))

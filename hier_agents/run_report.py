@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from envs.cli import plural
 from hier_agents.modular.agent import OptionStats
 from hier_agents.modular.components import PLANNERS, SKILLS
 from hier_agents.modular.families import adapter
@@ -87,16 +88,29 @@ def format_table(summary: dict) -> str:
                f"{' (PRIVILEGED: reads the simulator)' if summary.get('privileged') else ''}, "
                f"planner {summary['planner']}, skill {summary['skill']}")
         if summary.get("training_frames"):
-            who += f" (learned parts trained on {summary['training_frames']:,} frames)"
+            who += (f" (learned parts trained on "
+                    f"{plural(summary['training_frames'], 'frame', spec=',')})")
     elif summary["agent"].startswith("random"):
         who = summary["condition"]
     else:
         who = (f"{summary['agent']} ({summary['condition']}, trained "
-               f"{summary['training_frames']:,} frames on {summary['trained_env']})")
-    lines = [f"{summary['env']}: {who}, {summary['episodes']} episodes, seed {summary['seed']}"]
+               f"{plural(summary['training_frames'], 'frame', spec=',')} on "
+               f"{summary['trained_env']}")
+        if summary.get("observations"):
+            who += f"; reads {', '.join(summary['observations'])}"
+        who += ")"
+        if summary.get("privileged"):
+            who += " (PRIVILEGED: reads the simulator)"
+    lines = [f"{summary['env']}: {who}, {plural(summary['episodes'], 'episode')}, "
+             f"seed {summary['seed']}"]
+    if summary.get("levels"):
+        lines.append(f"  levels from {summary['levels']}")
+    if summary.get("env_options"):
+        lines.append("  env options  " + ", ".join(
+            f"{k}={v!r}" for k, v in summary["env_options"].items()))
     if summary.get("interrupted"):
         lines.append(f"  INTERRUPTED (Ctrl-C): {summary['episodes']} of "
-                     f"{summary.get('episodes_requested', '?')} episodes played")
+                     f"{plural(summary.get('episodes_requested', '?'), 'episode')} played")
     if not summary["episodes"]:
         return "\n".join(lines)
     if "win_rate" in summary:
@@ -118,8 +132,8 @@ def format_table(summary: dict) -> str:
             f"{k} x{v}" for k, v in sorted(summary["episode_failures"].items())))
     if summary.get("errors"):
         first = next(r["error"] for r in summary["rows"] if "error" in r)
-        lines.append(f"  errors            {summary['errors']} episode(s) ended by an error "
-                     f"(first: {first[:120]})")
+        lines.append(f"  errors            {plural(summary['errors'], 'episode')} ended by "
+                     f"an error (first: {first[:120]})")
     lines.append(f"  wall s / episode  {summary['wall_s']:.2f}")
     if summary.get("control_steps_per_s"):
         lines.append(f"  control steps / s {summary['control_steps_per_s']:.0f} "

@@ -2,6 +2,7 @@
 
     agent = make_agent("mujoban/level5-pegs", env.description())             # defaults
     agent = make_agent("mujoban/level5-pegs", env.description(), planner="random")
+    agent = make_agent("mujoxo/mixture", env.description(), planner="mcts:3000")
     agent = make_agent("mujoban/level5-pegs", env.description(), estimator="oracle",
                        simulator=env)           # privileged: reads the simulator on purpose
 
@@ -9,25 +10,124 @@ Agents are built from the task's public description only; the privileged
 estimators (``oracle``, ``entity-layer``) also need the simulator, given
 explicitly as ``simulator``. The first name in each table is the default.
 
-MuJoBan planners also take ``learned:PATH``: a policy over options trained
-with ``python -m hier_agents.learning.train_options`` (a checkpoint file or run
-directory) played by `abstract_planners.learned_options.OptionPolicyPlanner`;
-``learned`` is the shipped one (``abstract_planners/learned/options.pt``:
-the learned policy alone, no hand-written rule).
+**Names.** A component is named ``NAME`` or, for the components that take a
+parameter, ``NAME:ARG`` (one syntax everywhere a name is accepted:
+`make_agent`, ``python -m hier_agents.run --planner/--skill/--estimator``,
+``--list``, the tables below):
+
+* ``learned:PATH`` (MuJoBan planner): a policy over options trained with
+  ``python -m hier_agents.learning.train_options`` (a checkpoint file or a
+  run directory), played by
+  `abstract_planners.learned_options.OptionPolicyPlanner`; bare ``learned``
+  is the shipped ``abstract_planners/learned/options.pt``;
+* ``learned-ball:PATH``, ``learned-arm:PATH`` (skills): a checkpoint of
+  ``python -m hier_agents.learning.train_skill``; bare: the shipped one
+  (``skills/learned/ball_policy.pt``, ``skills/learned/arm_policy.pt``);
+* ``mcts:N`` (board-game planner): N tree simulations per move (>= 1; bare:
+  1000);
+* ``gnugo:LEVEL`` (Go planner): GNU Go's strength, 1..10 (bare: 10).
+
+`resolve` is the one parser of these names; the tables
+(`PLANNERS`, `SKILLS`, `ESTIMATORS`: family -> `ComponentTable`) accept
+``NAME:ARG`` in ``in`` and ``[]`` through it. A bad name raises `UsageError`
+(a `ValueError`) naming the valid ones and the closest; `check` also loads
+what a parameter names (a checkpoint) so a command can refuse it before
+playing.
 
 Families: ``mujoban`` (Sokoban states, the ball walker), ``mujoxo``
-(tic-tac-toe) and ``mujogo`` (Go), both with the Jaco arm. Unknown names
-raise `ValueError` listing the valid ones.
+(tic-tac-toe) and ``mujogo`` (Go), both with the Jaco arm. An environment
+outside them raises `ValueError` (`family`).
 """
 
 from __future__ import annotations
 
-from typing import Callable
+from dataclasses import dataclass
+from typing import Callable, NamedTuple
 
+from envs.cli import UsageError, close_hint
 from hier_agents.estimators import BoardEstimator, EntityLayerEstimator, OracleEstimator
 from hier_agents.modular.agent import ModularAgent
 from hier_agents.modular.families import family
 from hier_agents.modular.options import T_ABS
+
+__all__ = ["PLANNERS", "SKILLS", "ESTIMATORS", "ComponentTable", "Parameter", "Resolved",
+           "UsageError", "check", "env_overrides", "estimator_name", "family", "forms",
+           "is_privileged", "make_agent", "resolve"]
+
+Factory = Callable[..., object]
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """What the ``ARG`` of ``NAME:ARG`` is for one component.
+
+    Attributes:
+      metavar: how listings show it (``"PATH"``, ``"N"``, ``"LEVEL"``).
+      meaning: what it is, for messages (``"tree simulations per move, an
+        integer >= 1"``).
+      parse: text -> value; raises ValueError when the text is not allowed.
+      load: value -> None; loads what the value names (a checkpoint) without
+        building the component; raises any exception when it cannot be used.
+        None: nothing to load.
+    """
+
+    metavar: str
+    meaning: str
+    parse: Callable[[str], object]
+    load: Callable[[object], object] | None = None
+
+
+def _takes(parameter: Parameter):
+    """Marks a factory ``factory(description, seed[, simulator], arg=DEFAULT)``
+    as taking ``NAME:ARG`` (the bare name calls it with its default)."""
+    def mark(factory):
+        factory.parameter = parameter
+        return factory
+    return mark
+
+
+def _int_in(low: int, high: int | None = None):
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = None
+        if value is None or value < low or (high is not None and value > high):
+            raise ValueError(f"got {text!r}")
+        return value
+    return parse
+
+
+def _path(text: str) -> str:
+    if not text:
+        raise ValueError("got an empty path")
+    return text
+
+
+def _load_option_policy(path):
+    from abstract_planners.learned_options import load_option_policy
+    load_option_policy(path)
+
+
+def _load_ball_policy(path):
+    from skills.learned.ball import load_policy
+    load_policy(path)
+
+
+def _load_arm_policy(path):
+    from skills.learned.arm import FEATURES
+    from skills.learned.policy import load_policy
+    load_policy(path, FEATURES)
+
+
+_SIMULATIONS = Parameter("N", "tree simulations per move, an integer >= 1", _int_in(1))
+_GNUGO_LEVEL = Parameter("LEVEL", "GNU Go's strength, an integer 1..10", _int_in(1, 10))
+_OPTION_POLICY = Parameter("PATH", "a python -m hier_agents.learning.train_options "
+                           "checkpoint file or run directory", _path, _load_option_policy)
+_BALL_POLICY = Parameter("PATH", "a learned-ball checkpoint (python -m "
+                         "hier_agents.learning.train_skill ball)", _path, _load_ball_policy)
+_ARM_POLICY = Parameter("PATH", "a learned-arm checkpoint (python -m "
+                        "hier_agents.learning.train_skill arm)", _path, _load_arm_policy)
 
 
 def _sokoban_solver(description, seed):
@@ -40,27 +140,10 @@ def _sokoban_time(description, seed):
     return TimeSolverPlanner(time_limit=10.0)
 
 
-def _learned_options(path):
-    def factory(description, seed):
-        from abstract_planners.learned_options import OptionPolicyPlanner
-        return OptionPolicyPlanner(path, seed=seed)
-    return factory
-
-
-class _PlannerTable(dict):
-    """A family's planners by name, plus ``learned:PATH`` (any checkpoint of
-    `hier_agents.learning.train_options`: a policy over options played as a planner)."""
-
-    prefix = "learned:"
-
-    def __contains__(self, name) -> bool:
-        return dict.__contains__(self, name) or (isinstance(name, str) and name.startswith(
-            self.prefix) and len(name) > len(self.prefix))
-
-    def __getitem__(self, name):
-        if not dict.__contains__(self, name) and name in self:
-            return _learned_options(name[len(self.prefix):])
-        return dict.__getitem__(self, name)
+@_takes(_OPTION_POLICY)
+def _learned_options(description, seed, arg=None):
+    from abstract_planners.learned_options import OptionPolicyPlanner
+    return OptionPolicyPlanner(arg, seed=seed)
 
 
 def _sokoban_random(description, seed):
@@ -78,14 +161,17 @@ def _board_random(description, seed):
     return RandomMovePlanner(seed=seed)
 
 
-def _gnugo(description, seed):
+@_takes(_GNUGO_LEVEL)
+def _gnugo(description, seed, arg=10):
     from abstract_planners.go import GnuGoPlanner
-    return GnuGoPlanner(10, board_size=description.board_size, komi=description.komi, seed=seed)
+    return GnuGoPlanner(arg, board_size=description.board_size, komi=description.komi,
+                        seed=seed)
 
 
-def _mcts(description, seed):
+@_takes(_SIMULATIONS)
+def _mcts(description, seed, arg=1000):
     from abstract_planners.go import MCTSPlanner
-    return MCTSPlanner(1000, seed=seed)
+    return MCTSPlanner(arg, seed=seed)
 
 
 def _ball(description, seed):
@@ -93,9 +179,10 @@ def _ball(description, seed):
     return BallSkill()
 
 
-def _learned_ball(description, seed):
+@_takes(_BALL_POLICY)
+def _learned_ball(description, seed, arg=None):
     from skills.learned import LearnedBallSkill
-    return LearnedBallSkill()
+    return LearnedBallSkill(arg)
 
 
 def _arm(description, seed):
@@ -103,29 +190,19 @@ def _arm(description, seed):
     return ArmTouchSkill()
 
 
-def _learned_arm(description, seed):
+@_takes(_ARM_POLICY)
+def _learned_arm(description, seed, arg=None):
     from skills.learned.arm import LearnedArmSkill
-    return LearnedArmSkill()
+    return LearnedArmSkill(arg)
 
 
-Factory = Callable[..., object]
-
-#: family -> name -> factory(description, seed); the first entry is the default.
-PLANNERS: dict[str, dict[str, Factory]] = {
-    "mujoban": _PlannerTable({"sokoban-solver:time": _sokoban_time,
-                              "sokoban-solver": _sokoban_solver, "random": _sokoban_random,
-                              "learned": _learned_options(None)}),
-    "mujoxo": {"minimax": _minimax, "mcts": _mcts, "random": _board_random},
-    "mujogo": {"gnugo": _gnugo, "mcts": _mcts, "random": _board_random},
-}
-SKILLS: dict[str, dict[str, Factory]] = {
-    "mujoban": {"ball": _ball, "learned-ball": _learned_ball},
-    "mujoxo": {"arm-touch": _arm, "learned-arm": _learned_arm},
-    "mujogo": {"arm-touch": _arm, "learned-arm": _learned_arm},
-}
 def _camera(description, seed, simulator=None):
     from hier_agents.estimators.camera import CameraEstimator
     return CameraEstimator()
+
+
+def _board(description, seed, simulator=None):
+    return BoardEstimator()
 
 
 def _privileged(cls):
@@ -138,18 +215,159 @@ def _privileged(cls):
     return factory
 
 
-#: family -> name -> factory(description, seed, simulator=None).
-ESTIMATORS: dict[str, dict[str, Factory]] = {
-    "mujoban": {"camera": _camera, "oracle": _privileged(OracleEstimator),
-                "entity-layer": _privileged(EntityLayerEstimator)},
-    "mujoxo": {"board": lambda description, seed, simulator=None: BoardEstimator()},
-    "mujogo": {"board": lambda description, seed, simulator=None: BoardEstimator()},
+class Resolved(NamedTuple):
+    """A component name resolved by `resolve`: ``name`` (the table's key),
+    ``arg`` (the parsed ``ARG``, None for a bare name), ``parameter`` (the
+    component's `Parameter` or None) and ``factory`` (called as the table's
+    factories are, with ``arg`` bound; it keeps the factory's attributes,
+    e.g. ``privileged``)."""
+
+    name: str
+    arg: object
+    parameter: Parameter | None
+    factory: Factory
+
+
+class ComponentTable(dict):
+    """One family's components of one kind: name -> factory, the first entry
+    the default. ``"NAME:ARG" in table`` and ``table["NAME:ARG"]`` go through
+    `resolve` (``in`` is False for a name `resolve` refuses; ``[]`` raises
+    its `UsageError`, a `KeyError` is never raised for a string)."""
+
+    def __init__(self, kind: str, fam: str, entries: dict[str, Factory]):
+        super().__init__(entries)
+        self.kind, self.family = kind, fam
+
+    def __contains__(self, spec) -> bool:
+        try:
+            self.resolve(spec)
+        except UsageError:
+            return False
+        return True
+
+    def __getitem__(self, spec) -> Factory:
+        return self.resolve(spec).factory
+
+    def resolve(self, spec: str) -> Resolved:
+        """See the module function `resolve`."""
+        if isinstance(spec, str) and dict.__contains__(self, spec):
+            factory = dict.__getitem__(self, spec)
+            return Resolved(spec, None, getattr(factory, "parameter", None), factory)
+        name, sep, text = str(spec).partition(":")
+        factory = dict.get(self, name) if isinstance(spec, str) else None
+        parameter = getattr(factory, "parameter", None)
+        if factory is not None and parameter is not None and sep:
+            try:
+                arg = parameter.parse(text)
+            except ValueError as exc:
+                raise UsageError(f"bad {self.kind} {spec!r}: {name}:{parameter.metavar} takes "
+                                 f"{parameter.meaning}; {exc}") from None
+            return Resolved(name, arg, parameter, _bind(factory, arg))
+        valid = self.forms()
+        if factory is not None:
+            raise UsageError(f"the {self.kind} {name!r} takes no parameter, got {spec!r}; "
+                             f"valid {self.kind}s for {self.family}: {', '.join(valid)}")
+        raise UsageError(f"unknown {self.kind} {spec!r} for {self.family}"
+                         f"{close_hint(spec, valid)}; "
+                         f"valid: {', '.join(valid)}")
+
+    def forms(self) -> list[str]:
+        """Every accepted form, in table order: ``NAME`` and, for a component
+        with a parameter, ``NAME:METAVAR`` after it."""
+        out = []
+        for name, factory in dict.items(self):
+            out.append(name)
+            parameter = getattr(factory, "parameter", None)
+            if parameter is not None:
+                out.append(f"{name}:{parameter.metavar}")
+        return out
+
+
+def _bind(factory: Factory, arg) -> Factory:
+    def bound(*args, **kwargs):
+        return factory(*args, **kwargs, arg=arg)
+    bound.__dict__.update(factory.__dict__)
+    bound.__name__ = getattr(factory, "__name__", "factory")
+    return bound
+
+
+#: family -> name -> factory(description, seed); the first entry is the default.
+PLANNERS: dict[str, ComponentTable] = {
+    "mujoban": ComponentTable("planner", "mujoban", {
+        "sokoban-solver:time": _sokoban_time, "sokoban-solver": _sokoban_solver,
+        "random": _sokoban_random, "learned": _learned_options}),
+    "mujoxo": ComponentTable("planner", "mujoxo",
+                             {"minimax": _minimax, "mcts": _mcts, "random": _board_random}),
+    "mujogo": ComponentTable("planner", "mujogo",
+                             {"gnugo": _gnugo, "mcts": _mcts, "random": _board_random}),
 }
+#: family -> name -> factory(description, seed); the first entry is the default.
+SKILLS: dict[str, ComponentTable] = {
+    "mujoban": ComponentTable("skill", "mujoban", {"ball": _ball, "learned-ball": _learned_ball}),
+    "mujoxo": ComponentTable("skill", "mujoxo", {"arm-touch": _arm, "learned-arm": _learned_arm}),
+    "mujogo": ComponentTable("skill", "mujogo", {"arm-touch": _arm, "learned-arm": _learned_arm}),
+}
+#: family -> name -> factory(description, seed, simulator=None).
+ESTIMATORS: dict[str, ComponentTable] = {
+    "mujoban": ComponentTable("estimator", "mujoban", {
+        "camera": _camera, "oracle": _privileged(OracleEstimator),
+        "entity-layer": _privileged(EntityLayerEstimator)}),
+    "mujoxo": ComponentTable("estimator", "mujoxo", {"board": _board}),
+    "mujogo": ComponentTable("estimator", "mujogo", {"board": _board}),
+}
+
+_TABLES = {"planner": PLANNERS, "skill": SKILLS, "estimator": ESTIMATORS}
+
+
+def resolve(kind: str, fam: str, spec: str | None) -> Resolved:
+    """The component ``spec`` (``NAME`` or ``NAME:ARG``; None: the default)
+    of ``kind`` (``"planner"``, ``"skill"``, ``"estimator"``) for family
+    ``fam``. Parses ``ARG``; loads nothing (see `check`).
+
+    Raises:
+      UsageError: unknown name (the message lists the valid forms and the
+        closest), a parameter given to a component without one, or an ``ARG``
+        its component does not allow.
+    """
+    table = _TABLES[kind][fam]
+    if spec is None:
+        name = next(iter(table))
+        return table.resolve(name)
+    return table.resolve(spec)
+
+
+def check(kind: str, fam: str, spec: str | None) -> Resolved:
+    """`resolve`, then loads what ``ARG`` names (a checkpoint), so that a
+    command refuses a bad one before it plays.
+
+    Raises:
+      UsageError: as `resolve`, or ``ARG`` names something that does not load
+        (missing file, not a checkpoint of this component, unreadable).
+    """
+    resolved = resolve(kind, fam, spec)
+    parameter = resolved.parameter
+    if resolved.arg is not None and parameter is not None and parameter.load is not None:
+        try:
+            parameter.load(resolved.arg)
+        except Exception as exc:  # noqa: BLE001 - whatever a file does wrong, it is the input
+            if isinstance(exc, (OSError, ValueError)):
+                # (torch's unpickling advice runs to paragraphs and does not apply)
+                text = str(exc).split(": Weights only load failed")[0].strip()
+                text = text.splitlines()[0] if text else type(exc).__name__
+            else:
+                text = f"{resolved.arg} is not a usable checkpoint ({type(exc).__name__})"
+            raise UsageError(f"{kind} {spec!r}: {text}") from None
+    return resolved
+
+
+def forms(kind: str, fam: str) -> list[str]:
+    """The accepted names of ``kind`` for ``fam`` (`ComponentTable.forms`)."""
+    return _TABLES[kind][fam].forms()
 
 
 def is_privileged(fam: str, estimator: str | None) -> bool:
     """Whether the named estimator (None: the default) reads the simulator."""
-    return bool(getattr(_pick(ESTIMATORS, "estimator", fam, estimator), "privileged", False))
+    return bool(getattr(resolve("estimator", fam, estimator).factory, "privileged", False))
 
 
 def estimator_name(fam: str, estimator: str | None) -> str:
@@ -169,28 +387,25 @@ def env_overrides(env_name: str, estimator: str | None = None) -> dict:
     return overrides
 
 
-def _pick(table: dict[str, dict[str, Factory]], kind: str, fam: str, name: str | None):
-    options = table[fam]
-    if name is None:
-        return next(iter(options.values()))
-    if name not in options:
-        extra = (" or learned:PATH (a hier_agents.learning.train_options checkpoint)"
-                 if isinstance(options, _PlannerTable) else "")
-        raise ValueError(f"unknown {kind} {name!r} for {fam}; valid: {sorted(options)}{extra}")
-    return options[name]
-
-
 def make_agent(env_name: str, description, *, planner: str | None = None,
                skill: str | None = None, estimator: str | None = None,
                seed: int | None = None, t_abs: int = T_ABS, simulator=None) -> ModularAgent:
     """The modular agent for an environment named ``env_name`` with the public
-    ``description`` (``env.description()``), with named parts.
+    ``description`` (``env.description()``), with parts named as `resolve`
+    reads them (None: the family's default).
 
     ``simulator`` (the environment itself) is needed only by the privileged
     estimators; nothing else receives it.
+
+    Raises:
+      ValueError: an environment outside the families, a bad name
+        (`UsageError`), a privileged estimator without ``simulator``, or a
+        checkpoint that does not fit its component.
+      FileNotFoundError: a ``NAME:PATH`` checkpoint that does not exist.
     """
     fam = family(env_name)
-    return ModularAgent(_pick(ESTIMATORS, "estimator", fam, estimator)(description, seed,
-                                                                       simulator),
-                        _pick(PLANNERS, "planner", fam, planner)(description, seed),
-                        _pick(SKILLS, "skill", fam, skill)(description, seed), t_abs=t_abs)
+    parts = {kind: resolve(kind, fam, spec).factory
+             for kind, spec in (("estimator", estimator), ("planner", planner), ("skill", skill))}
+    return ModularAgent(parts["estimator"](description, seed, simulator),
+                        parts["planner"](description, seed),
+                        parts["skill"](description, seed), t_abs=t_abs)
