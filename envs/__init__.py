@@ -3,12 +3,19 @@
     import envs
     env = envs.load("mujoban/level5-pegs", seed=0)       # a dm_env.Environment
     gym_env = gymnasium.make("mujoban/level5-pegs")       # the same, as gymnasium
+    gym_env = gymnasium.make("envs:mujoban/level5-pegs")  # the same, without `import envs`
     xo = envs.load("mujoxo/mixture")                     # tic-tac-toe with a Jaco arm
     go = envs.load("mujogo/7x7")                         # 7x7 Go against GNU Go
 
 `envs.names()` lists every environment; `envs.overrides(name)` its settings;
 `envs.check(name, **overrides)` checks a configuration without building it
 (`envs.no_cameras(name)`: those that turn its cameras off).
+
+Every name is a gymnasium id (`envs.gymnasium_env`): ``gymnasium.make(name,
+obs=...)`` picks the observation (``"sensors"``, the default: cameras and
+proprioception, what the paper's agents observe; ``"pixels"``; ``"state"``;
+``"full"``), privileged keys (`Environment.privileged_observations`) only
+when asked for; ``info["is_success"]`` ends every episode.
 """
 
 from envs import _gl  # noqa: F401  (must run before mujoco picks a GL backend)

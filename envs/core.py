@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import abc
 import math
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
 
 from envs import _gl  # noqa: F401
 
@@ -36,7 +36,7 @@ from dm_control.rl import control
 from dm_env import specs
 
 from envs import _malloc
-from envs.rendering import CameraConfig, Cameras
+from envs.rendering import CameraConfig, Cameras, Marker
 
 _BADQACC = int(mujoco.mjtWarning.mjWARN_BADQACC)
 _MID = dm_env.StepType.MID
@@ -59,6 +59,18 @@ class PhysicsTask(composer.Task, abc.ABC):
     time_limit_steps: int = 1000
     #: Camera that `render()` and gymnasium's rgb_array frames show by default.
     main_camera: str = "top_camera"
+    #: (height, width) of `Environment.render` frames by default.
+    render_size: tuple[int, int] = (256, 256)
+    #: Observation keys that are ground truth from the simulator or the
+    #: referee, not what a robot's cameras and joint sensors give (MuJoBan's
+    #: entity and pixel layers, the board games' board and move record).
+    #: The one place this fact lives: `envs.GymnasiumEnv` leaves these keys
+    #: out of its default observation and prefixes them ``privileged/``.
+    privileged_observations: frozenset[str] = frozenset()
+    #: The privileged keys that hold the task's abstract state (the puzzle's
+    #: cells, the board), in the order `envs.GymnasiumEnv`'s ``obs="state"``
+    #: vector appends them.
+    state_observations: tuple[str, ...] = ()
 
     @property
     def camera_configs(self) -> Mapping[str, CameraConfig]:
@@ -75,6 +87,18 @@ class PhysicsTask(composer.Task, abc.ABC):
     @property
     def observables(self):  # composer's per-substep observables are unused
         return {}
+
+    @property
+    @abc.abstractmethod
+    def succeeded(self) -> bool:
+        """Whether the current episode has reached the task's goal (MuJoBan:
+        every pad covered; a board game: the agent won). Read at the episode's
+        end it is the episode's success (gymnasium's ``info["is_success"]``)."""
+
+    def render_markers(self) -> Sequence[Marker]:
+        """Render-only shapes `Environment.render` draws over its frames
+        (never in observed camera frames); none by default."""
+        return ()
 
     def on_seed(self) -> None:
         """Called when the environment is reseeded (e.g. restart a level file)."""
@@ -100,7 +124,10 @@ class Environment(dm_env.Environment):
         timestep's observation (a `LazyObservation`), not when it is built;
         a frame left unread costs nothing. It must be read before the next
         ``step``/``reset`` (then it raises `StaleObservationError`): agents
-        that look at every k-th frame save the rendering of the others.
+        that look at every k-th frame save the rendering of the others. The
+        OpenGL context is made for the first frame, not at construction (so
+        a process may build the environment and then fork, as gymnasium's
+        ``AsyncVectorEnv`` does); without lazy cameras it is made here.
     """
 
     def __init__(self, task: PhysicsTask, seed: int | None = None, *,
@@ -132,14 +159,15 @@ class Environment(dm_env.Environment):
             name: (self._cameras.camera_id(cfg.camera), cfg.height, cfg.width)
             for name, cfg in task.camera_configs.items()
         }
-        for _, height, width in self._camera_ids.values():
-            self._cameras.prepare(height, width)  # GL context now, not in reset
-        self._step_count = 0
-        self._reset_next_step = True
-        self._action_spec = task.action_spec(self._physics)
         if not isinstance(lazy_cameras, bool):
             raise TypeError(f"lazy_cameras must be True or False, got {lazy_cameras!r}")
         self._lazy = lazy_cameras and bool(self._camera_ids)
+        if not self._lazy:
+            for _, height, width in self._camera_ids.values():
+                self._cameras.prepare(height, width)  # GL context now, not in reset
+        self._step_count = 0
+        self._reset_next_step = True
+        self._action_spec = task.action_spec(self._physics)
         self._stamp = 0  # counts observations built; a lazy frame is valid for one
 
     # -- dm_env API ---------------------------------------------------------
@@ -247,9 +275,31 @@ class Environment(dm_env.Environment):
             raise NotImplementedError(f"{type(self._task).__name__} has no public description")
         return describe()
 
-    def render(self, camera: str, height: int = 256, width: int = 256) -> np.ndarray:
-        """An RGB image of the current state from any camera of the model."""
-        return self._cameras.render(self._physics.data.ptr, camera, height, width)
+    @property
+    def privileged_observations(self) -> frozenset[str]:
+        """Observation keys that are ground truth, not sensor readings
+        (`PhysicsTask.privileged_observations`)."""
+        return frozenset(self._task.privileged_observations)
+
+    def render(self, camera: str | None = None, height: int | None = None,
+               width: int | None = None, *, markers: bool = True) -> np.ndarray:
+        """An RGB image (height, width, 3) uint8 of the current state from any
+        camera of the model, for people to look at.
+
+        Args:
+          camera: a camera name (default: the task's ``main_camera``).
+          height, width: pixels (default: the task's ``render_size``, the
+            ``render_size`` setting of `envs.load`; larger frames raise
+            ValueError).
+          markers: draw the task's `PhysicsTask.render_markers` (MuJoBan's
+            pegs as discs visible at 256 pixels); observed camera frames
+            never show them.
+        """
+        default_h, default_w = self._task.render_size
+        return self._cameras.render(
+            self._physics.data.ptr, camera or self._task.main_camera,
+            default_h if height is None else height, default_w if width is None else width,
+            markers=self._task.render_markers() if markers else ())
 
     # -- internals ----------------------------------------------------------
 

@@ -1,16 +1,37 @@
 """Gymnasium interface to every registered environment.
 
-``gymnasium.make("mujoban/level1")`` (after ``import envs``) builds a
-`GymnasiumEnv`: Dict observation space from the dm_env specs, a float32 Box
-action space, ``terminated`` for task ends (discount 0) and ``truncated`` for
-the time limit, and ``render_mode="rgb_array"`` frames from the task's main
-camera (MuJoBan's top-down camera, the board games' front camera) whether or
-not that camera is observed.
+``gymnasium.make("mujoban/level1")`` (after ``import envs``; or
+``gymnasium.make("envs:mujoban/level1")``, which imports it) builds a
+`GymnasiumEnv`: a float32 Box action space, ``terminated`` for task ends
+(discount 0) and ``truncated`` for the time limit, ``info["is_success"]`` on
+every episode's last step, and ``render_mode="rgb_array"`` frames from the
+task's main camera (MuJoBan's top-down camera, the board games' front camera)
+whether or not that camera is observed.
+
+The observation is chosen with ``obs=`` (`OBSERVATIONS`)::
+
+    gymnasium.make("mujoban/level1")                # "sensors": Dict, SB3 MultiInputPolicy
+    gymnasium.make("mujoban/level1", obs="pixels")  # (96, 96, 3) uint8 Box, SB3 CnnPolicy
+    gymnasium.make("mujoban/level1", obs="state")   # float32 vector, SB3 MlpPolicy
+    gymnasium.make("mujoban/level1", obs="full")    # Dict of everything
+
+Privileged observations (ground truth the task declares in
+`envs.core.PhysicsTask.privileged_observations`: MuJoBan's
+``full_entity_layer`` and ``pixel_layer``, the board games' ``board_state``
+and ``move_history``) are in ``"state"`` and ``"full"`` only; in ``"full"``
+their keys start with ``privileged/``.
+
+Vector environments: ``gymnasium.vector.SyncVectorEnv`` and
+``AsyncVectorEnv`` take ``lambda: gymnasium.make(name, ...)`` thunks. The
+environments are built with lazy cameras, so no OpenGL context exists before
+the first reset and ``AsyncVectorEnv``'s default (fork) context works when it
+is made before the parent process renders anything; otherwise pass
+``context="forkserver"`` (a forked child cannot use its parent's EGL state).
 """
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Mapping
 
 import gymnasium
 import numpy as np
@@ -18,7 +39,24 @@ from dm_env import specs
 from gymnasium import spaces
 
 from envs.core import Environment
-from envs.registry import load, names
+from envs.registry import load, names, overrides as env_overrides, unknown_keywords_message
+
+#: The ``obs=`` choices of `GymnasiumEnv`, with what each holds.
+OBSERVATIONS = {
+    "sensors": "what the paper's agents observe: every enabled camera ((H, W, 3) uint8) and "
+               "the proprioception (joint positions, velocities, torques, the walker's "
+               "sensors, the arm's pinch site), as a Dict (SB3 MultiInputPolicy)",
+    "pixels": "the task's main camera alone (MuJoBan's top_camera, the board games' "
+              "front_camera) as an (H, W, 3) uint8 Box (SB3 CnnPolicy)",
+    "state": "privileged: the proprioception and the task's abstract state (MuJoBan's "
+             "full_entity_layer, the board games' board_state; booleans as 0/1) as one "
+             "float32 vector (SB3 MlpPolicy); `GymnasiumEnv.state_layout` names its parts",
+    "full": "every observation as a Dict, privileged keys prefixed 'privileged/' (research)",
+}
+#: Prefix of privileged keys in the ``obs="full"`` Dict.
+PRIVILEGED_PREFIX = "privileged/"
+#: `GymnasiumEnv`'s own keyword arguments (the rest go to `envs.load`).
+_OWN_KEYWORDS = ("obs", "render_mode", "render_camera")
 
 
 def spec_to_space(spec: specs.Array) -> spaces.Space:
@@ -41,47 +79,121 @@ class GymnasiumEnv(gymnasium.Env):
 
     Args:
       env_name: a name from `envs.names()` (ignored when `env` is given).
-      env: an already built environment to wrap.
+      env: an already built environment to wrap (it is closed with this one).
+      obs: the observation, one of `OBSERVATIONS`: ``"sensors"`` (default),
+        ``"pixels"``, ``"state"`` or ``"full"``.
       render_mode: None or ``"rgb_array"``.
       render_camera: camera for `render()`; defaults to the task's main camera
         (MuJoBan's top-down camera, the board games' front camera).
-      render_size: (height, width) of rendered frames.
-      **overrides: passed to `envs.load`.
+      **overrides: passed to `envs.load` (`envs.overrides(env_name)` lists
+        them), e.g. ``render_size=(512, 512)`` for the size of `render()`
+        frames (default 256x256), ``top_camera=(64, 64)``, ``time_limit=5.0``.
+        Cameras the chosen observation does not hold are not rendered (the
+        environment is built with ``lazy_cameras=True`` unless told otherwise).
+
+    Raises:
+      TypeError: a keyword that is neither this class's nor an override of
+        the environment (the message names the closest and lists the valid ones).
+      ValueError: a bad ``obs`` or ``render_mode`` (the message lists the
+        valid values), ``obs="pixels"`` with the main camera switched off, or
+        a bad override value (`envs.load`).
+      KeyError: an unknown environment name (`envs.UnknownEnvironmentError`).
+
+    Attributes:
+      state_layout: for ``obs="state"``, ``{key: slice}`` of each observation
+        in the vector (empty otherwise).
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 20}
 
     def __init__(self, env_name: str | None = None, *, env: Environment | None = None,
-                 render_mode: str | None = None, render_camera: str | None = None,
-                 render_size: tuple[int, int] = (256, 256), **overrides):
+                 obs: str = "sensors", render_mode: str | None = None,
+                 render_camera: str | None = None, **overrides):
+        from envs.cli import choice
+        choice("obs", obs, OBSERVATIONS)
         if render_mode not in (None, *self.metadata["render_modes"]):
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, "
                              f"got {render_mode!r}")
         if env is None:
             if env_name is None:
                 raise ValueError(f"give env_name (one of {names()}) or env")
+            valid = env_overrides(env_name)
+            unknown = sorted(set(overrides) - set(valid))
+            if unknown:
+                raise TypeError(unknown_keywords_message(
+                    env_name, unknown, sorted([*_OWN_KEYWORDS, *valid]), "keyword"))
+            if "lazy_cameras" in valid:
+                overrides.setdefault("lazy_cameras", True)
             env = load(env_name, **overrides)
+        elif overrides:
+            raise TypeError(f"overrides {sorted(overrides)} apply to env_name, not to a built env")
         self._env = env
         try:
             self.render_mode = render_mode
             self._render_camera = render_camera or env.task.main_camera
-            self._render_size = tuple(render_size)
-            self.observation_space = spaces.Dict(
-                {k: spec_to_space(s) for k, s in env.observation_spec().items()})
-            aspec = env.action_spec()
-            self.action_space = spaces.Box(
-                np.broadcast_to(aspec.minimum, aspec.shape).astype(np.float32),
-                np.broadcast_to(aspec.maximum, aspec.shape).astype(np.float32),
-                aspec.shape, dtype=np.float32)
+            self._obs = obs
+            self._build_spaces()
         except BaseException:
             env.close()
             raise
         self._needs_reset = True
 
+    def _build_spaces(self) -> None:
+        env = self._env
+        spec = env.observation_spec()
+        privileged = env.privileged_observations
+        cameras = [k for k in env.task.camera_configs if k in spec]
+        proprio = [k for k in spec if k not in privileged and k not in cameras]
+        self.state_layout: dict[str, slice] = {}
+        if self._obs == "sensors":
+            self._keys = {k: k for k in spec if k not in privileged}
+        elif self._obs == "full":
+            self._keys = {(PRIVILEGED_PREFIX + k if k in privileged else k): k for k in spec}
+        elif self._obs == "pixels":
+            main = env.task.main_camera
+            if main not in cameras:
+                raise ValueError(f"obs='pixels' is the main camera {main!r}, which is switched "
+                                 f"off; build the environment with {main}=(height, width)")
+            self._keys = main
+            self.observation_space = spec_to_space(spec[main])
+        else:  # "state"
+            parts = proprio + [k for k in env.task.state_observations if k in spec]
+            lows, highs, start = [], [], 0
+            for key in parts:
+                box = spec_to_space(spec[key])
+                lows.append(box.low.astype(np.float32).ravel())
+                highs.append(box.high.astype(np.float32).ravel())
+                self.state_layout[key] = slice(start, start + box.low.size)
+                start += box.low.size
+            self._keys = tuple(parts)
+            self.observation_space = spaces.Box(np.concatenate(lows), np.concatenate(highs),
+                                                dtype=np.float32)
+        if isinstance(self._keys, dict):
+            self.observation_space = spaces.Dict(
+                {name: spec_to_space(spec[key]) for name, key in self._keys.items()})
+        aspec = env.action_spec()
+        self.action_space = spaces.Box(
+            np.broadcast_to(aspec.minimum, aspec.shape).astype(np.float32),
+            np.broadcast_to(aspec.maximum, aspec.shape).astype(np.float32),
+            aspec.shape, dtype=np.float32)
+
     @property
     def dm_env(self) -> Environment:
         """The wrapped dm_env environment (physics, task, specs)."""
         return self._env
+
+    @property
+    def obs(self) -> str:
+        """The observation choice (a key of `OBSERVATIONS`)."""
+        return self._obs
+
+    def _observation(self, observation: Mapping[str, np.ndarray]):
+        keys = self._keys
+        if isinstance(keys, str):
+            return observation[keys]
+        if isinstance(keys, dict):
+            return {name: observation[key] for name, key in keys.items()}
+        return np.concatenate([np.asarray(observation[k], np.float32).ravel() for k in keys])
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
@@ -89,24 +201,33 @@ class GymnasiumEnv(gymnasium.Env):
             self._env.seed(seed)
         timestep = self._env.reset()
         self._needs_reset = False
-        return timestep.observation, {}
+        return self._observation(timestep.observation), {}
 
     def step(self, action):
+        """One control step. ``info``: ``discount``, ``steps`` (control steps
+        this episode) and, on the episode's last step, ``is_success`` (bool:
+        MuJoBan solved, the board game won; `PhysicsTask.succeeded`)."""
         if self._needs_reset:
             raise RuntimeError("the episode has ended (or never began): call reset() first")
         timestep = self._env.step(action)
         terminated = truncated = False
+        info = {"discount": float(timestep.discount), "steps": self._env.step_count}
         if timestep.last():
             self._needs_reset = True
             terminated = timestep.discount == 0.0
             truncated = not terminated
-        info = {"discount": float(timestep.discount), "steps": self._env.step_count}
-        return timestep.observation, float(timestep.reward), terminated, truncated, info
+            info["is_success"] = bool(self._env.task.succeeded)
+        return (self._observation(timestep.observation), float(timestep.reward), terminated,
+                truncated, info)
 
     def render(self):
+        """With ``render_mode="rgb_array"``: a (height, width, 3) uint8 frame
+        of `render_camera` at the environment's ``render_size`` (default
+        256x256), MuJoBan's pegs marked (`envs.core.Environment.render`);
+        else None."""
         if self.render_mode != "rgb_array":
             return None
-        return self._env.render(self._render_camera, *self._render_size)
+        return self._env.render(self._render_camera)
 
     def close(self):
         """Closes the wrapped environment (idempotent); gymnasium envs are
@@ -115,7 +236,9 @@ class GymnasiumEnv(gymnasium.Env):
 
 
 def register_all() -> None:
-    """Registers every `envs` name with gymnasium (idempotent)."""
+    """Registers every `envs` name with gymnasium (idempotent), so that
+    ``gymnasium.make(name)`` works after ``import envs`` and
+    ``gymnasium.make("envs:" + name)`` works without it."""
     registry = gymnasium.envs.registration.registry
     for name in names():
         if name not in registry:

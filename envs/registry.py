@@ -65,7 +65,8 @@ def check(name: str, seed: int | None = None, **kwargs) -> None:
 
     Raises:
       UnknownEnvironmentError: unknown name (a KeyError and a ValueError).
-      TypeError: an override the environment does not have, or of the wrong type.
+      TypeError: an override the environment does not have (the message
+        names the closest valid one and lists them all), or of the wrong type.
       ValueError: a value out of range (`envs.mujoban.LevelError` for a bad
         level file); the message names the setting and the value.
     """
@@ -73,9 +74,16 @@ def check(name: str, seed: int | None = None, **kwargs) -> None:
     valid = overrides(name)
     unknown = sorted(set(kwargs) - set(valid))
     if unknown:
-        raise TypeError(f"{name}: unknown override(s) {unknown}; valid overrides: {valid}")
+        raise TypeError(unknown_keywords_message(name, unknown, valid, "override"))
     if entry.validate is not None:
         entry.validate(seed=seed, **entry.kwargs, **kwargs)
+
+
+def unknown_keywords_message(name: str, unknown, valid, kind: str) -> str:
+    """``"NAME: unknown KIND(s) 'x' (did you mean 'y'?); valid KINDs: [...]"``."""
+    from envs.cli import close_hint  # envs.cli imports this module
+    words = ", ".join(f"{k!r}{close_hint(k, valid)}" for k in unknown)
+    return f"{name}: unknown {kind}{'s' if len(unknown) > 1 else ''} {words}; valid {kind}s: {valid}"
 
 
 def load(name: str, seed: int | None = None, **kwargs) -> Environment:

@@ -49,6 +49,28 @@ class CameraConfig:
                 raise ValueError(f"camera {self.camera!r}: {name} must be a positive int, got {value!r}")
 
 
+@dataclass(frozen=True)
+class Marker:
+    """A render-only flat disc (a thin cylinder with a vertical axis) drawn
+    over `Cameras.render` frames when asked for; nothing collides with it and
+    the scene's depth test hides it behind taller geoms.
+
+    Attributes:
+      position: world (x, y, z) of the disc's centre, metres.
+      radius: metres.
+      rgba: colour, components in [0, 1].
+    """
+
+    position: tuple[float, float, float]
+    radius: float
+    rgba: tuple[float, float, float, float] = (0.9, 0.9, 0.9, 1.0)
+
+
+#: Half-thickness of a `Marker` disc, metres.
+MARKER_HALF_HEIGHT = 0.002
+_IDENTITY = np.eye(3).ravel()
+
+
 _LIVE: "weakref.WeakSet[Cameras]" = weakref.WeakSet()
 _EXIT_HOOK_REGISTERED = False
 
@@ -113,12 +135,24 @@ class Cameras:
         """Creates the GL context for this image size ahead of the first frame."""
         self._renderer(height, width)
 
-    def render(self, data: mujoco.MjData, camera: int | str, height: int, width: int) -> np.ndarray:
-        """Returns a fresh (height, width, 3) uint8 image from `camera`."""
+    def render(self, data: mujoco.MjData, camera: int | str, height: int, width: int,
+               markers=()) -> np.ndarray:
+        """Returns a fresh (height, width, 3) uint8 image from `camera`, with
+        the `Marker` discs in `markers` drawn over the scene (as many as the
+        scene has room for)."""
         if isinstance(camera, str):
             camera = self.camera_id(camera)
         renderer = self._renderer(height, width)
         renderer.update_scene(data, camera=camera, scene_option=self._option)
+        if markers:
+            scene = renderer.scene
+            for marker in markers[: scene.maxgeom - scene.ngeom]:
+                mujoco.mjv_initGeom(
+                    scene.geoms[scene.ngeom], mujoco.mjtGeom.mjGEOM_CYLINDER,
+                    np.array([marker.radius, MARKER_HALF_HEIGHT, 0.0]),
+                    np.asarray(marker.position, np.float64), _IDENTITY,
+                    np.asarray(marker.rgba, np.float32))
+                scene.ngeom += 1
         return renderer.render()
 
     def close(self) -> None:

@@ -6,8 +6,16 @@ have: ``reset``, ``step``, the specs, ``control_timestep`` and the public
 ``task``, ``render``, ...) raises `BoundaryViolation` naming the attribute.
 Timesteps lose the ground-truth observations the environment computes from
 the simulator (`PRIVILEGED_OBSERVATIONS`: MuJoBan's ``full_entity_layer``
-and ``pixel_layer``), so an observation-only estimator that reads them fails
-loudly instead of quietly cheating.
+and ``pixel_layer``, as `envs.mujoban.task.Mujoban` declares them), so an
+observation-only estimator that reads them fails loudly instead of quietly
+cheating.
+
+The board games declare their game record (``board_state``,
+``move_history``) privileged too (`envs.boards.task.BoardTask`), but it is
+let through: the board agents' estimator (`hier_agents.estimators.board`)
+reads it, so board agents observe the referee's record, not only cameras
+and proprioception. ``BoundaryEnv(env, strip=env.privileged_observations)``
+strips every key the environment declares.
 
 ``python -m hier_agents.run`` puts every observation-only agent behind it;
 ``tests/test_boundary.py`` plays every listed estimator/planner/skill
@@ -16,15 +24,16 @@ combination through it.
 
 from __future__ import annotations
 
-
 import dm_env
 
 from envs.core import KeyedView
+from envs.mujoban.task import Mujoban
 
 __all__ = ["BoundaryEnv", "BoundaryViolation", "PRIVILEGED_OBSERVATIONS"]
 
-#: Observations that are ground truth computed from the simulator.
-PRIVILEGED_OBSERVATIONS = frozenset({"full_entity_layer", "pixel_layer"})
+#: Observations that are ground truth computed from the simulator (MuJoBan's
+#: declaration, `envs.core.PhysicsTask.privileged_observations`).
+PRIVILEGED_OBSERVATIONS = frozenset(Mujoban.privileged_observations)
 
 _ALLOWED = frozenset({"reset", "step", "action_spec", "observation_spec", "reward_spec",
                       "discount_spec", "description", "control_timestep", "close"})

@@ -82,6 +82,10 @@ def test_the_wrapper_refuses_the_simulator_and_strips_ground_truth():
     assert "full_entity_layer" not in timestep.observation
     assert "full_entity_layer" not in view.observation_spec()
     assert "walker/orientation" in timestep.observation
+    # What is stripped is what the environment declares privileged.
+    stripped = set(env.observation_spec()) - set(view.observation_spec())
+    assert stripped == env.privileged_observations == PRIVILEGED_OBSERVATIONS
+    assert set(timestep.observation) == set(view.observation_spec())
     env.close()
 
 

@@ -87,8 +87,14 @@ class BoardTask(GameRecordMixin, ArmPoseMixin, ObservationsMixin, PhysicsTask):
       allow_double_pass: let the agent pass twice in a row (the original
         ignores a second consecutive pass).
       control_timestep, physics_timestep: seconds.
-      render_size: largest frame `Environment.render` will be asked for.
+      render_size: largest frame `Environment.render` will be asked for, and
+        its default size.
     """
+
+    #: The referee's record of the game (the paper's agents observe cameras
+    #: and proprioception only).
+    privileged_observations = frozenset({"board_state", "move_history"})
+    state_observations = ("board_state",)
 
     def __init__(self, game: BoardGame, opponent: Planner, *, registering="arm",
                  arm_reset=True, front_camera=(84, 84), time_limit=30.0,
@@ -114,6 +120,7 @@ class BoardTask(GameRecordMixin, ArmPoseMixin, ObservationsMixin, PhysicsTask):
         self._timeout_is_loss = bool(timeout_is_loss)
         self._piece_noise = float(piece_noise)
         self._allow_double_pass = bool(allow_double_pass)
+        self.render_size = tuple(int(v) for v in render_size)
         sizes = [tuple(s) for s in (front_camera, render_size) if s]
         offscreen = (max(s[0] for s in sizes), max(s[1] for s in sizes))
         self._arena = arena_lib.BoardArena(kind=game.name, size=game.size,
@@ -272,3 +279,8 @@ class BoardTask(GameRecordMixin, ArmPoseMixin, ObservationsMixin, PhysicsTask):
 
     def get_discount(self, physics):
         return 0.0 if self._game_over else 1.0
+
+    @property
+    def succeeded(self) -> bool:
+        """The agent won the game (an opponent's resignation included)."""
+        return self.outcome == "win"

@@ -117,7 +117,14 @@ class Mujoban(ObservationsMixin, LooksMixin, LayoutMixin, PhysicsTask):
         needing more are drawn cell by cell).
       walker: a locomotion walker to use instead of the rolling ball (advanced;
         must expose ``create_root_joints`` and an egocentric camera).
+      render_size: largest ``(height, width)`` of `Environment.render` frames,
+        and their default size.
     """
+
+    #: The abstract state the simulator's rounded cells give (the paper's
+    #: agents observe cameras and proprioception only).
+    privileged_observations = frozenset({"full_entity_layer", "pixel_layer"})
+    state_observations = ("full_entity_layer",)
 
     def __init__(self, level_source: LevelSource, *, grid_shape=(10, 10), max_boxes=4,
                  pegs=False, top_camera=(96, 96), egocentric_camera=(96, 96),
@@ -145,6 +152,7 @@ class Mujoban(ObservationsMixin, LooksMixin, LayoutMixin, PhysicsTask):
         self._level_source = level_source
         self._randomize_appearance = bool(randomize_appearance)
         self._pad_tolerance = float(pad_tolerance) * cell_size
+        self.render_size = tuple(int(v) for v in render_size)
 
         sizes = [tuple(s) for s in (top_camera, egocentric_camera, render_size) if s]
         offscreen = (max(s[0] for s in sizes), max(s[1] for s in sizes))
@@ -365,6 +373,11 @@ class Mujoban(ObservationsMixin, LooksMixin, LayoutMixin, PhysicsTask):
 
     @property
     def solved(self) -> bool:
+        return self._solved
+
+    @property
+    def succeeded(self) -> bool:
+        """Every pad covered (the level solved)."""
         return self._solved
 
     @property

@@ -12,9 +12,12 @@ from __future__ import annotations
 import numpy as np
 
 from envs.mujoban import arena as arena_lib
+from envs.rendering import Marker
 
 #: MuJoCo's texture role of a material's base colour (``mjTEXROLE_RGB``).
 _TEXROLE_RGB = 1
+#: Radius of the render-only disc drawn over a peg, in peg radii.
+PEG_MARKER_SCALE = 2.0
 #: The rolling ball's radius (dm_control's ``RollingBallWithHead`` shell), metres.
 BALL_RADIUS = 0.2
 #: Its ear spheres' colours (dm_control's ``add_ears``): red at the head's +x,
@@ -49,6 +52,20 @@ class LooksMixin:
                 right_ear=EAR_RGBA[0], left_ear=EAR_RGBA[1],
                 headlight_ambient=arena_lib.HEADLIGHT_AMBIENT,
                 headlight_diffuse=arena_lib.HEADLIGHT_DIFFUSE))
+
+    def render_markers(self):
+        """Render-only discs over the pegs (none without pegs): a peg is 0.1 m
+        across, about 2 pixels of a 256-pixel top view, so `Environment.render`
+        draws each as a light disc of twice its radius on its top (hidden by
+        walls where the peg is). Observed camera frames show the pegs as they are."""
+        markers = getattr(self, "_peg_markers", None)
+        if markers is None:
+            markers = tuple(
+                Marker((float(p.pos[0]), float(p.pos[1]), arena_lib.PEG_HEIGHT),
+                       PEG_MARKER_SCALE * arena_lib.PEG_RADIUS)
+                for p in self._arena.pegs)
+            self._peg_markers = markers
+        return markers
 
     @property
     def appearance(self) -> tuple[str, str]:

@@ -30,6 +30,12 @@ option's control steps), ``is_success`` (at the end), ``expert_action``
 cloning and comparison), ``sim_steps`` (every control step simulated since
 the last seeded reset, scene set-up included: the honest frame count).
 ``env.privileged`` is True when the estimator reads the simulator.
+
+Registered with gymnasium by `hier_agents.learning` (importing this module
+imports it): ``gymnasium.make("options/ball-push")`` (the ball skill) and
+``"options/arm-touch"`` (the arm's touch skill) after ``import
+hier_agents.learning``, or ``gymnasium.make("hier_agents.learning:options/ball-push")``
+without it; keyword arguments go to `SkillEnv`.
 """
 
 from __future__ import annotations
@@ -174,9 +180,3 @@ class SkillEnv(gymnasium.Env):
         if self._source is not None:
             self._source.close()
             self._source = None
-
-
-gymnasium.register("options/ball-push", entry_point="hier_agents.learning.skill_env:SkillEnv",
-                   kwargs={"skill_spec": "ball"})
-gymnasium.register("options/arm-touch", entry_point="hier_agents.learning.skill_env:SkillEnv",
-                   kwargs={"skill_spec": "arm"})
