@@ -11,7 +11,8 @@ built by ``../shared/peer/setup.sh``). Every other block runs:
   ``--frames 5000000`` trains the smallest budget the trainer accepts) and
   output paths (``runs/...``, ``--json``/``--video``/``--picture`` files) go to
   the scratch folder. The set-up block's ``bash scripts/install.sh`` is what
-  CI itself runs first (``.ci/run``), so here only the job after it runs.
+  CI itself runs first (``.ci/run``), so here only the job after it runs, and the
+set-up's test command is CI's own (checked against ``.ci/run``).
 """
 
 from __future__ import annotations
@@ -105,8 +106,11 @@ def _env() -> dict:
 
 PYTHON_BLOCKS = [(line, body) for line, lang, body in readme_blocks()
                  if lang == "python" and not is_excerpt(body)]
+#: The set-up's test command is what CI runs (checked by
+#: `test_the_set_up_commands_are_what_ci_runs`), not a block to run inside it.
+TEST_COMMAND = "python -m pytest -q"
 BASH_BLOCKS = [(line, body) for line, lang, body in readme_blocks()
-               if lang == "bash" and not is_excerpt(body)]
+               if lang == "bash" and not is_excerpt(body) and body.strip() != TEST_COMMAND]
 
 
 def test_every_block_is_python_bash_or_a_listing():
@@ -121,6 +125,7 @@ def test_the_set_up_commands_are_what_ci_runs():
     bodies = [body.strip() for _, lang, body in readme_blocks() if lang == "bash"]
     assert bodies[0].startswith(INSTALL), bodies[0]
     test_command = bodies[1]
+    assert test_command == TEST_COMMAND
     ci = (ROOT / ".ci" / "run").read_text().splitlines()
     assert "bash scripts/install.sh" in ci
     assert test_command in ci
