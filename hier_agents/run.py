@@ -89,9 +89,8 @@ def run(env_name: str, episodes: int, seed: int = 0, *, planner: str | None = No
         (e.g. ``{"physics_timestep": 0.005}``; modular and checkpoint agents);
         the summary records them.
       video: an MP4 of the first episode, written when it ends.
-      on_progress: modular agent: called with the summary so far
-        (``"finished": False``) once the agent is built and after every
-        episode. (Checkpoint and random agents report only at the end.)
+      on_progress: called with the summary so far (``"finished": False``)
+        after every episode (the modular agent: also once it is built).
 
     Returns:
       The summary (`hier_agents.run_report.summarize` plus the keys in the
@@ -108,7 +107,7 @@ def run(env_name: str, episodes: int, seed: int = 0, *, planner: str | None = No
     env_options = dict(env_options or {})
     if agent != "modular":
         return _run_policy(env_name, fam, episodes, seed, agent, levels, video, progress,
-                           stochastic, env_options)
+                           stochastic, env_options, on_progress)
     # A diverging simulation ends its episode (reward 0) instead of the run.
     overrides = {**env_overrides(env_name, estimator), "raise_on_physics_error": False,
                  **env_options}
@@ -240,33 +239,39 @@ def _play_episode(env, view, agent, description, fam, episode, seed, frames):
 
 
 def _run_policy(env_name, fam, episodes, seed, agent, levels, video, progress,
-                stochastic, env_options) -> dict:
+                stochastic, env_options, on_progress=None) -> dict:
     """`run` for ``checkpoint:PATH`` and ``random[:HOLD]`` agents
     (`hier_agents.baselines.impala.evaluate`)."""
     from hier_agents.baselines.impala.evaluate import (parse_agent, parse_random,
                                                        play_checkpoint, play_random)
 
+    def summary_of(rows, info, finished):
+        totals = OptionStats()
+        for row in rows:  # auxiliary sub-episodes: reached, or not within T_abs
+            totals.issued += row["subgoals_issued"]
+            totals.reached += row["subgoals_reached"]
+        totals.unfinished = totals.issued - totals.reached
+        summary = summarize(env_name, fam, rows, totals, seed, "-", agent)
+        summary.update(agent=agent, env_options=env_options, levels=levels,
+                       episodes_requested=episodes, interrupted=False, finished=finished)
+        summary.update(info)
+        return summary
+
+    on_rows = None if on_progress is None else (
+        lambda rows: on_progress(summary_of(rows, {}, False)))
     if agent == "random" or agent.startswith("random:"):
         hold = parse_random(agent)
         if video or levels is not None or env_options:
             raise ValueError(f"--video, --levels and --env-option do not apply to "
                              f"--agent {agent}")
-        rows, info = play_random(env_name, episodes, seed, hold=hold, progress=progress)
+        rows, info = play_random(env_name, episodes, seed, hold=hold, progress=progress,
+                                 on_rows=on_rows)
     else:
         options = {**env_options, **({"levels": levels} if levels is not None else {})}
         rows, info = play_checkpoint(env_name, parse_agent(agent), episodes, seed, video=video,
                                      progress=progress, stochastic=stochastic,
-                                     env_options=options)
-    totals = OptionStats()
-    for row in rows:  # auxiliary sub-episodes: reached, or not within T_abs
-        totals.issued += row["subgoals_issued"]
-        totals.reached += row["subgoals_reached"]
-    totals.unfinished = totals.issued - totals.reached
-    summary = summarize(env_name, fam, rows, totals, seed, "-", agent)
-    summary.update(agent=agent, env_options=env_options, levels=levels,
-                   episodes_requested=episodes, interrupted=False, finished=True)
-    summary.update(info)
-    return summary
+                                     env_options=options, on_rows=on_rows)
+    return summary_of(rows, info, True)
 
 
 def _main(argv=None) -> int:

@@ -1,84 +1,145 @@
 """Train the paper's end-to-end agent (IMPALA-style actor-critic, V-trace).
 
     python -m hier_agents.train mujoban/level1 --condition expert-planner --frames 2000000
-    python -m hier_agents.train mujoban/level1 --condition vanilla --frames 2000000 --logdir runs/vanilla
-    python -m hier_agents.train mujoxo/mixture --condition random-planner --actors 2 --backend ray
+    python -m hier_agents.train mujoban/level1 --frames 2000000 --logdir runs/vanilla
+    python -m hier_agents.train mujoban/level1 --preset cpu --frames 200000 --logdir runs/cpu
+    python -m hier_agents.train mujoxo/mixture --condition random-planner --backend ray
     tensorboard --logdir runs                       # the curves
     python -m hier_agents.run mujoban/level1 --agent checkpoint:runs/impala   # evaluate
 
-Agents (the paper's conditions): ``vanilla`` (environment reward, one value
-head), ``random-planner`` and ``expert-planner`` (current and target abstract
-states as inputs, an auxiliary reward when the planner's transition is
-reached within ``T_abs`` = 50 steps, a second value head with its own
-discount). Cameras are off by default (proprioception and, for the planner
-conditions, the abstract state); ``--cameras`` feeds the paper's 96x96 RGB
-views through the residual network (much slower on a CPU).
+Conditions (``--condition``, the paper's): ``vanilla`` (environment reward,
+one value head), ``random-planner`` and ``expert-planner`` (the planner's
+current and target abstract states as inputs, an auxiliary reward when the
+planner's transition is reached within ``T_abs`` = 50 steps, a second value
+head with its own discount).
+
+Observations: by default what the paper's agent sees, the camera views
+(96x96 RGB, ``--image-size``; MuJoBan: top and egocentric, board games:
+front) through the residual network, and proprioception.
+``--observations main-camera`` keeps the main view only (MuJoBan's top
+camera); ``--observations proprio`` renders nothing (fast, but the agent sees
+neither the level nor the board and cannot solve them). The planner
+conditions add the planner's planes. ``--state`` adds the current abstract
+state at every step (MuJoBan: the entity grid; board games: the board, the
+setting of the paper's board-game agents): it comes from the simulator, so
+the agent is PRIVILEGED. The run's config.json records the observation keys
+(``observations``) and ``privileged``; ``hier_agents.run --agent
+checkpoint:DIR`` reports them.
+
+``--preset cpu``, a lighter agent for CPU machines: the main camera only, at
+48x48, and 8 environments per actor (explicit flags win over the preset).
+On a 2-core, 23 GB machine (mujoban/level1, vanilla, 2 actors, batches of
+128 unrolls of 100 steps) the preset trained 220 frames/s (its actors alone
+stepped 358); the defaults, the paper's (sized for an accelerator), 22
+frames/s (actors alone 68; 5 CPU minutes per update), and their actors held
+9 GB of memory each (about 250 MB per environment that renders).
+
+Budget: ``--frames`` environment frames (control steps) in total, at least
+one unroll (``--unroll-length``); met exactly when it is a multiple of the
+unroll length (else overshot by less than one unroll): each update takes
+``--batch-size`` unrolls, the last only those the budget still needs.
 
 Running the same command again with the same ``--logdir`` resumes from its
 checkpoint (saved every ``--checkpoint-every`` seconds, at the end and on
-Ctrl-C). ``--backend ray`` runs the actors as Ray actors (a local Ray
-instance, or ``--ray-address auto`` for a cluster made with ``ray start``).
+Ctrl-C); a logdir holding another run (another environment, condition,
+observations, or another trainer's) is refused. ``--backend ray`` runs the
+actors as Ray actors (a local Ray instance, or ``--ray-address auto`` for a
+cluster made with ``ray start``).
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 
-import envs
-from hier_agents.baselines.impala.agent_env import CONDITIONS
+from envs.cli import Parser, choice, non_negative_int, positive_float, positive_int, run_main
+
+PROG = "python -m hier_agents.train"
+#: ``--observations`` values.
+OBSERVATIONS = ("cameras", "main-camera", "proprio")
+#: ``--preset`` values: flag defaults they replace (explicit flags still win).
+PRESETS = {"cpu": {"observations": "main-camera", "image_size": 48, "envs_per_actor": 8}}
 
 
-class _Formatter(argparse.RawDescriptionHelpFormatter, argparse.ArgumentDefaultsHelpFormatter):
-    """The module docstring as written, and every flag's default."""
+def build_parser() -> Parser:
+    """The command's parser; its defaults are `TrainConfig`'s."""
+    from hier_agents.baselines.impala.agent_env import CONDITIONS
+    from hier_agents.baselines.impala.learner import PAPER_BATCH, TrainConfig
+    from envs.cli import non_negative_float
+
+    default = {f.name: f.default for f in dataclasses.fields(TrainConfig)
+               if f.default is not dataclasses.MISSING}
+    parser = Parser(PROG, description=__doc__.split("\n\n")[0],
+                    epilog=__doc__.split("\n\n", 1)[1])
+    add = parser.add_argument
+    add("env", help="environment name, e.g. mujoban/level1 (python -m hier_agents.run --list)")
+    add("--condition", default=default["condition"],
+        help=f"the training condition: {', '.join(CONDITIONS)}")
+    add("--frames", type=positive_int, default=default["steps"],
+        help="environment frames (control steps) to train for, in total")
+    add("--observations", default="cameras",
+        help="cameras: every camera view + proprioception (the paper's); main-camera: the "
+             "main view + proprioception; proprio: proprioception only")
+    add("--image-size", type=positive_int, default=default["image_size"],
+        help="side of the square camera images, in pixels (the paper's 96)")
+    add("--state", action="store_true",
+        help="also observe the current abstract state (MuJoBan's entity grid; the board "
+             "games' board, the paper's board-game setting): PRIVILEGED")
+    add("--preset", default=None,
+        help="a set of defaults that explicit flags override: " + "; ".join(
+            f"{name}: " + " ".join(f"--{k.replace('_', '-')} {v}" for k, v in flags.items())
+            for name, flags in PRESETS.items()))
+    add("--actors", type=positive_int, default=default["actors"],
+        help="actor processes / Ray actors")
+    add("--envs-per-actor", type=positive_int, default=default["envs_per_actor"],
+        help="environments stepped together by one actor (one batched policy call)")
+    add("--backend", default=default["backend"], help="local or ray")
+    add("--ray-address", default=None,
+        help="join a running Ray cluster (e.g. auto); default: start one")
+    add("--logdir", default=default["logdir"],
+        help="the run directory (the same one again resumes the run)")
+    add("--unroll-length", type=positive_int, default=default["unroll_length"],
+        help="control steps per unroll")
+    add("--batch-size", type=positive_int, default=None,
+        help="unrolls per update (default: the paper's, "
+             + ", ".join(f"{n} {fam}" for fam, n in PAPER_BATCH.items()) + ")")
+    add("--learning-rate", type=positive_float, default=default["learning_rate"],
+        help="RMSProp learning rate")
+    add("--entropy-cost", type=non_negative_float, default=default["entropy_cost"],
+        help="weight of the policy's entropy bonus")
+    add("--abs-reward", type=non_negative_float, default=default["abs_reward"],
+        help="auxiliary reward for reaching the planner's target")
+    add("--seed", type=non_negative_int, default=default["seed"],
+        help="seed of the network and the actors' environments")
+    add("--checkpoint-every", type=positive_float, default=default["checkpoint_every_s"],
+        help="seconds between checkpoints")
+    add("--keep-checkpoints", action="store_true",
+        help="also keep every checkpoint as LOGDIR/checkpoints/frames-N.pt "
+             "(for benchmarks/learning_curve.py)")
+    add("--log-every", type=non_negative_float, default=default["log_every_s"],
+        help="seconds between TensorBoard / scalars.jsonl rows (0: every update)")
+    add("--no-progress", action="store_true", help="no progress bar")
+    return parser
 
 
-def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m hier_agents.train",
-                                     description=__doc__.split("\n\n")[0],
-                                     formatter_class=_Formatter,
-                                     epilog=__doc__.split("\n\n", 1)[1])
-    parser.add_argument("env", help="environment name, e.g. mujoban/level1")
-    parser.add_argument("--condition", default="vanilla",
-                        help=f"the training condition: one of {list(CONDITIONS)}")
-    parser.add_argument("--frames", type=int, default=1_000_000,
-                        help="environment frames (control steps) to train for, in total")
-    parser.add_argument("--actors", type=int, default=2, help="actor processes / Ray actors")
-    parser.add_argument("--envs-per-actor", type=int, default=32,
-                        help="environments stepped together by one actor (one batched policy call)")
-    parser.add_argument("--backend", default="local", help="local or ray")
-    parser.add_argument("--ray-address", default=None,
-                        help="join a running Ray cluster (e.g. auto); default: start one")
-    parser.add_argument("--logdir", default="runs/impala")
-    parser.add_argument("--unroll-length", type=int, default=100)
-    parser.add_argument("--batch-size", type=int, default=None,
-                        help="unrolls per update (default: the paper's 128 MuJoBan, 64 board games)")
-    parser.add_argument("--learning-rate", type=float, default=3e-4)
-    parser.add_argument("--entropy-cost", type=float, default=1e-3)
-    parser.add_argument("--abs-reward", type=float, default=1.0,
-                        help="auxiliary reward for reaching the planner's target")
-    parser.add_argument("--cameras", action="store_true", help="feed 96x96 camera images")
-    parser.add_argument("--state", action="store_true",
-                        help="feed the current abstract state at every step (MuJoBan: "
-                             "full_entity_layer, privileged; not in the paper)")
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--checkpoint-every", type=float, default=300.0, help="seconds")
-    parser.add_argument("--keep-checkpoints", action="store_true",
-                        help="also keep every checkpoint as LOGDIR/checkpoints/frames-N.pt "
-                             "(for benchmarks/learning_curve.py)")
-    parser.add_argument("--log-every", type=float, default=10.0,
-                        help="seconds between TensorBoard / scalars.jsonl rows")
-    parser.add_argument("--no-progress", action="store_true")
+def parse_args(argv=None) -> argparse.Namespace:
+    """Parses ``argv`` (``--preset`` first: it sets defaults the other flags
+    override) and checks the names (`UsageError` with the closest valid one)."""
+    parser = build_parser()
+    preset = parser.parse_known_args(argv)[0].preset
+    if preset is not None:
+        parser.set_defaults(**PRESETS[choice("preset", preset, PRESETS)])
     args = parser.parse_args(argv)
+    choice("--observations value", args.observations, OBSERVATIONS)
+    return args
 
-    if args.env not in envs.names():
-        parser.error(f"unknown environment {args.env!r}; known: {', '.join(envs.names())}")
-    if args.condition not in CONDITIONS:
-        parser.error(f"unknown condition {args.condition!r}; valid: {', '.join(CONDITIONS)}")
-    if args.backend not in ("local", "ray"):
-        parser.error(f"unknown backend {args.backend!r}; valid: local, ray")
-    from hier_agents.baselines.impala.learner import TrainConfig, train
+
+def config_from_args(args):
+    """The `TrainConfig` of parsed arguments, checked (`TrainConfig.validate`;
+    `UsageError`), before anything is built but the main-camera look-up."""
+    from hier_agents.baselines.impala.learner import TrainConfig
 
     config = TrainConfig(env=args.env, condition=args.condition, steps=args.frames,
                          actors=args.actors, envs_per_actor=args.envs_per_actor,
@@ -86,18 +147,32 @@ def main(argv=None) -> int:
                          logdir=args.logdir, unroll_length=args.unroll_length,
                          batch_size=args.batch_size, learning_rate=args.learning_rate,
                          entropy_cost=args.entropy_cost, abs_reward=args.abs_reward,
-                         cameras=args.cameras, state=args.state, seed=args.seed,
+                         cameras=args.observations != "proprio", image_size=args.image_size,
+                         state=args.state, seed=args.seed,
                          checkpoint_every_s=args.checkpoint_every, log_every_s=args.log_every,
                          keep_checkpoints=args.keep_checkpoints,
                          progress=not args.no_progress)
-    try:
-        config.validate()
-    except ValueError as exc:
-        parser.error(str(exc))
-    counters = train(config)
+    config.validate()
+    if args.observations == "main-camera":
+        from hier_agents.baselines.impala.agent_env import main_camera_only
+        config.env_overrides.update(main_camera_only(args.env))
+    return config
+
+
+def _main(argv) -> int:
+    from hier_agents.baselines.impala.learner import train
+
+    counters = train(config_from_args(parse_args(argv)))
     counters.pop("last_stats", None)
     print(json.dumps(counters, indent=2))
     return 0
+
+
+def main(argv=None) -> int:
+    """``python -m hier_agents.train``: trains, prints the final counters as
+    JSON; exit status 0, 2 with one line on stderr for a bad input, 130 on a
+    second Ctrl-C (`envs.cli.run_main`)."""
+    return run_main(PROG, _main, argv)
 
 
 if __name__ == "__main__":

@@ -19,8 +19,8 @@ _spec = importlib.util.spec_from_file_location("compare_agents",
 compare = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(compare)
 
-TINY = dict(env="mujoban/level1", unroll_length=5, batch_size=2, actors=1, envs_per_actor=2,
-            log_every_s=0.0, progress=False)
+TINY = dict(env="mujoban/level1", cameras=False, unroll_length=5, batch_size=2, actors=1,
+            envs_per_actor=2, log_every_s=0.0, progress=False)
 
 
 def test_modular_specs_parse_and_bad_ones_name_the_part():

@@ -8,7 +8,7 @@ built by ``../shared/peer/setup.sh``). Every other block runs:
 - ``bash`` blocks command by command, in order, in one scratch folder per
   block (slow: they play and train), with two rewrites so that they fit the
   suite: budgets shrink (`SMALL_BUDGETS`: ``--episodes 100`` plays 1 episode,
-  ``--frames 5000000`` trains the smallest budget the trainer accepts) and
+  frame budgets keep their proportions at a tenth, at most 8,000 frames) and
   output paths (``runs/...``, ``--json``/``--video``/``--picture`` files) go to
   the scratch folder. The set-up block's ``bash scripts/install.sh`` is what
   CI itself runs first (``.ci/run``), so here only the job after it runs, and the
@@ -22,26 +22,36 @@ import re
 import shlex
 import subprocess
 import sys
+import textwrap
 from pathlib import Path
 
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
-_BLOCK = re.compile(r"^```(\w*)\n(.*?)^```", re.M | re.S)
+_BLOCK = re.compile(r"^( *)```(\w*)\n(.*?)^\1```", re.M | re.S)  # indented in lists too
 INSTALL = "bash scripts/install.sh && "
 
-#: flag -> value that replaces the README's budget when the suite runs it.
+def _tenth(limit: int | None = None):
+    """Budgets keep their proportions (a warm start that is the whole budget
+    stays so; a resumed run still adds PPO iterations): a tenth, at most
+    `limit`."""
+    return lambda value: str(min(int(value) // 10, limit or int(value)))
+
+
+#: flag -> the value the suite plays instead of the README's (a function of it).
 SMALL_BUDGETS = {
-    "--episodes": "1",
-    "--levels": "1",
-    "--frames": "2048",
-    "--bc-frames": "256",
-    "--dagger-frames": "256",
-    "--dagger-rounds": "1",
-    "--bc-epochs": "2",
-    "--eval-episodes": "2",
-    "--seeds": "1",
+    "--episodes": lambda value: "1",
+    "--levels": lambda value: "1",
+    "--eval-episodes": lambda value: "2",
+    "--seeds": lambda value: "1",
+    "--bc-epochs": lambda value: "2",
+    "--frames": _tenth(8000),
+    "--bc-frames": _tenth(),
+    "--dagger-frames": _tenth(),
+    "--abstract-steps": _tenth(8000),
+    "--option-steps": lambda value: "128",  # one update at --envs 2, --rollout 64
+    "--cpu-minutes": lambda value: "2",
 }
 #: flags whose value is an output file, sent to the scratch folder.
 OUTPUT_FLAGS = ("--json", "--video", "--picture", "--logdir")
@@ -50,7 +60,7 @@ OUTPUT_FLAGS = ("--json", "--video", "--picture", "--logdir")
 def readme_blocks() -> list[tuple[int, str, str]]:
     """(line number, language, body) of every fenced block of the README."""
     text = README.read_text()
-    return [(text.count("\n", 0, m.start()) + 1, m.group(1), m.group(2))
+    return [(text.count("\n", 0, m.start()) + 1, m.group(2), textwrap.dedent(m.group(3)))
             for m in _BLOCK.finditer(text)]
 
 
@@ -81,11 +91,11 @@ def shrink(command: str, scratch: Path) -> str:
         word = words[i]
         flag, eq, value = word.partition("=")
         if word in SMALL_BUDGETS and i + 1 < len(words):
-            out += [word, SMALL_BUDGETS[word]]
+            out += [word, SMALL_BUDGETS[word](words[i + 1])]
             i += 2
             continue
         if eq and flag in SMALL_BUDGETS:
-            out.append(f"{flag}={SMALL_BUDGETS[flag]}")
+            out.append(f"{flag}={SMALL_BUDGETS[flag](value)}")
             i += 1
             continue
         if word in OUTPUT_FLAGS and i + 1 < len(words):
@@ -135,11 +145,14 @@ def test_shrink_rewrites_budgets_and_outputs(tmp_path):
     got = shrink("python -m hier_agents.train mujoban/level1 --frames 5000000 "
                  "--logdir runs/x --json out/a.json", tmp_path)
     assert got == (f"python -m hier_agents.train mujoban/level1 --frames "
-                   f"{SMALL_BUDGETS['--frames']} --logdir {tmp_path}/runs/x "
+                   f"8000 --logdir {tmp_path}/runs/x "
                    f"--json {tmp_path}/out/a.json")
     got = shrink("python -m hier_agents.run mujoban/level1 --agent checkpoint:runs/e "
                  "--episodes=100", tmp_path)
     assert f"checkpoint:{tmp_path}/runs/e" in got and "--episodes=1" in got
+    got = shrink("python -m hier_agents.learning.train_skill arm --frames 65000 "
+                 "--bc-frames 45000 --dagger-frames 20000", tmp_path)
+    assert got.endswith("--frames 6500 --bc-frames 4500 --dagger-frames 2000")
     assert shrink(INSTALL + "python -m hier_agents.run", tmp_path) == "python -m hier_agents.run"
 
 

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 import torch
 
+from envs.cli import UsageError
 from hier_agents.learning import ppo, rundir
 from hier_agents.learning.rundir import RunDir
 from toy_rl import Gaussian, Target
@@ -132,9 +133,50 @@ def test_config_json_is_checked_and_merged_on_resume(tmp_path):
     assert json.loads((tmp_path / "config.json").read_text())["steps"] == 20
     lines = [json.loads(line) for line in open(tmp_path / "scalars.jsonl")]
     assert [line["step"] for line in lines] == [5, 6] and lines[0]["name"] == "x"
-    # Not resuming: a fresh run (the scalars restart).
+    # Not resuming: a directory without a checkpoint starts a fresh run (the
+    # scalars restart); one that holds a run is refused, untouched.
+    (tmp_path / "checkpoint.pt").rename(tmp_path / "moved.pt")
     RunDir(tmp_path, {"env": "b"}).close()
     assert (tmp_path / "scalars.jsonl").read_text() == ""
+    (tmp_path / "moved.pt").rename(tmp_path / "checkpoint.pt")
+    with pytest.raises(UsageError, match="already holds a run"):
+        RunDir(tmp_path, {"env": "c"})
+    assert json.loads((tmp_path / "config.json").read_text())["env"] == "b"
+
+
+def test_resume_modes_and_refusals_leave_the_directory_untouched(tmp_path):
+    # resume=True needs a checkpoint; nothing is created when it is refused.
+    with pytest.raises(UsageError, match="nothing to resume"):
+        RunDir(tmp_path / "new", {}, resume=True)
+    assert not (tmp_path / "new").exists()
+    # resume=None: start, then continue.
+    with RunDir(tmp_path / "auto", {"env": "a"}, resume=None, trainer="t1",
+                fixed=("env",)) as run:
+        assert not run.resumed
+        run.record(observations=["proprio"], privileged=False)
+        run.save({})
+    saved = json.loads((tmp_path / "auto" / "config.json").read_text())
+    assert saved["trainer"] == "t1" and saved["observations"] == ["proprio"]
+    assert torch.load(tmp_path / "auto" / "checkpoint.pt",
+                      weights_only=False)["config"]["privileged"] is False
+    with RunDir(tmp_path / "auto", {"env": "a"}, resume=None, trainer="t1",
+                fixed=("env",)) as run:
+        assert run.resumed and run.config["observations"] == ["proprio"]
+    # Another trainer's run, a run made before runs recorded their trainer
+    # without the identifying key, a file: refused.
+    with pytest.raises(UsageError, match="holds a run of t1, not of t2"):
+        RunDir(tmp_path / "auto", {"env": "a"}, resume=None, trainer="t2", fixed=("env",))
+    config = json.loads((tmp_path / "auto" / "config.json").read_text())
+    del config["trainer"]
+    (tmp_path / "auto" / "config.json").write_text(json.dumps(config))
+    with pytest.raises(UsageError, match="not a run of t3"):
+        RunDir(tmp_path / "auto", {"spec": "x"}, resume=None, trainer="t3", fixed=("spec",))
+    with RunDir(tmp_path / "auto", {"env": "a"}, resume=None, trainer="t1",
+                fixed=("env",)) as run:
+        assert run.resumed  # the legacy run has the identifying key
+    (tmp_path / "file").write_text("")
+    with pytest.raises(UsageError, match="is a file"):
+        RunDir(tmp_path / "file", {}, resume=None)
 
 
 def test_rng_states_round_trip():

@@ -75,19 +75,29 @@ def test_cli_trains_checkpoints_and_resumes(tmp_path, capsys):
     load_policy(tmp_path / "ball_policy.pt")
     assert any(p.name.startswith("events.out.tfevents") for p in tmp_path.iterdir())
     assert "95% Wilson" in capsys.readouterr().out
-    # Resume: two more iterations from the checkpoint, no second warm start.
+    # Two PPO iterations: the default three critic-only ones are capped at one.
+    assert summary["actor_iterations"] == 1
+    # Resume: two more iterations from the checkpoint, no second warm start,
+    # no second critic-only phase.
     assert main(args[:2] + ["600"] + args[3:] + ["--resume"]) == 0
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["frames"] == 600 and summary["iterations"] == 4
-    assert summary["bc_frames"] == 200
+    assert summary["bc_frames"] == 200 and summary["actor_iterations"] == 3
+    # Without --resume the finished run is not overwritten.
+    with pytest.raises(SystemExit) as exc:
+        main(args)
+    assert exc.value.code == 2 and "already holds a run" in capsys.readouterr().err
 
 
 @pytest.mark.slow
 def test_a_resumed_run_continues_bit_identically(tmp_path):
     """Straight to 500 frames == to 400, stop, resume to 500 (slow: three
-    trainer runs; tests/test_rundir.py checks the convention quickly)."""
+    trainer runs; tests/test_rundir.py checks the convention quickly). One
+    critic-only iteration, which neither budget caps, so both runs have the
+    same schedule."""
     common = ["ball", "--bc-frames", "100", "--dagger-frames", "100", "--rollout", "50",
-              "--envs", "2", "--save-every", "1", "--eval-episodes", "0", "--seed", "2"]
+              "--envs", "2", "--save-every", "1", "--eval-episodes", "0", "--seed", "2",
+              "--critic-warmup", "1"]
     assert main(common + ["--frames", "500", "--logdir", str(tmp_path / "straight")]) == 0
     assert main(common + ["--frames", "400", "--logdir", str(tmp_path / "split")]) == 0
     torch.manual_seed(12345)  # the resumed run must restore every random state itself

@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-__all__ = ["collect", "fit", "clone"]
+__all__ = ["collect", "fit", "clone", "warm_start_frames"]
 
 
 def collect(spec, frames: int, seed: int, *, actor=None, noise: float = 0.2,
@@ -90,6 +90,14 @@ def fit(agent, xs, ys, epochs: int, lr: float = 1e-3, log=print) -> float:
     return mse
 
 
+def warm_start_frames(frames: int, dagger_frames: int, dagger_rounds: int) -> int:
+    """The agent frames `clone` spends with these arguments (0 when
+    ``frames`` is 0: no warm start)."""
+    if frames <= 0:
+        return 0
+    return int(frames) + (int(dagger_rounds) * int(dagger_frames) if dagger_frames > 0 else 0)
+
+
 def clone(agent, spec, *, frames: int, seed: int, dagger_frames: int = 0,
           dagger_rounds: int = 1, epochs: int = 60, noise: float = 0.2,
           noise_prob: float = 1.0, dagger_noise: float = 0.1, dagger_noise_prob: float = 1.0,
@@ -101,7 +109,8 @@ def clone(agent, spec, *, frames: int, seed: int, dagger_frames: int = 0,
     probability ``dagger_mix``, the teacher otherwise; noise
     ``dagger_noise`` on options noisy with probability ``dagger_noise_prob``),
     labelled by the teacher, refitted on all data so far (`collect`, `fit`).
-    Returns (agent frames, simulated control steps)."""
+    Returns (agent frames, simulated control steps); the agent frames are
+    `warm_start_frames` of the arguments."""
     log(f"behaviour cloning: {frames} frames of the {spec.name} skill's teacher "
         f"(noise {noise} on {noise_prob:.0%} of the options)")
     xs, ys, sim_steps = collect(spec, frames, seed + 1, noise=noise, noise_prob=noise_prob,

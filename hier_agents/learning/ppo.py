@@ -16,6 +16,10 @@ The pieces, each usable alone:
 * `ppo_update`: clipped-surrogate epochs over minibatches (value loss,
   entropy bonus, gradient-norm clip, per-minibatch advantage normalisation).
 * `iteration`: learning-rate anneal, collect, GAE, update: one PPO iteration.
+* Budgets: `iterations` (the whole iterations a budget buys, refusing one
+  that buys none) and `critic_warmup` (critic-only iterations that leave at
+  least one actor update); `add_arguments` / `config_from_args`: the PPO
+  flags every trainer shares.
 
 The policy is any object with ``policy_dist(obs, mask) -> Distribution``
 (``log_prob``/``entropy`` of shape ``[B]``: use the two helpers) and
@@ -34,7 +38,10 @@ import numpy as np
 import torch
 from torch import nn
 
+from envs.cli import UsageError, fraction, non_negative_float, positive_float, positive_int
+
 SAME_STEP = gym.vector.AutoresetMode.SAME_STEP
+
 #: The logit given to actions whose mask entry is 0 (probability 0, no gradient).
 MASKED_LOGIT = -1e8
 
@@ -99,18 +106,45 @@ def add_arguments(parser, **defaults) -> None:
     ``parser``; ``defaults`` override `PPOConfig`'s (and ``rollout``, default 128)."""
     base = {**dataclasses.asdict(PPOConfig()), "rollout": 128, **defaults}
     add = parser.add_argument
-    add("--rollout", type=int, default=base["rollout"], help="steps per environment per update")
-    add("--epochs", type=int, default=base["epochs"], help="PPO epochs per update")
-    add("--minibatches", type=int, default=base["minibatches"], help="minibatches per epoch")
-    add("--lr", type=float, default=base["lr"], help="Adam learning rate")
+    add("--rollout", type=positive_int, default=base["rollout"],
+        help="steps per environment per update")
+    add("--epochs", type=positive_int, default=base["epochs"], help="PPO epochs per update")
+    add("--minibatches", type=positive_int, default=base["minibatches"],
+        help="minibatches per epoch")
+    add("--lr", type=positive_float, default=base["lr"], help="Adam learning rate")
     add("--anneal-lr", action=argparse.BooleanOptionalAction, default=base["anneal_lr"],
         help="anneal the learning rate linearly over the budget")
-    add("--gamma", type=float, default=base["gamma"], help="discount per control step")
-    add("--lam", type=float, default=base["lam"], help="GAE lambda")
-    add("--clip", type=float, default=base["clip"], help="PPO ratio clip")
-    add("--ent-coef", type=float, default=base["ent_coef"], help="entropy bonus")
-    add("--vf-coef", type=float, default=base["vf_coef"], help="value-loss weight")
-    add("--max-grad-norm", type=float, default=base["max_grad_norm"], help="gradient-norm clip")
+    add("--gamma", type=fraction, default=base["gamma"], help="discount per control step")
+    add("--lam", type=fraction, default=base["lam"], help="GAE lambda")
+    add("--clip", type=positive_float, default=base["clip"], help="PPO ratio clip")
+    add("--ent-coef", type=non_negative_float, default=base["ent_coef"],
+        help="entropy bonus")
+    add("--vf-coef", type=non_negative_float, default=base["vf_coef"],
+        help="value-loss weight")
+    add("--max-grad-norm", type=positive_float, default=base["max_grad_norm"],
+        help="gradient-norm clip")
+
+
+def iterations(budget: int, per_iteration: int, what: str, fix: str) -> int:
+    """The whole PPO iterations a budget buys: ``budget // per_iteration``
+    (steps; the trainer's unit).
+
+    Raises:
+      UsageError: ``0 < budget < per_iteration``, a budget that
+        cannot pay for one update: ``"{what} is less than one PPO update
+        ({per_iteration} steps); {fix}"`` (``what`` names the budget, ``fix``
+        the smallest one that works).
+    """
+    if 0 < budget < per_iteration:
+        raise UsageError(f"{what} is less than one PPO update ({per_iteration} steps); {fix}")
+    return max(budget, 0) // per_iteration
+
+
+def critic_warmup(iterations: int, warmup: int) -> int:
+    """Critic-only iterations at the start of a budget of ``iterations``:
+    ``warmup``, but at most ``iterations - 1``, so that at least one iteration
+    of the budget updates the actor (0 for an empty budget)."""
+    return max(0, min(int(warmup), int(iterations) - 1))
 
 
 def config_from_args(args, **fixed) -> PPOConfig:

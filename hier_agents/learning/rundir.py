@@ -2,9 +2,11 @@
 
 A run directory holds:
 
-* ``config.json``: the run's configuration (JSON), written at start; on
-  resume the saved one is checked (keys that must not change) and merged
-  (the new values win), then rewritten;
+* ``config.json``: the run's configuration (JSON) and ``trainer`` (the
+  command that made the run), written at start; on resume the saved one is
+  checked (the same trainer, keys that must not change) and merged (the new
+  values win), then rewritten; `RunDir.record` adds facts learnt later (what
+  the agent observes);
 * ``checkpoint.pt``: the latest checkpoint, written atomically (a temporary
   file in the same directory, then ``os.replace``): the trainer's payload
   plus ``config`` and ``rng`` (torch, numpy and python ``random`` states),
@@ -12,6 +14,12 @@ A run directory holds:
   ``checkpoints/NAME.pt``: copies kept on request (learning curves);
 * ``scalars.jsonl``: one JSON object per log call (``{"step": S, ...}``),
   and the same scalars as TensorBoard events (``torch.utils.tensorboard``).
+
+Whether a run starts or continues is the trainer's ``resume`` mode: ``None``
+continues a run found there and starts one otherwise, ``True`` requires one
+to continue, ``False`` requires a directory without a checkpoint (nothing is
+overwritten). Every refusal is a `envs.cli.UsageError` (one line on a
+command's stderr), raised before anything is written.
 
 `RunDir` also draws a progress bar on stderr (tqdm when installed) and, inside
 ``with run.interruptible():``, turns SIGINT/SIGTERM into ``run.stop_requested``
@@ -36,6 +44,8 @@ from pathlib import Path
 
 import numpy as np
 import torch
+
+from envs.cli import UsageError
 
 CONFIG = "config.json"
 CHECKPOINT = "checkpoint.pt"
@@ -140,29 +150,49 @@ def progress_bar(total: int | None, initial: int = 0, desc: str = "", unit: str 
 
 class RunDir:
     """The run directory ``path`` of a trainer with configuration ``config``
-    (a JSON-able dict). ``resume``: continue a run found there (checked against
-    ``fixed``, the keys that must not change); otherwise a fresh run
-    (``scalars.jsonl`` restarted, an existing checkpoint overwritten at the
-    first save). ``tensorboard``: also write TensorBoard events.
+    (a JSON-able dict).
+
+    Args:
+      path: the directory (created, with its parents, when missing).
+      config: the run's configuration; saved as ``config.json`` with
+        ``trainer`` added.
+      resume: ``None``: continue the run found there (a checkpoint) or start
+        one; ``True``: continue it, refusing a directory without a
+        checkpoint; ``False``: start one, refusing a directory that holds a
+        checkpoint. A fresh run restarts ``scalars.jsonl``.
+      fixed: keys whose saved value a continued run must share.
+      trainer: the command that trains (e.g. ``"python -m hier_agents.train"``);
+        a continued run must have been made by it. A directory made before
+        runs recorded their trainer is taken as the trainer's when its config
+        has ``fixed[0]``.
+      tensorboard: also write TensorBoard events.
 
     Raises:
-      ValueError: resuming with a different value of a ``fixed`` key.
+      UsageError: ``path`` is a file; ``resume`` is True without a checkpoint
+        or False with one; the directory holds another trainer's run; a
+        ``fixed`` key differs from the saved run's (the message names it).
     """
 
-    def __init__(self, path: str | Path, config: dict, *, resume: bool = False,
-                 fixed=(), tensorboard: bool = True) -> None:
+    def __init__(self, path: str | Path, config: dict, *, resume: bool | None = False,
+                 fixed=(), trainer: str = "", tensorboard: bool = True) -> None:
         self.path = Path(path)
-        self.path.mkdir(parents=True, exist_ok=True)
+        if self.path.exists() and not self.path.is_dir():
+            raise UsageError(f"the run directory {str(self.path)!r} is a file; give a folder")
         self.checkpoint_path = self.path / CHECKPOINT
-        self.resumed = bool(resume) and self.checkpoint_path.exists()
-        config = jsonable(config)
+        found = self.checkpoint_path.is_file()
+        if resume is True and not found:
+            raise UsageError(f"nothing to resume: no {CHECKPOINT} in {str(self.path)!r} "
+                             f"(drop --resume to start a run there)")
+        if resume is False and found:
+            raise UsageError(f"{str(self.path)!r} already holds a run ({CHECKPOINT}); "
+                             f"continue it with --resume or choose another directory")
+        self.resumed = found and resume is not False
+        config = jsonable({**config, "trainer": trainer} if trainer else config)
         if self.resumed:
             saved = self._saved_config()
-            for key in fixed:
-                if key in saved and saved[key] != config.get(key):
-                    raise ValueError(f"{self.path} was trained with {key}={saved[key]!r}, not "
-                                     f"{config.get(key)!r}; use another directory")
+            self._check_same_run(saved, config, fixed, trainer)
             config = {**saved, **config}
+        self.path.mkdir(parents=True, exist_ok=True)
         self.config = config
         atomic_write_text(json.dumps(config, indent=2) + "\n", self.path / CONFIG)
         self._jsonl = open(self.path / SCALARS, "a" if self.resumed else "w")
@@ -177,13 +207,47 @@ class RunDir:
         self.stop_requested = False
         self.bar = None
 
+    def _check_same_run(self, saved: dict, config: dict, fixed, trainer: str) -> None:
+        """Raises `UsageError` unless ``saved`` is a run ``config`` may continue."""
+        where = str(self.path)
+        made_by = saved.get("trainer")
+        if trainer and made_by and made_by != trainer:
+            raise UsageError(f"{where!r} holds a run of {made_by}, not of {trainer}; choose "
+                             f"another directory")
+        if trainer and not made_by and fixed and fixed[0] not in saved:
+            raise UsageError(f"{where!r} holds a checkpoint that is not a run of {trainer} "
+                             f"(its config has no {fixed[0]!r}); choose another directory")
+        for key in fixed:
+            if key in saved and saved[key] != config.get(key):
+                raise UsageError(f"{where!r} holds a run trained with {key}={saved[key]!r}, "
+                                 f"not {config.get(key)!r}; choose another directory or "
+                                 f"the same {key}")
+
     def _saved_config(self) -> dict:
-        if (self.path / CONFIG).exists():
-            return json.loads((self.path / CONFIG).read_text())
-        if self.checkpoint_path.exists():  # a run from before config.json
-            saved = torch.load(self.checkpoint_path, map_location="cpu", weights_only=False)
-            return dict(saved.get("config") or {}) if isinstance(saved, dict) else {}
-        return {}
+        """The saved run's configuration: ``config.json``, else (a run from
+        before config.json) the checkpoint's ``config``.
+
+        Raises:
+          UsageError: neither can be read as a run's configuration."""
+        try:
+            if (self.path / CONFIG).exists():
+                saved = json.loads((self.path / CONFIG).read_text())
+            else:
+                saved = torch.load(self.checkpoint_path, map_location="cpu", weights_only=False)
+                saved = saved.get("config") if isinstance(saved, dict) else None
+        except Exception as exc:  # noqa: BLE001 - whatever is wrong with the files, it is the input
+            raise UsageError(f"{str(self.path)!r} holds a {CHECKPOINT} whose run cannot be "
+                             f"read ({type(exc).__name__}); choose another directory") from None
+        if not isinstance(saved, dict):
+            raise UsageError(f"{str(self.path)!r} holds a {CHECKPOINT} without a run "
+                             f"configuration; choose another directory")
+        return dict(saved)
+
+    def record(self, **fields) -> None:
+        """Adds ``fields`` (JSON-able) to the run's configuration: ``config.json``
+        now, and the checkpoints saved from now on."""
+        self.config.update(jsonable(fields))
+        atomic_write_text(json.dumps(self.config, indent=2) + "\n", self.path / CONFIG)
 
     # checkpoints
 

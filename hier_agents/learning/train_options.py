@@ -3,6 +3,7 @@
     python -m hier_agents.learning.train_options ENV[,ENV...] --option-steps N --logdir DIR
         [--envs K] [--seed S] [--resume] [--skill learned-ball] [--estimator camera]
         [--cpu-minutes M] [--abstract-steps A] [--eval-episodes E] ...
+        (--option-steps and --logdir are required)
     python -m hier_agents.run mujoban/level2 --planner learned:DIR/option_policy.pt
 
 One environment step is one *option* (`hier_agents.learning.option_env.OptionEnv`): a
@@ -51,6 +52,11 @@ Sokoban move ``U``/``D``/``L``/``R`` that the ball skill carries out in MuJoCo
   control steps, the measured mean, and the 900-step limit as 50 options).
   Its CPU time counts in the budget; its steps are counted apart
   (``abstract_steps``), not as control frames.
+* **Budgets**: each phase runs PPO updates until its step count reaches its
+  budget (overshooting by less than one update: ``--envs x --rollout``
+  option steps, ``--abstract-envs x --rollout`` abstract steps); a phase's
+  budget is 0 (skipped) or at least one update, and at least one phase has
+  one, so every accepted run updates the policy.
 
 **The shipped policy** (``--planner learned``, ``abstract_planners/learned/
 options.pt``; figures in ``results/option_policy/``) is approach "D":
@@ -65,7 +71,8 @@ It is the learned policy alone (no ``prune_dead_pushes``); approach "B"
 (150,528 abstract steps, 6,912 OptionEnv steps, ``results/option_policy/
 approach_B/``) needed the hand-written dead-push rule at play time.
 
-The run directory (`hier_agents.learning.rundir`): ``config.json``,
+The run directory (`hier_agents.learning.rundir`; a fresh run refuses one
+that holds a run, ``--resume`` needs one): ``config.json``,
 ``checkpoint.pt`` every ``--save-every`` updates, at the end and on Ctrl-C
 (network, optimiser, counters, random states; ``--resume`` continues it),
 ``option_policy.pt`` (the planner's file, ~360 KB), ``scalars.jsonl`` and
@@ -83,7 +90,6 @@ policy as the modular agent's planner (`hier_agents.run`, held-out seed
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import resource
@@ -100,6 +106,8 @@ from torch import nn
 from abstract_planners.learned_options import (OptionPolicyNet, policy_input,
                                                save_option_policy)
 from abstract_planners.sokoban import MOVES
+from envs.cli import (Parser, UsageError, choice, non_negative_float, non_negative_int, plural,
+                      positive_float, positive_int, run_main)
 from hier_agents.learning import ppo
 from hier_agents.learning.option_shaping import (ABSTRACT_DURATION,  # noqa: F401 (re-exported)
                                                   TIME_LIMIT_STEPS, AbstractOptionEnv, Shaped,
@@ -115,6 +123,7 @@ from hier_agents.stats import wilson_interval
 
 #: Seed of the end-of-training evaluation (hier_agents.run seeds its environment with it).
 HELDOUT_SEED = 10_000
+PROG = "python -m hier_agents.learning.train_options"
 
 
 def skill_record(skill: str | None) -> dict:
@@ -222,44 +231,76 @@ def evaluate(policy_path: Path, env_names, episodes: int, args) -> dict:
 # -- main --------------------------------------------------------------------------------------
 
 def parse_args(argv=None):
-    p = argparse.ArgumentParser(prog="python -m hier_agents.learning.train_options",
-                                description=__doc__.split("\n\n")[0],
-                                formatter_class=argparse.ArgumentDefaultsHelpFormatter)
-    p.add_argument("env", help="environment(s), comma-separated (e.g. mujoban/level1,"
-                               "mujoban/level2), dealt to the copies in turn")
-    p.add_argument("--option-steps", type=int, required=True,
-                   help="option steps on OptionEnv (the training budget)")
-    p.add_argument("--logdir", type=Path, required=True, help="the run directory")
-    p.add_argument("--envs", type=int, default=2, help="environment copies (processes)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the network, PPO and envs")
-    p.add_argument("--resume", action="store_true", help="continue from DIR/checkpoint.pt")
-    p.add_argument("--skill", default="learned-ball", help="skill name")
-    p.add_argument("--estimator", default=None, help="estimator name (None: camera)")
-    p.add_argument("--cpu-minutes", type=float, default=None,
-                   help="stop training after this many CPU minutes (all processes)")
-    p.add_argument("--sync", action="store_true", help="SyncVectorEnv (one process; tests)")
-    p.add_argument("--abstract-steps", type=int, default=0,
-                   help="option steps of the abstract warm start (no physics)")
-    p.add_argument("--abstract-envs", type=int, default=16, help="abstract env copies")
-    p.add_argument("--abstract-duration", type=int, default=ABSTRACT_DURATION,
-                   help="control steps per abstract option")
+    """The command line, each value's type and range checked (the parser's
+    one-line error); `check_args` checks the rest."""
+    p = Parser(PROG, description=__doc__.split("\n\n")[0])
+    add = p.add_argument
+    add("env", help="environment(s), comma-separated (e.g. mujoban/level1,mujoban/level2), "
+                    "dealt to the copies in turn")
+    add("--option-steps", type=non_negative_int, required=True,
+        help="option steps on OptionEnv (the training budget; 0: the abstract warm start only)")
+    add("--logdir", type=Path, required=True,
+        help="the run directory (a fresh run refuses one that holds a run)")
+    add("--envs", type=positive_int, default=2, help="environment copies (processes)")
+    add("--seed", type=non_negative_int, default=0, help="seed of the network, PPO and envs")
+    add("--resume", action="store_true", help="continue LOGDIR/checkpoint.pt (required there)")
+    add("--skill", default="learned-ball", help="skill name")
+    add("--estimator", default=None, help="estimator name (default: camera)")
+    add("--cpu-minutes", type=positive_float, default=None,
+        help="stop training after this many CPU minutes (all processes)")
+    add("--sync", action="store_true", help="SyncVectorEnv (one process; tests)")
+    add("--abstract-steps", type=non_negative_int, default=0,
+        help="option steps of the abstract warm start (no physics)")
+    add("--abstract-envs", type=positive_int, default=16, help="abstract env copies")
+    add("--abstract-duration", type=positive_int, default=ABSTRACT_DURATION,
+        help="control steps per abstract option")
     ppo.add_arguments(p, rollout=64, epochs=4, minibatches=4, lr=5e-4, anneal_lr=True,
                       gamma=0.995, lam=0.95, clip=0.2, ent_coef=0.01, vf_coef=0.5,
                       max_grad_norm=0.5)
-    p.add_argument("--shape-box", type=float, default=1.0, help="shaping: box distance weight")
-    p.add_argument("--shape-player", type=float, default=0.1,
-                   help="shaping: player distance weight")
-    p.add_argument("--box-distance", choices=("walk", "push"), default="walk",
-                   help="shaping's box-to-pad distance: walking or pushes (dead cells far)")
-    p.add_argument("--t-abs", type=int, default=T_ABS, help="control steps per option at most")
-    p.add_argument("--radius", type=int, default=6, help="egocentric crop radius (cells)")
-    p.add_argument("--hidden", type=int, default=128, help="network width")
-    p.add_argument("--save-every", type=int, default=10, help="updates between checkpoints")
-    p.add_argument("--eval-episodes", type=int, default=100, help="per environment; 0: skip")
-    args = p.parse_args(argv)
-    if args.envs < 1 or args.rollout < 1 or args.option_steps < 0 or args.abstract_steps < 0:
-        p.error("--envs and --rollout must be >= 1, --option-steps and --abstract-steps >= 0")
-    return args
+    add("--shape-box", type=non_negative_float, default=1.0,
+        help="shaping: box distance weight")
+    add("--shape-player", type=non_negative_float, default=0.1,
+        help="shaping: player distance weight")
+    add("--box-distance", default="walk",
+        help="shaping's box-to-pad distance: walk (walking) or push (pushes; dead cells far)")
+    add("--t-abs", type=positive_int, default=T_ABS, help="control steps per option at most")
+    add("--radius", type=positive_int, default=6, help="egocentric crop radius (cells)")
+    add("--hidden", type=positive_int, default=128, help="network width")
+    add("--save-every", type=positive_int, default=10, help="updates between checkpoints")
+    add("--eval-episodes", type=non_negative_int, default=100,
+        help="per environment; 0: skip")
+    return p.parse_args(argv)
+
+
+def check_args(args) -> list[str]:
+    """The environment names of ``args.env``, after checking ``args``.
+
+    Raises:
+      UsageError: a name that is not a MuJoBan environment, an unknown skill,
+        estimator or box distance (each with the closest valid name), or a
+        budget that buys no update."""
+    import envs as envs_module
+    from hier_agents.modular.components import ESTIMATORS, SKILLS
+
+    names = [n.strip() for n in args.env.split(",") if n.strip()]
+    if not names:
+        raise UsageError("no environment given")
+    mujoban = [n for n in envs_module.names() if n.startswith("mujoban/")]
+    for name in names:
+        choice("MuJoBan environment", name, mujoban)
+    if args.skill not in SKILLS["mujoban"]:
+        choice("MuJoBan skill", args.skill, list(SKILLS["mujoban"]))
+    if args.estimator is not None and args.estimator not in ESTIMATORS["mujoban"]:
+        choice("MuJoBan estimator", args.estimator, list(ESTIMATORS["mujoban"]))
+    choice("--box-distance", args.box_distance, ("walk", "push"))
+    if args.option_steps == 0 and args.abstract_steps == 0:
+        raise UsageError("nothing to train: --option-steps and --abstract-steps are both 0")
+    for flag, steps, copies in (("--option-steps", args.option_steps, "--envs"),
+                                ("--abstract-steps", args.abstract_steps, "--abstract-envs")):
+        per_update = (args.envs if copies == "--envs" else args.abstract_envs) * args.rollout
+        ppo.iterations(steps, per_update, f"{flag} {steps}",
+                       f"give {flag} 0 or >= {per_update} ({copies} x --rollout)")
+    return names
 
 
 def meta(state, args, names, skill) -> dict:
@@ -288,10 +329,9 @@ def train(run: RunDir, args, names, command: str):
         net.load_state_dict(data["policy"]["state_dict"])
         optimizer.load_state_dict(data["optimizer"])
         state.update(data["state"])
-        print(f"resumed from {run.checkpoint_path}: {state['option_steps']} option steps, "
-              f"{state['control_frames']} control frames, {state['cpu_s'] / 60:.1f} CPU min")
-    elif args.resume:
-        print(f"no checkpoint at {run.checkpoint_path}: starting afresh")
+        print(f"resumed from {run.checkpoint_path}: {plural(state['option_steps'], 'option step')}"
+              f", {plural(state['control_frames'], 'control frame')}, "
+              f"{state['cpu_s'] / 60:.1f} CPU min")
     state["commands"] = list(state.get("commands", [])) + [command]
     clock, wall0, t0 = CpuClock(state["cpu_s"]), state["wall_s"], time.perf_counter()
     skill = skill_record(args.skill)
@@ -326,18 +366,14 @@ def train(run: RunDir, args, names, command: str):
     return state, skill
 
 
-def main(argv=None) -> int:
+def _main(argv) -> int:
     args = parse_args(argv)
     torch.set_num_threads(1)
-    names = [n.strip() for n in args.env.split(",") if n.strip()]
-    import envs as envs_module
-    for name in names:
-        if name not in envs_module.names() or not name.startswith("mujoban/"):
-            raise SystemExit(f"train_options: {name!r} is not a MuJoBan environment "
-                             f"(known: mujoban/level1 ... level5, -pegs)")
-    command = "python -m hier_agents.learning.train_options " + " ".join(
+    names = check_args(args)
+    command = PROG + " " + " ".join(
         shlex.quote(a) for a in (sys.argv[1:] if argv is None else argv))
-    run = RunDir(args.logdir, vars(args), resume=args.resume, fixed=("radius", "hidden"))
+    run = RunDir(args.logdir, vars(args), resume=args.resume, fixed=("radius", "hidden"),
+                 trainer=PROG)
     try:
         state, skill = train(run, args, names, command)
     finally:
@@ -361,9 +397,10 @@ def main(argv=None) -> int:
                    "children": round(children.ru_utime + children.ru_stime, 1)},
                "checkpoint": str(run.checkpoint_path), "policy": str(policy_path),
                "hyperparameters": run.config, "interrupted": interrupted}
-    print(f"trained {state['option_steps']} option steps = {state['control_frames']} control "
-          f"frames (+ {state['abstract_steps']} abstract steps) in {state['cpu_s'] / 60:.1f} "
-          f"CPU minutes; policy {policy_path}")
+    print(f"trained {plural(state['option_steps'], 'option step')} = "
+          f"{plural(state['control_frames'], 'control frame')} (+ "
+          f"{plural(state['abstract_steps'], 'abstract step')}) in "
+          f"{state['cpu_s'] / 60:.1f} CPU minutes; policy {policy_path}")
     if args.eval_episodes > 0 and not interrupted:
         summary["evaluation"] = evaluate(policy_path, list(dict.fromkeys(names)),
                                          args.eval_episodes, args)
@@ -372,6 +409,13 @@ def main(argv=None) -> int:
     (args.logdir / "summary.json").write_text(json.dumps(summary, indent=2, default=str) + "\n")
     print(f"wrote {args.logdir / 'summary.json'}")
     return 130 if interrupted else 0
+
+
+def main(argv=None) -> int:
+    """``python -m hier_agents.learning.train_options``: trains, evaluates,
+    writes ``LOGDIR/summary.json``; exit status 0, 130 when interrupted, 2
+    with one line on stderr for a bad input (`envs.cli.run_main`)."""
+    return run_main(PROG, _main, argv)
 
 
 if __name__ == "__main__":

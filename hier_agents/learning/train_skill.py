@@ -2,6 +2,7 @@
 
     python -m hier_agents.learning.train_skill SPEC --frames N --logdir DIR [--envs K]
         [--seed S] [--resume] [--bc-frames M] [--dagger-frames D] [--dagger-rounds R]
+        (--frames and --logdir are required for training)
     python -m hier_agents.learning.train_skill SPEC --evaluate [PATH] [--estimator E]
         [--eval-episodes E] [--json OUT]
 
@@ -13,19 +14,26 @@ trainer knows nothing else about the skill:
    frames of the teacher with Gaussian action noise, the actor's mean
    regressed on the teacher's actions; then ``--dagger-rounds`` rounds of
    ``--dagger-frames`` frames driven by the cloned policy, labelled by the
-   teacher, refitted on everything. These frames count in the budget.
-2. **PPO** (`hier_agents.learning.ppo`) until ``--frames`` agent frames:
+   teacher, refitted on everything. These frames count in the budget
+   (``--bc-frames 0``: no warm start).
+2. **PPO** (`hier_agents.learning.ppo`) on the rest of ``--frames``:
    ``--envs`` `SkillEnv` copies in a vector env (same-step autoreset),
-   ``--rollout`` steps per copy per iteration, GAE, the clipped update, a
-   Gaussian policy with a state-independent std (``--log-std``); after a warm
-   start the first ``--critic-warmup`` iterations train only the critic (a
-   fresh critic's advantages would undo the warm start). ``--frames`` equal
-   to the warm start's frames skips PPO.
+   ``--rollout`` steps per copy per iteration (``envs x rollout`` frames),
+   as many whole iterations as the budget pays for (it is met to within one
+   iteration), GAE, the clipped update, a Gaussian policy with a
+   state-independent std (``--log-std``). After a warm start the first
+   ``--critic-warmup`` iterations train only the critic (a fresh critic's
+   advantages would undo the warm start), but never all of them: at least
+   one iteration of the budget updates the actor. ``--frames`` equal to the
+   warm start's frames skips PPO; a budget below the warm start, or leaving
+   PPO less than one iteration, is refused (the message names the smallest
+   that works).
 3. **Evaluation** (``--eval-episodes``): the deterministic policy (the mean)
    on the spec's held-out scenes (seed `HELDOUT_SEED`), option success with
    a 95% Wilson interval, printed and written to ``DIR/summary.json``.
 
-The run directory (`hier_agents.learning.rundir`): ``config.json``,
+The run directory (`hier_agents.learning.rundir`; a fresh run refuses a
+directory that holds one, ``--resume`` needs one): ``config.json``,
 ``checkpoint.pt`` (atomic; everything to resume bit-identically: networks,
 optimiser, counters, random states; the vector env restarts from a seed at
 every checkpoint), ``scalars.jsonl`` + TensorBoard, a progress bar, Ctrl-C
@@ -40,7 +48,6 @@ against the teacher on the same held-out scenes and writes ``--json``.
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import sys
@@ -51,8 +58,10 @@ import numpy as np
 import torch
 from torch import nn
 
+from envs.cli import (Parser, UsageError, choice, existing_file, fraction, non_negative_float,
+                      non_negative_int, output_file, plural, positive_int, run_main)
 from hier_agents.learning import ppo
-from hier_agents.learning.cloning import clone
+from hier_agents.learning.cloning import clone, warm_start_frames
 from hier_agents.learning.rundir import RunDir, seed_everything
 from hier_agents.learning.skill_env import SkillEnv
 from hier_agents.learning.skill_spec import spec as spec_named
@@ -62,6 +71,7 @@ __all__ = ["Agent", "export_policy", "evaluate", "train", "main", "HELDOUT_SEED"
 
 #: Seeds of the held-out evaluation scenes (training uses ``--seed``).
 HELDOUT_SEED = 10_000
+PROG = "python -m hier_agents.learning.train_skill"
 
 
 def mlp(sizes, out_std: float) -> nn.Sequential:
@@ -172,7 +182,7 @@ def _mean_policy(agent: Agent):
 def evaluate_only(args, spec) -> int:
     """``--evaluate``: a checkpoint against the teacher, on the same scenes."""
     from skills.learned.policy import load_policy
-    path = Path(args.evaluate) if args.evaluate else spec.checkpoint
+    path = spec.checkpoint if args.evaluate is True else Path(args.evaluate)
     skill = spec.make_skill(None)
     policy = load_policy(path, skill.FEATURES)
     kw = dict(estimator=args.estimator, t_abs=args.t_abs, progress=True)
@@ -180,13 +190,13 @@ def evaluate_only(args, spec) -> int:
     rows = {"learned (deterministic)": evaluate(
                 spec, lambda obs, info: np.clip(policy(obs), -1, 1), args.eval_episodes, **kw),
             "teacher": evaluate(spec, teacher_policy, args.eval_episodes, **kw)}
-    print(f"{path} on {args.eval_episodes} held-out {spec.name} options (seed {HELDOUT_SEED}, "
+    print(f"{path} on {plural(args.eval_episodes, 'held-out option')} of {spec.name} (seed "
+          f"{HELDOUT_SEED}, "
           f"estimator {rows['teacher']['estimator']}"
           f"{', PRIVILEGED' if rows['teacher']['privileged'] else ', observation-only'})")
     print_table(rows)
     if args.json:
         from hier_agents.provenance import provenance
-        args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(json.dumps(
             {"skill": spec.name, "policy": str(path), "policy_meta": policy.meta, "rows": rows,
              "wall_s": round(time.perf_counter() - t0, 1),
@@ -202,9 +212,42 @@ def _vector_env(spec, args, seed: int):
     return ppo.make_vector_env(thunks, asynchronous=args.async_envs)
 
 
+def budget(args) -> tuple[int, int, int]:
+    """The budget ``args.frames`` split: (warm-start frames, PPO iterations of
+    ``args.envs * args.rollout`` frames, critic-only iterations among them).
+
+    Raises:
+      UsageError: a budget below the warm start's frames, or leaving PPO
+        frames that do not pay for one iteration (the message names the
+        smallest budget that works).
+    """
+    warm = warm_start_frames(args.bc_frames, args.dagger_frames, args.dagger_rounds)
+    per_iter = args.envs * args.rollout
+    if args.frames < warm:
+        raise UsageError(f"--frames {args.frames} is less than the warm start's "
+                         f"{plural(warm, 'frame')} (--bc-frames + --dagger-rounds x "
+                         f"--dagger-frames); give --frames >= {warm}")
+    if warm:
+        what = (f"the PPO budget (--frames {args.frames} minus the warm start's {warm}: "
+                f"{plural(args.frames - warm, 'frame')})")
+        fix = (f"give --frames {warm} (the warm start only) or >= {warm + per_iter}, or a "
+               f"smaller --envs x --rollout")
+    else:
+        what = f"--frames {args.frames}"
+        fix = f"give --frames >= {per_iter}, or a smaller --envs x --rollout"
+    iterations = ppo.iterations(args.frames - warm, per_iter, what, fix)
+    return warm, iterations, ppo.critic_warmup(iterations, args.critic_warmup) if warm else 0
+
+
 def _ppo(spec, agent, optimizer, state, run, args, save) -> None:
-    """PPO iterations until ``args.frames`` frames (the counters in ``state``)."""
+    """PPO iterations until ``args.frames`` frames (the counters in
+    ``state``); the first `budget` critic-only iterations after a warm start
+    train the critic alone, unless an earlier iteration of the run already
+    updated the actor."""
     cfg, per_iter = ppo.config_from_args(args), args.envs * args.rollout
+    _, _, warmup = budget(args)
+    if state["frames"] + per_iter > args.frames:
+        return
     envs = _vector_env(spec, args, args.seed * 1000 + 100)
     collector = ppo.RolloutCollector(envs, agent, args.rollout)
     collector.reset(seed=args.seed * 1000 + 100 + state["iteration"])
@@ -214,9 +257,11 @@ def _ppo(spec, agent, optimizer, state, run, args, save) -> None:
                        desc=f"ppo {spec.name}")
     try:
         while state["frames"] + per_iter <= args.frames and not run.stop_requested:
-            warm = state["bc_frames"] > 0 and state["ppo_iterations"] < args.critic_warmup
+            critic_only = (state["bc_frames"] > 0 and state["actor_iterations"] == 0
+                           and state["ppo_iterations"] < warmup)
             left = 1.0 - state["frames"] / max(args.frames, 1)
-            rollout, stats = ppo.iteration(collector, optimizer, cfg, left, actor=not warm)
+            rollout, stats = ppo.iteration(collector, optimizer, cfg, left,
+                                           actor=not critic_only)
             sim_now = np.asarray(rollout.last_info.get("sim_steps", sim_before), float)
             state["sim_steps"] += int(np.maximum(sim_now - sim_before, 0).sum())
             sim_before = sim_now
@@ -224,9 +269,10 @@ def _ppo(spec, agent, optimizer, state, run, args, save) -> None:
             state["frames"] += per_iter
             state["iteration"] += 1
             state["ppo_iterations"] += 1
+            state["actor_iterations"] += 0 if critic_only else 1
             success = float(np.mean(recent)) if recent else float("nan")
             run.log(state["frames"], {"option_success": success, "options": len(recent),
-                                      "sim_steps": state["sim_steps"],
+                                      "sim_steps": state["sim_steps"], "actor": not critic_only,
                                       "std": agent.log_std.exp().mean().item(), **stats})
             bar.update(per_iter)
             bar.set_postfix(success=f"{success:.2f}")
@@ -238,9 +284,21 @@ def _ppo(spec, agent, optimizer, state, run, args, save) -> None:
         envs.close()
 
 
-def train(args) -> dict:
-    """Trains ``args.spec``'s skill (module docstring); returns the summary."""
+def train(args, command: str = PROG) -> dict:
+    """Trains ``args.spec``'s skill (module docstring; ``args`` as `parse_args`
+    gives them, ``command`` recorded in the policy's meta); returns the summary.
+
+    Raises:
+      UsageError: a budget `budget` refuses; ``args.logdir`` is a file, holds a
+        run without ``args.resume`` or another run (another spec, width, seed,
+        envs or rollout, or another trainer's) with it, or holds none with
+        it (`RunDir`); all before anything is trained.
+    """
     spec = spec_named(args.spec)
+    budget(args)
+    config = {k: (str(v) if isinstance(v, Path) else v) for k, v in vars(args).items()}
+    run = RunDir(args.logdir, config, resume=args.resume, trainer=PROG,
+                 fixed=("spec", "hidden", "seed", "envs", "rollout"))
     probe = spec.make_skill(None)
     seed_everything(args.seed)
     torch.set_num_threads(1)
@@ -248,17 +306,15 @@ def train(args) -> dict:
                   args.log_std if args.log_std is not None
                   else (-1.6 if args.bc_frames > 0 else -0.5))
     optimizer = torch.optim.Adam(agent.parameters(), lr=args.lr, eps=1e-5)
-    state = {"iteration": 0, "ppo_iterations": 0, "frames": 0, "sim_steps": 0,
-             "bc_frames": 0, "wall_s": 0.0}
-    config = {k: (str(v) if isinstance(v, Path) else v) for k, v in vars(args).items()}
-    run = RunDir(args.logdir, config, resume=args.resume,
-                 fixed=("spec", "hidden", "seed", "envs", "rollout"))
+    state = {"iteration": 0, "ppo_iterations": 0, "actor_iterations": 0, "frames": 0,
+             "sim_steps": 0, "bc_frames": 0, "wall_s": 0.0}
     saved = run.load()
     if saved is not None:
         agent.load_state_dict(saved["agent"])
         optimizer.load_state_dict(saved["optimizer"])
         state.update(saved["state"])
-        print(f"resumed {args.logdir}: iteration {state['iteration']}, {state['frames']} frames")
+        print(f"resumed {args.logdir}: iteration {state['iteration']}, "
+              f"{plural(state['frames'], 'frame')}")
     policy_path = Path(args.logdir) / f"{spec.name}_policy.pt"
     t0, wall0 = time.perf_counter(), state["wall_s"]
 
@@ -269,8 +325,7 @@ def train(args) -> dict:
         export_policy(agent, probe.FEATURES, policy_path,
                       {"frames": state["frames"], "sim_steps": state["sim_steps"],
                        "bc_frames": state["bc_frames"], "seed": args.seed, "spec": spec.name,
-                       "iteration": state["iteration"], "command": " ".join(["python -m hier_agents.learning.train_skill",
-                                             *sys.argv[1:]]),
+                       "iteration": state["iteration"], "command": command,
                        "trained_with": "hier_agents.learning.train_skill"})
 
     with run, run.interruptible():
@@ -302,67 +357,101 @@ def _summary(spec, agent, state, args, policy_path) -> dict:
     return {"spec": spec.name, "seed": args.seed, "envs": args.envs,
             "frames": state["frames"], "bc_frames": state["bc_frames"],
             "ppo_frames": state["frames"] - state["bc_frames"], "sim_steps": state["sim_steps"],
-            "iterations": state["iteration"], "wall_s": round(state["wall_s"], 1),
+            "iterations": state["iteration"],
+            "actor_iterations": state.get("actor_iterations", 0),
+            "wall_s": round(state["wall_s"], 1),
             "eval": rows or {"learned (deterministic)": {"success": float("nan")}},
             "policy": str(policy_path), "torch": torch.__version__}
 
 
 def parse_args(argv=None):
-    p = argparse.ArgumentParser(prog="python -m hier_agents.learning.train_skill",
-                                description=__doc__.split("\n\n")[0],
-                                formatter_class=argparse.ArgumentDefaultsHelpFormatter)
-    p.add_argument("spec", help="the skill spec: ball or arm")
-    p.add_argument("--frames", type=int, help="budget: agent control steps (warm start + PPO)")
-    p.add_argument("--logdir", type=Path, help="the run directory")
-    p.add_argument("--evaluate", nargs="?", const="", metavar="PATH",
-                   help="evaluate a checkpoint (default: the shipped one) against the teacher")
-    p.add_argument("--estimator", default=None, help="scene estimator (default: the spec's)")
-    p.add_argument("--json", type=Path, help="--evaluate: write the results here")
-    p.add_argument("--envs", type=int, default=2, help="vectorised environments")
-    p.add_argument("--async-envs", action="store_true", help="one process per environment")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--resume", action="store_true", help="continue DIR/checkpoint.pt")
-    p.add_argument("--bc-frames", type=int, default=20_000, help="frames of the noisy teacher")
-    p.add_argument("--bc-epochs", type=int, default=60, help="epochs of every fit")
-    p.add_argument("--bc-noise", type=float, default=0.2, help="action noise std (cloning)")
-    p.add_argument("--bc-noise-prob", type=float, default=1.0,
-                   help="fraction of cloning options with noise")
-    p.add_argument("--dagger-frames", type=int, default=20_000, help="frames per DAgger round")
-    p.add_argument("--dagger-rounds", type=int, default=1)
-    p.add_argument("--dagger-noise", type=float, default=0.1, help="action noise std (DAgger)")
-    p.add_argument("--dagger-noise-prob", type=float, default=1.0,
-                   help="fraction of DAgger options with noise")
-    p.add_argument("--dagger-mix", type=float, default=1.0,
-                   help="probability that the student (not the teacher) acts, per DAgger step")
-    p.add_argument("--hidden", type=int, default=64, help="hidden units per layer")
-    p.add_argument("--log-std", type=float, default=None,
-                   help="initial log-std (default: -1.6 after a warm start, else -0.5)")
+    """The command line, checked before any work (`UsageError` or the
+    parser's one-line error): the spec and estimator names, training's
+    required ``--frames``/``--logdir`` and its `budget`, ``--evaluate``'s
+    file, ``--json`` (its folder is created)."""
+    from hier_agents.learning.skill_spec import SPECS
+
+    p = Parser(PROG, description=__doc__.split("\n\n")[0],
+               epilog="--frames and --logdir are required for training, not with --evaluate.")
+    add = p.add_argument
+    add("spec", help="the skill spec (ball, arm)")
+    add("--frames", type=positive_int, default=None,
+        help="training budget, required: agent control steps (warm start + PPO)")
+    add("--logdir", type=Path, default=None,
+        help="training's run directory, required (a fresh run refuses one that holds a run)")
+    add("--evaluate", nargs="?", const=True, metavar="PATH", type=existing_file,
+        help="evaluate a checkpoint (default: the shipped one) against the teacher")
+    add("--estimator", default=None, help="scene estimator (default: the spec's first)")
+    add("--json", type=Path, help="--evaluate: write the results here")
+    add("--envs", type=positive_int, default=2, help="vectorised environments")
+    add("--async-envs", action="store_true", help="one process per environment")
+    add("--seed", type=non_negative_int, default=0, help="seed of everything")
+    add("--resume", action="store_true", help="continue LOGDIR/checkpoint.pt (required there)")
+    add("--bc-frames", type=non_negative_int, default=20_000,
+        help="frames of the noisy teacher (0: no warm start)")
+    add("--bc-epochs", type=positive_int, default=60, help="epochs of every fit")
+    add("--bc-noise", type=non_negative_float, default=0.2,
+        help="action noise std (cloning)")
+    add("--bc-noise-prob", type=fraction, default=1.0,
+        help="fraction of cloning options with noise")
+    add("--dagger-frames", type=non_negative_int, default=20_000,
+        help="frames per DAgger round")
+    add("--dagger-rounds", type=non_negative_int, default=1, help="DAgger rounds")
+    add("--dagger-noise", type=non_negative_float, default=0.1,
+        help="action noise std (DAgger)")
+    add("--dagger-noise-prob", type=fraction, default=1.0,
+        help="fraction of DAgger options with noise")
+    add("--dagger-mix", type=fraction, default=1.0,
+        help="probability that the student (not the teacher) acts, per DAgger step")
+    add("--hidden", type=positive_int, default=64, help="hidden units per layer")
+    add("--log-std", type=float, default=None,
+        help="initial log-std (default: -1.6 after a warm start, else -0.5)")
     ppo.add_arguments(p, rollout=256, epochs=5, minibatches=4, lr=1e-4, anneal_lr=False,
                       gamma=0.99, lam=0.95, clip=0.1, ent_coef=0.0, vf_coef=0.5,
                       max_grad_norm=0.5)
-    p.add_argument("--critic-warmup", type=int, default=3,
-                   help="critic-only PPO iterations after a warm start")
-    p.add_argument("--t-abs", type=int, default=None, help="option cut-off (default: the spec's)")
-    p.add_argument("--save-every", type=int, default=5, help="iterations between checkpoints")
-    p.add_argument("--eval-episodes", type=int, default=100, help="held-out options; 0: skip")
+    add("--critic-warmup", type=non_negative_int, default=3,
+        help="critic-only PPO iterations after a warm start (at most all but one)")
+    add("--t-abs", type=positive_int, default=None, help="option cut-off (default: the spec's)")
+    add("--save-every", type=positive_int, default=5, help="iterations between checkpoints")
+    add("--eval-episodes", type=non_negative_int, default=100,
+        help="held-out options; 0: skip (at least 1 with --evaluate)")
     args = p.parse_args(argv)
     try:
-        spec_named(args.spec)
-    except ValueError as error:
-        p.error(str(error))
-    if args.evaluate is None and (args.frames is None or args.logdir is None):
-        p.error("training needs --frames and --logdir")
-    if args.envs < 1 or args.rollout < 1:
-        p.error("--envs and --rollout must be >= 1")
+        spec = spec_named(args.spec)
+    except ValueError:
+        choice("skill spec", args.spec, sorted(SPECS))
+        raise
+    if args.estimator is not None:
+        choice(f"estimator of the {spec.name} skill", args.estimator, spec.estimators)
+    if args.evaluate is not None:
+        if args.eval_episodes < 1:
+            raise UsageError("--evaluate needs --eval-episodes >= 1")
+        output_file(args.json, "--json")
+        return args
+    missing = [flag for flag, value in (("--frames", args.frames), ("--logdir", args.logdir))
+               if value is None]
+    if missing:
+        raise UsageError(f"training needs {' and '.join(missing)} (or --evaluate)")
+    if args.json is not None:
+        raise UsageError("--json goes with --evaluate (training writes LOGDIR/summary.json)")
+    budget(args)
     return args
 
 
-def main(argv=None) -> int:
+def _main(argv) -> int:
     args = parse_args(argv)
     if args.evaluate is not None:
         return evaluate_only(args, spec_named(args.spec))
-    train(args)
+    command = " ".join([PROG, *(sys.argv[1:] if argv is None else argv)])
+    train(args, command)
     return 0
+
+
+def main(argv=None) -> int:
+    """``python -m hier_agents.learning.train_skill``: trains (or evaluates);
+    exit status 0, 2 with one line on stderr for a bad input
+    (`envs.cli.run_main`)."""
+    return run_main(PROG, _main, argv)
 
 
 if __name__ == "__main__":

@@ -186,15 +186,18 @@ class Actor:
 
 def _local_worker(config: ActorConfig, actor_id: int, shared_net, version, out_queue,
                   stop_event) -> None:
-    """Process body: copy the shared weights when they change, unroll, queue."""
+    """Process body: copy the shared weights when they change, unroll, queue;
+    stops when ``stop_event`` is set or the learner's process is gone (killed
+    without closing its actors, e.g. out of memory)."""
     # Ctrl-C signals the whole process group; the learner stops us through stop_event.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     os.environ.setdefault("MUJOCO_GL", "egl")
+    learner = os.getppid()
     actor = None
     try:
         actor = Actor(config, actor_id)
         seen = -1
-        while not stop_event.is_set():
+        while not stop_event.is_set() and os.getppid() == learner:
             weights = None
             if version.value != seen:
                 seen = version.value
@@ -202,7 +205,7 @@ def _local_worker(config: ActorConfig, actor_id: int, shared_net, version, out_q
             unrolls = actor.unroll(weights)
             for u in unrolls:
                 u["policy_version"] = seen
-            while not stop_event.is_set():
+            while not stop_event.is_set() and os.getppid() == learner:
                 try:
                     out_queue.put(("unrolls", actor_id, unrolls), timeout=0.5)
                     break

@@ -112,13 +112,13 @@ from abstract_planners.base import Subgoal
 # own; every name stays importable from here.
 from hier_agents.baselines.impala.agent_env_spec import (  # noqa: F401
     _BOARD_PROPRIO, _BOX, _MUJOBAN_PROPRIO, _PLAYER, CONDITIONS, DISCOUNTS, EXPERT_PLANNER,
-    PLANNER_ACTIONS, PROPRIO_KEYS, InputSpec, StepResult, _gamma, _load_env)
+    PLANNER_ACTIONS, PROPRIO_KEYS, InputSpec, StepResult, _gamma, _load_env, main_camera_only)
 from hier_agents.baselines.impala.agent_env_subepisodes import SubEpisodeMixin
 from hier_agents.modular.families import family
 from hier_agents.modular.options import T_ABS
 
 __all__ = ["AgentEnv", "CONDITIONS", "DISCOUNTS", "InputSpec", "PLANNER_ACTIONS",
-           "PROPRIO_KEYS", "StepResult"]
+           "PROPRIO_KEYS", "StepResult", "main_camera_only"]
 
 
 class AgentEnv(SubEpisodeMixin):

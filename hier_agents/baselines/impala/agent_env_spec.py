@@ -58,6 +58,22 @@ class InputSpec:
     action_dim: int
     state_shape: tuple[int, int, int] | None = None
 
+    @property
+    def keys(self) -> tuple[str, ...]:
+        """The observation keys, in order: ``"proprio"``, the cameras,
+        ``"planner"``, ``"planner_action"``, ``"state"`` (those present)."""
+        return (("proprio",) + tuple(name for name, _ in self.images)
+                + (("planner",) if self.planner_shape is not None else ())
+                + (("planner_action",) if self.planner_action_dim else ())
+                + (("state",) if self.state_shape is not None else ()))
+
+    @property
+    def privileged(self) -> bool:
+        """Whether an input comes from the simulator's abstract state instead
+        of the agent's sensors: ``"state"`` (``state=True``) or the planner
+        planes (planner conditions; built from the ground-truth estimator)."""
+        return self.planner_shape is not None or self.state_shape is not None
+
 
 class StepResult(NamedTuple):
     """One `AgentEnv.step` (see the module docstring for the semantics)."""
@@ -90,3 +106,19 @@ def _load_env(env_name: str, seed, image_size: int, cameras: bool, overrides: di
     if "raise_on_physics_error" in valid:
         kwargs.setdefault("raise_on_physics_error", False)
     return envs.load(env_name, seed=seed, **kwargs)
+
+
+def main_camera_only(env_name: str) -> dict[str, None]:
+    """The `envs.load` overrides that turn off every camera of ``env_name``
+    but its main one (``task.main_camera``: MuJoBan's top view; the board
+    games have only the front view, so nothing). Builds the environment once
+    with its cameras off (well under a second) to read the main camera.
+
+    Raises:
+      KeyError: unknown name (`envs.UnknownEnvironmentError`)."""
+    env = envs.load(env_name, **envs.no_cameras(env_name))
+    try:
+        main = env.task.main_camera
+    finally:
+        env.close()
+    return {key: None for key in envs.no_cameras(env_name) if key != main}

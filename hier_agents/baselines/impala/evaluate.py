@@ -2,10 +2,12 @@
 
 `play_checkpoint` runs the checkpoint's policy (the Gaussian's mean by
 default, or samples with ``stochastic=True``) in the environment it was
-trained on, built the same way (same condition, cameras, abstract inputs),
+trained on, built the same way (same condition, cameras, abstract inputs;
+``env_options`` may change other settings, such as MuJoBan's ``levels``),
 and returns per-episode rows that `hier_agents.run` turns into its table and
 JSON: ``return``, ``steps``, ``wall_s``, ``solved`` (MuJoBan) or ``outcome``
-(board games), and the auxiliary subgoal counts for planner conditions.
+(board games), and the auxiliary subgoal counts for planner conditions; and
+what the agent observed (``observations``, ``privileged``).
 
 `play_random` gives the same rows for uniformly random actions (each action
 component drawn independently from its bounds, a new draw every ``hold``
@@ -21,11 +23,14 @@ import time
 
 import numpy as np
 
+from envs.cli import UsageError, plural
+
 
 def parse_agent(spec: str) -> str:
-    """The checkpoint path of an ``--agent checkpoint:PATH`` value."""
+    """The checkpoint path of an ``--agent checkpoint:PATH`` value
+    (`UsageError` for anything else)."""
     if not spec.startswith("checkpoint:") or not spec[len("checkpoint:"):]:
-        raise ValueError(f"--agent must be 'modular' or 'checkpoint:PATH', got {spec!r}")
+        raise UsageError(f"--agent must be 'modular' or 'checkpoint:PATH', got {spec!r}")
     return spec[len("checkpoint:"):]
 
 
@@ -40,21 +45,24 @@ def _outcome_row(row: dict, task, fam: str) -> dict:
 
 
 def parse_random(spec: str) -> int:
-    """The hold (control steps per draw) of an ``--agent random[:HOLD]`` value."""
+    """The hold (control steps per draw) of an ``--agent random[:HOLD]`` value
+    (`UsageError` for anything else)."""
     name, _, hold = spec.partition(":")
     try:
         value = int(hold) if hold else 1
     except ValueError:
         value = 0
     if name != "random" or value < 1:
-        raise ValueError(f"a random agent is 'random' or 'random:HOLD' with HOLD >= 1 control "
+        raise UsageError(f"a random agent is 'random' or 'random:HOLD' with HOLD >= 1 control "
                          f"steps per draw, got {spec!r}")
     return value
 
 
-def _play_episodes(desc: str, episodes: int, progress: bool, play_one, close) -> list[dict]:
+def _play_episodes(desc: str, episodes: int, progress: bool, play_one, close,
+                   on_rows=None) -> list[dict]:
     """``play_one(episode) -> row`` for every episode, each row given its
-    ``wall_s``, under a progress bar; ``close()`` runs at the end, even on an
+    ``wall_s``, under a progress bar; ``on_rows(rows)`` (if given) after every
+    episode with the rows so far; ``close()`` runs at the end, even on an
     error."""
     from tqdm import tqdm
     rows = []
@@ -66,6 +74,8 @@ def _play_episodes(desc: str, episodes: int, progress: bool, play_one, close) ->
             row["wall_s"] = time.perf_counter() - start
             rows.append(row)
             bar.update(1)
+            if on_rows is not None:
+                on_rows(rows)
     finally:
         bar.close()
         close()
@@ -73,8 +83,9 @@ def _play_episodes(desc: str, episodes: int, progress: bool, play_one, close) ->
 
 
 def play_random(env_name: str, episodes: int, seed: int = 0, *, hold: int = 1,
-                progress: bool = True) -> tuple[list[dict], dict]:
-    """Uniformly random actions, a new draw every ``hold`` steps (cameras off)."""
+                progress: bool = True, on_rows=None) -> tuple[list[dict], dict]:
+    """Uniformly random actions, a new draw every ``hold`` steps (cameras off);
+    ``on_rows(rows)`` after every episode (as `play_checkpoint`)."""
 
     import envs
     from hier_agents.modular.components import family
@@ -97,36 +108,70 @@ def play_random(env_name: str, episodes: int, seed: int = 0, *, hold: int = 1,
         return _outcome_row({"episode": episode, "return": ret, "steps": steps,
                              "subgoals_issued": 0, "subgoals_reached": 0}, env.task, fam)
 
-    rows = _play_episodes(f"{env_name} random", episodes, progress, one, env.close)
-    return rows, {"condition": f"uniform random actions, held {hold} steps", "trained_env": "-",
-                  "training_frames": 0, "training_updates": 0}
+    rows = _play_episodes(f"{env_name} random", episodes, progress, one, env.close, on_rows)
+    return rows, {"condition": f"uniform random actions, held {plural(hold, 'step')}",
+                  "trained_env": "-", "training_frames": 0, "training_updates": 0}
 
 
 def play_checkpoint(env_name: str, path: str, episodes: int, seed: int = 0, *,
                     stochastic: bool = False, video: str | None = None,
-                    progress: bool = True) -> tuple[list[dict], dict]:
-    """Plays ``episodes`` episodes; returns (rows, info about the checkpoint)."""
+                    progress: bool = True, env_options: dict | None = None,
+                    on_rows=None) -> tuple[list[dict], dict]:
+    """Plays ``episodes`` episodes of the checkpoint's policy in ``env_name``.
+
+    Args:
+      env_name: an environment of the family the checkpoint was trained on.
+      path: the checkpoint file or its run directory.
+      episodes, seed: episodes to play; seed of the environment (and of the
+        samples with ``stochastic``).
+      stochastic: sample actions instead of playing the mean.
+      video: write the first episode's main camera (256x256, 20 fps) here.
+      progress: a progress bar on stderr.
+      env_options: `envs.load` overrides applied on top of the run's own
+        (e.g. ``{"levels": PATH}`` for MuJoBan); they must leave the inputs
+        the network expects unchanged.
+      on_rows: called with the rows played so far after every episode.
+
+    Returns:
+      (rows, info): a row per episode (module docstring); info has
+      ``condition``, ``trained_env``, ``training_frames``,
+      ``training_updates``, ``observations`` (the input keys the agent
+      observed) and ``privileged`` (whether any came from the simulator's
+      abstract state).
+
+    Raises:
+      FileNotFoundError: no checkpoint at ``path``.
+      UsageError: not a checkpoint of ``python -m hier_agents.train``;
+        another family's; an unknown or bad option; options that change the
+        network's inputs.
+    """
     import torch
 
+    import envs
     from hier_agents.modular.components import family
     from hier_agents.baselines.impala.agent_env import AgentEnv
-    from hier_agents.baselines.impala.learner import load_checkpoint, net_from_checkpoint
+    from hier_agents.baselines.impala.learner import (load_checkpoint, net_from_checkpoint,
+                                                      observed)
 
     ckpt = load_checkpoint(path)
     config = ckpt["config"]
     fam = family(env_name)
     if family(config["env"]) != fam:
-        raise ValueError(f"checkpoint {path} was trained on {config['env']!r}, a "
+        raise UsageError(f"checkpoint {path} was trained on {config['env']!r}, a "
                          f"{family(config['env'])} environment; cannot play {env_name!r}")
+    overrides = {**config.get("env_overrides", {}), **(env_options or {})}
+    try:
+        envs.check(env_name, seed=seed, **overrides)
+    except (TypeError, ValueError) as exc:
+        raise UsageError(f"{env_name}: {exc}") from None
     net, spec = net_from_checkpoint(ckpt)
     torch.set_num_threads(1)
     env = AgentEnv(env_name, config["condition"], seed=seed, cameras=config["cameras"],
                    image_size=config["image_size"], state=config.get("state", False),
-                   t_abs=config["t_abs"],
-                   abs_reward=config["abs_reward"], **config.get("env_overrides", {}))
+                   t_abs=config["t_abs"], abs_reward=config["abs_reward"], **overrides)
     if env.input_spec != spec:
         env.close()
-        raise ValueError(f"{env_name!r} gives inputs {env.input_spec}, the checkpoint expects "
+        raise UsageError(f"{env_name!r} gives inputs {env.input_spec}, the checkpoint expects "
                          f"{spec}")
     generator = torch.Generator().manual_seed(seed)
     frames = []
@@ -155,12 +200,15 @@ def play_checkpoint(env_name: str, path: str, episodes: int, seed: int = 0, *,
                "subgoals_reached": int(info.get("subgoals_reached", 0))}
         return _outcome_row(row, env.env.task, fam)
 
-    rows = _play_episodes(f"{env_name} checkpoint", episodes, progress, one, env.close)
+    rows = _play_episodes(f"{env_name} checkpoint", episodes, progress, one, env.close,
+                          on_rows)
     if video and frames:
         import imageio.v2 as imageio
         imageio.mimwrite(video, frames, fps=20, macro_block_size=1)
+    observations, privileged = observed(config, spec)
     info = {"condition": config["condition"] + (" (sampled)" if stochastic else ""),
             "trained_env": config["env"],
             "training_frames": int(ckpt["counters"].get("frames", 0)),
-            "training_updates": int(ckpt["counters"].get("updates", 0))}
+            "training_updates": int(ckpt["counters"].get("updates", 0)),
+            "observations": observations, "privileged": privileged}
     return rows, info

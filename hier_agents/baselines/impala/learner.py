@@ -4,9 +4,10 @@
 
 1. start the actors (`LocalActors` processes or `RayActors`) with the
    learner's current weights;
-2. take unrolls as they arrive until ``batch_size`` of them are gathered,
-   stack them ``[T + 1, B, ...]`` and replay them through the network from
-   the actors' recorded core states;
+2. take unrolls as they arrive until a batch is gathered (``batch_size``
+   unrolls; the last update only the unrolls the budget has left), stack
+   them ``[T + 1, B, ...]`` and replay them through the network from the
+   actors' recorded core states;
 3. one RMSProp step on `impala_loss` (V-trace; two value heads and the sum of
    both advantage terms for the planner conditions), gradient norm clipped;
 4. publish the new weights; log scalars (`hier_agents.learning.rundir`: the
@@ -15,15 +16,25 @@
    ``keep_checkpoints``, also a copy ``checkpoints/frames-N.pt`` each time,
    for learning curves: `benchmarks/learning_curve.py`).
 
-Frames are environment control steps consumed by the learner. A run whose
-logdir holds a checkpoint of the same environment and condition resumes from
-it: weights, optimiser, frame and update counts, episode statistics, random
-states (``config.json`` records the configuration).
+Frames are environment control steps consumed by the learner. The budget
+``steps`` is met exactly when it is a multiple of ``unroll_length`` (else
+overshot by less than one unroll): every update takes ``batch_size`` unrolls
+of ``unroll_length`` steps, except that the last one takes only the unrolls
+the budget still needs (so a budget below one batch trains one smaller
+batch); a budget below one unroll is refused.
+
+A run whose logdir holds a checkpoint of the same environment, condition and
+observations resumes from it: weights, optimiser, frame and update counts,
+episode statistics, random states. ``config.json`` records the
+configuration, the trainer and, once the first environment is built, what
+the agent observes: ``observations`` (the input keys, `InputSpec.keys`) and
+``privileged`` (`InputSpec.privileged`).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 import sys
 import time
 from collections import deque
@@ -31,6 +42,7 @@ from pathlib import Path
 
 import numpy as np
 
+from envs.cli import UsageError, choice, plural
 from hier_agents.baselines.impala.actors import ActorConfig, LocalActors, RayActors, stack_states
 from hier_agents.learning.rundir import CHECKPOINT, KEPT, SCALARS, RunDir
 from hier_agents.modular.options import T_ABS
@@ -38,11 +50,20 @@ from hier_agents.modular.options import T_ABS
 #: Paper's batch sizes (unrolls per update): board games 64, MuJoBan 128.
 PAPER_BATCH = {"mujoban": 128, "mujoxo": 64, "mujogo": 64}
 KEPT_CHECKPOINTS = KEPT  # folder of `keep_checkpoints` copies, frames-N.pt
+#: The trainer recorded in its run directories (`RunDir`'s ``trainer``).
+TRAINER = "python -m hier_agents.train"
 
 
 @dataclasses.dataclass
 class TrainConfig:
-    """Everything a training run depends on (saved in ``config.json`` and its checkpoint)."""
+    """Everything a training run depends on (saved in ``config.json`` and its checkpoint).
+
+    Observations: proprioception always; ``cameras`` the paper's camera views
+    (``image_size`` squared; ``env_overrides`` may turn views off, e.g.
+    `main_camera_only`); ``state`` the current abstract state (privileged);
+    the planner conditions add the planner's planes (see `AgentEnv`).
+    ``steps`` is the frame budget (module docstring).
+    """
 
     env: str
     condition: str = "vanilla"
@@ -61,7 +82,7 @@ class TrainConfig:
     grad_clip: float = 40.0
     baseline_cost: float = 0.5
     entropy_cost: float = 1e-3
-    cameras: bool = False
+    cameras: bool = True
     image_size: int = 96
     state: bool = False  # observe the current abstract state (AgentEnv(state=True))
     t_abs: int = T_ABS
@@ -74,17 +95,31 @@ class TrainConfig:
     env_overrides: dict = dataclasses.field(default_factory=dict)
 
     def validate(self) -> None:
+        """Checks the configuration without building anything.
+
+        Raises:
+          UsageError: an unknown environment, condition or backend (with the
+            closest valid name), a count below 1, a seed below 0, or a budget
+            (``steps``) below one unroll.
+        """
+        import envs
         from hier_agents.baselines.impala.agent_env import CONDITIONS
 
-        if self.condition not in CONDITIONS:
-            raise ValueError(f"unknown agent {self.condition!r}; valid: {list(CONDITIONS)}")
-        if self.backend not in ("local", "ray"):
-            raise ValueError(f"unknown backend {self.backend!r}; valid: ['local', 'ray']")
-        for name in ("steps", "actors", "envs_per_actor", "unroll_length"):
+        choice("environment", self.env, envs.names())
+        choice("condition", self.condition, CONDITIONS)
+        choice("backend", self.backend, ("local", "ray"))
+        for name in ("steps", "actors", "envs_per_actor", "unroll_length", "image_size",
+                     "t_abs"):
             if int(getattr(self, name)) < 1:
-                raise ValueError(f"{name} must be >= 1, got {getattr(self, name)!r}")
+                raise UsageError(f"{name} must be >= 1, got {getattr(self, name)!r}")
         if self.batch_size is not None and self.batch_size < 1:
-            raise ValueError(f"batch_size must be >= 1, got {self.batch_size!r}")
+            raise UsageError(f"batch_size must be >= 1, got {self.batch_size!r}")
+        if int(self.seed) < 0:
+            raise UsageError(f"seed must be >= 0, got {self.seed!r}")
+        if self.steps < self.unroll_length:
+            raise UsageError(f"a budget of {plural(self.steps, 'frame')} is less than one unroll "
+                             f"of {plural(self.unroll_length, 'frame')}: give --frames >= "
+                             f"{self.unroll_length} or a shorter --unroll-length")
 
     def resolved_batch(self, family: str) -> int:
         return int(self.batch_size or PAPER_BATCH[family])
@@ -167,6 +202,14 @@ def learner_step(net, optimizer, batch, config: TrainConfig,
 
 
 def load_checkpoint(path: str | Path) -> dict:
+    """The checkpoint of a `train` run: ``path`` is its file or its run directory.
+
+    Raises:
+      FileNotFoundError: no checkpoint there.
+      UsageError: the file is not a checkpoint of this trainer (unreadable, or
+        another trainer's: no ``model``, ``input_spec``, ``config`` or
+        ``counters``).
+    """
     import torch
 
     path = Path(path)
@@ -174,7 +217,16 @@ def load_checkpoint(path: str | Path) -> dict:
         path = path / CHECKPOINT
     if not path.exists():
         raise FileNotFoundError(f"no checkpoint at {path}")
-    return torch.load(path, map_location="cpu", weights_only=False)
+    try:
+        ckpt = torch.load(path, map_location="cpu", weights_only=False)
+    except Exception as exc:  # noqa: BLE001 - whatever is wrong with the file, it is the input
+        raise UsageError(f"{path} is not a readable checkpoint ({type(exc).__name__})") from None
+    missing = [k for k in ("model", "input_spec", "config", "counters")
+               if not isinstance(ckpt, dict) or k not in ckpt]
+    if missing:
+        raise UsageError(f"{path} is not a checkpoint of {TRAINER} (it has no "
+                         f"{', '.join(missing)})")
+    return ckpt
 
 
 def _spec_from_dict(d: dict):
@@ -201,8 +253,21 @@ def net_from_checkpoint(ckpt: dict):
 
 # -- the loop ---------------------------------------------------------------------------------
 
-#: Configuration keys a resumed run must share with its run directory.
-FIXED = ("env", "condition", "cameras", "image_size", "state")
+#: Configuration keys a resumed run must share with its run directory (the
+#: first identifies a run of this trainer made before runs recorded it).
+FIXED = ("condition", "env", "cameras", "image_size", "state", "env_overrides")
+
+
+def observed(config: dict, spec) -> tuple[list[str], bool]:
+    """What a run's agent observed: (input keys, privileged), from its
+    ``config.json`` when it recorded them, else inferred from its `InputSpec`
+    (runs made before config.json recorded them)."""
+    keys = config.get("observations")
+    privileged = config.get("privileged")
+    return (list(spec.keys) if keys is None else list(keys),
+            bool(spec.privileged if privileged is None else privileged))
+
+
 def _build(config: TrainConfig, run: RunDir):
     """(net, optimiser, input spec, counters, recent episodes), resumed from
     ``run``'s checkpoint when there is one."""
@@ -217,6 +282,7 @@ def _build(config: TrainConfig, run: RunDir):
                      abs_reward=config.abs_reward, **config.env_overrides)
     spec = probe.input_spec
     probe.close()
+    run.record(observations=list(spec.keys), privileged=spec.privileged)
     net = ImpalaNet(spec, two_values=config.condition != "vanilla")
     optimizer = torch.optim.RMSprop(net.parameters(), lr=config.learning_rate,
                                     alpha=config.rmsprop_alpha, eps=config.rmsprop_eps,
@@ -229,15 +295,16 @@ def _build(config: TrainConfig, run: RunDir):
         optimizer.load_state_dict(ckpt["optimizer"])
         counters.update(ckpt["counters"])
         recent.extend(ckpt["counters"].get("recent_episodes", []))
-        print(f"resuming {run.checkpoint_path} at {counters['frames']:,} frames, "
-              f"{counters['updates']:,} updates", file=sys.stderr)
+        print(f"resuming {run.checkpoint_path} at {plural(counters['frames'], 'frame')}, "
+              f"{plural(counters['updates'], 'update')}", file=sys.stderr)
     counters.pop("recent_episodes", None)
     return net, optimizer, spec, counters, recent
 
 
 def _gather(actors, pending: list, batch_size: int, counters: dict, recent: deque,
             run: RunDir) -> None:
-    """Takes unrolls (and their finished episodes) until a batch is pending or a stop."""
+    """Takes unrolls (and their finished episodes) until ``batch_size`` are
+    pending or a stop."""
     while len(pending) < batch_size and not run.stop_requested:
         unrolls = actors.get(should_stop=lambda: run.stop_requested)
         for u in unrolls or ():
@@ -263,21 +330,28 @@ def _scalars(stats: dict, counters: dict, recent: deque, fps: float, lags: list)
 
 
 def train(config: TrainConfig) -> dict:
-    """Runs (or resumes) a training run; returns its final counters."""
+    """Runs (or resumes) a training run; returns its final counters.
+
+    Raises:
+      UsageError: `TrainConfig.validate`'s, or the logdir is a file or holds
+        a run this one cannot continue (`RunDir`), before anything is built.
+    """
     import torch
 
     from hier_agents.modular.components import family as env_family
 
     config.validate()
     batch_size = config.resolved_batch(env_family(config.env))
+    run = RunDir(config.logdir, dataclasses.asdict(config), resume=None, fixed=FIXED,
+                 trainer=TRAINER)
     torch.manual_seed(config.seed)
     torch.set_num_threads(1)
-    run = RunDir(config.logdir, dataclasses.asdict(config), resume=True, fixed=FIXED)
     try:
         net, optimizer, spec, counters, recent = _build(config, run)
         if counters["frames"] >= config.steps:
-            print(f"{run.checkpoint_path} already has {counters['frames']:,} >= "
-                  f"{config.steps:,} frames", file=sys.stderr)
+            print(f"{run.checkpoint_path} already has {plural(counters['frames'], 'frame')}, "
+                  f"the budget is {plural(config.steps, 'frame')}: nothing to train",
+                  file=sys.stderr)
             return counters
         return _loop(config, run, net, optimizer, spec, counters, recent, batch_size)
     finally:
@@ -317,10 +391,13 @@ def _loop(config, run: RunDir, net, optimizer, spec, counters, recent, batch_siz
     with run.interruptible():
         try:
             while counters["frames"] < config.steps and not run.stop_requested:
-                _gather(actors, pending, batch_size, counters, recent, run)
+                # The last update takes only the unrolls the budget still needs.
+                take = min(batch_size, math.ceil((config.steps - counters["frames"])
+                                                 / config.unroll_length))
+                _gather(actors, pending, take, counters, recent, run)
                 if run.stop_requested:  # the partial batch is dropped
                     break
-                batch_unrolls, pending = pending[:batch_size], pending[batch_size:]
+                batch_unrolls, pending = pending[:take], pending[take:]
                 # Updates between the weights an unroll was acted with and now.
                 lags.extend(published - int(u.get("policy_version", 0)) for u in batch_unrolls)
                 batch = make_batch(batch_unrolls, net, value_states)
@@ -350,8 +427,8 @@ def _loop(config, run: RunDir, net, optimizer, spec, counters, recent, batch_siz
             counters["wall_s"] = wall0 + (time.perf_counter() - start)
             save()
     if run.stop_requested:
-        print(f"interrupted: checkpoint saved at {counters['frames']:,} frames; run the same "
-              f"command to resume", file=sys.stderr)
+        print(f"interrupted: checkpoint saved at {plural(counters['frames'], 'frame')}; run "
+              f"the same command to resume", file=sys.stderr)
     if recent:
         counters["success_rate_last_100"] = float(np.mean([e["success"] for e in recent]))
         counters["return_last_100"] = float(np.mean([e["return"] for e in recent]))

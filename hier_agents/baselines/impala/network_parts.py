@@ -63,7 +63,17 @@ class ImageEncoder(nn.Module):
     Input ``[N, 3, H, W]`` uint8 (or float already in [0, 1]); output
     ``[N, 256]``. ``feature_shape`` is the residual network's output shape
     (``(32, 12, 12)`` for 96x96 images).
+
+    Memory: with gradients on and more than `CHUNK` images (a learner batch:
+    the paper's 128 unrolls of 101 steps), the images go through in chunks
+    of `CHUNK` whose activations are recomputed in the backward pass
+    (``torch.utils.checkpoint``) instead of kept: the same values and
+    gradients, one chunk's activations in memory instead of the whole
+    batch's (tens of GB at 96x96).
     """
+
+    #: Images per recomputed chunk of a training batch.
+    CHUNK = 512
 
     def __init__(self, image_shape: tuple[int, int, int], channels=(16, 32, 32),
                  out_size: int = ENCODING_SIZE):
@@ -79,6 +89,15 @@ class ImageEncoder(nn.Module):
         self.linear = nn.Linear(int(np.prod(self.feature_shape)), out_size)
 
     def forward(self, images: torch.Tensor) -> torch.Tensor:
+        n = images.shape[0]
+        if torch.is_grad_enabled() and n > self.CHUNK:
+            from torch.utils.checkpoint import checkpoint
+            return torch.cat([checkpoint(self._encode, images[i:i + self.CHUNK],
+                                         use_reentrant=False)
+                              for i in range(0, n, self.CHUNK)])
+        return self._encode(images)
+
+    def _encode(self, images: torch.Tensor) -> torch.Tensor:
         x = images.to(torch.float32)
         if images.dtype == torch.uint8:
             x = x * (1.0 / 255.0)
