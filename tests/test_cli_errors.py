@@ -324,6 +324,20 @@ def test_a_learned_skill_takes_a_checkpoint_path(tmp_path, capsys):
     assert "1 episode," in printed and "1 episodes" not in printed
 
 
+def test_a_learned_skill_takes_a_training_run_directory(tmp_path):
+    import shutil
+    from skills.learned.ball import load_policy
+    run_dir = tmp_path / "runs" / "ball"
+    run_dir.mkdir(parents=True)
+    with pytest.raises(FileNotFoundError, match="no \\*_policy.pt"):
+        load_policy(run_dir)
+    shutil.copy(BALL_POLICY, run_dir / "ball_policy.pt")  # what train_skill writes
+    assert load_policy(run_dir).layers[0][0].shape == load_policy(BALL_POLICY).layers[0][0].shape
+    shutil.copy(BALL_POLICY, run_dir / "arm_policy.pt")
+    with pytest.raises(ValueError, match="several skill checkpoints"):
+        load_policy(run_dir)
+
+
 def test_outputs_go_into_new_folders_and_the_json_is_written_after_every_episode(
         tmp_path, monkeypatch):
     from hier_agents import run as run_lib

@@ -62,12 +62,23 @@ class NumpyPolicy:
 
 
 def load_policy(path, features: tuple[str, ...]) -> NumpyPolicy:
-    """The policy of the checkpoint at ``path``; raises ``ValueError`` when its
-    ``features`` are not ``features`` and ``FileNotFoundError`` when missing."""
+    """The policy of the checkpoint at ``path``: a file, or the run directory
+    of ``python -m hier_agents.learning.train_skill`` (its one
+    ``<skill>_policy.pt``). Raises ``ValueError`` when its ``features`` are
+    not ``features`` or a directory holds several policies, and
+    ``FileNotFoundError`` when there is none."""
     import torch
     path = Path(path)
+    if path.is_dir():
+        found = sorted(path.glob("*_policy.pt"))
+        if len(found) > 1:
+            raise ValueError(f"{path} holds several skill checkpoints "
+                             f"{[f.name for f in found]}; name one")
+        if found:
+            path = found[0]
     if not path.is_file():
-        raise FileNotFoundError(f"no skill checkpoint at {path}")
+        raise FileNotFoundError(f"no skill checkpoint at {path}"
+                                + (" (no *_policy.pt in the folder)" if path.is_dir() else ""))
     ckpt = torch.load(path, map_location="cpu", weights_only=True)
     if tuple(ckpt.get("features", ())) != tuple(features):
         raise ValueError(f"{path}: checkpoint features {ckpt.get('features')} do not match "
