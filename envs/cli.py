@@ -28,16 +28,18 @@ from __future__ import annotations
 
 import argparse
 import ast
+import contextlib
 import copy
 import difflib
 import json
 import os
 import sys
+import tempfile
 from pathlib import Path
 from typing import Callable, Iterable, Sequence
 
-__all__ = ["INPUT_ERRORS", "Parser", "UsageError", "choice", "close_hint", "env_options",
-           "environment", "existing_file", "fail", "fraction", "levels_file",
+__all__ = ["INPUT_ERRORS", "Parser", "UsageError", "atomic_write", "choice", "close_hint",
+           "env_options", "environment", "existing_file", "fail", "fraction", "levels_file",
            "non_negative_float", "non_negative_int", "output_file", "plural", "positive_float",
            "positive_int", "run_main", "write_json"]
 
@@ -269,19 +271,29 @@ def levels_file(env_name: str, path: str | os.PathLike, flag: str = "--levels") 
     return os.fspath(path)
 
 
-def write_json(path: str | os.PathLike, data, indent: int = 2) -> Path:
-    """Writes ``data`` as JSON to ``path`` through a temporary file in the
-    same folder and an atomic rename (the old file stays whole until the new
-    one is complete). Returns the path."""
+def atomic_write(path: str | os.PathLike, write: Callable[[str], object]) -> Path:
+    """Calls ``write(tmp_path)`` on a temporary file in ``path``'s folder, then
+    renames it onto ``path``: the old file stays whole until the new one is
+    complete, and on any error the temporary file is removed. Returns the
+    path."""
     path = Path(path)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.close(fd)
     try:
-        tmp.write_text(json.dumps(data, indent=indent) + "\n")
+        write(tmp)
         os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
     return path
+
+
+def write_json(path: str | os.PathLike, data, indent: int = 2) -> Path:
+    """Writes ``data`` as JSON to ``path`` atomically (`atomic_write`).
+    Returns the path."""
+    text = json.dumps(data, indent=indent) + "\n"
+    return atomic_write(path, lambda tmp: Path(tmp).write_text(text))
 
 
 def plural(count: int | float, noun: str, plural_form: str | None = None, spec: str = "") -> str:

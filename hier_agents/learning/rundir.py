@@ -32,12 +32,10 @@ from __future__ import annotations
 import contextlib
 import json
 import math
-import os
 import random
 import shutil
 import signal
 import sys
-import tempfile
 import threading
 import time
 from pathlib import Path
@@ -45,7 +43,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from envs.cli import UsageError
+from envs.cli import UsageError, atomic_write
 
 CONFIG = "config.json"
 CHECKPOINT = "checkpoint.pt"
@@ -55,29 +53,14 @@ KEPT = "checkpoints"
 
 # -- files and random states -----------------------------------------------------------------
 
-def _atomic_write(path: Path, write) -> None:
-    """Calls ``write(tmp_path)`` then renames onto ``path``; on any error the
-    temporary file is removed and ``path`` is untouched."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
-
-
 def atomic_save(obj, path: str | Path) -> None:
     """``torch.save(obj)`` to ``path`` atomically (no partial file, ever)."""
-    _atomic_write(Path(path), lambda tmp: torch.save(obj, tmp))
+    atomic_write(Path(path), lambda tmp: torch.save(obj, tmp))
 
 
 def atomic_write_text(text: str, path: str | Path) -> None:
     """Writes ``text`` to ``path`` atomically."""
-    _atomic_write(Path(path), lambda tmp: Path(tmp).write_text(text))
+    atomic_write(Path(path), lambda tmp: Path(tmp).write_text(text))
 
 
 def rng_state() -> dict:
@@ -269,8 +252,8 @@ class RunDir:
         if keep is not None:
             kept = self.path / KEPT
             kept.mkdir(exist_ok=True)
-            _atomic_write(kept / f"{keep}.pt",
-                          lambda tmp: shutil.copyfile(self.checkpoint_path, tmp))
+            atomic_write(kept / f"{keep}.pt",
+                         lambda tmp: shutil.copyfile(self.checkpoint_path, tmp))
         return self.checkpoint_path
 
     # scalars and progress
