@@ -345,6 +345,21 @@ def compare_agents(results: Path) -> list[str]:
     return lines
 
 
+@table("parallel-eval")
+def parallel_eval(results: Path) -> list[str]:
+    """``hier_agents.run --workers N`` against one worker (`benchmarks/parallel_eval.py`)."""
+    d = _load(results / "parallel_eval.json")
+    lines = [f"| workers ({d['cpus']} CPUs) | episodes | wall s | episodes/s | speed-up "
+             f"| solved | rows equal to 1 worker's |",
+             "| --- | --- | --- | --- | --- | --- | --- |"]
+    for r in d["rows"]:
+        lines.append(f"| {r['workers']} | {r['episodes']} | {r['wall_s']:.0f} "
+                     f"| {r['episodes_per_s']:.3f} | {r['speedup']:.2f}x "
+                     f"| {100 * r['success_rate']:.1f}% "
+                     f"| {'yes' if r['rows_identical_to_first'] else 'no'} |")
+    return lines
+
+
 @table("original-env")
 def original_env(results: Path) -> list[str]:
     """Our default modular agent on the original MuJoBan (`benchmarks/original_env.py`)."""

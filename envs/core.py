@@ -43,6 +43,14 @@ _MID = dm_env.StepType.MID
 _FLOAT64 = np.dtype(np.float64)
 
 
+def episode_seed(seed: int, episode: int) -> int:
+    """The seed of episode ``episode`` (>= 0) of a run seeded ``seed`` (>= 0):
+    a 32-bit integer from ``np.random.SeedSequence([seed, episode])``, the one
+    derivation used for environments, agents and planners, so that an
+    episode's draws do not depend on the episodes played before it."""
+    return int(np.random.SeedSequence([int(seed), int(episode)]).generate_state(1)[0])
+
+
 class PhysicsTask(composer.Task, abc.ABC):
     """A composer task with the fast-path observation contract.
 
@@ -100,8 +108,10 @@ class PhysicsTask(composer.Task, abc.ABC):
         (never in observed camera frames); none by default."""
         return ()
 
-    def on_seed(self) -> None:
-        """Called when the environment is reseeded (e.g. restart a level file)."""
+    def on_seed(self, episode: int = 0) -> None:
+        """Called when the environment is reseeded: the next episode is
+        ``episode`` of the seed's sequence (e.g. a level file restarts at
+        its ``episode``-th level)."""
 
     def truncated_discount(self) -> float:
         """Discount on the last step of an episode cut by the time limit."""
@@ -239,10 +249,23 @@ class Environment(dm_env.Environment):
 
     # -- extras -------------------------------------------------------------
 
-    def seed(self, seed: int | None) -> None:
-        """Reseeds the random generator; the next ``reset`` starts from it."""
-        self._rng = np.random.default_rng(seed)
-        self._task.on_seed()
+    def seed(self, seed: int | None, episode: int | None = None) -> None:
+        """Reseeds the random generator; the next ``reset`` starts from it.
+
+        With ``episode``, the next episode is episode ``episode`` of a run
+        seeded ``seed``, whatever was played before: the generator is seeded
+        with `episode_seed` and a level file moves to its ``episode``-th
+        level (modulo its length). Episodes seeded this way can be played in
+        any order, in any process, and give the same result.
+        """
+        if episode is None:
+            self._rng = np.random.default_rng(seed)
+            self._task.on_seed(0)
+        else:
+            if seed is None:
+                raise ValueError("seeding an episode needs a run seed, got None")
+            self._rng = np.random.default_rng(episode_seed(seed, episode))
+            self._task.on_seed(int(episode))
         self._reset_next_step = True
 
     @property

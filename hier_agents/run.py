@@ -11,6 +11,7 @@
     python -m hier_agents.run mujoban/level1 --agent checkpoint:runs/impala   # a trained agent
     python -m hier_agents.run mujoban/level1 --agent random        # uniform random actions
     python -m hier_agents.run mujoban/level1 --agent random:10     # ... each held 10 steps
+    python -m hier_agents.run mujoban/level5 --levels FILE --episodes 200 --workers 2
     python -m hier_agents.run --list                               # the parts by family
 
 The modular agent sits behind the observation boundary: it is given the
@@ -19,6 +20,12 @@ default estimators are observation-only (MuJoBan: ``camera``, the top
 camera and proprioception; board games: ``board``); ``--estimator oracle``
 or ``entity-layer`` read the simulator and every table and JSON says
 ``privileged``.
+
+Episode ``e`` of a run seeded ``s`` is seeded from ``(s, e)``: its level
+(the ``e``-th of a ``--levels`` file), opponent and agent draws do not depend
+on the episodes before it, so ``--workers N`` (processes on this machine) or
+``--ray-address`` (tasks on a Ray cluster) split the episodes and give the
+same rows and table as one process.
 
 Runs never abort: an episode the agent gives up (the planner finds no plan,
 e.g. after a box was pushed into a deadlock) ends as a failure with its
@@ -51,8 +58,10 @@ rows; checkpoint agents add their condition, training frames, ``observations``
 
 from __future__ import annotations
 
+import math
 import sys
 import time
+from dataclasses import dataclass, field
 from typing import Callable
 
 from tqdm import tqdm
@@ -71,12 +80,37 @@ from hier_agents.run_report import format_table, postfix, summarize  # noqa: F40
 Progress = Callable[[dict], None]
 
 
+@dataclass(frozen=True)
+class Play:
+    """What a run plays (everything but the episodes): picklable, so worker
+    processes and Ray tasks build the same player (`make_player`)."""
+
+    env_name: str
+    seed: int = 0
+    agent: str = "modular"
+    planner: str | None = None
+    skill: str | None = None
+    estimator: str | None = None
+    levels: str | None = None
+    stochastic: bool = False
+    env_options: dict = field(default_factory=dict)
+    video: str | None = None
+    video_episode: int = 0
+
+
 def run(env_name: str, episodes: int, seed: int = 0, *, planner: str | None = None,
         skill: str | None = None, estimator: str | None = None, levels: str | None = None,
         video: str | None = None, progress: bool = True, agent: str = "modular",
         stochastic: bool = False, env_options: dict | None = None,
-        on_progress: Progress | None = None) -> dict:
-    """Plays ``episodes`` episodes; returns the JSON-able summary.
+        on_progress: Progress | None = None, first_episode: int = 0, workers: int = 1,
+        ray_address: str | None = None) -> dict:
+    """Plays episodes ``first_episode`` .. ``first_episode + episodes - 1``;
+    returns the JSON-able summary.
+
+    Episode ``e`` is seeded from ``(seed, e)`` (`envs.Environment.seed`,
+    `envs.episode_seed`): its level or opening, the opponent's and the agent's
+    draws do not depend on the episodes played before, so any split of the
+    episodes over processes gives the same rows.
 
     Args:
       agent: ``"modular"`` (estimator + planner + skill, named as
@@ -84,90 +118,307 @@ def run(env_name: str, episodes: int, seed: int = 0, *, planner: str | None = No
         ``"checkpoint:PATH"`` (a trained end-to-end agent, `hier_agents.train`;
         its policy's mean, or samples with ``stochastic``) or
         ``"random[:HOLD]"`` (uniformly random actions).
-      levels: MuJoBan: a level file played in order (modular and checkpoint agents).
+      levels: MuJoBan: a level file; episode ``e`` plays its ``e``-th level
+        (modulo its length; modular and checkpoint agents).
       env_options: extra `envs.load` overrides of the played environment
         (e.g. ``{"physics_timestep": 0.005}``; modular and checkpoint agents);
         the summary records them.
-      video: an MP4 of the first episode, written when it ends.
+      video: an MP4 of the first episode, written when it ends (not with
+        ``ray_address``).
       on_progress: called with the summary so far (``"finished": False``)
-        after every episode (the modular agent: also once it is built).
+        after every episode (in order of completion with workers; with one
+        worker also once the agent is built).
+      first_episode: index of the first episode (>= 0).
+      workers: processes playing episodes at once (1: this process); each
+        builds the environment and agent once and plays shards of episodes.
+      ray_address: play the shards as tasks on this Ray cluster (``auto``:
+        the one ``ray start`` made; ``"local"``: start one here) with
+        ``workers`` tasks in flight; a task whose worker dies is retried.
 
     Returns:
       The summary (`hier_agents.run_report.summarize` plus the keys in the
-      module docstring), ``"finished": True``.
+      module docstring), rows in episode order, ``"finished": True``.
 
     Raises:
       ValueError: an environment without a modular agent, a bad component
-        name, ``levels``, ``env_options`` or ``video`` with the random agent;
+        name, ``levels``, ``env_options`` or ``video`` with the random agent,
+        ``video`` with ``ray_address``, ``workers`` < 1, ``first_episode`` < 0;
         `envs.cli.UsageError` (a ValueError) for a checkpoint that does not
         load or fit the environment (`play_checkpoint`).
       FileNotFoundError: a checkpoint that does not exist.
     """
     fam = family(env_name)
-    env_options = dict(env_options or {})
-    if agent != "modular":
-        return _run_policy(env_name, fam, episodes, seed, agent, levels, video, progress,
-                           stochastic, env_options, on_progress)
-    # A diverging simulation ends its episode (reward 0) instead of the run.
-    overrides = {**env_overrides(env_name, estimator), "raise_on_physics_error": False,
-                 **env_options}
-    if levels is not None:
-        if not adapter(fam).level_files:
-            raise ValueError("--levels only applies to mujoban environments")
-        overrides["levels"] = levels
-    totals = OptionStats()
-    rows, frames = [], []
+    if workers < 1 or first_episode < 0:
+        raise ValueError(f"workers must be >= 1 and first_episode >= 0, got {workers} and "
+                         f"{first_episode}")
+    if agent != "modular" and not (agent == "checkpoint" or agent.startswith("checkpoint:")):
+        from hier_agents.baselines.impala.evaluate import parse_random
+        hold = parse_random(agent)
+        if video or levels is not None or env_options:
+            raise ValueError(f"--video, --levels and --env-option do not apply to "
+                             f"--agent random:{hold}")
+    elif agent != "modular":
+        from hier_agents.baselines.impala.evaluate import parse_agent
+        path = parse_agent(agent)
+        if workers > 1 or ray_address is not None:  # refused here, not in every worker
+            from hier_agents.baselines.impala.learner import load_checkpoint
+            load_checkpoint(path)
+    if levels is not None and not adapter(fam).level_files:
+        raise ValueError("--levels only applies to mujoban environments")
+    if video and ray_address:
+        raise ValueError("--video is written by the process that plays the first episode: "
+                         "not with --ray-address")
+    play = Play(env_name, int(seed), agent, planner, skill, estimator, levels, bool(stochastic),
+                dict(env_options or {}), video, first_episode)
+    indices = list(range(first_episode, first_episode + episodes))
+    played: list[tuple[dict, dict]] = []  # (row, subgoal counters)
+    meta: dict = {}
     interrupted = False
-    env = made = None
 
     def summary_now(finished: bool) -> dict:
-        out = summarize(env_name, fam, rows, totals, seed, planner, skill)
-        out.update(training_frames=training_frames(made),
-                   estimator=estimator_name(fam, estimator),
-                   privileged=is_privileged(fam, estimator), env_options=env_options,
-                   levels=levels, episodes_requested=episodes, interrupted=interrupted,
-                   finished=finished)
-        return out
+        return _summary(play, fam, sorted(played, key=lambda p: p[0]["episode"]), meta,
+                        len(indices), interrupted, finished)
 
-    bar = tqdm(total=episodes, unit="episode", desc=env_name, file=sys.stderr,
-               disable=not progress)
-    try:
-        env = envs.load(env_name, seed=seed, **overrides)
-        privileged = is_privileged(fam, estimator)
-        # An observation-only agent sees the environment through the boundary
-        # (no simulator, no ground-truth layers); the harness keeps `env` to judge.
-        view = env if privileged else BoundaryEnv(env)
-        description = view.description()
-        # The agent gets the public description and timesteps; only a privileged
-        # estimator is handed the simulator, on purpose.
-        made = make_agent(env_name, description, planner=planner, skill=skill,
-                          estimator=estimator, seed=seed, simulator=env if privileged else None)
+    bars = []  # the progress bar, shown once the agent is built (a bad one: no bar)
+
+    def start_bar():
+        if not bars:
+            bars.append(tqdm(total=len(indices), unit="episode", desc=env_name,
+                             file=sys.stderr, disable=not progress))
+
+    def on_done(results, info):
+        start_bar()
+        meta.update(info)
+        played.extend(results)
+        bars[0].update(len(results))
+        bars[0].set_postfix(postfix([r for r, _ in played], fam))
         if on_progress is not None:
             on_progress(summary_now(False))
-        for episode in range(episodes):
-            row, stats = _play_episode(env, view, made, description, fam, episode, seed,
-                                       frames if video and episode == 0 else None)
-            rows.append(row)
-            totals.add(stats)
-            if video and episode == 0 and frames:
-                _write_video(video, frames, env.control_timestep)
-                frames = []
-            bar.update(1)
-            bar.set_postfix(postfix(rows, fam))
-            if on_progress is not None:
-                on_progress(summary_now(False))
+
+    def built(info):
+        start_bar()
+        meta.update(info)
+        if on_progress is not None:
+            on_progress(summary_now(False))
+
+    try:
+        if workers == 1 and ray_address is None:
+            _play_here(play, indices, on_done, built)
+        else:
+            start_bar()
+            _play_parallel(play, indices, workers, ray_address, on_done)
     except KeyboardInterrupt:
-        # Ctrl-C: the episodes played so far make the table (the one under way is dropped).
+        # Ctrl-C: the episodes played so far make the table (those under way are dropped).
         interrupted = True
     finally:
-        bar.close()
-        try:
-            if made is not None:
-                made.close()
-        finally:
-            if env is not None:
-                env.close()
+        for bar in bars:
+            bar.close()
     return summary_now(True)
+
+
+def _summary(play: Play, fam, played, meta, requested, interrupted, finished) -> dict:
+    rows = [row for row, _ in played]
+    totals = OptionStats()
+    for _, counters in played:
+        totals.add(OptionStats(**counters))
+    common = dict(env_options=play.env_options, levels=play.levels,
+                  episodes_requested=requested, interrupted=interrupted, finished=finished)
+    if play.agent == "modular":
+        out = summarize(play.env_name, fam, rows, totals, play.seed, play.planner, play.skill)
+        out.update(training_frames=int(meta.get("training_frames", 0)),
+                   estimator=estimator_name(fam, play.estimator),
+                   privileged=is_privileged(fam, play.estimator), **common)
+        return out
+    out = summarize(play.env_name, fam, rows, totals, play.seed, "-", play.agent)
+    out.update(agent=play.agent, **common)
+    out.update(meta)
+    return out
+
+
+# -- players: one environment and agent, any episode ------------------------------------------
+
+
+class ModularPlayer:
+    """The modular agent behind the observation boundary in its own
+    environment; ``play(episode, frames=None)`` -> (row, subgoal counters)."""
+
+    def __init__(self, play: Play):
+        fam = family(play.env_name)
+        self.play_spec, self.fam = play, fam
+        # A diverging simulation ends its episode (reward 0) instead of the run.
+        overrides = {**env_overrides(play.env_name, play.estimator),
+                     "raise_on_physics_error": False, **play.env_options}
+        if play.levels is not None:
+            overrides["levels"] = play.levels
+        self.env = self.agent = None
+        try:
+            self.env = envs.load(play.env_name, seed=play.seed, **overrides)
+            privileged = is_privileged(fam, play.estimator)
+            # An observation-only agent sees the environment through the boundary
+            # (no simulator, no ground-truth layers); the harness keeps `env` to judge.
+            self.view = self.env if privileged else BoundaryEnv(self.env)
+            self.description = self.view.description()
+            # The agent gets the public description and timesteps; only a privileged
+            # estimator is handed the simulator, on purpose.
+            self.agent = make_agent(play.env_name, self.description, planner=play.planner,
+                                    skill=play.skill, estimator=play.estimator, seed=play.seed,
+                                    simulator=self.env if privileged else None)
+        except BaseException:
+            self.close()
+            raise
+        self.info = {"training_frames": training_frames(self.agent)}
+
+    def play(self, episode: int, frames=None) -> tuple[dict, dict]:
+        row, stats = _play_episode(self.env, self.view, self.agent, self.description, self.fam,
+                                   episode, self.play_spec.seed, frames)
+        return row, _counters(stats)
+
+    def close(self) -> None:
+        try:
+            if self.agent is not None:
+                self.agent.close()
+        finally:
+            if self.env is not None:
+                self.env.close()
+
+
+class PolicyPlayer:
+    """A checkpoint's or random actions' player (`hier_agents.baselines.impala.
+    evaluate`) with the modular player's interface; the subgoal counters are
+    the auxiliary sub-episodes (reached, or not within T_abs)."""
+
+    def __init__(self, play: Play):
+        from hier_agents.baselines.impala.evaluate import (CheckpointPlayer, RandomPlayer,
+                                                           parse_agent, parse_random)
+        if play.agent.startswith("random"):
+            self.inner = RandomPlayer(play.env_name, play.seed, parse_random(play.agent))
+        else:
+            options = {**play.env_options,
+                       **({"levels": play.levels} if play.levels is not None else {})}
+            self.inner = CheckpointPlayer(play.env_name, parse_agent(play.agent), play.seed,
+                                          stochastic=play.stochastic, env_options=options)
+        self.info = self.inner.info
+
+    def play(self, episode: int, frames=None) -> tuple[dict, dict]:
+        row = self.inner.play(episode, frames)
+        issued, reached = row["subgoals_issued"], row["subgoals_reached"]
+        return row, {"issued": issued, "reached": reached, "unfinished": issued - reached}
+
+    def close(self) -> None:
+        self.inner.close()
+
+
+def make_player(play: Play):
+    """The player of ``play``: `ModularPlayer` or `PolicyPlayer`."""
+    return ModularPlayer(play) if play.agent == "modular" else PolicyPlayer(play)
+
+
+def _counters(stats: OptionStats) -> dict:
+    return {"issued": stats.issued, "reached": stats.reached, "failed": stats.failed,
+            "cut_off": stats.cut_off, "unfinished": stats.unfinished,
+            "estimation_failures": stats.estimation_failures,
+            "failures": dict(stats.failures)}
+
+
+def _play_here(play: Play, indices, on_done, built=None) -> None:
+    """Plays ``indices`` in this process, reporting each episode to ``on_done``."""
+    player = make_player(play)
+    try:
+        if built is not None:
+            built(player.info)
+        for episode in indices:
+            frames = [] if play.video and episode == play.video_episode else None
+            result = player.play(episode, frames)
+            if frames:
+                _write_video(play.video, frames, _control_timestep(player))
+            on_done([result], player.info)
+    finally:
+        player.close()
+
+
+def _control_timestep(player) -> float:
+    env = getattr(player, "env", None) or player.inner.env
+    env = getattr(env, "env", env)  # an AgentEnv wraps the environment
+    return env.control_timestep
+
+
+#: Per worker process: its player, by the ``repr`` of its `Play`.
+_PLAYERS: dict = {}
+
+
+def play_shard(play: Play, indices: list[int]) -> tuple[list, dict]:
+    """Plays ``indices`` with this process's player of ``play`` (built on
+    first use and kept for later shards); returns ([(row, counters)], info).
+    The function worker processes and Ray tasks run."""
+    player = _PLAYERS.get(repr(play))
+    if player is None:
+        _close_players()  # one environment per process at a time
+        player = _PLAYERS[repr(play)] = make_player(play)
+    out = []
+    for episode in indices:
+        frames = [] if play.video and episode == play.video_episode else None
+        out.append(player.play(episode, frames))
+        if frames:
+            _write_video(play.video, frames, _control_timestep(player))
+    return out, player.info
+
+
+def _close_players() -> None:
+    for player in _PLAYERS.values():
+        player.close()
+    _PLAYERS.clear()
+
+
+def shards(indices: list[int], workers: int) -> list[list[int]]:
+    """``indices`` cut into contiguous shards, about four per worker (at least
+    one episode each), so that faster workers take more of them."""
+    size = max(1, math.ceil(len(indices) / (4 * workers)))
+    return [indices[i:i + size] for i in range(0, len(indices), size)]
+
+
+def _play_parallel(play: Play, indices, workers, ray_address, on_done) -> None:
+    pieces = shards(indices, workers)
+    if ray_address is not None:
+        _play_ray(play, pieces, workers, ray_address, on_done)
+        return
+    import multiprocessing
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+
+    context = multiprocessing.get_context("spawn")  # no GL or torch state inherited
+    pool = ProcessPoolExecutor(max_workers=min(workers, len(pieces)), mp_context=context,
+                               initializer=_worker_init)
+    try:
+        pending = {pool.submit(play_shard, play, piece) for piece in pieces}
+        while pending:
+            done, pending = wait(pending, return_when=FIRST_COMPLETED)
+            for future in done:
+                on_done(*future.result())
+    except BaseException:
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
+    pool.shutdown(wait=True)
+
+
+def _worker_init() -> None:
+    import atexit
+    import signal
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
+    atexit.register(_close_players)
+
+
+def _play_ray(play: Play, pieces, workers, address, on_done) -> None:
+    from hier_agents.cluster import connect, remote
+
+    ray = connect(address)
+    task = remote(play_shard, num_cpus=1, max_retries=3)
+    queue = list(pieces)
+    running = []
+    while queue or running:
+        while queue and len(running) < workers:
+            running.append(task.remote(play, queue.pop(0)))
+        done, running = ray.wait(running, num_returns=1)
+        for ref in done:
+            on_done(*ray.get(ref))
 
 
 def _write_video(path, frames, control_timestep: float) -> None:
@@ -196,8 +447,9 @@ def _play_episode(env, view, agent, description, fam, episode, seed, frames):
     start = time.perf_counter()
     timestep, ret, steps, reason, error, started = None, 0.0, 0, None, None, False
     try:
+        env.seed(seed, episode=episode)
         timestep = view.reset()
-        agent.reset(description, timestep, seed=seed * 100_003 + episode)
+        agent.reset(description, timestep, seed=envs.episode_seed(seed, episode))
         started = True
         while not timestep.last():
             if frames is not None:
@@ -238,42 +490,6 @@ def _play_episode(env, view, agent, description, fam, episode, seed, frames):
     return row, stats
 
 
-def _run_policy(env_name, fam, episodes, seed, agent, levels, video, progress,
-                stochastic, env_options, on_progress=None) -> dict:
-    """`run` for ``checkpoint:PATH`` and ``random[:HOLD]`` agents
-    (`hier_agents.baselines.impala.evaluate`)."""
-    from hier_agents.baselines.impala.evaluate import (parse_agent, parse_random,
-                                                       play_checkpoint, play_random)
-
-    def summary_of(rows, info, finished):
-        totals = OptionStats()
-        for row in rows:  # auxiliary sub-episodes: reached, or not within T_abs
-            totals.issued += row["subgoals_issued"]
-            totals.reached += row["subgoals_reached"]
-        totals.unfinished = totals.issued - totals.reached
-        summary = summarize(env_name, fam, rows, totals, seed, "-", agent)
-        summary.update(agent=agent, env_options=env_options, levels=levels,
-                       episodes_requested=episodes, interrupted=False, finished=finished)
-        summary.update(info)
-        return summary
-
-    on_rows = None if on_progress is None else (
-        lambda rows: on_progress(summary_of(rows, {}, False)))
-    if agent == "random" or agent.startswith("random:"):
-        hold = parse_random(agent)
-        if video or levels is not None or env_options:
-            raise ValueError(f"--video, --levels and --env-option do not apply to "
-                             f"--agent {agent}")
-        rows, info = play_random(env_name, episodes, seed, hold=hold, progress=progress,
-                                 on_rows=on_rows)
-    else:
-        options = {**env_options, **({"levels": levels} if levels is not None else {})}
-        rows, info = play_checkpoint(env_name, parse_agent(agent), episodes, seed, video=video,
-                                     progress=progress, stochastic=stochastic,
-                                     env_options=options, on_rows=on_rows)
-    return summary_of(rows, info, True)
-
-
 def _main(argv=None) -> int:
     parser = build_parser(__doc__.split("\n\n")[0],
                           epilog="examples:\n" + __doc__.split("\n\n")[1])
@@ -293,7 +509,9 @@ def _main(argv=None) -> int:
                   skill=args.skill, estimator=args.estimator, levels=checked.levels,
                   video=None if checked.video is None else str(checked.video),
                   agent=args.agent, stochastic=args.stochastic,
-                  env_options=checked.env_options, on_progress=save)
+                  env_options=checked.env_options, on_progress=save,
+                  first_episode=args.first_episode, workers=args.workers,
+                  ray_address=args.ray_address)
     print(format_table(summary))
     if save is not None:
         save(summary)

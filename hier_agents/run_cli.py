@@ -68,6 +68,15 @@ def build_parser(description: str, epilog: str | None = None) -> argparse.Argume
     parser.add_argument("--json", metavar="FILE",
                         help="write the summary here, rewritten after every episode "
                              "(\"finished\": false until the run ends; its folder is created)")
+    parser.add_argument("--first-episode", type=cli.non_negative_int, default=0,
+                        help="index of the first episode (episode e is seeded from (seed, e) "
+                             "and plays the e-th level of --levels)")
+    parser.add_argument("--workers", type=cli.positive_int, default=1,
+                        help="processes playing episodes at once; the rows are the same for "
+                             "any count")
+    parser.add_argument("--ray-address", metavar="ADDRESS",
+                        help="play on a Ray cluster (auto: the one `ray start` made; local: "
+                             "start one here), --workers tasks at a time")
     parser.add_argument("--list", action="store_true",
                         help="list each family's planners, skills and estimators and exit")
     return parser
@@ -162,6 +171,9 @@ def check_args(args) -> Checked:
             why = ("give a level file with --levels FILE" if key == "levels"
                    else "the cameras are the estimator's (or the checkpoint's)")
             raise UsageError(f"--env-option {item!r}: {why}")
+    if args.ray_address is not None and args.video is not None:
+        raise UsageError("--video is written by the process that plays the first episode: "
+                         "not with --ray-address")
     options = cli.env_options(env_name, args.env_option,
                               exclude=lambda key: key.endswith("_camera") or key == "levels")
     return Checked(env_name, episodes, options, levels,

@@ -118,6 +118,9 @@ def build_parser() -> Parser:
     add("--keep-checkpoints", action="store_true",
         help="also keep every checkpoint as LOGDIR/checkpoints/frames-N.pt "
              "(for benchmarks/learning_curve.py)")
+    add("--save-at", type=positive_int, nargs="+", default=[], metavar="FRAMES",
+        help="also keep a checkpoint LOGDIR/checkpoints/frames-N.pt exactly at each of these "
+             "frame counts (multiples of the unroll length; evaluation at equal budgets)")
     add("--log-every", type=non_negative_float, default=default["log_every_s"],
         help="seconds between TensorBoard / scalars.jsonl rows (0: every update)")
     add("--no-progress", action="store_true", help="no progress bar")
@@ -151,6 +154,7 @@ def config_from_args(args):
                          state=args.state, seed=args.seed,
                          checkpoint_every_s=args.checkpoint_every, log_every_s=args.log_every,
                          keep_checkpoints=args.keep_checkpoints,
+                         save_at=tuple(sorted(set(args.save_at))),
                          progress=not args.no_progress)
     config.validate()
     if args.observations == "main-camera":

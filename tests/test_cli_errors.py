@@ -416,11 +416,11 @@ def test_a_checkpoint_agent_takes_levels_and_env_options(tmp_path, paths, capsys
 
 
 def test_random_and_checkpoint_agents_report_after_every_episode():
-    # The same per-episode hook serves checkpoint agents (`_run_policy`).
+    # The same hook serves every agent: once built, then after every episode.
     from hier_agents import run as run_lib
     seen = []
     summary = run_lib.run("mujoban/level1", 2, 0, agent="random:10", progress=False,
                           on_progress=seen.append)
-    assert [(s["episodes"], s["finished"]) for s in seen] == [(1, False), (2, False)]
-    assert seen[0]["rows"][0]["episode"] == 0
+    assert [(s["episodes"], s["finished"]) for s in seen] == [(0, False), (1, False), (2, False)]
+    assert seen[1]["rows"][0]["episode"] == 0
     assert summary["finished"] is True and summary["episodes"] == 2

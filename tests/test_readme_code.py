@@ -54,7 +54,7 @@ SMALL_BUDGETS = {
     "--cpu-minutes": lambda value: "2",
 }
 #: flags whose value is an output file, sent to the scratch folder.
-OUTPUT_FLAGS = ("--json", "--video", "--picture", "--logdir")
+OUTPUT_FLAGS = ("--json", "--video", "--picture", "--logdir", "--cache")
 
 
 def readme_blocks() -> list[tuple[int, str, str]]:
@@ -125,10 +125,22 @@ BASH_BLOCKS = [(line, body) for line, lang, body in readme_blocks()
 
 def test_every_block_is_python_bash_or_a_listing():
     for line, lang, body in readme_blocks():
-        assert lang in ("python", "bash", ""), f"README line {line}: unknown language {lang!r}"
+        assert lang in ("python", "bash", "toml", ""), (
+            f"README line {line}: unknown language {lang!r}")
         if lang == "":  # a listing (the layout), not code
             assert not re.search(r"^\s*(python|bash|import) ", body, re.M), (
                 f"README line {line}: code in a block without a language")
+
+
+def test_toml_blocks_are_the_shipped_files_they_name():
+    import tomllib
+    blocks = [(line, body) for line, lang, body in readme_blocks() if lang == "toml"]
+    assert blocks
+    for line, body in blocks:
+        named = re.match(r"# excerpt: (\S+\.toml)", body.strip())
+        assert named, f"README line {line}: a TOML block starts with '# excerpt: FILE.toml'"
+        assert tomllib.loads(body) == tomllib.loads((ROOT / named.group(1)).read_text()), (
+            f"README line {line}: differs from {named.group(1)}")
 
 
 def test_the_set_up_commands_are_what_ci_runs():

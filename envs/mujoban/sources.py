@@ -77,9 +77,10 @@ class FileLevels:
         self.max_boxes = max(len(lvl.boxes) for lvl in self.levels)
         self._next = self.start
 
-    def restart(self) -> None:
-        """Back to the first level (called when the environment is reseeded)."""
-        self._next = self.start
+    def restart(self, episode: int = 0) -> None:
+        """The next level is the ``episode``-th from ``start`` (modulo the
+        file's length); called when the environment is reseeded."""
+        self._next = (self.start + int(episode)) % len(self.levels)
 
     def __call__(self, rng: np.random.Generator) -> Level:
         if self.shuffle:
@@ -106,8 +107,9 @@ class FixedLevels:
         self.max_boxes = max(len(lvl.boxes) for lvl in self.levels)
         self._next = 0
 
-    def restart(self) -> None:
-        self._next = 0
+    def restart(self, episode: int = 0) -> None:
+        """The next level is the ``episode``-th (modulo their number)."""
+        self._next = int(episode) % len(self.levels)
 
     def __call__(self, rng: np.random.Generator) -> Level:
         level = self.levels[self._next]

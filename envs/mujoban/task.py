@@ -303,10 +303,10 @@ class Mujoban(ObservationsMixin, LooksMixin, LayoutMixin, PhysicsTask):
         self._solved = False
         self._fell = False
 
-    def on_seed(self) -> None:
+    def on_seed(self, episode: int = 0) -> None:
         restart = getattr(self._level_source, "restart", None)
         if restart is not None:
-            restart()
+            restart(episode)
 
     def before_step(self, physics, action, random_state):
         self._ctrl[self._act_ids] = action

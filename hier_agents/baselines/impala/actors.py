@@ -39,7 +39,7 @@ import queue
 import signal
 import time
 import traceback
-from typing import Any, Callable
+from typing import Callable
 
 import numpy as np
 
@@ -316,20 +316,12 @@ class RayActors:
             import ray
         except ImportError as exc:  # pragma: no cover - ray is a dependency
             raise RuntimeError("--backend ray needs the `ray` package: pip install ray") from exc
+        from hier_agents.cluster import connect, remote
+
         self._ray = ray
-        if not ray.is_initialized():
-            kwargs: dict[str, Any] = {"include_dashboard": False, "log_to_driver": True,
-                                      "configure_logging": False}
-            if address:
-                ray.init(address=address, **kwargs)
-            else:
-                ray.init(num_cpus=max(num_actors, 1) + 1, **kwargs)
-        env_vars = {"MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl"),
-                    "PYTHONPATH": os.pathsep.join(
-                        [os.path.dirname(os.path.dirname(os.path.dirname(
-                            os.path.abspath(__file__))))]
-                        + ([os.environ["PYTHONPATH"]] if os.environ.get("PYTHONPATH") else []))}
-        remote_cls = ray.remote(num_cpus=1, runtime_env={"env_vars": env_vars})(_RayActor)
+        connect(address, num_cpus=None if address else max(num_actors, 1) + 1,
+                log_to_driver=True)
+        remote_cls = remote(_RayActor, num_cpus=1)
         self._actors = [remote_cls.remote(config, i) for i in range(num_actors)]
         self._weights_ref = None
         self._version = 0

@@ -108,6 +108,7 @@ from __future__ import annotations
 import numpy as np
 
 from abstract_planners.base import Subgoal
+from envs.core import episode_seed
 # The inputs and outputs, and the auxiliary task, live in modules of their
 # own; every name stays importable from here.
 from hier_agents.baselines.impala.agent_env_spec import (  # noqa: F401
@@ -212,8 +213,13 @@ class AgentEnv(SubEpisodeMixin):
 
     # -- API --------------------------------------------------------------------------------
 
-    def reset(self) -> dict[str, np.ndarray]:
-        """Starts a new episode; returns its first observation."""
+    def reset(self, episode: int | None = None) -> dict[str, np.ndarray]:
+        """Starts a new episode; returns its first observation. With
+        ``episode``, it is episode ``episode`` of the run's seed
+        (`envs.Environment.seed`: the same draws whatever came before)."""
+        if episode is not None:
+            self.env.seed(self.seed, episode=episode)
+            self._episode = int(episode) - 1
         timestep = self.timestep = self.env.reset()
         self._episode += 1
         self._return, self._steps = 0.0, 0
@@ -222,7 +228,7 @@ class AgentEnv(SubEpisodeMixin):
             self._issued = self._reached = self._unplanned = 0
             seed = None
             if self.seed is not None:
-                seed = int(np.random.SeedSequence([self.seed, self._episode]).generate_state(1)[0])
+                seed = episode_seed(self.seed, self._episode)
             self.planner.reset(seed)
             self.estimator.reset(self.env.description(), timestep)
             self._start_subepisode(timestep)

@@ -58,21 +58,20 @@ def parse_random(spec: str) -> int:
     return value
 
 
-def _play_episodes(desc: str, episodes: int, progress: bool, play_one, close,
+def _play_episodes(desc: str, indices, progress: bool, play_one, close,
                    on_rows=None) -> list[dict]:
-    """``play_one(episode) -> row`` for every episode, each row given its
-    ``wall_s``, under a progress bar; ``on_rows(rows)`` (if given) after every
-    episode with the rows so far; ``close()`` runs at the end, even on an
-    error."""
+    """``play_one(episode) -> row`` for every episode index in ``indices``,
+    each row given its ``wall_s``, under a progress bar; ``on_rows(rows)``
+    (if given) after every episode with the rows so far; ``close()`` runs at
+    the end, even on an error."""
     from tqdm import tqdm
     rows = []
-    bar = tqdm(total=episodes, unit="episode", desc=desc, file=sys.stderr, disable=not progress)
+    indices = list(indices)
+    bar = tqdm(total=len(indices), unit="episode", desc=desc, file=sys.stderr,
+               disable=not progress)
     try:
-        for episode in range(episodes):
-            start = time.perf_counter()
-            row = play_one(episode)
-            row["wall_s"] = time.perf_counter() - start
-            rows.append(row)
+        for episode in indices:
+            rows.append(play_one(episode))
             bar.update(1)
             if on_rows is not None:
                 on_rows(rows)
@@ -82,48 +81,156 @@ def _play_episodes(desc: str, episodes: int, progress: bool, play_one, close,
     return rows
 
 
-def play_random(env_name: str, episodes: int, seed: int = 0, *, hold: int = 1,
-                progress: bool = True, on_rows=None) -> tuple[list[dict], dict]:
-    """Uniformly random actions, a new draw every ``hold`` steps (cameras off);
-    ``on_rows(rows)`` after every episode (as `play_checkpoint`)."""
+class RandomPlayer:
+    """Uniformly random actions in ``env_name`` (cameras off), a new draw every
+    ``hold`` control steps. ``play(episode)`` plays episode ``episode`` of
+    seed ``seed`` (`envs.episode_seed`: environment and action draws), so
+    episodes give the same rows in any order or process; ``info`` describes
+    the agent; ``close()`` frees the environment."""
 
-    import envs
-    from hier_agents.modular.components import family
+    def __init__(self, env_name: str, seed: int = 0, hold: int = 1):
+        import envs
+        from hier_agents.modular.components import family
 
-    fam = family(env_name)
-    env = envs.load(env_name, seed=seed, **envs.no_cameras(env_name))
-    spec = env.action_spec()
-    low, high = np.broadcast_to(spec.minimum, spec.shape), np.broadcast_to(spec.maximum, spec.shape)
-    rng = np.random.default_rng(seed)
+        self.fam, self.seed, self.hold = family(env_name), int(seed), int(hold)
+        self.env = envs.load(env_name, seed=seed, **envs.no_cameras(env_name))
+        spec = self.env.action_spec()
+        self._low = np.broadcast_to(spec.minimum, spec.shape)
+        self._high = np.broadcast_to(spec.maximum, spec.shape)
+        self.info = {"condition": f"uniform random actions, held {plural(hold, 'step')}",
+                     "trained_env": "-", "training_frames": 0, "training_updates": 0}
 
-    def one(episode: int) -> dict:
+    def play(self, episode: int, frames=None) -> dict:
+        from envs.core import episode_seed
+
+        start = time.perf_counter()
+        env = self.env
+        env.seed(self.seed, episode=episode)
+        rng = np.random.default_rng([episode_seed(self.seed, episode), _ACTIONS])
         timestep = env.reset()
         ret, steps = 0.0, 0
         while not timestep.last():
-            if steps % hold == 0:
-                action = rng.uniform(low, high)
+            if steps % self.hold == 0:
+                action = rng.uniform(self._low, self._high)
             timestep = env.step(action)
             ret += float(timestep.reward)
             steps += 1
         return _outcome_row({"episode": episode, "return": ret, "steps": steps,
-                             "subgoals_issued": 0, "subgoals_reached": 0}, env.task, fam)
+                             "subgoals_issued": 0, "subgoals_reached": 0,
+                             "wall_s": time.perf_counter() - start}, env.task, self.fam)
 
-    rows = _play_episodes(f"{env_name} random", episodes, progress, one, env.close, on_rows)
-    return rows, {"condition": f"uniform random actions, held {plural(hold, 'step')}",
-                  "trained_env": "-", "training_frames": 0, "training_updates": 0}
+    def close(self) -> None:
+        self.env.close()
+
+
+#: Mixed into the seed of a random agent's action draws (distinct from the environment's).
+_ACTIONS = 0x61637473
+
+
+def play_random(env_name: str, episodes: int, seed: int = 0, *, hold: int = 1,
+                progress: bool = True, on_rows=None,
+                first_episode: int = 0) -> tuple[list[dict], dict]:
+    """`RandomPlayer` on episodes ``first_episode`` .. ``first_episode +
+    episodes - 1``; ``on_rows(rows)`` after every episode (as `play_checkpoint`)."""
+    player = RandomPlayer(env_name, seed, hold)
+    rows = _play_episodes(f"{env_name} random", range(first_episode, first_episode + episodes),
+                          progress, player.play, player.close, on_rows)
+    return rows, player.info
+
+
+class CheckpointPlayer:
+    """A trained checkpoint's policy (its mean, or samples with ``stochastic``)
+    in ``env_name``, built as it was trained (`play_checkpoint` has the
+    arguments and errors). ``play(episode, frames=None)`` plays episode
+    ``episode`` of seed ``seed`` (environment, planner and samples seeded
+    from `envs.episode_seed`), appending the main camera's 256x256 frames
+    to ``frames`` if given; ``info`` describes the agent; ``close()``."""
+
+    def __init__(self, env_name: str, path: str, seed: int = 0, *, stochastic: bool = False,
+                 env_options: dict | None = None):
+        import torch
+
+        import envs
+        from hier_agents.modular.components import family
+        from hier_agents.baselines.impala.agent_env import AgentEnv
+        from hier_agents.baselines.impala.learner import (load_checkpoint, net_from_checkpoint,
+                                                          observed)
+
+        ckpt = load_checkpoint(path)
+        config = ckpt["config"]
+        self.fam, self.seed, self.stochastic = family(env_name), int(seed), bool(stochastic)
+        if family(config["env"]) != self.fam:
+            raise UsageError(f"checkpoint {path} was trained on {config['env']!r}, a "
+                             f"{family(config['env'])} environment; cannot play {env_name!r}")
+        overrides = {**config.get("env_overrides", {}), **(env_options or {})}
+        try:
+            envs.check(env_name, seed=seed, **overrides)
+        except (TypeError, ValueError) as exc:
+            raise UsageError(f"{env_name}: {exc}") from None
+        self.net, spec = net_from_checkpoint(ckpt)
+        torch.set_num_threads(1)
+        self.env = AgentEnv(env_name, config["condition"], seed=seed, cameras=config["cameras"],
+                            image_size=config["image_size"], state=config.get("state", False),
+                            t_abs=config["t_abs"], abs_reward=config["abs_reward"], **overrides)
+        if self.env.input_spec != spec:
+            self.env.close()
+            raise UsageError(f"{env_name!r} gives inputs {self.env.input_spec}, the checkpoint "
+                             f"expects {spec}")
+        observations, privileged = observed(config, spec)
+        self.info = {"condition": config["condition"] + (" (sampled)" if stochastic else ""),
+                     "trained_env": config["env"],
+                     "training_frames": int(ckpt["counters"].get("frames", 0)),
+                     "training_updates": int(ckpt["counters"].get("updates", 0)),
+                     "observations": observations, "privileged": privileged}
+
+    def play(self, episode: int, frames=None) -> dict:
+        import torch
+
+        from envs.core import episode_seed
+
+        start = time.perf_counter()
+        env, net = self.env, self.net
+        generator = torch.Generator().manual_seed(episode_seed(self.seed, episode))
+        obs = env.reset(episode=episode)
+        state = net.initial_state(1)
+        first = np.ones(1, dtype=bool)
+        ret, steps, info = 0.0, 0, {}
+        while True:
+            if frames is not None:
+                frames.append(env.env.render(env.env.task.main_camera, 256, 256))
+            batch = {k: v[None] for k, v in obs.items()}
+            action, _, state = net.act(batch, first, state,
+                                       deterministic=not self.stochastic, generator=generator)
+            result = env.step(action[0])
+            ret += float(result.reward_env)
+            steps += 1
+            first[0] = False
+            obs = result.obs
+            if result.last:
+                info = result.info
+                break
+        row = {"episode": episode, "return": ret, "steps": steps,
+               "subgoals_issued": int(info.get("subgoals_issued", 0)),
+               "subgoals_reached": int(info.get("subgoals_reached", 0)),
+               "wall_s": time.perf_counter() - start}
+        return _outcome_row(row, env.env.task, self.fam)
+
+    def close(self) -> None:
+        self.env.close()
 
 
 def play_checkpoint(env_name: str, path: str, episodes: int, seed: int = 0, *,
                     stochastic: bool = False, video: str | None = None,
                     progress: bool = True, env_options: dict | None = None,
-                    on_rows=None) -> tuple[list[dict], dict]:
-    """Plays ``episodes`` episodes of the checkpoint's policy in ``env_name``.
+                    on_rows=None, first_episode: int = 0) -> tuple[list[dict], dict]:
+    """Plays episodes ``first_episode`` .. ``first_episode + episodes - 1`` of
+    the checkpoint's policy in ``env_name`` (`CheckpointPlayer`).
 
     Args:
       env_name: an environment of the family the checkpoint was trained on.
       path: the checkpoint file or its run directory.
       episodes, seed: episodes to play; seed of the environment (and of the
-        samples with ``stochastic``).
+        samples with ``stochastic``), per episode (`envs.episode_seed`).
       stochastic: sample actions instead of playing the mean.
       video: write the first episode's main camera (256x256, 20 fps) here.
       progress: a progress bar on stderr.
@@ -145,70 +252,16 @@ def play_checkpoint(env_name: str, path: str, episodes: int, seed: int = 0, *,
         another family's; an unknown or bad option; options that change the
         network's inputs.
     """
-    import torch
+    player = CheckpointPlayer(env_name, path, seed, stochastic=stochastic,
+                              env_options=env_options)
+    frames = [] if video else None
 
-    import envs
-    from hier_agents.modular.components import family
-    from hier_agents.baselines.impala.agent_env import AgentEnv
-    from hier_agents.baselines.impala.learner import (load_checkpoint, net_from_checkpoint,
-                                                      observed)
+    def one(episode):
+        return player.play(episode, frames if episode == first_episode else None)
 
-    ckpt = load_checkpoint(path)
-    config = ckpt["config"]
-    fam = family(env_name)
-    if family(config["env"]) != fam:
-        raise UsageError(f"checkpoint {path} was trained on {config['env']!r}, a "
-                         f"{family(config['env'])} environment; cannot play {env_name!r}")
-    overrides = {**config.get("env_overrides", {}), **(env_options or {})}
-    try:
-        envs.check(env_name, seed=seed, **overrides)
-    except (TypeError, ValueError) as exc:
-        raise UsageError(f"{env_name}: {exc}") from None
-    net, spec = net_from_checkpoint(ckpt)
-    torch.set_num_threads(1)
-    env = AgentEnv(env_name, config["condition"], seed=seed, cameras=config["cameras"],
-                   image_size=config["image_size"], state=config.get("state", False),
-                   t_abs=config["t_abs"], abs_reward=config["abs_reward"], **overrides)
-    if env.input_spec != spec:
-        env.close()
-        raise UsageError(f"{env_name!r} gives inputs {env.input_spec}, the checkpoint expects "
-                         f"{spec}")
-    generator = torch.Generator().manual_seed(seed)
-    frames = []
-
-    def one(episode: int) -> dict:
-        obs = env.reset()
-        state = net.initial_state(1)
-        first = np.ones(1, dtype=bool)
-        ret, steps, info = 0.0, 0, {}
-        while True:
-            if video and episode == 0:
-                frames.append(env.env.render(env.env.task.main_camera, 256, 256))
-            batch = {k: v[None] for k, v in obs.items()}
-            action, _, state = net.act(batch, first, state,
-                                       deterministic=not stochastic, generator=generator)
-            result = env.step(action[0])
-            ret += float(result.reward_env)
-            steps += 1
-            first[0] = False
-            obs = result.obs
-            if result.last:
-                info = result.info
-                break
-        row = {"episode": episode, "return": ret, "steps": steps,
-               "subgoals_issued": int(info.get("subgoals_issued", 0)),
-               "subgoals_reached": int(info.get("subgoals_reached", 0))}
-        return _outcome_row(row, env.env.task, fam)
-
-    rows = _play_episodes(f"{env_name} checkpoint", episodes, progress, one, env.close,
-                          on_rows)
+    rows = _play_episodes(f"{env_name} checkpoint", range(first_episode, first_episode + episodes),
+                          progress, one, player.close, on_rows)
     if video and frames:
         import imageio.v2 as imageio
         imageio.mimwrite(video, frames, fps=20, macro_block_size=1)
-    observations, privileged = observed(config, spec)
-    info = {"condition": config["condition"] + (" (sampled)" if stochastic else ""),
-            "trained_env": config["env"],
-            "training_frames": int(ckpt["counters"].get("frames", 0)),
-            "training_updates": int(ckpt["counters"].get("updates", 0)),
-            "observations": observations, "privileged": privileged}
-    return rows, info
+    return rows, player.info

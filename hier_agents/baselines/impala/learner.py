@@ -14,7 +14,10 @@
    run directory's ``scalars.jsonl`` and TensorBoard); save ``checkpoint.pt``
    every ``checkpoint_every_s`` seconds, at the end and on Ctrl-C (with
    ``keep_checkpoints``, also a copy ``checkpoints/frames-N.pt`` each time,
-   for learning curves: `benchmarks/learning_curve.py`).
+   for learning curves: `benchmarks/learning_curve.py`); with ``save_at``,
+   a kept copy ``checkpoints/frames-B.pt`` exactly at each budget B (updates
+   are cut so the frame count meets it: evaluation at equal budgets,
+   `hier_agents.compare`).
 
 Frames are environment control steps consumed by the learner. The budget
 ``steps`` is met exactly when it is a multiple of ``unroll_length`` (else
@@ -90,6 +93,7 @@ class TrainConfig:
     seed: int = 0
     checkpoint_every_s: float = 300.0
     keep_checkpoints: bool = False
+    save_at: tuple = ()  # frame counts at which a kept checkpoint frames-N.pt is saved
     log_every_s: float = 10.0
     progress: bool = True
     env_overrides: dict = dataclasses.field(default_factory=dict)
@@ -116,6 +120,11 @@ class TrainConfig:
             raise UsageError(f"batch_size must be >= 1, got {self.batch_size!r}")
         if int(self.seed) < 0:
             raise UsageError(f"seed must be >= 0, got {self.seed!r}")
+        for budget in self.save_at:
+            if int(budget) < 1 or int(budget) > self.steps or int(budget) % self.unroll_length:
+                raise UsageError(f"save_at {budget!r}: each must be a multiple of the unroll "
+                                 f"length ({self.unroll_length}) within the budget "
+                                 f"({self.steps} frames)")
         if self.steps < self.unroll_length:
             raise UsageError(f"a budget of {plural(self.steps, 'frame')} is less than one unroll "
                              f"of {plural(self.unroll_length, 'frame')}: give --frames >= "
@@ -374,11 +383,13 @@ def _loop(config, run: RunDir, net, optimizer, spec, counters, recent, batch_siz
         actors.publish(net)
     published = 1  # weights versions published to the actors in this process
 
-    def save():
+    save_at = sorted({int(b) for b in config.save_at})
+
+    def save(keep: bool = config.keep_checkpoints):
         run.save({"format": 1, "model": net.state_dict(), "optimizer": optimizer.state_dict(),
                   "counters": dict(counters, recent_episodes=list(recent)),
                   "input_spec": dataclasses.asdict(spec)},
-                 keep=f"frames-{int(counters['frames'])}" if config.keep_checkpoints else None)
+                 keep=f"frames-{int(counters['frames'])}" if keep else None)
 
     bar = run.progress(config.steps, counters["frames"], desc=f"{config.env} {config.condition}",
                        unit="frame", disable=not config.progress)
@@ -391,8 +402,10 @@ def _loop(config, run: RunDir, net, optimizer, spec, counters, recent, batch_siz
     with run.interruptible():
         try:
             while counters["frames"] < config.steps and not run.stop_requested:
-                # The last update takes only the unrolls the budget still needs.
-                take = min(batch_size, math.ceil((config.steps - counters["frames"])
+                # An update takes only the unrolls the budget, or the next
+                # save_at point, still needs.
+                target = min([b for b in save_at if b > counters["frames"]] + [config.steps])
+                take = min(batch_size, math.ceil((target - counters["frames"])
                                                  / config.unroll_length))
                 _gather(actors, pending, take, counters, recent, run)
                 if run.stop_requested:  # the partial batch is dropped
@@ -418,14 +431,17 @@ def _loop(config, run: RunDir, net, optimizer, spec, counters, recent, batch_siz
                     fps = (counters["frames"] - frames_at_log) / max(now - last_log, 1e-9)
                     run.log(counters["frames"], _scalars(stats, counters, recent, fps, lags))
                     last_log, frames_at_log, lags = now, counters["frames"], []
-                if now - last_ckpt >= config.checkpoint_every_s:
+                if counters["frames"] in save_at and counters["frames"] < config.steps:
+                    save(keep=True)
+                    last_ckpt = now
+                elif now - last_ckpt >= config.checkpoint_every_s:
                     save()
                     last_ckpt = now
         finally:
             bar.close()
             actors.close()
             counters["wall_s"] = wall0 + (time.perf_counter() - start)
-            save()
+            save(keep=config.keep_checkpoints or counters["frames"] in save_at)
     if run.stop_requested:
         print(f"interrupted: checkpoint saved at {plural(counters['frames'], 'frame')}; run "
               f"the same command to resume", file=sys.stderr)

@@ -1,0 +1,247 @@
+"""Running an experiment's jobs: a local pool of job processes, or a Ray cluster.
+
+`run_jobs` is the scheduler both share: it skips jobs whose record is in the
+cache (a train job also needs its checkpoints on disk if an unfinished
+evaluation needs them), starts a job once the jobs it needs are done and its
+CPUs are free, stores each result as it arrives, retries a failed job
+(``retries`` times), and prints a line per start and end with the count
+done. Every job runs in its own process (``python -m
+hier_agents.compare.jobs``), which dies with its parent.
+
+* ``local``: up to ``cpus`` CPUs of this machine (default: all), a job taking
+  its ``cpus`` (a train job its actors, an evaluation one).
+* ``ray``: each job is a Ray task with ``num_cpus`` its CPUs, on the cluster
+  at ``ray_address`` (``auto``: the one ``ray start`` made). A task whose
+  worker or node dies is retried by Ray (``max_retries``); the cache folder
+  must be one every node sees (a shared filesystem) when training jobs run
+  on other machines than their evaluations.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+from hier_agents.compare.jobs import Job, artifacts_present, load_record, store_record
+
+_ROOT = Path(__file__).resolve().parents[2]
+
+
+class JobFailed(RuntimeError):
+    """A job failed after its retries."""
+
+
+def _die_with_parent() -> None:  # pragma: no cover - runs in the child before exec
+    try:
+        import ctypes
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    except OSError:
+        pass
+
+
+def job_process(job: Job, cache: Path, log: Path) -> tuple[int, float]:
+    """Runs ``job`` in a child process (output appended to ``log``); returns
+    its exit status and the CPU seconds it and its children used."""
+    cache = Path(cache)
+    log.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.NamedTemporaryFile("w", suffix=".json", delete=False,
+                                     dir=cache) as f:
+        json.dump(job.to_json(), f)
+        spec_file = f.name
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (str(_ROOT), env.get("PYTHONPATH")) if p)
+    env.setdefault("MUJOCO_GL", "egl")
+    try:
+        with open(log, "a") as out:
+            proc = subprocess.Popen([sys.executable, "-m", "hier_agents.compare.jobs",
+                                     spec_file, str(cache)], stdout=out, stderr=out, env=env,
+                                    preexec_fn=_die_with_parent)
+            _, status, usage = os.wait4(proc.pid, 0)
+            proc.returncode = os.waitstatus_to_exitcode(status)
+    finally:
+        os.unlink(spec_file)
+    return proc.returncode, usage.ru_utime + usage.ru_stime
+
+
+def _ray_task(job_json: dict, cache: str) -> dict:  # pragma: no cover - runs on Ray workers
+    job = Job.from_json(job_json)
+    log = Path(cache) / "logs" / f"{job.key}.log"
+    status, _ = job_process(job, Path(cache), log)
+    if status != 0:
+        raise JobFailed(f"{job.describe()} exited with status {status}; see {log}")
+    record = load_record(Path(cache), job.key)
+    if record is None:
+        raise JobFailed(f"{job.describe()} wrote no record")
+    import ray
+    record["ray_node"] = ray.get_runtime_context().get_node_id()
+    return record
+
+
+def run_jobs(jobs: list[Job], cache: Path, *, backend: str = "local", cpus: int | None = None,
+             ray_address: str | None = None, retries: int = 1, progress=print) -> dict:
+    """Runs every job not already in the cache; returns key -> record.
+
+    Raises:
+      JobFailed: some jobs failed after their retries (the message lists
+        them; every other job's record is stored).
+    """
+    cache = Path(cache)
+    (cache / "jobs").mkdir(parents=True, exist_ok=True)
+    by_key = {job.key: job for job in jobs}
+    records, evals, trains = {}, [], []
+    needed_trains = set()
+    for job in jobs:
+        record = load_record(cache, job.key)
+        if record is not None and job.kind == "eval":
+            records[job.key] = record
+        elif job.kind == "eval":
+            evals.append(job)
+            needed_trains.update(job.deps)
+    for job in jobs:
+        if job.kind != "train":
+            continue
+        record = load_record(cache, job.key)
+        if record is not None and (job.key not in needed_trains
+                                   or artifacts_present(cache, job)):
+            records[job.key] = record
+        else:
+            trains.append(job)
+    todo = trains + evals
+    total, done = len(todo), 0
+    cached = len(jobs) - total
+    progress(f"{len(jobs)} jobs: {cached} in the cache ({cache}), {total} to run"
+             + (f" on {backend}" if total else ""))
+    if not todo:
+        return records
+    failed: dict[str, str] = {}
+    starts = {}
+
+    def ready(job):
+        return all(d in records for d in job.deps)
+
+    def blocked(job):
+        return any(d in failed for d in job.deps)
+
+    def finished(job, record, error=None):
+        nonlocal done
+        done += 1
+        took = time.perf_counter() - starts.get(job.key, time.perf_counter())
+        if error is None:
+            records[job.key] = record
+            progress(f"[{done}/{total}] done   {job.describe()} ({took:,.0f} s)")
+        else:
+            failed[job.key] = error
+            progress(f"[{done}/{total}] FAILED {job.describe()}: {error}")
+
+    if backend == "ray":
+        _run_ray(todo, cache, cpus, ray_address, retries, ready, blocked, finished, starts,
+                 progress)
+    else:
+        _run_local(todo, cache, cpus or os.cpu_count() or 1, retries, ready, blocked,
+                   finished, starts, progress)
+    if failed:
+        lines = "; ".join(f"{by_key[k].describe()}: {v}" for k, v in failed.items())
+        raise JobFailed(f"{len(failed)} of {total} jobs failed: {lines}")
+    return records
+
+
+def _skip_blocked(pending, blocked, finished) -> None:
+    for job in [j for j in pending if blocked(j)]:
+        pending.remove(job)
+        finished(job, None, "a job it needs failed")
+
+
+def _run_local(todo, cache, slots, retries, ready, blocked, finished, starts, progress):
+    pending = list(todo)
+    running: dict[str, threading.Thread] = {}
+    results: dict[str, tuple[int, float]] = {}
+    lock = threading.Condition()
+    attempts: dict[str, int] = {}
+    used = 0
+
+    def work(job):
+        status = job_process(job, cache, cache / "logs" / f"{job.key}.log")
+        with lock:
+            results[job.key] = status
+            lock.notify_all()
+
+    while pending or running:
+        with lock:
+            for key in [k for k in running if k in results]:
+                thread = running.pop(key)
+                thread.join()
+                job = next(j for j in todo if j.key == key)
+                used -= min(job.cpus, slots)
+                status, _ = results.pop(key)
+                record = load_record(cache, key) if status == 0 else None
+                if record is not None:
+                    finished(job, record)
+                elif attempts[key] <= retries:
+                    progress(f"retrying {job.describe()} (exit status {status}; log "
+                             f"{cache / 'logs' / (key + '.log')})")
+                    pending.insert(0, job)
+                else:
+                    finished(job, None, f"exit status {status}; log {cache / 'logs' / key}.log")
+            _skip_blocked(pending, blocked, finished)
+            for job in list(pending):
+                need = min(job.cpus, slots)
+                if ready(job) and used + need <= slots:
+                    pending.remove(job)
+                    used += need
+                    attempts[job.key] = attempts.get(job.key, 0) + 1
+                    starts.setdefault(job.key, time.perf_counter())
+                    progress(f"start  {job.describe()}")
+                    thread = threading.Thread(target=work, args=(job,), daemon=True)
+                    running[job.key] = thread
+                    thread.start()
+            if not running and pending and not any(ready(j) for j in pending):
+                for job in pending:
+                    finished(job, None, "its dependencies never finished")
+                pending.clear()
+            if running:
+                lock.wait(timeout=5.0)
+
+
+def _run_ray(todo, cache, cpus, address, retries, ready, blocked, finished, starts, progress):
+    from hier_agents.cluster import connect, remote
+
+    ray = connect(address, num_cpus=cpus)
+    task = remote(_ray_task)
+    pending = list(todo)
+    running = {}
+    attempts: dict[str, int] = {}
+    while pending or running:
+        _skip_blocked(pending, blocked, finished)
+        for job in [j for j in pending if ready(j)]:
+            pending.remove(job)
+            attempts[job.key] = attempts.get(job.key, 0) + 1
+            starts.setdefault(job.key, time.perf_counter())
+            progress(f"start  {job.describe()}")
+            ref = task.options(num_cpus=job.cpus, max_retries=3,
+                               retry_exceptions=False).remote(job.to_json(), str(cache))
+            running[ref] = job
+        if not running:
+            for job in pending:
+                finished(job, None, "its dependencies never finished")
+            break
+        done_refs, _ = ray.wait(list(running), num_returns=1, timeout=10.0)
+        for ref in done_refs:
+            job = running.pop(ref)
+            try:
+                record = ray.get(ref)
+            except Exception as exc:  # noqa: BLE001 - a failed task, reported below
+                if attempts[job.key] <= retries:
+                    progress(f"retrying {job.describe()} ({type(exc).__name__})")
+                    pending.insert(0, job)
+                else:
+                    finished(job, None, f"{type(exc).__name__}: {str(exc).splitlines()[0]}")
+                continue
+            store_record(cache, record)  # the driver's copy
+            finished(job, record)

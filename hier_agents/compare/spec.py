@@ -1,0 +1,276 @@
+"""Experiment specs: a TOML file naming environments, agents, budgets, seeds and
+episodes, checked and planned into jobs (`hier_agents.compare.jobs.Job`).
+
+A spec (all keys but ``name`` and ``agent`` optional)::
+
+    name = "mujoban"                      # names the cache folder and outputs
+    description = "modular against end-to-end on MuJoBan levels 1 and 2"
+    cache = "../results/compare/mujoban"  # relative to the spec file
+    envs = ["mujoban/level1", "mujoban/level2"]
+    seeds = [0, 1, 2]
+    episodes = 100                        # evaluation episodes per seed and point
+    shard_episodes = 50                   # episodes per evaluation job
+
+    [[agent]]
+    label = "modular: scripted"           # short: the table's and the plot's
+    modular = {}                          # planner/skill/estimator (NAME[:ARG])
+
+    [[agent]]
+    label = "e2e vanilla: state"
+    train = { condition = "vanilla", observations = "proprio", state = true }
+    budgets = [250_000, 500_000, 1_000_000]
+
+    [[agent]]
+    label = "random, held 10"
+    random = 10
+
+An agent has exactly one of ``modular`` (a table of ``planner``, ``skill``,
+``estimator``: `hier_agents.modular.components.resolve` names), ``train``
+(flags of ``python -m hier_agents.train`` with ``_`` for ``-``, e.g.
+``condition``, ``observations``, ``image_size``, ``state``, ``preset``,
+``actors``, ``envs_per_actor``, ``batch_size``, ``learning_rate``; not
+``frames``, ``seed``, ``logdir``, which the plan sets) with ``budgets``
+(frame counts, each evaluated), or ``random`` (the hold, control steps per
+draw). ``envs``, ``seeds``, ``episodes`` may be overridden per agent. Seed
+``s`` is an end-to-end run's training seed and, for every agent, the
+evaluation seed: episode ``e`` of seed ``s`` is seeded from ``(s, e)``
+(`envs.episode_seed`), so all agents meet the same levels at a seed.
+
+Every error is a `envs.cli.UsageError` naming the file, the agent and the key.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from envs import cli
+from envs.cli import UsageError
+
+#: Keys of a spec's top level and of an agent table.
+TOP_KEYS = ("name", "description", "cache", "envs", "seeds", "episodes", "shard_episodes",
+            "agent")
+AGENT_KEYS = ("label", "modular", "train", "budgets", "random", "envs", "seeds", "episodes",
+              "stochastic")
+MODULAR_KEYS = ("planner", "skill", "estimator")
+#: ``train`` keys the plan sets itself.
+PLANNED_TRAIN_KEYS = ("frames", "seed", "logdir", "save_at", "no_progress", "backend",
+                      "ray_address", "keep_checkpoints")
+
+
+@dataclass(frozen=True)
+class Agent:
+    """One agent (series) of a spec; ``kind`` is modular, train or random."""
+
+    label: str
+    kind: str
+    envs: tuple
+    seeds: tuple
+    episodes: int
+    modular: dict = field(default_factory=dict)
+    train: dict = field(default_factory=dict)
+    budgets: tuple = ()
+    hold: int = 0
+    stochastic: bool = False
+
+
+@dataclass(frozen=True)
+class Spec:
+    """A checked experiment spec (`load`)."""
+
+    name: str
+    description: str
+    path: Path
+    cache: Path
+    shard_episodes: int
+    agents: tuple
+    raw: dict
+
+    @property
+    def envs(self) -> list[str]:
+        """Every environment of the spec, in first-mention order."""
+        out = []
+        for agent in self.agents:
+            out.extend(e for e in agent.envs if e not in out)
+        return out
+
+
+def _where(path, agent=None) -> str:
+    return f"{path}" + (f", agent {agent!r}" if agent else "")
+
+
+def _unknown(keys, allowed, where: str) -> None:
+    for key in keys:
+        if key not in allowed:
+            raise UsageError(f"{where}: unknown key {key!r}{cli.close_hint(key, allowed)}; "
+                             f"allowed: {', '.join(allowed)}")
+
+
+def _ints(value, what: str, where: str, minimum: int) -> tuple:
+    values = value if isinstance(value, list) else [value]
+    if not values or any(isinstance(v, bool) or not isinstance(v, int) or v < minimum
+                         for v in values):
+        raise UsageError(f"{where}: {what} must be integers >= {minimum} (a list), got {value!r}")
+    if len(set(values)) != len(values):
+        raise UsageError(f"{where}: {what} repeats a value: {value!r}")
+    return tuple(values)
+
+
+def _int(value, what: str, where: str, minimum: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
+        raise UsageError(f"{where}: {what} must be an integer >= {minimum}, got {value!r}")
+    return value
+
+
+def _envs(value, where: str) -> tuple:
+    import envs as registry
+    if isinstance(value, str):
+        value = [value]
+    if not isinstance(value, list) or not value:
+        raise UsageError(f"{where}: envs must be a list of environment names, got {value!r}")
+    for name in value:
+        try:
+            cli.choice("environment", name, registry.names())
+        except UsageError as exc:
+            raise UsageError(f"{where}: {exc}") from None
+    return tuple(value)
+
+
+def train_argv(env: str, train: dict, *, frames: int | None = None, seed: int | None = None,
+               logdir: str | None = None, save_at=()) -> list[str]:
+    """The ``python -m hier_agents.train`` arguments of a ``train`` table
+    (``True`` values become bare flags, ``False`` ones are left out), plus the
+    planned ``frames``, ``seed``, ``logdir`` and ``save_at``."""
+    argv = [env]
+    for key in sorted(train):
+        value = train[key]
+        flag = "--" + key.replace("_", "-")
+        if value is True:
+            argv.append(flag)
+        elif value is not False:
+            argv += [flag, str(value)]
+    if frames is not None:
+        argv += ["--frames", str(frames)]
+    if seed is not None:
+        argv += ["--seed", str(seed)]
+    if logdir is not None:
+        argv += ["--logdir", str(logdir)]
+    if save_at:
+        argv += ["--save-at", *map(str, save_at)]
+    return argv
+
+
+def _check_train(env: str, train: dict, budgets: tuple, where: str) -> None:
+    from hier_agents import train as trainer
+
+    for key in train:
+        if key in PLANNED_TRAIN_KEYS:
+            raise UsageError(f"{where}: train.{key} is set by the plan (budgets, seeds, the "
+                             f"cache), not by the spec")
+        if not isinstance(train[key], (bool, int, float, str)):
+            raise UsageError(f"{where}: train.{key} must be a number, a string or a boolean")
+    try:
+        args = trainer.parse_args(train_argv(env, train, frames=max(budgets), seed=0,
+                                             save_at=budgets))
+        trainer.config_from_args(args)
+    except SystemExit:  # argparse: an unknown flag or a bad value
+        raise UsageError(f"{where}: the train table is not valid python -m hier_agents.train "
+                         f"flags: {sorted(train)}") from None
+    except UsageError as exc:
+        raise UsageError(f"{where}: {exc}") from None
+
+
+def load(path: str | Path) -> Spec:
+    """Reads and checks a spec file.
+
+    Raises:
+      UsageError: the file is missing or not TOML, a key is unknown, a value
+        is out of range, a component, environment or train flag is invalid,
+        or two agents share a label.
+    """
+    from hier_agents.modular.components import check, family
+
+    path = Path(path)
+    try:
+        raw = tomllib.loads(path.read_text())
+    except FileNotFoundError:
+        raise UsageError(f"no spec file at {path}") from None
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        raise UsageError(f"{path}: not a readable TOML spec: {exc}") from None
+    where = _where(path)
+    _unknown(raw, TOP_KEYS, where)
+    name = raw.get("name")
+    if not isinstance(name, str) or not name or "/" in name:
+        raise UsageError(f"{where}: name must be a non-empty string without '/', got {name!r}")
+    envs = _envs(raw["envs"], where) if "envs" in raw else None
+    seeds = _ints(raw.get("seeds", [0]), "seeds", where, 0)
+    episodes = _int(raw.get("episodes", 100), "episodes", where, 1)
+    shard = _int(raw.get("shard_episodes", 50), "shard_episodes", where, 1)
+    tables = raw.get("agent")
+    if not isinstance(tables, list) or not tables:
+        raise UsageError(f"{where}: give at least one [[agent]] table")
+    agents, labels = [], set()
+    for i, table in enumerate(tables):
+        if not isinstance(table, dict):
+            raise UsageError(f"{where}: agent {i + 1} is not a table")
+        label = table.get("label")
+        if not isinstance(label, str) or not label.strip():
+            raise UsageError(f"{where}: agent {i + 1} needs a label (a short name)")
+        if label in labels:
+            raise UsageError(f"{where}: two agents are labelled {label!r}")
+        labels.add(label)
+        at = _where(path, label)
+        _unknown(table, AGENT_KEYS, at)
+        kinds = [k for k in ("modular", "train", "random") if k in table]
+        if len(kinds) != 1:
+            raise UsageError(f"{at}: give exactly one of modular, train, random; got "
+                             f"{', '.join(kinds) or 'none'}")
+        kind = kinds[0]
+        agent_envs = _envs(table["envs"], at) if "envs" in table else envs
+        if agent_envs is None:
+            raise UsageError(f"{at}: no envs (give envs at the top or in the agent)")
+        common = dict(label=label, kind=kind, envs=agent_envs,
+                      seeds=_ints(table["seeds"], "seeds", at, 0) if "seeds" in table else seeds,
+                      episodes=(_int(table["episodes"], "episodes", at, 1)
+                                if "episodes" in table else episodes))
+        if "budgets" in table and kind != "train":
+            raise UsageError(f"{at}: budgets apply to train agents only")
+        if "stochastic" in table and kind != "train":
+            raise UsageError(f"{at}: stochastic applies to train agents only")
+        if kind == "modular":
+            parts = table["modular"]
+            if not isinstance(parts, dict):
+                raise UsageError(f"{at}: modular must be a table of planner/skill/estimator")
+            _unknown(parts, MODULAR_KEYS, f"{at}, modular")
+            for env in agent_envs:
+                for key, value in parts.items():
+                    try:
+                        check(key, family(env), value)
+                    except (UsageError, ValueError, FileNotFoundError) as exc:
+                        raise UsageError(f"{at}: {env}: {exc}") from None
+            agents.append(Agent(modular=dict(parts), **common))
+        elif kind == "random":
+            agents.append(Agent(hold=_int(table["random"], "random (the hold)", at, 1),
+                                **common))
+        else:
+            train = table["train"]
+            if not isinstance(train, dict):
+                raise UsageError(f"{at}: train must be a table of hier_agents.train flags")
+            if "budgets" not in table:
+                raise UsageError(f"{at}: a train agent needs budgets (frame counts to "
+                                 f"evaluate at)")
+            budgets = tuple(sorted(_ints(table["budgets"], "budgets", at, 1)))
+            for env in agent_envs:
+                _check_train(env, train, budgets, at)
+            stochastic = table.get("stochastic", False)
+            if not isinstance(stochastic, bool):
+                raise UsageError(f"{at}: stochastic must be true or false")
+            agents.append(Agent(train=dict(train), budgets=budgets, stochastic=stochastic,
+                                **common))
+    cache = raw.get("cache")
+    if cache is not None and not isinstance(cache, str):
+        raise UsageError(f"{where}: cache must be a path (a string)")
+    cache_path = (path.parent / cache) if cache else Path("runs") / "compare" / name
+    return Spec(name=name, description=str(raw.get("description", "")), path=path,
+                cache=cache_path, shard_episodes=shard, agents=tuple(agents), raw=raw)

@@ -1,0 +1,383 @@
+"""`hier_agents.compare`: specs, job keys, the cache, statistics across seeds,
+per-episode seeding and `hier_agents.run --workers`.
+
+Fast tests run jobs in this process or play a few episodes; the experiment
+killed and resumed through the real command, the Ray cluster and the
+parallel evaluation of the modular agent on Boxoban levels are slow.
+"""
+
+from __future__ import annotations
+
+import copy
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+import envs
+from envs.cli import UsageError
+from hier_agents.compare import jobs as jobs_mod
+from hier_agents.compare import report
+from hier_agents.compare.backends import run_jobs
+from hier_agents.compare.spec import load
+from hier_agents.run import run, shards
+from hier_agents.stats import bootstrap_interval, iqm
+
+ROOT = Path(__file__).resolve().parents[1]
+BOXOBAN = ROOT / "envs" / "mujoban" / "data" / "boxoban" / "unfiltered-valid-000.txt"
+
+SPEC = """
+name = "t"
+cache = "cache"
+envs = ["mujoban/level1"]
+seeds = [0, 1]
+episodes = 4
+shard_episodes = 2
+
+[[agent]]
+label = "modular"
+modular = {}
+
+[[agent]]
+label = "random 10"
+random = 10
+"""
+
+
+def write_spec(tmp_path: Path, text: str = SPEC) -> Path:
+    path = tmp_path / "spec.toml"
+    path.write_text(text)
+    return path
+
+
+def strip(rows):
+    """Rows without their wall time (the only field that differs run to run)."""
+    return [{k: v for k, v in r.items() if k != "wall_s"} for r in rows]
+
+
+# -- specs ----------------------------------------------------------------------------------
+
+
+def test_spec_plans_one_eval_job_per_shard_and_train_jobs_first(tmp_path):
+    text = SPEC + """
+[[agent]]
+label = "e2e"
+train = { observations = "proprio", state = true, actors = 1 }
+budgets = [200, 400]
+"""
+    spec = load(write_spec(tmp_path, text))
+    planned = jobs_mod.plan(spec)
+    kinds = [j.kind for j in planned]
+    assert kinds == ["train"] * 2 + ["eval"] * (2 * 2 * 2 + 2 * 2 * 2)
+    trains = planned[:2]
+    assert [t.inputs["seed"] for t in trains] == [0, 1]
+    assert all(t.inputs["frames"] == 400 and t.inputs["save_at"] == [200, 400] for t in trains)
+    evals = [j for j in planned if j.point["agent"] == "e2e" and j.kind == "eval"]
+    assert {j.deps for j in evals} == {(trains[0].key,), (trains[1].key,)}
+    firsts = sorted({j.inputs["first_episode"] for j in evals})
+    assert firsts == [0, 2] and all(j.inputs["episodes"] == 2 for j in evals)
+    assert spec.cache == tmp_path / "cache"
+    assert len({j.key for j in planned}) == len(planned)
+
+
+@pytest.mark.parametrize("edit, message", [
+    ('name = "t"', "name must be"),
+    ('episodes = 4', "episodes must be an integer >= 1"),
+    ('seeds = [0, 1]', "seeds repeats"),
+    ('envs = ["mujoban/level1"]', "unknown environment"),
+    ('modular = {}', "unknown planner"),
+    ('random = 10', "exactly one of"),
+    ('label = "random 10"', "two agents are labelled"),
+    ('shard_episodes = 2', "unknown key 'shard_episode'"),
+])
+def test_bad_specs_are_one_line_usage_errors(tmp_path, edit, message):
+    replacement = {
+        'name = "t"': 'name = ""',
+        'episodes = 4': 'episodes = 0',
+        'seeds = [0, 1]': 'seeds = [1, 1]',
+        'envs = ["mujoban/level1"]': 'envs = ["mujoban/levle1"]',
+        'modular = {}': 'modular = { planner = "sokoban-slover" }',
+        'random = 10': 'random = 10\nmodular = {}',
+        'label = "random 10"': 'label = "modular"',
+        'shard_episodes = 2': 'shard_episode = 2',
+    }[edit]
+    path = write_spec(tmp_path, SPEC.replace(edit, replacement, 1))
+    with pytest.raises(UsageError, match=message) as info:
+        load(path)
+    assert "\n" not in str(info.value)
+    assert str(path) in str(info.value)
+
+
+def test_bad_train_tables_are_refused_before_anything_runs(tmp_path):
+    base = SPEC + '\n[[agent]]\nlabel = "e2e"\nbudgets = [200]\n'
+    for train, message in [('{ frames = 10 }', "set by the plan"),
+                           ('{ condition = "expert" }', "condition"),
+                           ('{ no_such_flag = 1 }', "not valid python -m hier_agents.train")]:
+        with pytest.raises(UsageError, match=message):
+            load(write_spec(tmp_path, base + f"train = {train}\n"))
+    with pytest.raises(UsageError, match="needs budgets"):
+        load(write_spec(tmp_path, SPEC + '\n[[agent]]\nlabel = "e2e"\ntrain = {}\n'))
+    with pytest.raises(UsageError, match="multiple of the unroll"):
+        load(write_spec(tmp_path, base.replace("[200]", "[250]") + "train = {}\n"))
+
+
+def test_the_cli_refuses_a_missing_spec_in_one_line(tmp_path, capsys):
+    from hier_agents.compare.__main__ import main
+
+    with pytest.raises(SystemExit) as info:
+        main([str(tmp_path / "nope.toml")])
+    assert info.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("python -m hier_agents.compare")
+
+
+def test_shipped_specs_load():
+    for path in sorted((ROOT / "experiments").glob("*.toml")):
+        spec = load(path)
+        assert jobs_mod.plan(spec)
+        assert spec.cache.resolve().is_relative_to(ROOT)
+
+
+# -- job keys -------------------------------------------------------------------------------
+
+leaves = st.one_of(st.integers(-10**6, 10**6), st.text(max_size=8), st.booleans(),
+                   st.none(), st.floats(allow_nan=False, allow_infinity=False))
+inputs_strategy = st.dictionaries(st.text(min_size=1, max_size=6),
+                                  st.one_of(leaves, st.lists(leaves, max_size=3),
+                                            st.dictionaries(st.text(min_size=1, max_size=4),
+                                                            leaves, max_size=3)),
+                                  min_size=1, max_size=6)
+
+
+@given(inputs_strategy, st.data())
+def test_job_keys_are_stable_and_change_with_any_input(inputs, data):
+    key = jobs_mod.job_key("eval", inputs)
+    shuffled = dict(reversed(list(copy.deepcopy(inputs).items())))
+    assert jobs_mod.job_key("eval", shuffled) == key
+    assert jobs_mod.job_key("train", inputs) != key
+    assert jobs_mod.job_key("eval", inputs, ("a" * 20,)) != key
+    name = data.draw(st.sampled_from(sorted(inputs)))
+    changed = copy.deepcopy(inputs)
+    changed[name] = [changed[name], "changed"]
+    assert jobs_mod.job_key("eval", changed) != key
+    smaller = {k: v for k, v in inputs.items() if k != name}
+    assert jobs_mod.job_key("eval", smaller) != key
+
+
+def test_job_keys_do_not_depend_on_the_process():
+    code = ("from hier_agents.compare.jobs import job_key; "
+            "print(job_key('eval', {'env': 'mujoban/level1', 'seed': 3, 'agent': {'b': 1, 'a': 2}}))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         cwd=ROOT, check=True, env={**os.environ, "PYTHONHASHSEED": "123"})
+    assert out.stdout.strip() == jobs_mod.job_key(
+        "eval", {"agent": {"a": 2, "b": 1}, "seed": 3, "env": "mujoban/level1"})
+
+
+def test_learned_parts_are_keyed_by_their_checkpoint_contents(tmp_path):
+    from skills.learned.ball import POLICY_PATH
+
+    shipped = jobs_mod.learned_files("mujoban/level1", {"skill": "learned-ball"})
+    assert shipped == {"skill": jobs_mod.file_hash(POLICY_PATH)}
+    copy_path = tmp_path / "ball_policy.pt"
+    copy_path.write_bytes(POLICY_PATH.read_bytes())
+    assert jobs_mod.learned_files("mujoban/level1", {"skill": f"learned-ball:{copy_path}"}) \
+        == shipped
+    assert jobs_mod.learned_files("mujoban/level1", {"skill": "ball"}) == {}
+
+
+# -- the cache ------------------------------------------------------------------------------
+
+
+def _fake_records(cache: Path, planned, which) -> None:
+    """Stores a record for each job in ``which`` as a finished job would."""
+    for job in which:
+        rows = [{"episode": e, "solved": e % 2 == 0, "steps": 10, "return": 1.0}
+                for e in range(job.inputs["first_episode"],
+                               job.inputs["first_episode"] + job.inputs["episodes"])]
+        jobs_mod.store_record(cache, {**job.to_json(), "result": {"rows": rows, "summary": {
+            "estimator": "camera", "privileged": False, "training_frames": 0}},
+            "cpu_s": 1.0, "wall_s": 1.0, "attempts": 1})
+
+
+def test_a_warm_cache_runs_nothing_and_a_partial_one_only_the_rest(tmp_path, monkeypatch):
+    spec = load(write_spec(tmp_path))
+    planned = jobs_mod.plan(spec)
+    ran = []
+    monkeypatch.setattr("hier_agents.compare.backends.job_process",
+                        lambda job, cache, log: (ran.append(job.key), _fake_records(
+                            cache, planned, [job]), (0, 0.5))[-1])
+    _fake_records(spec.cache, planned, planned[:3])
+    before = {j.key: jobs_mod.record_path(spec.cache, j.key).stat().st_mtime_ns
+              for j in planned[:3]}
+    lines = []
+    records = run_jobs(planned, spec.cache, cpus=2, progress=lines.append)
+    assert sorted(ran) == sorted(j.key for j in planned[3:])
+    assert set(records) == {j.key for j in planned}
+    assert lines[0].startswith(f"{len(planned)} jobs: 3 in the cache")
+    assert all(jobs_mod.record_path(spec.cache, k).stat().st_mtime_ns == t
+               for k, t in before.items())
+    ran.clear()
+    run_jobs(planned, spec.cache, cpus=2, progress=lines.append)
+    assert ran == []
+
+
+def test_a_train_job_whose_checkpoints_are_gone_is_run_again_when_needed(tmp_path,
+                                                                        monkeypatch):
+    text = SPEC + '\n[[agent]]\nlabel = "e2e"\ntrain = { actors = 1 }\nbudgets = [200]\n'
+    spec = load(write_spec(tmp_path, text))
+    planned = [j for j in jobs_mod.plan(spec) if j.point["agent"] == "e2e"]
+    trains = [j for j in planned if j.kind == "train"]
+    for train in trains:  # finished once, checkpoints since deleted (they are not shipped)
+        jobs_mod.store_record(spec.cache, {**train.to_json(), "result": {}})
+    # Seed 0's evaluations are all cached, seed 1's are not.
+    _fake_records(spec.cache, planned, [j for j in planned
+                                        if j.kind == "eval" and j.inputs["seed"] == 0])
+    ran = []
+
+    def fake(job, cache, log):
+        ran.append((job.kind, job.inputs["seed"]))
+        if job.kind == "train":
+            path = jobs_mod.checkpoint_of(cache, job.key, 200)
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_bytes(b"x")
+            jobs_mod.store_record(cache, {**job.to_json(), "result": {}})
+        else:
+            _fake_records(cache, planned, [job])
+        return 0, 0.0
+
+    monkeypatch.setattr("hier_agents.compare.backends.job_process", fake)
+    run_jobs(planned, spec.cache, cpus=1, progress=lambda s: None)
+    assert ran == [("train", 1), ("eval", 1), ("eval", 1)]
+    ran.clear()
+    run_jobs(planned, spec.cache, cpus=1, progress=lambda s: None)
+    assert ran == []
+
+
+def test_failed_jobs_are_retried_then_reported_and_their_dependents_skipped(tmp_path,
+                                                                           monkeypatch):
+    from hier_agents.compare.backends import JobFailed
+
+    text = SPEC + '\n[[agent]]\nlabel = "e2e"\ntrain = { actors = 1 }\nbudgets = [200]\n'
+    spec = load(write_spec(tmp_path, text))
+    planned = jobs_mod.plan(spec)
+    calls = []
+
+    def fake(job, cache, log):
+        calls.append(job.kind)
+        if job.kind == "train":
+            return 1, 0.0
+        _fake_records(cache, planned, [job])
+        return 0, 0.0
+
+    monkeypatch.setattr("hier_agents.compare.backends.job_process", fake)
+    lines = []
+    with pytest.raises(JobFailed) as info:
+        run_jobs(planned, spec.cache, cpus=2, retries=1, progress=lines.append)
+    assert str(info.value).startswith(f"6 of {len(planned)} jobs failed")
+    assert "train e2e on mujoban/level1, seed 0" in str(info.value)
+    assert calls.count("train") == 4  # two seeds, each tried twice
+    assert sum("retrying" in line for line in lines) == 2
+    assert sum("a job it needs failed" in line for line in lines) == 4  # 2 seeds x 2 shards
+    done = [j for j in planned if j.point["agent"] != "e2e"]
+    assert all(jobs_mod.load_record(spec.cache, j.key) for j in done)
+
+
+# -- statistics across seeds ----------------------------------------------------------------
+
+
+@given(st.lists(st.floats(0, 1), min_size=1, max_size=12))
+def test_bootstrap_interval_holds_the_mean_and_lies_within_the_values(values):
+    lo, hi = bootstrap_interval(values, resamples=200, seed=1)
+    mean = float(np.mean(values))
+    assert min(values) - 1e-9 <= lo <= hi <= max(values) + 1e-9
+    if len(set(values)) == 1:
+        assert lo == hi == pytest.approx(values[0])
+    assert bootstrap_interval(values, resamples=200, seed=1) == (lo, hi)
+    assert lo - 1e-9 <= mean <= hi + 1e-9 or len(values) > 2
+
+
+@given(st.lists(st.floats(-100, 100), min_size=1, max_size=40))
+def test_iqm_lies_between_the_quartiles_and_ignores_outer_quarters(values):
+    x = sorted(values)
+    m = iqm(x)
+    assert np.quantile(x, 0.25) - 1e-6 <= m <= np.quantile(x, 0.75) + 1e-6
+    if len(x) % 4 == 0:
+        n = len(x) // 4
+        assert m == pytest.approx(np.mean(x[n:3 * n]))
+        assert iqm(x[:n] * 0 + [-1e6] * n + x[n:3 * n] + [1e6] * n) == pytest.approx(m)
+
+
+def test_points_carry_per_seed_values_means_and_intervals(tmp_path):
+    spec = load(write_spec(tmp_path))
+    planned = jobs_mod.plan(spec)
+    _fake_records(spec.cache, planned, planned)
+    records = {j.key: jobs_mod.load_record(spec.cache, j.key) for j in planned}
+    pts = report.points(spec, planned, records)
+    assert [p["agent"] for p in pts] == ["modular", "random 10"]
+    for p in pts:
+        assert p["seeds"] == [0, 1] and p["per_seed"] == [0.5, 0.5]
+        assert p["mean"] == 0.5 and p["mean_interval"] == [0.5, 0.5] and p["iqm"] == 0.5
+        assert p["missing_seeds"] == []
+    # A seed with a missing shard is left out of its point, and named.
+    del records[next(j.key for j in planned if j.inputs["seed"] == 1)]
+    first = report.points(spec, planned, records)[0]
+    assert first["seeds"] == [0] and first["missing_seeds"] == [1]
+    costs = report.series_cost(spec, planned, records)
+    assert {c["agent"] for c in costs} == {"modular", "random 10"}
+    table = report.format_table(spec, pts, costs)
+    assert "mujoban/level1" in table and "random 10" in table
+    report.plot(spec, pts, tmp_path / "p.png")
+    assert (tmp_path / "p.png").stat().st_size > 1000
+
+
+# -- per-episode seeding and parallel evaluation ----------------------------------------------
+
+
+def test_an_episode_seeded_by_index_does_not_depend_on_the_episodes_before(tmp_path):
+    env = envs.load("mujoban/level1", seed=0, **envs.no_cameras("mujoban/level1"))
+    try:
+        firsts = {}
+        for order in ([0, 1, 2], [2, 0, 1]):
+            for episode in order:
+                env.seed(7, episode=episode)
+                obs = env.reset().observation
+                key = tuple(sorted((k, v.tobytes()) for k, v in obs.items()))
+                firsts.setdefault(episode, set()).add(key)
+        assert all(len(v) == 1 for v in firsts.values())
+        assert len({next(iter(v)) for v in firsts.values()}) == 3
+    finally:
+        env.close()
+    files = envs.load("mujoban/level5", levels=str(BOXOBAN),
+                      **envs.no_cameras("mujoban/level5"))
+    try:
+        files.seed(0, episode=5)
+        files.reset()
+        fifth = files.task.level
+        files.seed(0, episode=0)
+        for _ in range(6):
+            files.reset()
+        assert files.task.level == fifth
+    finally:
+        files.close()
+
+
+def test_shards_cover_every_episode_once_in_order():
+    for n in (1, 5, 17, 200):
+        for workers in (1, 2, 3, 8):
+            pieces = shards(list(range(10, 10 + n)), workers)
+            assert [e for p in pieces for e in p] == list(range(10, 10 + n))
+            assert all(pieces)
+
+
+def test_two_workers_give_the_rows_of_one(tmp_path):
+    one = run("mujoban/level1", 6, 3, agent="random:10", progress=False)
+    two = run("mujoban/level1", 6, 3, agent="random:10", progress=False, workers=2)
+    assert strip(one["rows"]) == strip(two["rows"])
+    assert one["success_rate"] == two["success_rate"]
+    tail = run("mujoban/level1", 3, 3, agent="random:10", progress=False, first_episode=3)
+    assert strip(tail["rows"]) == strip(one["rows"][3:])
