@@ -106,7 +106,7 @@ def learner_frames_per_s(args) -> dict:
                              actors=args.actors, envs_per_actor=args.envs_per_actor,
                              backend=args.backend, logdir=logdir,
                              batch_size=args.batch_size, cameras=args.cameras,
-                             seed=args.seed, log_every_s=2.0, checkpoint_every_s=1e9,
+                             state=args.state, seed=args.seed, log_every_s=2.0, checkpoint_every_s=1e9,
                              progress=False)
         start = time.perf_counter()
         counters = train(config)
@@ -137,6 +137,9 @@ def _main(argv=None) -> int:
     parser.add_argument("--batch-size", type=cli.positive_int, default=None)
     parser.add_argument("--backend", default="local", help="local or ray")
     parser.add_argument("--cameras", action="store_true")
+    parser.add_argument("--state", action="store_true",
+                        help="the agent also observes the abstract state (PRIVILEGED), as the "
+                             "shipped comparison's state series")
     parser.add_argument("--bare-steps", type=cli.positive_int, default=10_000,
                         help="control steps of the bare-environment measurement")
     parser.add_argument("--seed", type=cli.non_negative_int, default=0)
@@ -155,7 +158,7 @@ def _main(argv=None) -> int:
     print(f"bare {args.env} in {max(1, args.actors)} processes at once: {parallel:,.0f} "
           f"steps/s in total", flush=True)
     learner = learner_frames_per_s(args)
-    row = {"env": args.env, "agent": args.condition, "cameras": args.cameras,
+    row = {"env": args.env, "agent": args.condition, "cameras": args.cameras, "state": args.state,
            "actors": args.actors, "envs_per_actor": args.envs_per_actor,
            "backend": args.backend, "env_steps_per_s": bare, **learner,
            "ratio": learner["learner_frames_per_s"] / bare,

@@ -105,7 +105,7 @@ def target_sensitivity(path: Path, seed: int, steps: int = 300) -> float | None:
 
 
 def evaluation_curve(logdir: Path, env: str, episodes: int, seed: int,
-                     stochastic: bool) -> list[dict]:
+                     stochastic: bool, workers: int = 1) -> list[dict]:
     from hier_agents.baselines.impala.learner import CHECKPOINT, KEPT_CHECKPOINTS
     from hier_agents.run import run
 
@@ -120,7 +120,7 @@ def evaluation_curve(logdir: Path, env: str, episodes: int, seed: int,
     rows, seen = [], set()
     for path in files:
         summary = run(env, episodes, seed, agent=f"checkpoint:{path}", stochastic=stochastic,
-                      progress=False)
+                      progress=False, workers=workers)
         if summary["training_frames"] in seen:  # the final checkpoint is also kept
             continue
         seen.add(summary["training_frames"])
@@ -154,6 +154,8 @@ def _main(argv=None) -> int:
     parser.add_argument("--stochastic", action="store_true",
                         help="evaluation samples from the policy instead of taking its mean")
     parser.add_argument("--seed", type=cli.non_negative_int, default=0)
+    parser.add_argument("--workers", type=cli.positive_int, default=1,
+                        help="processes playing the evaluation episodes at once (same rows)")
     parser.add_argument("--json", type=Path, help="write the curves here")
     args = parser.parse_args(argv)
     for logdir in args.runs:
@@ -192,7 +194,7 @@ def _main(argv=None) -> int:
                   f"{_fmt(r['subgoals_reached'], '>11.2f')}")
         if args.eval_episodes:
             result["evaluation"] = evaluation_curve(logdir, config["env"], args.eval_episodes,
-                                                    args.seed, args.stochastic)
+                                                    args.seed, args.stochastic, args.workers)
             mode = "sampled" if args.stochastic else "mean action"
             print(f"evaluation ({args.eval_episodes} episodes, seed {args.seed}, {mode}):")
             print(f"{'frames':>11} {'success % [95% CI]':>22} {'return':>7} {'steps':>7} "

@@ -186,18 +186,25 @@ def env_speed(results: Path) -> list[str]:
 
 @table("learner-speed")
 def learner_speed(results: Path) -> list[str]:
-    """Actor-learner frames/s against as many bare environment processes stepping at once."""
-    s = _load(results / "learner_speed.json")
-    procs = s["actors"]
-    words = {1: "one", 2: "two", 3: "three", 4: "four"}.get(procs, str(procs))
-    return ["| run | learner frames/s | bare environment processes at once | ratio to them "
-            "| one bare process | ratio to it |",
-            "| --- | --- | --- | --- | --- | --- |",
-            f"| `{s['env']}` {s['agent']}, cameras {'on' if s['cameras'] else 'off'}, "
-            f"{procs} actors x {s['envs_per_actor']} envs ({s['backend']}) "
-            f"| {s['learner_frames_per_s']:,.0f} | {words}: {s['parallel_env_steps_per_s']:,.0f} "
-            f"steps/s | **{s['ratio_to_parallel']:.2f}** | {s['env_steps_per_s']:,.0f} steps/s "
-            f"| {s['ratio']:.2f} |"]
+    """Actor-learner frames/s against as many bare environment processes stepping at once,
+    one row per measurement (each measured in one run, side by side)."""
+    lines = ["| run | learner frames/s | bare environment processes at once | ratio to them "
+             "| one bare process | ratio to it |",
+             "| --- | --- | --- | --- | --- | --- |"]
+    for name in ("learner_speed.json", "learner_speed_state.json"):
+        if not (results / name).exists():
+            continue
+        s = _load(results / name)
+        procs = s["actors"]
+        words = {1: "one", 2: "two", 3: "three", 4: "four"}.get(procs, str(procs))
+        state = ", abstract state (privileged)" if s.get("state") else ""
+        lines.append(f"| `{s['env']}` {s['agent']}, cameras {'on' if s['cameras'] else 'off'}"
+                     f"{state}, {procs} actors x {s['envs_per_actor']} envs ({s['backend']}) "
+                     f"| {s['learner_frames_per_s']:,.0f} | {words}: "
+                     f"{s['parallel_env_steps_per_s']:,.0f} steps/s "
+                     f"| **{s['ratio_to_parallel']:.2f}** | {s['env_steps_per_s']:,.0f} steps/s "
+                     f"| {s['ratio']:.2f} |")
+    return lines
 
 
 def _level_key(path: Path):

@@ -381,3 +381,47 @@ def test_two_workers_give_the_rows_of_one(tmp_path):
     assert one["success_rate"] == two["success_rate"]
     tail = run("mujoban/level1", 3, 3, agent="random:10", progress=False, first_episode=3)
     assert strip(tail["rows"]) == strip(one["rows"][3:])
+
+
+# -- slow: the real command killed and resumed; the modular agent on Boxoban levels ------------
+
+
+@pytest.mark.slow
+def test_a_killed_experiment_resumes_without_redoing_finished_jobs(tmp_path):
+    spec = write_spec(tmp_path)
+    command = [sys.executable, "-m", "hier_agents.compare", str(spec), "--cpus", "1"]
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "MUJOCO_GL": "egl"}
+    jobs_dir = tmp_path / "cache" / "jobs"
+    proc = subprocess.Popen(command, cwd=ROOT, env=env, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL, start_new_session=True)
+    try:
+        import time
+        deadline = time.time() + 300
+        while time.time() < deadline and len(list(jobs_dir.glob("*.json"))) < 2:
+            time.sleep(0.2)
+        os.killpg(proc.pid, 9)  # the scheduler and its running job, at once
+    finally:
+        proc.wait(timeout=60)
+    finished = {p.name: p.stat().st_mtime_ns for p in jobs_dir.glob("*.json")}
+    assert 2 <= len(finished) < 8
+    out = subprocess.run(command, cwd=ROOT, env=env, capture_output=True, text=True,
+                         timeout=900)
+    assert out.returncode == 0, out.stderr[-3000:]
+    assert f"8 jobs: {len(finished)} in the cache" in out.stderr
+    assert all((jobs_dir / name).stat().st_mtime_ns == t for name, t in finished.items())
+    assert len(list(jobs_dir.glob("*.json"))) == 8
+    attempts = tmp_path / "cache" / "attempts"
+    for name in finished:  # a finished job was started once
+        assert len((attempts / name[:-5]).read_text().splitlines()) == 1
+    again = subprocess.run(command, cwd=ROOT, env=env, capture_output=True, text=True,
+                           timeout=300)
+    assert "8 jobs: 8 in the cache" in again.stderr and "is unchanged" in again.stderr
+
+
+@pytest.mark.slow
+def test_the_modular_agent_on_level_files_gives_the_same_rows_on_two_workers():
+    kwargs = dict(levels=str(BOXOBAN), progress=False)
+    one = run("mujoban/level5-pegs", 4, 0, **kwargs)
+    two = run("mujoban/level5-pegs", 4, 0, workers=2, **kwargs)
+    assert strip(one["rows"]) == strip(two["rows"])
+    assert one["subgoals"] == two["subgoals"]

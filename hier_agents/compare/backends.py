@@ -52,7 +52,7 @@ def job_process(job: Job, cache: Path, log: Path) -> tuple[int, float]:
     cache = Path(cache)
     log.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.NamedTemporaryFile("w", suffix=".json", delete=False,
-                                     dir=cache) as f:
+                                     dir=log.parent) as f:
         json.dump(job.to_json(), f)
         spec_file = f.name
     env = dict(os.environ)
