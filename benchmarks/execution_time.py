@@ -11,8 +11,8 @@ the shipped ``medium-valid-000.txt``, 100 levels) in ``mujoban/level5-pegs``
 observation-only ``camera`` estimator; ``oracle`` is privileged and says so),
 a Sokoban planner (default: MuJoBan's, the execution-time planner
 ``sokoban-solver:time``; ``sokoban-solver`` is the exact push solver) and the
-ball skill, exactly as ``python -m hier_agents.run mujoban/level5-pegs
---levels FILE`` does. Per level it records:
+ball skill, through ``hier_agents.run`` (``--workers N`` plays levels in N
+processes, with the same rows). Per level it records:
 
 * ``pushes`` / ``moves``: of the planner's first plan from the start;
 * ``features``: `abstract_planners.sokoban_time.plan_features` of that
@@ -33,7 +33,6 @@ writes ``{"provenance", "summary", "rows"}``.
 from __future__ import annotations
 
 import sys
-import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
@@ -41,7 +40,6 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from _common import cli, make_parser, prog, write_json  # noqa: E402
 
 import numpy as np  # noqa: E402
-from tqdm import tqdm  # noqa: E402
 
 import envs  # noqa: E402
 from abstract_planners.sokoban import SokobanState  # noqa: E402
@@ -50,8 +48,8 @@ from abstract_planners.sokoban_time import (DEFAULT_WEIGHTS, FEATURES, estimate_
                                             fit_weights, plan_features)
 from envs.mujoban.levels import BOXOBAN_DIR, read_levels  # noqa: E402
 from hier_agents.boundary import BoundaryEnv  # noqa: E402
-from hier_agents.modular.components import (PLANNERS, check, env_overrides,  # noqa: E402
-                                            is_privileged, make_agent)
+from hier_agents.modular.components import PLANNERS, check, is_privileged, resolve  # noqa: E402
+from hier_agents.run import run  # noqa: E402
 from hier_agents.stats import wilson_interval  # noqa: E402
 
 PROG = prog(__file__)
@@ -59,33 +57,31 @@ PROG = prog(__file__)
 DEFAULT_LEVELS = BOXOBAN_DIR / "medium-valid-000.txt"
 
 
-def run_level(view, env, agent, level) -> dict:
-    """Plans ``level`` abstractly (with the agent's planner's search), then
-    plays it; returns its row."""
+def plan_row(search, level) -> dict:
+    """The planner's first plan of ``level`` from its start, searched
+    abstractly: ``planned``, and if found ``pushes``, ``moves``, ``features``,
+    ``estimated_steps``."""
     start = SokobanState.from_level(level)
-    search = getattr(agent.planner, "search", None)
     found = search(start) if search is not None else solve(start, time_limit=10.0)
     row = {"level": level.name, "planned": found.solved}
     if found.solved:
         features = plan_features(start, found.moves)
         row.update(pushes=found.pushes, moves=len(found.moves), features=features,
                    estimated_steps=round(estimate_steps(features), 1))
-    timestep = view.reset()
-    agent.reset(view.description(), timestep)
-    steps, t0 = 0, time.perf_counter()
-    while not timestep.last():
-        action = agent.act(timestep)
-        if agent.gave_up is not None:
-            break
-        timestep = view.step(action)
-        steps += 1
-    limit = view.description().time_limit_steps
-    row.update(solved=bool(env.task.solved), steps=steps, limit_share=round(steps / limit, 4),
-               wall_s=round(time.perf_counter() - t0, 3))
-    if found.solved and found.pushes:
-        row["steps_per_push"] = round(steps / found.pushes, 2)
+    return row
+
+
+def played_row(row: dict, episode: dict, limit: int) -> dict:
+    """``row`` (`plan_row`) completed with the played episode's
+    (`hier_agents.run` row): ``solved``, ``steps``, ``limit_share``,
+    ``wall_s``, ``steps_per_push`` and ``failure_reason``."""
+    steps = int(episode["steps"])
+    row.update(solved=bool(episode["solved"]), steps=steps,
+               limit_share=round(steps / limit, 4), wall_s=round(episode["wall_s"], 3))
+    if row.get("pushes"):
+        row["steps_per_push"] = round(steps / row["pushes"], 2)
     if not row["solved"]:
-        row["failure_reason"] = agent.gave_up or "time limit"
+        row["failure_reason"] = episode.get("failure_reason", "time limit")
     return row
 
 
@@ -133,6 +129,9 @@ def _main(argv=None) -> int:
                              "sokoban-solver (the exact push solver)")
     parser.add_argument("--no-pegs", action="store_true")
     parser.add_argument("--fit", action="store_true", help="fit the time model's weights")
+    parser.add_argument("--workers", type=cli.positive_int, default=1,
+                        help="processes playing the levels at once (hier_agents.run --workers; "
+                             "the same rows)")
     parser.add_argument("--json", type=Path, help="write the summary and rows here")
     args = parser.parse_args(argv)
     name = "mujoban/level5" if args.no_pegs else "mujoban/level5-pegs"
@@ -142,23 +141,19 @@ def _main(argv=None) -> int:
     privileged = is_privileged("mujoban", args.estimator)
     cli.output_file(args.json, "--json")
     levels = read_levels(args.levels)[:args.episodes]
-    env = envs.load(name, seed=args.seed, levels=str(args.levels),
-                    **env_overrides(name, args.estimator))
-    view = env if privileged else BoundaryEnv(env)
+    # The planner's own search, built from the public description as the agent's is.
+    probe = envs.load(name, seed=args.seed, levels=str(args.levels), **envs.no_cameras(name))
     try:
-        agent = make_agent(name, view.description(), estimator=args.estimator, seed=args.seed,
-                           planner=args.planner, simulator=env if privileged else None)
-    except BaseException:
-        env.close()
-        raise
-    rows = []
-    bar = tqdm(levels, desc=args.levels.name, unit="level", file=sys.stderr)
-    try:
-        for level in bar:
-            rows.append(run_level(view, env, agent, level))
-            bar.set_postfix(solved=f"{sum(r['solved'] for r in rows)}/{len(rows)}")
+        description = BoundaryEnv(probe).description()
     finally:
-        env.close()
+        probe.close()
+    planner = resolve("planner", "mujoban", args.planner).factory(description, args.seed)
+    search = getattr(planner, "search", None)
+    plans = [plan_row(search, level) for level in levels]
+    played = run(name, len(levels), args.seed, levels=str(args.levels),
+                 estimator=args.estimator, planner=args.planner, workers=args.workers)
+    rows = [played_row(plan, episode, description.time_limit_steps)
+            for plan, episode in zip(plans, played["rows"])]
     summary = summarise(rows, args.fit)
     planner = args.planner or next(iter(PLANNERS["mujoban"]))
     summary.update(env=name, levels_file=args.levels.name, estimator=args.estimator,

@@ -326,14 +326,20 @@ def _play_here(play: Play, indices, on_done, built=None) -> None:
     try:
         if built is not None:
             built(player.info)
-        for episode in indices:
-            frames = [] if play.video and episode == play.video_episode else None
-            result = player.play(episode, frames)
-            if frames:
-                _write_video(play.video, frames, _control_timestep(player))
-            on_done([result], player.info)
+        _play_each(player, play, indices, lambda result: on_done([result], player.info))
     finally:
         player.close()
+
+
+def _play_each(player, play: Play, indices, each) -> None:
+    """``each((row, counters))`` for every episode of ``indices`` in order;
+    the video episode's frames are written when it ends."""
+    for episode in indices:
+        frames = [] if play.video and episode == play.video_episode else None
+        result = player.play(episode, frames)
+        if frames:
+            _write_video(play.video, frames, _control_timestep(player))
+        each(result)
 
 
 def _control_timestep(player) -> float:
@@ -355,11 +361,7 @@ def play_shard(play: Play, indices: list[int]) -> tuple[list, dict]:
         _close_players()  # one environment per process at a time
         player = _PLAYERS[repr(play)] = make_player(play)
     out = []
-    for episode in indices:
-        frames = [] if play.video and episode == play.video_episode else None
-        out.append(player.play(episode, frames))
-        if frames:
-            _write_video(play.video, frames, _control_timestep(player))
+    _play_each(player, play, indices, out.append)
     return out, player.info
 
 

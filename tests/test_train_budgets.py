@@ -12,7 +12,7 @@ import torch
 from envs.cli import UsageError
 from hier_agents import train as train_cli
 from hier_agents.baselines.impala import learner
-from hier_agents.baselines.impala.evaluate import play_checkpoint
+from hier_agents.run import run
 from hier_agents.learning import ppo, train_options, train_skill
 
 
@@ -68,14 +68,13 @@ def test_the_run_records_what_the_agent_observed_and_play_reports_it(tiny_impala
     assert config["observations"] == ["proprio", "state"] and config["privileged"] is True
     assert config["trainer"] == learner.TRAINER
     # env_options reach the evaluation environment (a Boxoban file's levels).
-    rows, info = play_checkpoint("mujoban/level1", str(logdir), 1, 0, video=None,
-                                 progress=False, stochastic=False,
-                                 env_options={"levels": str(BOXOBAN_DIR / "medium-valid-000.txt")})
-    assert info["observations"] == ["proprio", "state"] and info["privileged"] is True
-    assert len(rows) == 1
+    summary = run("mujoban/level1", 1, 0, agent=f"checkpoint:{logdir}", progress=False,
+                  levels=str(BOXOBAN_DIR / "medium-valid-000.txt"))
+    assert summary["observations"] == ["proprio", "state"] and summary["privileged"] is True
+    assert len(summary["rows"]) == 1
     with pytest.raises(UsageError, match="no_such_option"):
-        play_checkpoint("mujoban/level1", str(logdir), 1, video=None, progress=False,
-                        stochastic=False, env_options={"no_such_option": 1})
+        run("mujoban/level1", 1, agent=f"checkpoint:{logdir}", progress=False,
+            env_options={"no_such_option": 1})
     # A run directory from before these fields: inferred from the checkpoint.
     old = tmp_path / "old"
     old.mkdir()
@@ -83,9 +82,8 @@ def test_the_run_records_what_the_agent_observed_and_play_reports_it(tiny_impala
     for key in ("observations", "privileged", "trainer"):
         del ckpt["config"][key]
     torch.save(ckpt, old / "checkpoint.pt")
-    _, info = play_checkpoint("mujoban/level1", str(old), 1, video=None, progress=False,
-                              stochastic=False)
-    assert info["observations"] == ["proprio", "state"] and info["privileged"] is True
+    summary = run("mujoban/level1", 1, agent=f"checkpoint:{old}", progress=False)
+    assert summary["observations"] == ["proprio", "state"] and summary["privileged"] is True
 
 
 def test_another_trainers_run_directory_is_refused_in_one_line(tiny_impala_run, capsys):

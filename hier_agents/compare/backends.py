@@ -3,7 +3,8 @@
 `run_jobs` is the scheduler both share: it skips jobs whose record is in the
 cache (a train job also needs its checkpoints on disk if an unfinished
 evaluation needs them), starts a job once the jobs it needs are done and its
-CPUs are free, stores each result as it arrives, retries a failed job
+CPUs are free (evaluations that can run before trainings, so results arrive
+as the experiment runs), stores each result as it arrives, retries a failed job
 (``retries`` times), and prints a line per start and end with the count
 done. Every job runs in its own process (``python -m
 hier_agents.compare.jobs``), which dies with its parent.
@@ -113,7 +114,9 @@ def run_jobs(jobs: list[Job], cache: Path, *, backend: str = "local", cpus: int 
             records[job.key] = record
         else:
             trains.append(job)
-    todo = trains + evals
+    # Ready evaluations go first, so that each finished training is evaluated
+    # before the next one starts and results arrive as the experiment runs.
+    todo = evals + trains
     total, done = len(todo), 0
     cached = len(jobs) - total
     progress(f"{len(jobs)} jobs: {cached} in the cache ({cache}), {total} to run"

@@ -1,24 +1,25 @@
-"""Evaluate a trained checkpoint, or random actions, with the same rows as the modular agent.
+"""Players of a trained checkpoint, or of random actions, with the same rows as the modular agent.
 
-`play_checkpoint` runs the checkpoint's policy (the Gaussian's mean by
+`CheckpointPlayer` plays the checkpoint's policy (the Gaussian's mean by
 default, or samples with ``stochastic=True``) in the environment it was
 trained on, built the same way (same condition, cameras, abstract inputs;
-``env_options`` may change other settings, such as MuJoBan's ``levels``),
-and returns per-episode rows that `hier_agents.run` turns into its table and
-JSON: ``return``, ``steps``, ``wall_s``, ``solved`` (MuJoBan) or ``outcome``
-(board games), and the auxiliary subgoal counts for planner conditions; and
+``env_options`` may change other settings, such as MuJoBan's ``levels``).
+Its ``play(episode)`` returns the episode's row, which `hier_agents.run`
+(``--agent checkpoint:PATH``) turns into its table and JSON: ``return``,
+``steps``, ``wall_s``, ``solved`` (MuJoBan) or ``outcome`` (board games),
+and the auxiliary subgoal counts for planner conditions; its ``info`` says
 what the agent observed (``observations``, ``privileged``).
 
-`play_random` gives the same rows for uniformly random actions (each action
+`RandomPlayer` gives the same rows for uniformly random actions (each action
 component drawn independently from its bounds, a new draw every ``hold``
-control steps): the floor every trained agent must clear. In MuJoBan,
-holding a draw for a while rolls the ball further and solves more levels than
-drawing at every step; compare against the better of the two.
+control steps; ``--agent random:HOLD``): the floor every trained agent must
+clear. In MuJoBan, holding a draw for a while rolls the ball further and
+solves more levels than drawing at every step; compare against the better of
+the two.
 """
 
 from __future__ import annotations
 
-import sys
 import time
 
 import numpy as np
@@ -56,29 +57,6 @@ def parse_random(spec: str) -> int:
         raise UsageError(f"a random agent is 'random' or 'random:HOLD' with HOLD >= 1 control "
                          f"steps per draw, got {spec!r}")
     return value
-
-
-def _play_episodes(desc: str, indices, progress: bool, play_one, close,
-                   on_rows=None) -> list[dict]:
-    """``play_one(episode) -> row`` for every episode index in ``indices``,
-    each row given its ``wall_s``, under a progress bar; ``on_rows(rows)``
-    (if given) after every episode with the rows so far; ``close()`` runs at
-    the end, even on an error."""
-    from tqdm import tqdm
-    rows = []
-    indices = list(indices)
-    bar = tqdm(total=len(indices), unit="episode", desc=desc, file=sys.stderr,
-               disable=not progress)
-    try:
-        for episode in indices:
-            rows.append(play_one(episode))
-            bar.update(1)
-            if on_rows is not None:
-                on_rows(rows)
-    finally:
-        bar.close()
-        close()
-    return rows
 
 
 class RandomPlayer:
@@ -127,24 +105,27 @@ class RandomPlayer:
 _ACTIONS = 0x61637473
 
 
-def play_random(env_name: str, episodes: int, seed: int = 0, *, hold: int = 1,
-                progress: bool = True, on_rows=None,
-                first_episode: int = 0) -> tuple[list[dict], dict]:
-    """`RandomPlayer` on episodes ``first_episode`` .. ``first_episode +
-    episodes - 1``; ``on_rows(rows)`` after every episode (as `play_checkpoint`)."""
-    player = RandomPlayer(env_name, seed, hold)
-    rows = _play_episodes(f"{env_name} random", range(first_episode, first_episode + episodes),
-                          progress, player.play, player.close, on_rows)
-    return rows, player.info
-
-
 class CheckpointPlayer:
     """A trained checkpoint's policy (its mean, or samples with ``stochastic``)
-    in ``env_name``, built as it was trained (`play_checkpoint` has the
-    arguments and errors). ``play(episode, frames=None)`` plays episode
+    in ``env_name``, built as it was trained.
+
+    ``path`` is the checkpoint file or its run directory; ``env_options`` are
+    `envs.load` overrides applied on top of the run's own (e.g.
+    ``{"levels": PATH}`` for MuJoBan), which must leave the inputs the
+    network expects unchanged. ``play(episode, frames=None)`` plays episode
     ``episode`` of seed ``seed`` (environment, planner and samples seeded
-    from `envs.episode_seed`), appending the main camera's 256x256 frames
-    to ``frames`` if given; ``info`` describes the agent; ``close()``."""
+    from `envs.episode_seed`), appending the main camera's 256x256 frames to
+    ``frames`` if given, and returns its row; ``info`` has ``condition``,
+    ``trained_env``, ``training_frames``, ``training_updates``,
+    ``observations`` (the input keys the agent observed) and ``privileged``
+    (whether any came from the simulator's abstract state); ``close()``.
+
+    Raises:
+      FileNotFoundError: no checkpoint at ``path``.
+      UsageError: not a checkpoint of ``python -m hier_agents.train``;
+        another family's; an unknown or bad option; options that change the
+        network's inputs.
+    """
 
     def __init__(self, env_name: str, path: str, seed: int = 0, *, stochastic: bool = False,
                  env_options: dict | None = None):
@@ -217,51 +198,3 @@ class CheckpointPlayer:
 
     def close(self) -> None:
         self.env.close()
-
-
-def play_checkpoint(env_name: str, path: str, episodes: int, seed: int = 0, *,
-                    stochastic: bool = False, video: str | None = None,
-                    progress: bool = True, env_options: dict | None = None,
-                    on_rows=None, first_episode: int = 0) -> tuple[list[dict], dict]:
-    """Plays episodes ``first_episode`` .. ``first_episode + episodes - 1`` of
-    the checkpoint's policy in ``env_name`` (`CheckpointPlayer`).
-
-    Args:
-      env_name: an environment of the family the checkpoint was trained on.
-      path: the checkpoint file or its run directory.
-      episodes, seed: episodes to play; seed of the environment (and of the
-        samples with ``stochastic``), per episode (`envs.episode_seed`).
-      stochastic: sample actions instead of playing the mean.
-      video: write the first episode's main camera (256x256, 20 fps) here.
-      progress: a progress bar on stderr.
-      env_options: `envs.load` overrides applied on top of the run's own
-        (e.g. ``{"levels": PATH}`` for MuJoBan); they must leave the inputs
-        the network expects unchanged.
-      on_rows: called with the rows played so far after every episode.
-
-    Returns:
-      (rows, info): a row per episode (module docstring); info has
-      ``condition``, ``trained_env``, ``training_frames``,
-      ``training_updates``, ``observations`` (the input keys the agent
-      observed) and ``privileged`` (whether any came from the simulator's
-      abstract state).
-
-    Raises:
-      FileNotFoundError: no checkpoint at ``path``.
-      UsageError: not a checkpoint of ``python -m hier_agents.train``;
-        another family's; an unknown or bad option; options that change the
-        network's inputs.
-    """
-    player = CheckpointPlayer(env_name, path, seed, stochastic=stochastic,
-                              env_options=env_options)
-    frames = [] if video else None
-
-    def one(episode):
-        return player.play(episode, frames if episode == first_episode else None)
-
-    rows = _play_episodes(f"{env_name} checkpoint", range(first_episode, first_episode + episodes),
-                          progress, one, player.close, on_rows)
-    if video and frames:
-        import imageio.v2 as imageio
-        imageio.mimwrite(video, frames, fps=20, macro_block_size=1)
-    return rows, player.info
