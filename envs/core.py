@@ -36,6 +36,7 @@ from dm_control.rl import control
 from dm_env import specs
 
 from envs import _malloc
+from envs.profile import PROFILE
 from envs.rendering import CameraConfig, Cameras, Marker
 
 _BADQACC = int(mujoco.mjtWarning.mjWARN_BADQACC)
@@ -183,6 +184,10 @@ class Environment(dm_env.Environment):
     # -- dm_env API ---------------------------------------------------------
 
     def reset(self) -> dm_env.TimeStep:
+        with PROFILE.section("physics"):
+            return self._reset()
+
+    def _reset(self) -> dm_env.TimeStep:
         with self._physics.reset_context():
             self._task.initialize_episode(self._physics, self._rng)
         self._step_count = 0
@@ -190,8 +195,12 @@ class Environment(dm_env.Environment):
         return dm_env.restart(self._observation())
 
     def step(self, action) -> dm_env.TimeStep:
+        with PROFILE.section("physics"):
+            return self._step(action)
+
+    def _step(self, action) -> dm_env.TimeStep:
         if self._reset_next_step:
-            return self.reset()
+            return self._reset()
         action = self._check_action(action)
         task, physics = self._task, self._physics
         task.before_step(physics, action, self._rng)

@@ -23,6 +23,8 @@ from envs import _gl  # noqa: F401  (sets MUJOCO_GL before mujoco renders)
 import mujoco
 import numpy as np
 
+from envs.profile import PROFILE
+
 
 class RenderError(RuntimeError):
     """Raised when no OpenGL context can be created for offscreen rendering."""
@@ -140,6 +142,10 @@ class Cameras:
         """Returns a fresh (height, width, 3) uint8 image from `camera`, with
         the `Marker` discs in `markers` drawn over the scene (as many as the
         scene has room for)."""
+        with PROFILE.section("render"):
+            return self._render(data, camera, height, width, markers)
+
+    def _render(self, data, camera, height, width, markers) -> np.ndarray:
         if isinstance(camera, str):
             camera = self.camera_id(camera)
         renderer = self._renderer(height, width)

@@ -68,6 +68,7 @@ from tqdm import tqdm
 
 import envs
 from envs import cli
+from envs.profile import PROFILE, SECTIONS
 from hier_agents.boundary import BoundaryEnv
 from hier_agents.modular.agent import OptionStats
 from hier_agents.modular.components import (env_overrides, estimator_name, family,
@@ -96,6 +97,7 @@ class Play:
     env_options: dict = field(default_factory=dict)
     video: str | None = None
     video_episode: int = 0
+    profile: bool = False
 
 
 def run(env_name: str, episodes: int, seed: int = 0, *, planner: str | None = None,
@@ -103,7 +105,7 @@ def run(env_name: str, episodes: int, seed: int = 0, *, planner: str | None = No
         video: str | None = None, progress: bool = True, agent: str = "modular",
         stochastic: bool = False, env_options: dict | None = None,
         on_progress: Progress | None = None, first_episode: int = 0, workers: int = 1,
-        ray_address: str | None = None) -> dict:
+        ray_address: str | None = None, profile: bool = False) -> dict:
     """Plays episodes ``first_episode`` .. ``first_episode + episodes - 1``;
     returns the JSON-able summary.
 
@@ -134,6 +136,10 @@ def run(env_name: str, episodes: int, seed: int = 0, *, planner: str | None = No
       ray_address: play the shards as tasks on this Ray cluster (``auto``:
         the one ``ray start`` made; ``"local"``: start one here) with
         ``workers`` tasks in flight; a task whose worker dies is retried.
+      profile: time the sections of every episode (`envs.profile`: physics,
+        render, estimator, planner, skill); each row gets ``profile_s`` and
+        the summary ``profile`` (seconds and shares of the episodes' wall
+        time, the rest as ``other``).
 
     Returns:
       The summary (`hier_agents.run_report.summarize` plus the keys in the
@@ -169,7 +175,7 @@ def run(env_name: str, episodes: int, seed: int = 0, *, planner: str | None = No
         raise ValueError("--video is written by the process that plays the first episode: "
                          "not with --ray-address")
     play = Play(env_name, int(seed), agent, planner, skill, estimator, levels, bool(stochastic),
-                dict(env_options or {}), video, first_episode)
+                dict(env_options or {}), video, first_episode, bool(profile))
     indices = list(range(first_episode, first_episode + episodes))
     played: list[tuple[dict, dict]] = []  # (row, subgoal counters)
     meta: dict = {}
@@ -223,6 +229,8 @@ def _summary(play: Play, fam, played, meta, requested, interrupted, finished) ->
         totals.add(OptionStats(**counters))
     common = dict(env_options=play.env_options, levels=play.levels,
                   episodes_requested=requested, interrupted=interrupted, finished=finished)
+    if play.profile:
+        common["profile"] = profile_summary(rows)
     if play.agent == "modular":
         out = summarize(play.env_name, fam, rows, totals, play.seed, play.planner, play.skill)
         out.update(training_frames=int(meta.get("training_frames", 0)),
@@ -309,8 +317,48 @@ class PolicyPlayer:
 
 
 def make_player(play: Play):
-    """The player of ``play``: `ModularPlayer` or `PolicyPlayer`."""
-    return ModularPlayer(play) if play.agent == "modular" else PolicyPlayer(play)
+    """The player of ``play``: `ModularPlayer` or `PolicyPlayer` (with
+    ``play.profile``, its episodes' rows carry ``profile_s``)."""
+    player = ModularPlayer(play) if play.agent == "modular" else PolicyPlayer(play)
+    return _Profiled(player) if play.profile else player
+
+
+class _Profiled:
+    """A player whose ``play`` adds the episode's section seconds
+    (`envs.profile.PROFILE`) to its row as ``profile_s``."""
+
+    def __init__(self, player):
+        self.inner, self.info = player, player.info
+
+    def play(self, episode: int, frames=None):
+        PROFILE.enabled = True
+        PROFILE.take()
+        try:
+            row, counters = self.inner.play(episode, frames)
+        finally:
+            PROFILE.enabled = False
+        row["profile_s"] = {name: round(t, 6) for name, t in PROFILE.take().items()}
+        return row, counters
+
+    def close(self) -> None:
+        self.inner.close()
+
+    def __getattr__(self, name):
+        return getattr(self.inner, name)
+
+
+def profile_summary(rows: list[dict]) -> dict:
+    """Seconds per section summed over ``rows`` (their ``profile_s``), the
+    episodes' wall seconds, and each section's share of it; ``other`` is the
+    wall time no section claimed (the agent's loop, the boundary, Python)."""
+    seconds = {name: 0.0 for name in SECTIONS}
+    for row in rows:
+        for name, value in row.get("profile_s", {}).items():
+            seconds[name] = seconds.get(name, 0.0) + value
+    wall = sum(row["wall_s"] for row in rows)
+    seconds["other"] = max(0.0, wall - sum(seconds.values()))
+    return {"seconds": seconds, "wall_s": wall,
+            "shares": {name: (t / wall if wall > 0 else None) for name, t in seconds.items()}}
 
 
 def _counters(stats: OptionStats) -> dict:
@@ -513,7 +561,7 @@ def _main(argv=None) -> int:
                   agent=args.agent, stochastic=args.stochastic,
                   env_options=checked.env_options, on_progress=save,
                   first_episode=args.first_episode, workers=args.workers,
-                  ray_address=args.ray_address)
+                  ray_address=args.ray_address, profile=args.profile)
     print(format_table(summary))
     if save is not None:
         save(summary)

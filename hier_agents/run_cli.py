@@ -77,6 +77,9 @@ def build_parser(description: str, epilog: str | None = None) -> argparse.Argume
     parser.add_argument("--ray-address", metavar="ADDRESS",
                         help="play on a Ray cluster (auto: the one `ray start` made; local: "
                              "start one here), --workers tasks at a time")
+    parser.add_argument("--profile", action="store_true",
+                        help="report the share of time spent in physics, rendering, the "
+                             "estimator, the planner and the skill (table and JSON)")
     parser.add_argument("--list", action="store_true",
                         help="list each family's planners, skills and estimators and exit")
     return parser

@@ -135,6 +135,11 @@ def format_table(summary: dict) -> str:
         lines.append(f"  errors            {plural(summary['errors'], 'episode')} ended by "
                      f"an error (first: {first[:120]})")
     lines.append(f"  wall s / episode  {summary['wall_s']:.2f}")
+    shares = (summary.get("profile") or {}).get("shares")
+    if shares and summary.get("episodes"):
+        lines.append("  time spent in     " + ", ".join(
+            f"{name} {100 * share:.0f}%" for name, share in shares.items()
+            if share is not None))
     if summary.get("control_steps_per_s"):
         lines.append(f"  control steps / s {summary['control_steps_per_s']:.0f} "
                      f"(environment and agent, one process)")

@@ -37,6 +37,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from abstract_planners.base import NoPlanError, Planner, Subgoal
+from envs.profile import PROFILE
 from hier_agents.estimators.base import EstimationError, Estimator
 from hier_agents.modular.families import adapter_for
 from hier_agents.modular.options import (T_ABS, Outcome, OptionResult, OptionRunner,
@@ -152,8 +153,10 @@ class ModularAgent:
         self.description = description
         self.runner.adapter = adapter_for(description)
         self.runner.clear()
-        self.planner.reset(seed)
-        self.estimator.reset(description, timestep)
+        with PROFILE.section("planner"):
+            self.planner.reset(seed)
+        with PROFILE.section("estimator"):
+            self.estimator.reset(description, timestep)
         self.episode_stats = OptionStats()
         self.gave_up = None
         self.scene = None
@@ -163,7 +166,8 @@ class ModularAgent:
         if self.gave_up is not None:
             return self.skill.hold()
         try:
-            scene = self.estimator.estimate(timestep)
+            with PROFILE.section("estimator"):
+                scene = self.estimator.estimate(timestep)
         except EstimationError:
             self.episode_stats.estimation_failures += 1
             scene = None
@@ -201,7 +205,8 @@ class ModularAgent:
         if not runner.running:
             return
         try:
-            scene = self.estimator.estimate(timestep)
+            with PROFILE.section("estimator"):
+                scene = self.estimator.estimate(timestep)
         except EstimationError:
             scene = None
         if runner.act(timestep, scene) is None:
@@ -222,9 +227,12 @@ class ModularAgent:
             # ends once they cover them): hold, which the ball skill uses to
             # centre a box left short. Not counted as a subgoal.
             subgoal = Subgoal(action=(), state=state)
-        elif self._use_pushes:
-            subgoal = adapter.next_subgoal(self.planner, state)
         else:
-            subgoal = self.planner.plan(state)
+            with PROFILE.section("planner"):
+                if self._use_pushes:
+                    subgoal = adapter.next_subgoal(self.planner, state)
+                else:
+                    subgoal = self.planner.plan(state)
         self.episode_stats.issued += int(self._counted)
-        self.runner.start(self.description, subgoal, scene)
+        with PROFILE.section("skill"):
+            self.runner.start(self.description, subgoal, scene)

@@ -45,6 +45,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from envs.profile import PROFILE
 from skills.base import Status
 
 __all__ = ["T_ABS", "Outcome", "OptionResult", "OptionRunner", "run_option", "failure_kind"]
@@ -150,7 +151,8 @@ class OptionRunner:
             if self._duration >= self.t_abs:
                 return self._end(Outcome.CUT_OFF, None, timestep, scene)
             return self._issue(skill.hold())
-        action = skill.act(timestep, scene)
+        with PROFILE.section("skill"):
+            action = skill.act(timestep, scene)
         if skill.status is Status.SUCCESS:
             return self._end(Outcome.REACHED, None, timestep, scene)
         if skill.status is Status.FAILURE:
