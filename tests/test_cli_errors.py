@@ -22,11 +22,13 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 BENCHMARKS = ROOT / "benchmarks"
 BALL_POLICY = "skills/learned/ball_policy.pt"
+QUICK = str(ROOT / "experiments" / "quick.toml")
 
 #: Commands run as modules: name -> module.
 MODULES = {"run": "hier_agents.run", "envs": "envs.__main__", "train": "hier_agents.train",
            "train_skill": "hier_agents.learning.train_skill",
-           "train_options": "hier_agents.learning.train_options"}
+           "train_options": "hier_agents.learning.train_options",
+           "compare": "hier_agents.compare.__main__"}
 
 
 def _main_of(command: str):
@@ -101,6 +103,16 @@ CASES = [
     ("run", ["mujoban/level1", "--video", FOLDER], "--video"),
     ("run", ["mujoban/level1", "--json", f"{GARBAGE}/out.json"], "cannot create its folder"),
     ("run", ["mujoban/level1", "--agent", "robot"], "unknown --agent 'robot'"),
+    ("run", ["mujoban/level1", "--workers", "0"], "--workers"),
+    ("run", ["mujoban/level1", "--first-episode", "-1"], "--first-episode"),
+    ("run", ["mujoban/level1", "--ray-address", "auto", "--video", "{folder}/v.mp4"],
+     "not with --ray-address"),
+    ("compare", [MISSING], "no such file"),
+    ("compare", [GARBAGE], "not a readable TOML spec"),
+    ("compare", [QUICK, "--backend", "slurm"], "unknown --backend"),
+    ("compare", [QUICK, "--ray-address", "auto"], "needs --backend ray"),
+    ("compare", [QUICK, "--only", "trian"], "did you mean 'train'"),
+    ("compare", [QUICK, "--cpus", "0"], "--cpus"),
     ("run", ["mujoban/level1", "--agent", "random:0"], "HOLD >= 1"),
     ("run", ["mujoban/level1", "--agent", f"checkpoint:{MISSING}"], "no checkpoint"),
     ("run", ["mujoban/level1", "--agent", f"checkpoint:{GARBAGE}"], "checkpoint"),
@@ -252,7 +264,7 @@ def test_the_real_entry_points_fail_the_same_way(argv, command, expected):
     _assert_one_line_error(result.stderr, _prog(command), expected)
 
 
-HELP_COMMANDS = ["run", "envs", "train", "train_skill", "train_options"] + sorted(
+HELP_COMMANDS = ["run", "envs", "train", "train_skill", "train_options", "compare"] + sorted(
     f"bench/{p.stem}" for p in BENCHMARKS.glob("[a-z]*.py"))
 
 
