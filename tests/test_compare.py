@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import envs
@@ -154,6 +154,12 @@ inputs_strategy = st.dictionaries(st.text(min_size=1, max_size=6),
                                   min_size=1, max_size=6)
 
 
+#: Properties of small pure functions: a few hundred examples whatever the
+#: Hypothesis profile (the CI profile's 10,000 are for tests/test_fuzz.py).
+PROPERTY = settings(max_examples=300)
+
+
+@PROPERTY
 @given(inputs_strategy, st.data())
 def test_job_keys_are_stable_and_change_with_any_input(inputs, data):
     key = jobs_mod.job_key("eval", inputs)
@@ -290,6 +296,7 @@ def test_failed_jobs_are_retried_then_reported_and_their_dependents_skipped(tmp_
 # -- statistics across seeds ----------------------------------------------------------------
 
 
+@PROPERTY
 @given(st.lists(st.floats(0, 1), min_size=1, max_size=12))
 def test_bootstrap_interval_holds_the_mean_and_lies_within_the_values(values):
     lo, hi = bootstrap_interval(values, resamples=200, seed=1)
@@ -301,6 +308,7 @@ def test_bootstrap_interval_holds_the_mean_and_lies_within_the_values(values):
     assert lo - 1e-9 <= mean <= hi + 1e-9 or len(values) > 2
 
 
+@PROPERTY
 @given(st.lists(st.floats(-100, 100), min_size=1, max_size=40))
 def test_iqm_lies_between_the_quartiles_and_ignores_outer_quarters(values):
     x = sorted(values)
