@@ -419,10 +419,15 @@ def _close_players() -> None:
     _PLAYERS.clear()
 
 
+#: The most episodes in one shard: progress and ``--json`` are updated per shard.
+MAX_SHARD = 8
+
+
 def shards(indices: list[int], workers: int) -> list[list[int]]:
-    """``indices`` cut into contiguous shards, about four per worker (at least
-    one episode each), so that faster workers take more of them."""
-    size = max(1, math.ceil(len(indices) / (4 * workers)))
+    """``indices`` cut into contiguous shards, at least four per worker and
+    at most `MAX_SHARD` episodes each (at least one), so that faster workers
+    take more of them and progress is reported often."""
+    size = max(1, min(MAX_SHARD, math.ceil(len(indices) / (4 * workers))))
     return [indices[i:i + size] for i in range(0, len(indices), size)]
 
 
@@ -444,7 +449,12 @@ def _play_parallel(play: Play, indices, workers, ray_address, on_done) -> None:
             for future in done:
                 on_done(*future.result())
     except BaseException:
+        # Ctrl-C or a failed shard: the shards under way are dropped, their
+        # workers stopped now rather than when their shard ends.
+        workers_alive = list(getattr(pool, "_processes", {}).values())
         pool.shutdown(wait=False, cancel_futures=True)
+        for process in workers_alive:
+            process.terminate()
         raise
     pool.shutdown(wait=True)
 

@@ -90,6 +90,8 @@ def format_table(summary: dict) -> str:
         if summary.get("training_frames"):
             who += (f" (learned parts trained on "
                     f"{plural(summary['training_frames'], 'frame', spec=',')})")
+    elif "condition" not in summary:  # interrupted before a worker reported
+        who = summary["agent"]
     elif summary["agent"].startswith("random"):
         who = summary["condition"]
     else:

@@ -433,3 +433,35 @@ def test_the_modular_agent_on_level_files_gives_the_same_rows_on_two_workers():
     two = run("mujoban/level5-pegs", 4, 0, workers=2, **kwargs)
     assert strip(one["rows"]) == strip(two["rows"])
     assert one["subgoals"] == two["subgoals"]
+
+
+def test_a_parallel_run_interrupted_before_any_worker_reported_still_prints_its_table():
+    from hier_agents.run import Play, _summary, format_table
+
+    play = Play("mujoban/level1", 0, agent="random:10")
+    summary = _summary(play, "mujoban", [], {}, 40, True, True)
+    text = format_table(summary)
+    assert "random:10" in text and "0 of 40" in text
+
+
+@pytest.mark.slow
+def test_ctrl_c_stops_the_workers_and_keeps_the_episodes_played(tmp_path):
+    import signal
+    import time
+
+    out = tmp_path / "run.json"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "hier_agents.run", "mujoban/level1", "--agent", "random:10",
+         "--episodes", "400", "--workers", "2", "--json", str(out)],
+        cwd=ROOT, env={**os.environ, "PYTHONPATH": str(ROOT), "MUJOCO_GL": "egl"},
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    deadline = time.time() + 300
+    while time.time() < deadline and not out.exists():  # the first shard reported
+        time.sleep(0.5)
+    proc.send_signal(signal.SIGINT)
+    stdout, _ = proc.communicate(timeout=120)
+    assert proc.returncode == 130, stdout
+    summary = __import__("json").loads(out.read_text())
+    assert summary["interrupted"] and 0 < summary["episodes"] < 400
+    assert [r["episode"] for r in summary["rows"]] == sorted(r["episode"] for r in summary["rows"])
