@@ -51,6 +51,7 @@ def test_a_series_clears_a_floor_only_when_its_interval_is_wholly_above():
     assert compare.floor_summary(rows)["run"]["random:10"]["first_frames"] is None
 
 
+@pytest.mark.slow
 def test_curves_learned_skill_frames_floors_and_plot(tmp_path):
     run_dir = tmp_path / "run"
     train(TrainConfig(condition="vanilla", steps=20, logdir=str(run_dir), state=True,

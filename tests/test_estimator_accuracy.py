@@ -5,6 +5,8 @@ import json
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -17,6 +19,7 @@ def _benchmark():
     return module
 
 
+@pytest.mark.slow
 def test_estimator_accuracy_writes_its_json(tmp_path):
     module = _benchmark()
     out = tmp_path / "accuracy.json"

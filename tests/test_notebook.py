@@ -9,6 +9,8 @@ every code cell still produces the kinds of output its committed copy shows
 
 from __future__ import annotations
 
+import pytest
+
 import os
 from pathlib import Path
 
@@ -65,6 +67,7 @@ def _check_shows_what_it_is_committed_with(path: Path, committed, executed) -> N
     assert any("image/png" in _kinds(c) for c, _ in code), f"{path.name}: no image"
 
 
+@pytest.mark.slow
 def test_swap_planners_and_skills_notebook(monkeypatch, tmp_path):
     path = NOTEBOOKS / "swap_planners_and_skills.ipynb"
     committed, executed = _run(path.name, monkeypatch, tmp_path)
@@ -73,6 +76,7 @@ def test_swap_planners_and_skills_notebook(monkeypatch, tmp_path):
         assert "solved" in text and "skill arm-touch" in text and "skill learned-arm" in text
 
 
+@pytest.mark.slow
 def test_train_and_swap_a_learned_part_notebook(monkeypatch, tmp_path):
     path = NOTEBOOKS / "train_and_swap_a_learned_part.ipynb"
     committed, executed = _run(path.name, monkeypatch, tmp_path)

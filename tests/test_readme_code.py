@@ -4,7 +4,7 @@ A block whose first line is ``# excerpt: WHY`` is documentation only (it
 needs something the suite does not have, such as the original environment
 built by ``../shared/peer/setup.sh``). Every other block runs:
 
-- ``python`` blocks in a fresh interpreter, as written (fast);
+- ``python`` blocks in a fresh interpreter, as written (slow: some train);
 - ``bash`` blocks command by command, in order, in one scratch folder per
   block (slow: they play and train), with two rewrites so that they fit the
   suite: budgets shrink (`SMALL_BUDGETS`: ``--episodes 100`` plays 1 episode,
@@ -168,6 +168,7 @@ def test_shrink_rewrites_budgets_and_outputs(tmp_path):
     assert shrink(INSTALL + "python -m hier_agents.run", tmp_path) == "python -m hier_agents.run"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("line,body", PYTHON_BLOCKS, ids=[f"line{l}" for l, _ in PYTHON_BLOCKS])
 def test_python_block_runs(line, body, tmp_path):
     result = subprocess.run([sys.executable, "-c", body], cwd=ROOT, env=_env(),

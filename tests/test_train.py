@@ -37,6 +37,7 @@ def test_a_tiny_run_updates_logs_and_checkpoints(tmp_path):
     assert not list(tmp_path.glob("*.tmp")), "a temporary checkpoint was left behind"
 
 
+@pytest.mark.slow
 def test_a_resumed_run_continues_from_its_step_count(tmp_path):
     train(TrainConfig(condition="vanilla", steps=20, logdir=str(tmp_path), **TINY))
     first = load_checkpoint(tmp_path)
@@ -56,6 +57,7 @@ def test_a_resumed_run_continues_from_its_step_count(tmp_path):
         train(TrainConfig(condition="expert-planner", steps=60, logdir=str(tmp_path), **TINY))
 
 
+@pytest.mark.slow
 def test_ray_actors_feed_the_learner(tmp_path):
     import ray  # a hard dependency: imported, never skipped
     try:
@@ -197,6 +199,7 @@ def test_every_environment_observation_goes_through_the_network(name, condition,
         assert set(result.obs) == set(obs)
 
 
+@pytest.mark.slow
 def test_ctrl_c_saves_a_checkpoint_and_the_run_resumes_from_it(tmp_path):
     """SIGINT to the whole process group (what Ctrl-C does): the actors must
     not die under the learner; it finishes, checkpoints and exits."""
@@ -240,6 +243,7 @@ def test_ctrl_c_saves_a_checkpoint_and_the_run_resumes_from_it(tmp_path):
     assert counters["updates"] == saved["updates"] + 1
 
 
+@pytest.mark.slow
 def test_kept_checkpoints_give_a_learning_curve_and_a_comparison(tmp_path, capsys):
     import subprocess
     import sys
@@ -291,6 +295,7 @@ def test_random_agents_play_through_hier_agents_run(tmp_path, capsys):
         assert "random" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_a_dead_or_failing_actor_stops_the_learner_with_a_clear_error():
     import os
     import signal

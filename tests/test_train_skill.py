@@ -61,6 +61,7 @@ def test_teacher_mode_is_the_scripted_skill():
     np.testing.assert_allclose(actions[0], actions[1], atol=1e-12)
 
 
+@pytest.mark.slow
 def test_cli_trains_checkpoints_and_resumes(tmp_path, capsys):
     args = ["ball", "--frames", "400", "--bc-frames", "100", "--dagger-frames", "100",
             "--rollout", "50", "--envs", "2", "--save-every", "1",
