@@ -5,10 +5,17 @@ for every frame; a frame is written into a preallocated buffer and copied out
 once. Nothing is rendered until a camera is actually asked for, so an
 environment whose cameras are switched off never creates a GL context.
 
-Software rendering (Mesa llvmpipe) costs roughly a fixed ~1.5 ms per 96x96
-frame plus ~25 us per drawn geom, so the arenas keep their visible geom count
-small (merged wall slabs, one mesh for all pegs) and switch shadows and
-multisampling off in their ``<visual>`` settings.
+On a software rasteriser (Mesa llvmpipe) a frame's cost is draw calls and
+vertices, not pixels, so the arenas keep their visible geom count small
+(merged wall slabs, one mesh for all pegs) and switch shadows off. Frames no
+larger than `SMALL_FRAME` pixels a side are drawn with MuJoCo's built-in
+shapes (spheres, capsules, cylinders, planes and boxes) tessellated as
+`SMALL_FRAME_TESSELLATION` says instead of the model's ``visual/quality``
+(which larger frames keep: videos, and the camera estimator's 199x199
+frames, whose reading is calibrated on the model's tessellation): at the
+observations' 84x84 and 96x96 this changes a handful of silhouette pixels
+(bounds in ``tests/test_rendering.py``) and takes about a third off the cost
+of a MuJoBan frame.
 """
 
 from __future__ import annotations
@@ -68,6 +75,16 @@ class Marker:
     rgba: tuple[float, float, float, float] = (0.9, 0.9, 0.9, 1.0)
 
 
+#: Largest side, in pixels, of a frame drawn with `SMALL_FRAME_TESSELLATION`.
+SMALL_FRAME = 128
+#: ``visual/quality`` fields used for small frames (each at most the model's
+#: own): slices and stacks of round shapes, and quads per side of a plane or
+#: box face. Quads carry per-vertex lighting: they are reduced only when every
+#: light of the model is directional (MuJoBan's headlight), where one quad
+#: draws the same pixels as four; a spot or point light (the board games')
+#: needs them for its falloff.
+SMALL_FRAME_TESSELLATION = {"numslices": 16, "numstacks": 10, "numquads": 1}
+
 #: Half-thickness of a `Marker` disc, metres.
 MARKER_HALF_HEIGHT = 0.002
 _IDENTITY = np.eye(3).ravel()
@@ -94,12 +111,45 @@ def _register_exit_hook() -> None:
         _EXIT_HOOK_REGISTERED = True
 
 
-class Cameras:
-    """Renders RGB images from cameras of one compiled model."""
+class _Quality:
+    """Sets the model's ``visual/quality`` tessellation fields to ``values``
+    (each at most the model's own) inside a ``with`` block, then restores them."""
 
-    def __init__(self, model: mujoco.MjModel):
+    def __init__(self, model: mujoco.MjModel, values: dict | None):
+        self._quality = model.vis.quality
+        values = dict(values or {})
+        if np.any(model.light_type != mujoco.mjtLightType.mjLIGHT_DIRECTIONAL):
+            values.pop("numquads", None)
+        self._values = {k: min(v, getattr(self._quality, k)) for k, v in values.items()}
+        self._saved = {}
+
+    def __enter__(self):
+        for key, value in self._values.items():
+            self._saved[key] = getattr(self._quality, key)
+            setattr(self._quality, key, value)
+
+    def __exit__(self, *exc):
+        for key, value in self._saved.items():
+            setattr(self._quality, key, value)
+        self._saved.clear()
+
+
+class Cameras:
+    """Renders RGB images from cameras of one compiled model.
+
+    Args:
+      model: the compiled model; only its ``visual/quality`` tessellation is
+        changed, and only while a small frame's context is made or drawn.
+      small_frame_tessellation: draw frames of at most `SMALL_FRAME` pixels
+        a side with `SMALL_FRAME_TESSELLATION` (the default); False draws
+        every frame with the model's own ``visual/quality``.
+    """
+
+    def __init__(self, model: mujoco.MjModel, *, small_frame_tessellation: bool = True):
         self._model = model
         self._renderers: dict[tuple[int, int], mujoco.Renderer] = {}
+        self._quality: dict[tuple[int, int], _Quality] = {}
+        self._small = bool(small_frame_tessellation)
         self._option = mujoco.MjvOption()
         _LIVE.add(self)
 
@@ -120,8 +170,11 @@ class Cameras:
                     f"a {height}x{width} frame is larger than the model's offscreen buffer "
                     f"({max_h}x{max_w}); build the environment with "
                     f"render_size=({height}, {width}) or larger")
+            small = self._small and max(height, width) <= SMALL_FRAME
+            quality = _Quality(self._model, SMALL_FRAME_TESSELLATION if small else None)
             try:
-                renderer = mujoco.Renderer(self._model, height=height, width=width)
+                with quality:  # slices and stacks are baked into the context
+                    renderer = mujoco.Renderer(self._model, height=height, width=width)
             except Exception as exc:  # GL errors come in many types
                 raise RenderError(
                     f"could not create a {width}x{height} offscreen OpenGL context "
@@ -130,6 +183,7 @@ class Cameras:
                     "or switch the cameras off."
                 ) from exc
             self._renderers[key] = renderer
+            self._quality[key] = quality
             _register_exit_hook()
         return renderer
 
@@ -149,9 +203,14 @@ class Cameras:
         if isinstance(camera, str):
             camera = self.camera_id(camera)
         renderer = self._renderer(height, width)
-        renderer.update_scene(data, camera=camera, scene_option=self._option)
+        with self._quality[(height, width)]:  # quads are read per frame
+            renderer.update_scene(data, camera=camera, scene_option=self._option)
+            self._add_markers(renderer.scene, markers)
+            return renderer.render()
+
+    @staticmethod
+    def _add_markers(scene, markers) -> None:
         if markers:
-            scene = renderer.scene
             for marker in markers[: scene.maxgeom - scene.ngeom]:
                 mujoco.mjv_initGeom(
                     scene.geoms[scene.ngeom], mujoco.mjtGeom.mjGEOM_CYLINDER,
@@ -159,7 +218,6 @@ class Cameras:
                     np.asarray(marker.position, np.float64), _IDENTITY,
                     np.asarray(marker.rgba, np.float32))
                 scene.ngeom += 1
-        return renderer.render()
 
     def close(self) -> None:
         for renderer in self._renderers.values():
@@ -174,6 +232,7 @@ class Cameras:
             except Exception:  # the context may already be gone at interpreter exit
                 pass
         self._renderers.clear()
+        self._quality.clear()
 
     def __del__(self):
         self.close()

@@ -1,0 +1,81 @@
+"""`envs.rendering.Cameras`: small frames drawn with coarser tessellation
+look like the model's own, and the model's settings are left as they were."""
+
+import mujoco
+import numpy as np
+import pytest
+
+import envs
+from envs.rendering import SMALL_FRAME, SMALL_FRAME_TESSELLATION, Cameras
+
+#: Bounds on how a small frame drawn with `SMALL_FRAME_TESSELLATION` may
+#: differ from the same frame drawn with the model's tessellation, over the
+#: states below: mean absolute difference per channel (0-255), and the
+#: shares of pixels whose largest channel difference exceeds 8 and 32 (the
+#: few silhouette pixels of round shapes).
+MAX_MEAN_DIFFERENCE = 0.5
+MAX_SHARE_ABOVE_8 = 0.005
+MAX_SHARE_ABOVE_32 = 0.003
+
+CASES = [
+    ("mujoban/level5", dict(top_camera=(96, 96), egocentric_camera=(96, 96))),
+    ("mujoban/level5-pegs", dict(top_camera=(96, 96), egocentric_camera=None)),
+    ("mujoxo/mixture", dict(front_camera=(84, 84))),
+    ("mujogo/7x7", dict(front_camera=(84, 84))),
+]
+
+
+@pytest.mark.parametrize("name,options", CASES, ids=[c[0] for c in CASES])
+def test_small_frames_match_the_models_own_tessellation(name, options):
+    env = envs.load(name, seed=3, **options)
+    try:
+        env.reset()
+        model, data = env.physics.model.ptr, env.physics.data.ptr
+        quality_before = {k: getattr(model.vis.quality, k) for k in SMALL_FRAME_TESSELLATION}
+        coarse, full = Cameras(model), Cameras(model, small_frame_tessellation=False)
+        rng = np.random.default_rng(0)
+        spec = env.action_spec()
+        means, above_8, above_32 = [], [], []
+        for _ in range(8):
+            for _ in range(3):
+                env.step(rng.uniform(spec.minimum, spec.maximum))
+            for cfg in env.task.camera_configs.values():
+                a = coarse.render(data, cfg.camera, cfg.height, cfg.width).astype(int)
+                b = full.render(data, cfg.camera, cfg.height, cfg.width).astype(int)
+                diff = np.abs(a - b)
+                means.append(diff.mean())
+                above_8.append((diff.max(-1) > 8).mean())
+                above_32.append((diff.max(-1) > 32).mean())
+        assert max(means) <= MAX_MEAN_DIFFERENCE
+        assert max(above_8) <= MAX_SHARE_ABOVE_8
+        assert max(above_32) <= MAX_SHARE_ABOVE_32
+        assert {k: getattr(model.vis.quality, k) for k in quality_before} == quality_before
+        coarse.close()
+        full.close()
+    finally:
+        env.close()
+
+
+def test_the_coarse_tessellation_is_really_used_and_large_frames_keep_the_models():
+    # A lone sphere filling a small frame: its silhouette differs between
+    # 16 and the model's 64 slices; a frame larger than SMALL_FRAME is drawn
+    # with the model's 64 whichever the setting.
+    xml = """<mujoco><visual><quality numslices="64" numstacks="32"/>
+      <global offwidth="256" offheight="256"/></visual>
+      <worldbody><light directional="true" dir="0 0 -1"/>
+      <geom type="sphere" size="0.5" rgba="1 1 1 1"/>
+      <camera name="c" pos="0 0 1.6" xyaxes="1 0 0 0 1 0"/></worldbody></mujoco>"""
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    coarse, full = Cameras(model), Cameras(model, small_frame_tessellation=False)
+    try:
+        small = SMALL_FRAME
+        assert (coarse.render(data, "c", small, small) != full.render(data, "c", small, small)).any()
+        big = SMALL_FRAME + 1
+        np.testing.assert_array_equal(coarse.render(data, "c", big, big),
+                                      full.render(data, "c", big, big))
+        assert (model.vis.quality.numslices, model.vis.quality.numstacks) == (64, 32)
+    finally:
+        coarse.close()
+        full.close()
