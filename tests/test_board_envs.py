@@ -259,6 +259,22 @@ def test_camera_is_observed_at_its_size():
     assert frame.shape == (48, 64, 3) and frame.dtype == np.uint8 and frame.std() > 5
 
 
+def test_the_originals_second_view_is_observed_only_when_asked_for():
+    assert "front_camera_2" not in make_mujoxo(seed=0).observation_spec()
+    env = make_mujogo(seed=0, front_camera_2=(60, 70))
+    try:
+        spec = env.observation_spec()["front_camera_2"]
+        obs = env.reset().observation
+        assert spec.shape == obs["front_camera_2"].shape == (60, 70, 3)
+        # A different viewpoint: higher and steeper than front_camera.
+        first = env.render("front_camera", 60, 70)
+        assert np.abs(first.astype(int) - obs["front_camera_2"]).mean() > 10
+    finally:
+        env.close()
+    with pytest.raises(ValueError, match="front_camera_2"):
+        make_mujoxo(seed=0, front_camera_2=(0, 84))
+
+
 @pytest.mark.parametrize("name", BOARD_NAMES)
 def test_every_board_name_passes_gymnasium_check_env(name):
     env = gymnasium.make(name, render_mode="rgb_array", front_camera=(32, 32))

@@ -46,24 +46,27 @@ def _check_level(level) -> int:
     return int(level)
 
 
-def _check_board_common(*, seed, front_camera, arm_reset, time_limit, control_timestep,
-                        physics_timestep, piece_noise, render_size, raise_on_physics_error,
+def _check_board_common(*, seed, front_camera, front_camera_2, arm_reset, time_limit,
+                        control_timestep, physics_timestep, piece_noise, render_size, raise_on_physics_error,
                         lazy_cameras) -> None:
     _config.check_common(seed, render_size, raise_on_physics_error, lazy_cameras)
     _config.check_camera("front_camera", front_camera)
+    _config.check_camera("front_camera_2", front_camera_2)
     _config.check_bool("arm_reset", arm_reset)
     _config.check_timing(time_limit, control_timestep, physics_timestep)
     if piece_noise is not None:
         _config.check_real("piece_noise", piece_noise, low=0.0, high=1.0)
 
 
-def check_mujoxo(*, epsilon: float = 0.25, seed=None, front_camera=(84, 84), arm_reset=True,
+def check_mujoxo(*, epsilon: float = 0.25, seed=None, front_camera=(84, 84), front_camera_2=None,
+                 arm_reset=True,
                  time_limit=30.0, control_timestep=0.05, physics_timestep=0.002,
                  piece_noise=None, render_size=(256, 256), raise_on_physics_error=True,
                  lazy_cameras=False) -> None:
     """Checks `make_mujoxo`'s arguments without building anything (`envs._config`)."""
     _check_epsilon(epsilon)
-    _check_board_common(seed=seed, front_camera=front_camera, arm_reset=arm_reset,
+    _check_board_common(seed=seed, front_camera=front_camera, front_camera_2=front_camera_2,
+                        arm_reset=arm_reset,
                         time_limit=time_limit, control_timestep=control_timestep,
                         physics_timestep=physics_timestep, piece_noise=piece_noise,
                         render_size=render_size, raise_on_physics_error=raise_on_physics_error,
@@ -71,8 +74,8 @@ def check_mujoxo(*, epsilon: float = 0.25, seed=None, front_camera=(84, 84), arm
 
 
 def check_mujogo(*, board_size=7, level=10, epsilon=0.0, komi=5.5, seed=None,
-                 front_camera=(84, 84), arm_reset=True, time_limit=45.0, control_timestep=0.05,
-                 physics_timestep=0.002, registering="fingers", allow_double_pass=False,
+                 front_camera=(84, 84), front_camera_2=None, arm_reset=True, time_limit=45.0,
+                 control_timestep=0.05, physics_timestep=0.002, registering="fingers", allow_double_pass=False,
                  piece_noise=None, gnugo_timeout=10.0, gnugo_command=None,
                  render_size=(256, 256), raise_on_physics_error=True,
                  lazy_cameras=False) -> None:
@@ -82,7 +85,8 @@ def check_mujogo(*, board_size=7, level=10, epsilon=0.0, komi=5.5, seed=None,
     _check_level(level)
     _check_epsilon(epsilon)
     _config.check_real("komi", komi, low=-1000.0, high=1000.0)
-    _check_board_common(seed=seed, front_camera=front_camera, arm_reset=arm_reset,
+    _check_board_common(seed=seed, front_camera=front_camera, front_camera_2=front_camera_2,
+                        arm_reset=arm_reset,
                         time_limit=time_limit, control_timestep=control_timestep,
                         physics_timestep=physics_timestep, piece_noise=piece_noise,
                         render_size=render_size, raise_on_physics_error=raise_on_physics_error,
@@ -105,7 +109,7 @@ def check_mujogo(*, board_size=7, level=10, epsilon=0.0, komi=5.5, seed=None,
 
 
 def make_mujoxo(*, epsilon: float = 0.25, seed: int | None = None, front_camera=(84, 84),
-                arm_reset: bool = True, time_limit: float = 30.0,
+                front_camera_2=None, arm_reset: bool = True, time_limit: float = 30.0,
                 control_timestep: float = 0.05, physics_timestep: float = 0.002,
                 piece_noise: float | None = None, render_size=(256, 256),
                 raise_on_physics_error: bool = True, lazy_cameras: bool = False) -> Environment:
@@ -115,8 +119,11 @@ def make_mujoxo(*, epsilon: float = 0.25, seed: int | None = None, front_camera=
     the game's end: 1 win, 0.5 draw, 0 loss. Time limit 30 s (600 control
     steps), then truncation. ``piece_noise``: the opponent's pieces land within
     this fraction of the sensor half-size (None: the original's 1).
+    ``front_camera_2``: ``(height, width)`` of the original code's second
+    view (a higher, steeper front camera), off by default as in the paper.
     """
-    check_mujoxo(epsilon=epsilon, seed=seed, front_camera=front_camera, arm_reset=arm_reset,
+    check_mujoxo(epsilon=epsilon, seed=seed, front_camera=front_camera,
+                 front_camera_2=front_camera_2, arm_reset=arm_reset,
                  time_limit=time_limit, control_timestep=control_timestep,
                  physics_timestep=physics_timestep, piece_noise=piece_noise,
                  render_size=render_size, raise_on_physics_error=raise_on_physics_error,
@@ -124,7 +131,8 @@ def make_mujoxo(*, epsilon: float = 0.25, seed: int | None = None, front_camera=
     epsilon = _check_epsilon(epsilon)
     opponent = EpsilonGreedy(MinimaxPlanner(), epsilon)
     task = BoardTask(BoardGame("tic_tac_toe", 3, draw_reward=0.5), opponent, registering="arm",
-                     arm_reset=arm_reset, front_camera=front_camera, time_limit=time_limit,
+                     arm_reset=arm_reset, front_camera=front_camera,
+                     front_camera_2=front_camera_2, time_limit=time_limit,
                      piece_noise=piece_noise, control_timestep=control_timestep,
                      physics_timestep=physics_timestep, render_size=render_size)
     return Environment(task, seed=seed, raise_on_physics_error=raise_on_physics_error,
@@ -133,7 +141,7 @@ def make_mujoxo(*, epsilon: float = 0.25, seed: int | None = None, front_camera=
 
 def make_mujogo(*, board_size: int = 7, level: int = 10, epsilon: float = 0.0,
                 komi: float = 5.5, seed: int | None = None, front_camera=(84, 84),
-                arm_reset: bool = True, time_limit: float = 45.0,
+                front_camera_2=None, arm_reset: bool = True, time_limit: float = 45.0,
                 control_timestep: float = 0.05, physics_timestep: float = 0.002,
                 registering: str = "fingers", allow_double_pass: bool = False,
                 piece_noise: float | None = None,
@@ -150,12 +158,13 @@ def make_mujogo(*, board_size: int = 7, level: int = 10, epsilon: float = 0.0,
     time limit (45 s; 60 s for evaluation) is a loss. ``gnugo_command`` runs
     another GTP engine (a list of arguments); ``gnugo_timeout`` bounds every
     GTP reply (seconds): a hung engine raises ``GTPError``, a dead one is
-    restarted and replays the game.
+    restarted and replays the game. ``front_camera_2``: as in `make_mujoxo`.
     """
     check_mujogo(board_size=board_size, level=level, epsilon=epsilon, komi=komi, seed=seed,
-                 front_camera=front_camera, arm_reset=arm_reset, time_limit=time_limit,
-                 control_timestep=control_timestep, physics_timestep=physics_timestep,
-                 registering=registering, allow_double_pass=allow_double_pass,
+                 front_camera=front_camera, front_camera_2=front_camera_2, arm_reset=arm_reset,
+                 time_limit=time_limit, control_timestep=control_timestep,
+                 physics_timestep=physics_timestep, registering=registering,
+                 allow_double_pass=allow_double_pass,
                  piece_noise=piece_noise, gnugo_timeout=gnugo_timeout,
                  gnugo_command=gnugo_command, render_size=render_size,
                  raise_on_physics_error=raise_on_physics_error, lazy_cameras=lazy_cameras)
@@ -167,7 +176,8 @@ def make_mujogo(*, board_size: int = 7, level: int = 10, epsilon: float = 0.0,
                              epsilon)
     try:
         task = BoardTask(game, opponent, registering=registering, arm_reset=arm_reset,
-                         front_camera=front_camera, time_limit=time_limit, timeout_is_loss=True,
+                         front_camera=front_camera, front_camera_2=front_camera_2,
+                         time_limit=time_limit, timeout_is_loss=True,
                          allow_double_pass=allow_double_pass, piece_noise=piece_noise,
                          control_timestep=control_timestep, physics_timestep=physics_timestep,
                          render_size=render_size)

@@ -113,6 +113,11 @@ class BoardArena(composer.Arena):
         self.front_camera = root.worldbody.add(
             "camera", name="front_camera", pos=(0.0, -0.6, 0.75),
             xyaxes=(1.0, 0.0, 0.0, 0.0, 0.7, 0.75))
+        # The original code's second view, higher and steeper so that a 7x7
+        # Go board fits (its ``front_2``); observed only when asked for.
+        self.front_camera_2 = root.worldbody.add(
+            "camera", name="front_camera_2", pos=(0.0, -0.65, 0.85),
+            xyaxes=(1.0, 0.0, 0.0, 0.0, 0.85, 0.6))
 
     def _add_scene(self, offscreen_size, physics_timestep) -> None:
         """Physics and rendering options, the sky, the ground and the light."""

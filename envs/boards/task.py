@@ -80,6 +80,9 @@ class BoardTask(GameRecordMixin, ArmPoseMixin, ObservationsMixin, PhysicsTask):
         touch the square; MuJoGo) or ``"fingertips"`` (only the tips).
       arm_reset: reset the arm to a random pose after every registered move.
       front_camera: ``(height, width)`` of the RGB camera facing the arm, or None.
+      front_camera_2: ``(height, width)`` of the original code's second view
+        (``front_camera_2``: higher and steeper, the whole 7x7 Go board in
+        view), or None (the default: the paper's agents see one camera).
       time_limit: seconds; `timeout_is_loss` makes the last step terminal.
       piece_noise: the opponent's pieces land uniformly within this fraction
         of the touch sensor's half-size around the point (None: the
@@ -97,7 +100,7 @@ class BoardTask(GameRecordMixin, ArmPoseMixin, ObservationsMixin, PhysicsTask):
     state_observations = ("board_state",)
 
     def __init__(self, game: BoardGame, opponent: Planner, *, registering="arm",
-                 arm_reset=True, front_camera=(84, 84), time_limit=30.0,
+                 arm_reset=True, front_camera=(84, 84), front_camera_2=None, time_limit=30.0,
                  timeout_is_loss=False, piece_noise=None, allow_double_pass=False,
                  control_timestep=0.05, physics_timestep=0.002, render_size=(256, 256)):
         if registering not in ("arm", "fingers", "fingertips"):
@@ -121,7 +124,7 @@ class BoardTask(GameRecordMixin, ArmPoseMixin, ObservationsMixin, PhysicsTask):
         self._piece_noise = float(piece_noise)
         self._allow_double_pass = bool(allow_double_pass)
         self.render_size = tuple(int(v) for v in render_size)
-        sizes = [tuple(s) for s in (front_camera, render_size) if s]
+        sizes = [tuple(s) for s in (front_camera, front_camera_2, render_size) if s]
         offscreen = (max(s[0] for s in sizes), max(s[1] for s in sizes))
         self._arena = arena_lib.BoardArena(kind=game.name, size=game.size,
                                            offscreen_size=offscreen,
@@ -133,6 +136,8 @@ class BoardTask(GameRecordMixin, ArmPoseMixin, ObservationsMixin, PhysicsTask):
         self._cameras = {}
         if front_camera:
             self._cameras["front_camera"] = CameraConfig("front_camera", *front_camera)
+        if front_camera_2:
+            self._cameras["front_camera_2"] = CameraConfig("front_camera_2", *front_camera_2)
         self.set_timesteps(control_timestep=control_timestep, physics_timestep=physics_timestep)
         self._add_sensors(self.physics_steps_per_control_step)
         self.time_limit_steps = int(round(time_limit / control_timestep))
