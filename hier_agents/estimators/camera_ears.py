@@ -85,16 +85,26 @@ def match_ears(centre, lateral, red, blue, occ, world, radius, offsets):
     vis[vis] = near
     pts = pts[near]
     obs_r, obs_b = red[vis], blue[vis]
-    dx, dy = np.meshgrid(offsets, offsets, indexing="ij")
-    cands = np.asarray(centre)[None, :] + np.stack([dx.ravel(), dy.ravel()], 1)
-    er = cands + EAR_OFFSET * lateral                  # (m, 2)
-    eb = cands - EAR_OFFSET * lateral
-    dr = ((pts[None, :, 0] - er[:, None, 0]) ** 2 + (pts[None, :, 1] - er[:, None, 1]) ** 2)
-    db = ((pts[None, :, 0] - eb[:, None, 0]) ** 2 + (pts[None, :, 1] - eb[:, None, 1]) ** 2)
+    # Candidate centres form a grid (x offset i, y offset j), so a squared
+    # distance splits into an x term of i and a y term of j: computed per
+    # axis and added, bit for bit the direct sums.
+    cx = (centre[0] + offsets) + EAR_OFFSET * lateral[0]     # red ear x per i
+    cy = (centre[1] + offsets) + EAR_OFFSET * lateral[1]
+    bx = (centre[0] + offsets) - EAR_OFFSET * lateral[0]     # blue ear
+    by = (centre[1] + offsets) - EAR_OFFSET * lateral[1]
+    k = len(offsets)
+    dr = ((pts[None, :, 0] - cx[:, None]) ** 2)[:, None, :] \
+        + ((pts[None, :, 1] - cy[:, None]) ** 2)[None, :, :]
+    db = ((pts[None, :, 0] - bx[:, None]) ** 2)[:, None, :] \
+        + ((pts[None, :, 1] - by[:, None]) ** 2)[None, :, :]
+    dr, db = dr.reshape(k * k, -1), db.reshape(k * k, -1)
     r2 = radius ** 2
     pred_r = (dr <= r2) & (dr <= db)
     pred_b = (db <= r2) & (db < dr)
-    miss = (pred_r != obs_r[None]).sum(1) + (pred_b != obs_b[None]).sum(1)
+    miss = (np.count_nonzero(pred_r != obs_r[None], axis=1)
+            + np.count_nonzero(pred_b != obs_b[None], axis=1))
+    dx, dy = np.meshgrid(offsets, offsets, indexing="ij")
+    cands = np.asarray(centre)[None, :] + np.stack([dx.ravel(), dy.ravel()], 1)
     best = cands[miss == miss.min()]
     return best.mean(axis=0)
 

@@ -12,9 +12,8 @@ from __future__ import annotations
 import functools
 
 import numpy as np
-from scipy import ndimage
 
-__all__ = ["colour_table", "masks", "FLAT_TOL", "EAR_TOL", "SHADE_SLACK"]
+__all__ = ["colour_table", "dilate3", "masks", "FLAT_TOL", "EAR_TOL", "SHADE_SLACK"]
 
 
 #: Largest difference (0-255, any channel) between a pixel and an untextured
@@ -77,6 +76,27 @@ def colour_table(looks) -> tuple[np.ndarray, tuple[int, ...]]:
     return table, tuple(sorted(confusable))
 
 
+def dilate3(mask: np.ndarray) -> np.ndarray:
+    """Binary dilation of a 2-D bool ``mask`` by a 3x3 square (outside the
+    frame counts as False), computed only over the bounding box of its True
+    pixels: equal to ``scipy.ndimage.binary_dilation(mask, np.ones((3, 3)))``."""
+    out = np.zeros_like(mask)
+    rows, cols = np.flatnonzero(mask.any(1)), np.flatnonzero(mask.any(0))
+    if not len(rows):
+        return out
+    r0, r1 = max(rows[0] - 1, 0), min(rows[-1] + 2, mask.shape[0])
+    c0, c1 = max(cols[0] - 1, 0), min(cols[-1] + 2, mask.shape[1])
+    window = mask[r0:r1, c0:c1]
+    grown = window.copy()
+    grown[1:] |= window[:-1]
+    grown[:-1] |= window[1:]
+    wide = grown.copy()
+    wide[:, 1:] |= grown[:, :-1]
+    wide[:, :-1] |= grown[:, 1:]
+    out[r0:r1, c0:c1] = wide
+    return out
+
+
 def masks(frame: np.ndarray, looks) -> dict:
     """Boolean masks of the objects' colours in ``frame`` (see
     `colour_table`): ``box`` (a box's top, yellow or blue on a pad),
@@ -88,9 +108,11 @@ def masks(frame: np.ndarray, looks) -> dict:
     table, confusable = colour_table(looks)
     f = frame.astype(np.int32)
     cls = table[(f[..., 0] << 16) | (f[..., 1] << 8) | f[..., 2]]
-    unsure = np.isin(cls, confusable) if confusable else np.zeros(cls.shape, bool)
+    is_confusable = np.zeros(_BLUE_EAR + 1, bool)
+    is_confusable[list(confusable)] = True
+    unsure = is_confusable[cls]
     if unsure.any():
-        unsure = ndimage.binary_dilation(unsure, structure=np.ones((3, 3), bool))
+        unsure = dilate3(unsure)
         cls = np.where(unsure & (cls >= _RED_EAR), _NONE, cls)
     box_on_pad = cls == _BOX_ON_PAD
     return dict(red_ear=cls == _RED_EAR, blue_ear=cls == _BLUE_EAR,
