@@ -27,6 +27,7 @@ from hier_agents.compare.backends import run_jobs
 from hier_agents.compare.spec import load
 from hier_agents.run import run, shards
 from hier_agents.stats import bootstrap_interval, iqm
+from child_env import child_env
 
 ROOT = Path(__file__).resolve().parents[1]
 BOXOBAN = ROOT / "envs" / "mujoban" / "data" / "boxoban" / "unfiltered-valid-000.txt"
@@ -398,7 +399,7 @@ def test_two_workers_give_the_rows_of_one(tmp_path):
 def test_a_killed_experiment_resumes_without_redoing_finished_jobs(tmp_path):
     spec = write_spec(tmp_path)
     command = [sys.executable, "-m", "hier_agents.compare", str(spec), "--cpus", "1"]
-    env = {**os.environ, "PYTHONPATH": str(ROOT), "MUJOCO_GL": "egl"}
+    env = child_env()
     jobs_dir = tmp_path / "cache" / "jobs"
     proc = subprocess.Popen(command, cwd=ROOT, env=env, stdout=subprocess.DEVNULL,
                             stderr=subprocess.DEVNULL, start_new_session=True)
@@ -453,7 +454,7 @@ def test_ctrl_c_stops_the_workers_and_keeps_the_episodes_played(tmp_path):
     proc = subprocess.Popen(
         [sys.executable, "-m", "hier_agents.run", "mujoban/level1", "--agent", "random:10",
          "--episodes", "400", "--workers", "2", "--json", str(out)],
-        cwd=ROOT, env={**os.environ, "PYTHONPATH": str(ROOT), "MUJOCO_GL": "egl"},
+        cwd=ROOT, env=child_env(),
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     deadline = time.time() + 300

@@ -21,6 +21,7 @@ import time
 from pathlib import Path
 
 import pytest
+from child_env import child_env
 
 ROOT = Path(__file__).resolve().parents[1]
 PORT = 6397
@@ -39,9 +40,7 @@ random = 10
 
 
 def _env():
-    return {**os.environ, "RAY_AUTH_MODE": "disabled", "MUJOCO_GL": "egl",
-            "PYTHONPATH": os.pathsep.join(p for p in (str(ROOT), os.environ.get("PYTHONPATH"))
-                                          if p)}
+    return child_env(RAY_AUTH_MODE="disabled")
 
 
 def _ray(*args, check=True):

@@ -4,7 +4,6 @@ privileged keys named as such, ``info["is_success"]``, clear errors,
 
 from __future__ import annotations
 
-import os
 import subprocess
 import sys
 from pathlib import Path
@@ -18,6 +17,7 @@ from gymnasium.utils.env_checker import check_env
 import envs
 from envs.gymnasium_env import OBSERVATIONS, PRIVILEGED_PREFIX, GymnasiumEnv
 from arm_driving import touch_point
+from child_env import child_env
 
 ROOT = Path(__file__).resolve().parents[1]
 SMALL = {"mujoban": {"top_camera": (32, 32), "egocentric_camera": (32, 32)},
@@ -216,7 +216,7 @@ def test_module_id_form_and_async_vector_env_in_a_fresh_interpreter(tmp_path):
     context steps environments with cameras."""
     script = tmp_path / "fresh.py"
     script.write_text(FRESH_INTERPRETER)
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), str(ROOT / "tests")])}
+    env = child_env(ROOT / "tests")
     out = subprocess.run([sys.executable, str(script)], cwd=ROOT, capture_output=True,
                          text=True, timeout=180, env=env)
     assert out.returncode == 0, out.stderr[-3000:]

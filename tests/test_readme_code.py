@@ -17,7 +17,6 @@ set-up's test command is CI's own (checked against ``.ci/run``).
 
 from __future__ import annotations
 
-import os
 import re
 import shlex
 import subprocess
@@ -26,6 +25,7 @@ import textwrap
 from pathlib import Path
 
 import pytest
+from child_env import child_env
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
@@ -107,13 +107,6 @@ def shrink(command: str, scratch: Path) -> str:
     return shlex.join(out)
 
 
-def _env() -> dict:
-    env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), env.get("PYTHONPATH")]))
-    env.setdefault("MUJOCO_GL", "egl")
-    return env
-
-
 PYTHON_BLOCKS = [(line, body) for line, lang, body in readme_blocks()
                  if lang == "python" and not is_excerpt(body)]
 #: The set-up's test command is what CI runs (checked by
@@ -171,7 +164,7 @@ def test_shrink_rewrites_budgets_and_outputs(tmp_path):
 @pytest.mark.slow
 @pytest.mark.parametrize("line,body", PYTHON_BLOCKS, ids=[f"line{l}" for l, _ in PYTHON_BLOCKS])
 def test_python_block_runs(line, body, tmp_path):
-    result = subprocess.run([sys.executable, "-c", body], cwd=ROOT, env=_env(),
+    result = subprocess.run([sys.executable, "-c", body], cwd=ROOT, env=child_env(),
                             capture_output=True, text=True, timeout=600)
     assert result.returncode == 0, f"README line {line}:\n{result.stderr[-3000:]}"
 
@@ -181,7 +174,7 @@ def test_python_block_runs(line, body, tmp_path):
 def test_bash_block_runs(line, body, tmp_path):
     for command in commands(body):
         small = shrink(command, tmp_path)
-        result = subprocess.run(small, shell=True, cwd=ROOT, env=_env(), capture_output=True,
+        result = subprocess.run(small, shell=True, cwd=ROOT, env=child_env(), capture_output=True,
                                 text=True, timeout=1200)
         assert result.returncode == 0, (
             f"README line {line}: {small}\n{result.stdout[-2000:]}\n{result.stderr[-3000:]}")
