@@ -11,11 +11,10 @@ vertices, not pixels, so the arenas keep their visible geom count small
 larger than `SMALL_FRAME` pixels a side are drawn with MuJoCo's built-in
 shapes (spheres, capsules, cylinders, planes and boxes) tessellated as
 `SMALL_FRAME_TESSELLATION` says instead of the model's ``visual/quality``
-(which larger frames keep: videos, and the camera estimator's 199x199
-frames, whose reading is calibrated on the model's tessellation): at the
-observations' 84x84 and 96x96 this changes a handful of silhouette pixels
-(bounds in ``tests/test_rendering.py``) and takes about a third off the cost
-of a MuJoBan frame.
+(which larger frames, such as videos, keep): at the observations' 84x84 and
+96x96 and the camera estimator's 199x199 this changes a handful of
+silhouette pixels (bounds in ``tests/test_rendering.py``) and takes about a
+third off the cost of a MuJoBan frame.
 """
 
 from __future__ import annotations
@@ -76,7 +75,7 @@ class Marker:
 
 
 #: Largest side, in pixels, of a frame drawn with `SMALL_FRAME_TESSELLATION`.
-SMALL_FRAME = 128
+SMALL_FRAME = 256
 #: ``visual/quality`` fields used for small frames (each at most the model's
 #: own): slices and stacks of round shapes, and quads per side of a plane or
 #: box face. Quads carry per-vertex lighting: they are reduced only when every

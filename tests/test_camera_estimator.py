@@ -39,7 +39,7 @@ def _check_scene(env, scene, timestep, walker_tol=0.03, box_tol=0.05):
 def test_interface():
     est = CameraEstimator()
     assert est.name == "camera" and est.privileged is False
-    assert est.env_overrides == {"top_camera": FRAME_SHAPE, "lazy_cameras": True}
+    assert est.env_overrides == {"top_camera": FRAME_SHAPE, "multisamples": 0, "lazy_cameras": True}
     with pytest.raises(EstimationError):
         est.estimate(None)
     for bad in (0, 1.5, True):

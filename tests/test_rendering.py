@@ -20,6 +20,9 @@ MAX_SHARE_ABOVE_32 = 0.003
 CASES = [
     ("mujoban/level5", dict(top_camera=(96, 96), egocentric_camera=(96, 96))),
     ("mujoban/level5-pegs", dict(top_camera=(96, 96), egocentric_camera=None)),
+    # The camera estimator's frame (`CameraEstimator.env_overrides`).
+    ("mujoban/level4-pegs", dict(top_camera=(199, 199), egocentric_camera=None,
+                                 multisamples=0)),
     ("mujoxo/mixture", dict(front_camera=(84, 84))),
     ("mujogo/7x7", dict(front_camera=(84, 84))),
 ]
@@ -61,7 +64,7 @@ def test_the_coarse_tessellation_is_really_used_and_large_frames_keep_the_models
     # 16 and the model's 64 slices; a frame larger than SMALL_FRAME is drawn
     # with the model's 64 whichever the setting.
     xml = """<mujoco><visual><quality numslices="64" numstacks="32"/>
-      <global offwidth="256" offheight="256"/></visual>
+      <global offwidth="300" offheight="300"/></visual>
       <worldbody><light directional="true" dir="0 0 -1"/>
       <geom type="sphere" size="0.5" rgba="1 1 1 1"/>
       <camera name="c" pos="0 0 1.6" xyaxes="1 0 0 0 1 0"/></worldbody></mujoco>"""

@@ -64,13 +64,16 @@ Per frame (``estimate``):
   previous player cell (call ``estimate`` every step, as the task rounds
   every step).
 
-Frame schedule (``estimate``): rendering and reading a frame costs ~8 ms
-(render ~4.4, read ~3.5), five times the physics of a level-5 step, so the
+Its camera (``env_overrides``): the top camera at `FRAME_SHAPE`, one sample
+per pixel (``multisamples=0``: its own sensor setting; frames the
+environment's original multisampling draws are read too, as on the original
+environment), rendered only when read (``lazy_cameras=True``).
+
+Frame schedule (``estimate``): rendering and reading a frame costs about
+twice the physics of a level-5 step (``benchmarks/agent_speed.py``), so the
 estimator reads a frame every ``frame_every`` (3) steps, every
 ``near_every`` (2) while the walker is within `NEAR_BOX` of a box or a box
-moves, and locates the walker in every ``walker_every`` (2)-th frame read;
-the environment renders only the frames read (``lazy_cameras=True``, in
-``env_overrides``). In between it predicts: the walker by integrating its
+moves, and locates the walker in every ``walker_every`` (2)-th frame read. In between it predicts: the walker by integrating its
 velocimeter (trapezoid; drift < 0.03 cells between fixes), a box the walker
 touches and rolls into moves with the walker along that axis, any other box
 keeps its last measured velocity less the floor's friction deceleration
@@ -141,8 +144,9 @@ class CameraEstimator(Estimator):
 
     name = "camera"
     privileged = False
-    #: The frame size it reads, rendered only when it reads a frame.
-    env_overrides = {"top_camera": FRAME_SHAPE, "lazy_cameras": True}
+    #: Its camera (see the module docstring): `FRAME_SHAPE`, no
+    #: multisampling, rendered only when it reads a frame.
+    env_overrides = {"top_camera": FRAME_SHAPE, "multisamples": 0, "lazy_cameras": True}
 
     def __init__(self, camera: str = "top_camera", frame_every: int = FRAME_EVERY,
                  near_every: int = NEAR_EVERY, walker_every: int = WALKER_EVERY) -> None:

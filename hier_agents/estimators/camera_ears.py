@@ -22,6 +22,9 @@ __all__ = ["EAR_RADIUS", "EAR_OFFSET", "EAR_HEIGHT", "locate_walker", "match_ear
 EAR_RADIUS = 0.26
 EAR_OFFSET = 0.22
 EAR_HEIGHT = 0.6
+#: `match_ears` passes of `locate_walker`: (half-width in pixels, candidates
+#: per axis); each pass is centred on the previous one's result.
+MATCH_PASSES = ((1.0, 9), (0.3, 9), (0.075, 9))
 
 
 def locate_walker(red, blue, occluder, grid, m_per_px, heading, radius, to_world) -> np.ndarray:
@@ -34,7 +37,7 @@ def locate_walker(red, blue, occluder, grid, m_per_px, heading, radius, to_world
     (rad); ``radius``: the ear's outline as seen (m); ``to_world``: grid
     coordinates (..., 2) -> world (..., 2). Starts from the ear pixels'
     centroid, fits the visible outlines when occluders are near
-    (`fit_ears`), then refines twice (`match_ears`). Raises `EstimationError`
+    (`fit_ears`), then refines (`match_ears`, `MATCH_PASSES`). Raises `EstimationError`
     when fewer than a tenth of one ear's pixels are seen.
     """
     ears = red | blue
@@ -60,7 +63,7 @@ def locate_walker(red, blue, occluder, grid, m_per_px, heading, radius, to_world
     if occ.any():
         centre = fit_ears(centre, lateral, red_w, blue_w, occ, world, radius)
     step = m_per_px
-    for span, n in ((1.0, 17), (0.15, 13)):
+    for span, n in MATCH_PASSES:
         centre = match_ears(centre, lateral, red_w, blue_w, occ, world, radius,
                             np.linspace(-span, span, n) * step)
     return centre
