@@ -389,10 +389,11 @@ def original_env(results: Path) -> list[str]:
 def estimator_accuracy(results: Path) -> list[str]:
     """`benchmarks/estimator_accuracy.py`: whole-grid accuracy and errors per estimator."""
     d = _load(results / "estimator_accuracy.json")
-    lines = ["| estimator | frames | whole grid right | walls / targets / boxes / player "
+    lines = ["| estimator | frames | whole grid right | without frames just after a teleport "
+             "| walls / targets / boxes / player "
              "| worst wall/floor appearance | walker error median / p95 (cells) "
              "| box error median / p95 (cells) | ms per estimate |",
-             "| --- | --- | --- | --- | --- | --- | --- | --- |"]
+             "| --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
     for r in d["rows"]:
         looks = r.get("by_appearance") or {}
         worst = "-"
@@ -404,7 +405,9 @@ def estimator_accuracy(results: Path) -> list[str]:
         label = r["estimator"] + (" (**privileged**)" if r["privileged"] else "")
         parts = " / ".join(f"{100 * r[k + '_accuracy']:.1f}%"
                            for k in ("walls", "targets", "boxes", "player"))
+        clean = r["frames"] - r["teleport_frames"]
         lines.append(f"| {label} | {r['frames']} | {100 * r['whole_grid_accuracy']:.1f}% "
+                     f"| {100 * r['whole_grid_accuracy_without_teleports']:.1f}% of {clean} "
                      f"| {parts} | {worst} | {r['walker_error_median_cells']:.4f} / "
                      f"{r['walker_error_p95_cells']:.4f} | {r['box_error_median_cells']:.4f} / "
                      f"{r['box_error_p95_cells']:.4f} | {r['ms_per_estimate']:.1f} |")

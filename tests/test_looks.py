@@ -69,10 +69,12 @@ def test_set_appearance_rejects_unknown_names():
     env.close()
 
 
+@pytest.mark.parametrize("multisamples", [0, 4])  # the agent's camera; the original's
 @pytest.mark.parametrize("pegs", ["", "-pegs"])
-def test_camera_estimator_reads_every_wall_and_floor_appearance(pegs):
+def test_camera_estimator_reads_every_wall_and_floor_appearance(pegs, multisamples):
     env = envs.load(f"mujoban/level1{pegs}", seed=3, top_camera=(199, 199),
-                    egocentric_camera=None, levels=str(BOXOBAN_DIR / "medium-valid-000.txt"))
+                    egocentric_camera=None, levels=str(BOXOBAN_DIR / "medium-valid-000.txt"),
+                    multisamples=multisamples)
     task = env.task
     walls, floors = env.task.appearances()
     timestep = env.reset()
