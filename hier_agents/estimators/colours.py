@@ -106,8 +106,12 @@ def masks(frame: np.ndarray, looks) -> dict:
     are not looked for (treated as hidden). Walls and floors are textured
     and drawn per episode; none of their texels comes near these colours."""
     table, confusable = colour_table(looks)
-    f = frame.astype(np.int32)
-    cls = table[(f[..., 0] << 16) | (f[..., 1] << 8) | f[..., 2]]
+    code = frame[..., 0].astype(np.int32)       # 24-bit colour, built in place
+    code <<= 8
+    code |= frame[..., 1]
+    code <<= 8
+    code |= frame[..., 2]
+    cls = table[code]
     is_confusable = np.zeros(_BLUE_EAR + 1, bool)
     is_confusable[list(confusable)] = True
     unsure = is_confusable[cls]
