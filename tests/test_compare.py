@@ -25,7 +25,8 @@ from hier_agents.compare import jobs as jobs_mod
 from hier_agents.compare import report
 from hier_agents.compare.backends import run_jobs
 from hier_agents.compare.spec import load
-from hier_agents.run import run, shards
+from hier_agents.players import shards
+from hier_agents.run import run
 from hier_agents.stats import bootstrap_interval, iqm
 from child_env import child_env
 
