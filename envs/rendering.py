@@ -110,6 +110,28 @@ def _register_exit_hook() -> None:
         _EXIT_HOOK_REGISTERED = True
 
 
+def _release(renderer) -> None:
+    """Leaves no OpenGL context current on this thread after ``renderer``
+    has drawn (EGL and GLFW; other backends are left as they are).
+
+    MuJoCo's GL objects (framebuffers, textures) are named per context, and
+    a library that frees its own while ours is current deletes ours instead:
+    dm_control does so when a composer environment recompiles its model at
+    reset, after which our frames would be garbage. With no context current
+    between our frames, such a free touches nothing of ours
+    (``tests/test_rendering.py``)."""
+    gl_context = getattr(renderer, "_gl_context", None)
+    module = type(gl_context).__module__ if gl_context is not None else ""
+    if module.startswith("mujoco.egl"):
+        from mujoco import egl as mujoco_egl
+        from mujoco.egl import egl_ext as EGL
+        EGL.eglMakeCurrent(mujoco_egl.EGL_DISPLAY, EGL.EGL_NO_SURFACE, EGL.EGL_NO_SURFACE,
+                           EGL.EGL_NO_CONTEXT)
+    elif module.startswith("mujoco.glfw"):
+        import glfw
+        glfw.make_context_current(None)
+
+
 class _Quality:
     """Sets the model's ``visual/quality`` tessellation fields to ``values``
     (each at most the model's own) inside a ``with`` block, then restores them."""
@@ -174,6 +196,7 @@ class Cameras:
             try:
                 with quality:  # slices and stacks are baked into the context
                     renderer = mujoco.Renderer(self._model, height=height, width=width)
+                _release(renderer)
             except Exception as exc:  # GL errors come in many types
                 raise RenderError(
                     f"could not create a {width}x{height} offscreen OpenGL context "
@@ -205,7 +228,10 @@ class Cameras:
         with self._quality[(height, width)]:  # quads are read per frame
             renderer.update_scene(data, camera=camera, scene_option=self._option)
             self._add_markers(renderer.scene, markers)
-            return renderer.render()
+            try:
+                return renderer.render()  # makes its context current first
+            finally:
+                _release(renderer)
 
     @staticmethod
     def _add_markers(scene, markers) -> None:

@@ -82,3 +82,27 @@ def test_the_coarse_tessellation_is_really_used_and_large_frames_keep_the_models
     finally:
         coarse.close()
         full.close()
+
+
+def test_frames_survive_another_renderer_freeing_its_context_after_ours_drew():
+    # mujoco.Renderer.close (as dm_control's free at a composer recompile)
+    # frees its GL objects in whatever context is current; it must not be
+    # ours, or our next frames are garbage.
+    xml = """<mujoco><visual><global offwidth="64" offheight="64"/></visual>
+      <worldbody><light directional="true" dir="0 0 -1"/>
+      <geom type="box" size="0.3 0.2 0.1" rgba="0.8 0.3 0.1 1"/>
+      <camera name="c" pos="0 0 1.5" xyaxes="1 0 0 0 1 0"/></worldbody></mujoco>"""
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    ours = Cameras(model)
+    try:
+        reference = ours.render(data, "c", 48, 48)
+        other = mujoco.Renderer(mujoco.MjModel.from_xml_string(xml), 32, 32)
+        other.render()
+        ours.render(data, "c", 48, 48)      # ours drew last
+        other.close()
+        for _ in range(3):
+            np.testing.assert_array_equal(ours.render(data, "c", 48, 48), reference)
+    finally:
+        ours.close()
