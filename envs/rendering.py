@@ -110,26 +110,41 @@ def _register_exit_hook() -> None:
         _EXIT_HOOK_REGISTERED = True
 
 
-def _release(renderer) -> None:
-    """Leaves no OpenGL context current on this thread after ``renderer``
-    has drawn (EGL and GLFW; other backends are left as they are).
+class _KeepCurrentContext:
+    """Inside a ``with`` block a renderer may make its own OpenGL context
+    current; on exit the context that was current before is current again
+    (none if none was). EGL only; with other backends nothing is changed.
 
     MuJoCo's GL objects (framebuffers, textures) are named per context, and
-    a library that frees its own while ours is current deletes ours instead:
-    dm_control does so when a composer environment recompiles its model at
-    reset, after which our frames would be garbage. With no context current
-    between our frames, such a free touches nothing of ours
+    another library in the same process that frees or draws with its own
+    while ours is current touches ours instead: dm_control does both, and
+    believes its context stays current between its calls. Restoring the
+    previous context after every frame keeps both right
     (``tests/test_rendering.py``)."""
-    gl_context = getattr(renderer, "_gl_context", None)
-    module = type(gl_context).__module__ if gl_context is not None else ""
-    if module.startswith("mujoco.egl"):
-        from mujoco import egl as mujoco_egl
-        from mujoco.egl import egl_ext as EGL
-        EGL.eglMakeCurrent(mujoco_egl.EGL_DISPLAY, EGL.EGL_NO_SURFACE, EGL.EGL_NO_SURFACE,
-                           EGL.EGL_NO_CONTEXT)
-    elif module.startswith("mujoco.glfw"):
-        import glfw
-        glfw.make_context_current(None)
+
+    __slots__ = ("_egl", "_saved")
+
+    def __init__(self):
+        self._egl = os.environ.get("MUJOCO_GL", "").lower() == "egl"
+
+    def __enter__(self):
+        if self._egl:
+            from mujoco.egl import egl_ext as EGL
+            self._saved = (EGL.eglGetCurrentDisplay(), EGL.eglGetCurrentSurface(EGL.EGL_DRAW),
+                           EGL.eglGetCurrentSurface(EGL.EGL_READ), EGL.eglGetCurrentContext())
+        return self
+
+    def __exit__(self, *exc):
+        if self._egl:
+            from mujoco import egl as mujoco_egl
+            from mujoco.egl import egl_ext as EGL
+            display, draw, read, context = self._saved
+            if context:
+                EGL.eglMakeCurrent(display, draw, read, context)
+            else:
+                EGL.eglMakeCurrent(mujoco_egl.EGL_DISPLAY, EGL.EGL_NO_SURFACE,
+                                   EGL.EGL_NO_SURFACE, EGL.EGL_NO_CONTEXT)
+        return False
 
 
 class _Quality:
@@ -194,9 +209,8 @@ class Cameras:
             small = self._small and max(height, width) <= SMALL_FRAME
             quality = _Quality(self._model, SMALL_FRAME_TESSELLATION if small else None)
             try:
-                with quality:  # slices and stacks are baked into the context
+                with quality, _KeepCurrentContext():
                     renderer = mujoco.Renderer(self._model, height=height, width=width)
-                _release(renderer)
             except Exception as exc:  # GL errors come in many types
                 raise RenderError(
                     f"could not create a {width}x{height} offscreen OpenGL context "
@@ -228,10 +242,8 @@ class Cameras:
         with self._quality[(height, width)]:  # quads are read per frame
             renderer.update_scene(data, camera=camera, scene_option=self._option)
             self._add_markers(renderer.scene, markers)
-            try:
+            with _KeepCurrentContext():
                 return renderer.render()  # makes its context current first
-            finally:
-                _release(renderer)
 
     @staticmethod
     def _add_markers(scene, markers) -> None:

@@ -1,6 +1,9 @@
 """`envs.rendering.Cameras`: small frames drawn with coarser tessellation
 look like the model's own, and the model's settings are left as they were."""
 
+import ctypes
+import os
+
 import mujoco
 import numpy as np
 import pytest
@@ -87,7 +90,8 @@ def test_the_coarse_tessellation_is_really_used_and_large_frames_keep_the_models
 def test_frames_survive_another_renderer_freeing_its_context_after_ours_drew():
     # mujoco.Renderer.close (as dm_control's free at a composer recompile)
     # frees its GL objects in whatever context is current; it must not be
-    # ours, or our next frames are garbage.
+    # ours, or our next frames are garbage. After our frame the context
+    # current before it (the other's) is current again, as dm_control assumes.
     xml = """<mujoco><visual><global offwidth="64" offheight="64"/></visual>
       <worldbody><light directional="true" dir="0 0 -1"/>
       <geom type="box" size="0.3 0.2 0.1" rgba="0.8 0.3 0.1 1"/>
@@ -101,6 +105,10 @@ def test_frames_survive_another_renderer_freeing_its_context_after_ours_drew():
         other = mujoco.Renderer(mujoco.MjModel.from_xml_string(xml), 32, 32)
         other.render()
         ours.render(data, "c", 48, 48)      # ours drew last
+        if os.environ.get("MUJOCO_GL") == "egl":   # the other's context is current again
+            from mujoco.egl import egl_ext as EGL
+            assert (ctypes.cast(EGL.eglGetCurrentContext(), ctypes.c_void_p).value
+                    == ctypes.cast(other._gl_context._context, ctypes.c_void_p).value)
         other.close()
         for _ in range(3):
             np.testing.assert_array_equal(ours.render(data, "c", 48, 48), reference)
