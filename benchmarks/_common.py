@@ -25,7 +25,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from envs import cli  # noqa: E402
 from hier_agents.provenance import provenance  # noqa: E402
 
-__all__ = ["cli", "make_parser", "prog", "write_json"]
+__all__ = ["cli", "make_parser", "prog", "write_json", "run_in_tree", "baseline_worktree",
+           "remove_worktree"]
 
 
 def prog(file: str) -> str:
@@ -55,3 +56,47 @@ def write_json(path: Path, data, indent: int = 2) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     cli.write_json(path, data, indent=indent)
     print(f"wrote {path}")
+
+
+def run_in_tree(tree: Path, command: list[str], timeout: float) -> None:
+    """Runs ``command`` with ``tree`` as working folder and first on
+    ``PYTHONPATH`` (a checkout of this project, e.g. `baseline_worktree`).
+
+    Raises:
+      RuntimeError: the command failed (its last stderr lines quoted).
+    """
+    import os
+    import subprocess
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+        p for p in (str(tree), os.environ.get("PYTHONPATH")) if p)}
+    done = subprocess.run(command, cwd=tree, env=env, capture_output=True, text=True,
+                          timeout=timeout)
+    if done.returncode != 0:
+        tail = "\n".join(done.stderr.strip().splitlines()[-15:])
+        raise RuntimeError(f"{' '.join(command)} failed in {tree} "
+                           f"(exit {done.returncode}):\n{tail}")
+
+
+def baseline_worktree(ref: str, folder: Path) -> Path:
+    """A detached git worktree of this repository at commit ``ref`` in
+    ``folder``/baseline (remove it with ``git worktree remove --force``).
+
+    Raises:
+      UsageError: ``ref`` is not a commit of this repository.
+    """
+    import subprocess
+    root = Path(__file__).resolve().parents[1]
+    path = Path(folder) / "baseline"
+    done = subprocess.run(["git", "-C", str(root), "worktree", "add", "--detach", str(path), ref],
+                          capture_output=True, text=True)
+    if done.returncode != 0:
+        raise cli.UsageError(f"--baseline {ref}: {done.stderr.strip() or 'git worktree failed'}")
+    return path
+
+
+def remove_worktree(path: Path) -> None:
+    """Removes a worktree made by `baseline_worktree`."""
+    import subprocess
+    root = Path(__file__).resolve().parents[1]
+    subprocess.run(["git", "-C", str(root), "worktree", "remove", "--force", str(path)],
+                   capture_output=True)

@@ -28,39 +28,27 @@ Prints a table and, with --json, writes ``{"provenance", "env", "episodes",
 from __future__ import annotations
 
 import json
-import os
-import subprocess
 import sys
 import tempfile
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from _common import cli, make_parser, prog, write_json  # noqa: E402
+from _common import (baseline_worktree, cli, make_parser, prog, remove_worktree,  # noqa: E402
+                     run_in_tree, write_json)
 
 PROG = prog(__file__)
 ROOT = Path(__file__).resolve().parents[1]
 SECTIONS = ("physics", "render", "estimator", "planner", "skill")
 
 
-def _run(tree: Path, command: list[str], timeout: float) -> None:
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
-        p for p in (str(tree), os.environ.get("PYTHONPATH")) if p)}
-    done = subprocess.run(command, cwd=tree, env=env, capture_output=True, text=True,
-                          timeout=timeout)
-    if done.returncode != 0:
-        tail = "\n".join(done.stderr.strip().splitlines()[-15:])
-        raise RuntimeError(f"{' '.join(command)} failed in {tree} "
-                           f"(exit {done.returncode}):\n{tail}")
-
-
 def measure_agent(tree: Path, env_name: str, episodes: int, seed: int, tmp: Path) -> dict:
     """The default modular agent's control steps/s over its episodes' wall
     time, solved share and time shares per section, played from ``tree``."""
     out = tmp / "agent.json"
-    _run(tree, [sys.executable, "-m", "hier_agents.run", env_name, "--episodes", str(episodes),
-                "--seed", str(seed), "--profile", "--json", str(out)],
-         timeout=3600)
+    run_in_tree(tree, [sys.executable, "-m", "hier_agents.run", env_name, "--episodes",
+                       str(episodes), "--seed", str(seed), "--profile", "--json", str(out)],
+                timeout=3600)
     summary = json.loads(out.read_text())
     rows = summary["rows"]
     steps = sum(r["steps"] for r in rows)
@@ -78,20 +66,12 @@ def measure_env(tree: Path, env_name: str, steps: int, tmp: Path) -> dict:
     """The environment alone without cameras and its physics limit
     (`benchmarks/env_speed.py`), from ``tree``."""
     out = tmp / "env.json"
-    _run(tree, [sys.executable, "benchmarks/env_speed.py", "--envs", env_name, "--cameras",
-                "none", "--steps", str(steps), "--json", str(out)], timeout=1800)
+    run_in_tree(tree, [sys.executable, "benchmarks/env_speed.py", "--envs", env_name,
+                       "--cameras", "none", "--steps", str(steps), "--json", str(out)],
+                timeout=1800)
     row = json.loads(out.read_text())["rows"][0]
     return {"steps_per_s": row["steps_per_s"],
             "physics_limit_steps_per_s": row["physics_limit_steps_per_s"]}
-
-
-def _worktree(ref: str, tmp: Path) -> Path:
-    path = tmp / "baseline"
-    done = subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", str(path), ref],
-                          capture_output=True, text=True)
-    if done.returncode != 0:
-        raise cli.UsageError(f"--baseline {ref}: {done.stderr.strip() or 'git worktree failed'}")
-    return path
 
 
 def _mean(values):
@@ -157,7 +137,7 @@ def _main(argv=None) -> int:
         tmp = Path(tmp_name)
         trees = {"current": ROOT}
         if args.baseline:
-            trees["baseline"] = _worktree(args.baseline, tmp)
+            trees["baseline"] = baseline_worktree(args.baseline, tmp)
         try:
             rounds = []
             for i in range(args.rounds):
@@ -177,8 +157,7 @@ def _main(argv=None) -> int:
                 rounds.append(record)
         finally:
             if args.baseline:
-                subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force",
-                                str(trees["baseline"])], capture_output=True)
+                remove_worktree(trees["baseline"])
     summary = summarize(rounds)
     print(format_table(args.env, rounds, summary))
     if args.json:
