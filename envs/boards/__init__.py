@@ -47,9 +47,12 @@ def _check_level(level) -> int:
 
 
 def _check_board_common(*, seed, front_camera, front_camera_2, arm_reset, time_limit,
-                        control_timestep, physics_timestep, piece_noise, render_size, raise_on_physics_error,
+                        control_timestep, physics_timestep, piece_noise, render_size,
+                        multisamples, shadows, raise_on_physics_error,
                         lazy_cameras) -> None:
     _config.check_common(seed, render_size, raise_on_physics_error, lazy_cameras)
+    _config.check_int("multisamples", multisamples, 0, 16)
+    _config.check_bool("shadows", shadows)
     _config.check_camera("front_camera", front_camera)
     _config.check_camera("front_camera_2", front_camera_2)
     _config.check_bool("arm_reset", arm_reset)
@@ -61,7 +64,8 @@ def _check_board_common(*, seed, front_camera, front_camera_2, arm_reset, time_l
 def check_mujoxo(*, epsilon: float = 0.25, seed=None, front_camera=(84, 84), front_camera_2=None,
                  arm_reset=True,
                  time_limit=30.0, control_timestep=0.05, physics_timestep=0.002,
-                 piece_noise=None, render_size=(256, 256), raise_on_physics_error=True,
+                 piece_noise=None, render_size=(256, 256), multisamples=0, shadows=False,
+                 raise_on_physics_error=True,
                  lazy_cameras=False) -> None:
     """Checks `make_mujoxo`'s arguments without building anything (`envs._config`)."""
     _check_epsilon(epsilon)
@@ -69,7 +73,8 @@ def check_mujoxo(*, epsilon: float = 0.25, seed=None, front_camera=(84, 84), fro
                         arm_reset=arm_reset,
                         time_limit=time_limit, control_timestep=control_timestep,
                         physics_timestep=physics_timestep, piece_noise=piece_noise,
-                        render_size=render_size, raise_on_physics_error=raise_on_physics_error,
+                        render_size=render_size, multisamples=multisamples, shadows=shadows,
+                        raise_on_physics_error=raise_on_physics_error,
                         lazy_cameras=lazy_cameras)
 
 
@@ -77,7 +82,8 @@ def check_mujogo(*, board_size=7, level=10, epsilon=0.0, komi=5.5, seed=None,
                  front_camera=(84, 84), front_camera_2=None, arm_reset=True, time_limit=45.0,
                  control_timestep=0.05, physics_timestep=0.002, registering="fingers", allow_double_pass=False,
                  piece_noise=None, gnugo_timeout=10.0, gnugo_command=None,
-                 render_size=(256, 256), raise_on_physics_error=True,
+                 render_size=(256, 256), multisamples=0, shadows=False,
+                 raise_on_physics_error=True,
                  lazy_cameras=False) -> None:
     """Checks `make_mujogo`'s arguments without building anything or starting
     GNU Go (`envs._config`)."""
@@ -89,7 +95,8 @@ def check_mujogo(*, board_size=7, level=10, epsilon=0.0, komi=5.5, seed=None,
                         arm_reset=arm_reset,
                         time_limit=time_limit, control_timestep=control_timestep,
                         physics_timestep=physics_timestep, piece_noise=piece_noise,
-                        render_size=render_size, raise_on_physics_error=raise_on_physics_error,
+                        render_size=render_size, multisamples=multisamples, shadows=shadows,
+                        raise_on_physics_error=raise_on_physics_error,
                         lazy_cameras=lazy_cameras)
     _config.check_choice("registering", registering, ("arm", "fingers", "fingertips"))
     _config.check_bool("allow_double_pass", allow_double_pass)
@@ -112,6 +119,7 @@ def make_mujoxo(*, epsilon: float = 0.25, seed: int | None = None, front_camera=
                 front_camera_2=None, arm_reset: bool = True, time_limit: float = 30.0,
                 control_timestep: float = 0.05, physics_timestep: float = 0.002,
                 piece_noise: float | None = None, render_size=(256, 256),
+                multisamples: int = 0, shadows: bool = False,
                 raise_on_physics_error: bool = True, lazy_cameras: bool = False) -> Environment:
     """MuJoXO: tic-tac-toe against minimax mixed with random moves at rate ``epsilon``.
 
@@ -121,20 +129,25 @@ def make_mujoxo(*, epsilon: float = 0.25, seed: int | None = None, front_camera=
     this fraction of the sensor half-size (None: the original's 1).
     ``front_camera_2``: ``(height, width)`` of the original code's second
     view (a higher, steeper front camera), off by default as in the paper.
+    Looks: ``multisamples`` (samples per pixel, default 0) and ``shadows``
+    (the light casts shadows, default False); the original code draws its
+    frames with 4 samples and shadows (``multisamples=4, shadows=True``),
+    at many times the cost per frame (README, "Looks of the board games").
     """
     check_mujoxo(epsilon=epsilon, seed=seed, front_camera=front_camera,
                  front_camera_2=front_camera_2, arm_reset=arm_reset,
                  time_limit=time_limit, control_timestep=control_timestep,
                  physics_timestep=physics_timestep, piece_noise=piece_noise,
-                 render_size=render_size, raise_on_physics_error=raise_on_physics_error,
-                 lazy_cameras=lazy_cameras)
+                 render_size=render_size, multisamples=multisamples, shadows=shadows,
+                 raise_on_physics_error=raise_on_physics_error, lazy_cameras=lazy_cameras)
     epsilon = _check_epsilon(epsilon)
     opponent = EpsilonGreedy(MinimaxPlanner(), epsilon)
     task = BoardTask(BoardGame("tic_tac_toe", 3, draw_reward=0.5), opponent, registering="arm",
                      arm_reset=arm_reset, front_camera=front_camera,
                      front_camera_2=front_camera_2, time_limit=time_limit,
                      piece_noise=piece_noise, control_timestep=control_timestep,
-                     physics_timestep=physics_timestep, render_size=render_size)
+                     physics_timestep=physics_timestep, render_size=render_size,
+                     multisamples=multisamples, shadows=shadows)
     return Environment(task, seed=seed, raise_on_physics_error=raise_on_physics_error,
                        lazy_cameras=lazy_cameras)
 
@@ -146,6 +159,7 @@ def make_mujogo(*, board_size: int = 7, level: int = 10, epsilon: float = 0.0,
                 registering: str = "fingers", allow_double_pass: bool = False,
                 piece_noise: float | None = None,
                 gnugo_timeout: float = 10.0, gnugo_command=None, render_size=(256, 256),
+                multisamples: int = 0, shadows: bool = False,
                 raise_on_physics_error: bool = True, lazy_cameras: bool = False) -> Environment:
     """MuJoGo: Go (Tromp-Taylor, komi 5.5) against GNU Go at ``level``, random at ``epsilon``.
 
@@ -158,7 +172,8 @@ def make_mujogo(*, board_size: int = 7, level: int = 10, epsilon: float = 0.0,
     time limit (45 s; 60 s for evaluation) is a loss. ``gnugo_command`` runs
     another GTP engine (a list of arguments); ``gnugo_timeout`` bounds every
     GTP reply (seconds): a hung engine raises ``GTPError``, a dead one is
-    restarted and replays the game. ``front_camera_2``: as in `make_mujoxo`.
+    restarted and replays the game. ``front_camera_2``, ``multisamples``,
+    ``shadows``: as in `make_mujoxo`.
     """
     check_mujogo(board_size=board_size, level=level, epsilon=epsilon, komi=komi, seed=seed,
                  front_camera=front_camera, front_camera_2=front_camera_2, arm_reset=arm_reset,
@@ -167,6 +182,7 @@ def make_mujogo(*, board_size: int = 7, level: int = 10, epsilon: float = 0.0,
                  allow_double_pass=allow_double_pass,
                  piece_noise=piece_noise, gnugo_timeout=gnugo_timeout,
                  gnugo_command=gnugo_command, render_size=render_size,
+                 multisamples=multisamples, shadows=shadows,
                  raise_on_physics_error=raise_on_physics_error, lazy_cameras=lazy_cameras)
     game = BoardGame("go", board_size, komi=float(komi), draw_reward=0.0)
     epsilon = _check_epsilon(epsilon)
@@ -180,7 +196,7 @@ def make_mujogo(*, board_size: int = 7, level: int = 10, epsilon: float = 0.0,
                          time_limit=time_limit, timeout_is_loss=True,
                          allow_double_pass=allow_double_pass, piece_noise=piece_noise,
                          control_timestep=control_timestep, physics_timestep=physics_timestep,
-                         render_size=render_size)
+                         render_size=render_size, multisamples=multisamples, shadows=shadows)
         return Environment(task, seed=seed, raise_on_physics_error=raise_on_physics_error,
                        lazy_cameras=lazy_cameras)
     except BaseException:

@@ -92,6 +92,8 @@ class BoardTask(GameRecordMixin, ArmPoseMixin, ObservationsMixin, PhysicsTask):
       control_timestep, physics_timestep: seconds.
       render_size: largest frame `Environment.render` will be asked for, and
         its default size.
+      multisamples: samples per pixel of rendered frames (the original's 4).
+      shadows: the light casts shadows, as the original's does.
     """
 
     #: The referee's record of the game (the paper's agents observe cameras
@@ -102,7 +104,8 @@ class BoardTask(GameRecordMixin, ArmPoseMixin, ObservationsMixin, PhysicsTask):
     def __init__(self, game: BoardGame, opponent: Planner, *, registering="arm",
                  arm_reset=True, front_camera=(84, 84), front_camera_2=None, time_limit=30.0,
                  timeout_is_loss=False, piece_noise=None, allow_double_pass=False,
-                 control_timestep=0.05, physics_timestep=0.002, render_size=(256, 256)):
+                 control_timestep=0.05, physics_timestep=0.002, render_size=(256, 256),
+                 multisamples=0, shadows=False):
         if registering not in ("arm", "fingers", "fingertips"):
             raise ValueError(f"registering must be 'arm', 'fingers' or 'fingertips', "
                              f"got {registering!r}")
@@ -128,7 +131,8 @@ class BoardTask(GameRecordMixin, ArmPoseMixin, ObservationsMixin, PhysicsTask):
         offscreen = (max(s[0] for s in sizes), max(s[1] for s in sizes))
         self._arena = arena_lib.BoardArena(kind=game.name, size=game.size,
                                            offscreen_size=offscreen,
-                                           physics_timestep=physics_timestep)
+                                           physics_timestep=physics_timestep,
+                                           multisamples=multisamples, shadows=shadows)
         self._arm = kinova.JacoArm(name="arm")
         self._hand = kinova.JacoHand(name="hand")  # tool centre point: the grip site
         self._arm.attach(self._hand)
