@@ -11,33 +11,27 @@ For each environment and camera setting this measures
   stepping alternate in chunks of 50 steps so both see the same machine load;
 * ``ratio`` = steps_per_s / physics_limit_steps_per_s;
 * ``reset_s``: mean wall time of ``env.reset()`` after the first one (the
-  first also creates the GL contexts and is reported as ``first_reset_s``);
-* ``x_original``: steps_per_s over the original implementation's figure for
-  the same setting (DeepMind's physics_planning_games on a machine like ours:
-  MuJoBan ~53 control steps/s without cameras and ~40 with the 96x96 top
-  camera, the board games ~8 with two 84x84 cameras), given only when the
-  row runs at the original's physics timestep (1 ms MuJoBan, 2 ms board
-  games); at any other timestep it is None, as the work per step differs.
+  first also creates the GL contexts and is reported as ``first_reset_s``).
 
 Environments run at their defaults, which are the original's physics
 timesteps; ``--physics-timestep`` measures another (e.g. 0.005) on purpose.
 The board games observe one 84x84 front camera (the paper's); the original
-code renders two, so the ``front_camera+second_view`` setting renders a
-second 84x84 view of the same camera per step (``env.render``) to compare
-like for like with its ~8 steps/s.
+code observes two, which the ``front_camera+front_camera_2`` setting
+renders (the second at the original's ``front_camera_2`` pose). Figures
+against the original implementation are measured side by side with it by
+``benchmarks/original_speed.py``, not here.
 
     python benchmarks/env_speed.py [--json PATH] [--steps N] [--envs NAME ...]
         [--cameras SETTING ...] [--physics-timestep S] [--env-option KEY=VALUE ...]
 
 Prints a table and, with --json, writes ``{"provenance": {...}, "rows": [...]}``;
 each row has env, cameras, physics_timestep, env_options, steps_per_s,
-physics_limit_steps_per_s, ratio, x_original, reset_s (plus first_reset_s,
-steps, build_s).
+physics_limit_steps_per_s, ratio, reset_s (plus first_reset_s, steps,
+build_s).
 """
 
 from __future__ import annotations
 
-import math
 import sys
 import time
 from pathlib import Path
@@ -67,20 +61,9 @@ CAMERA_SETTINGS = {
         "none": dict(front_camera=None),
         "front_camera": dict(front_camera=(84, 84)),
         # The original code's observation set: two 84x84 views.
-        "front_camera+second_view": dict(front_camera=(84, 84)),
+        "front_camera+front_camera_2": dict(front_camera=(84, 84), front_camera_2=(84, 84)),
     },
 }
-#: The original implementation's physics timestep per family (seconds).
-ORIGINAL_TIMESTEP = {"mujoban": 0.001, "boards": 0.002}
-#: The original implementation's control steps/s on a 2-core machine like
-#: ours, per (family, camera setting) it was measured with.
-ORIGINAL_STEPS_PER_S = {
-    ("mujoban", "none"): 53.0,
-    ("mujoban", "top_camera"): 40.0,
-    ("boards", "front_camera+second_view"): 8.0,
-}
-
-
 def _family(name: str) -> str:
     return "mujoban" if name.startswith("mujoban/") else "boards"
 
@@ -98,7 +81,6 @@ def measure(name: str, cameras: str, steps: int, seed: int = 0,
     overrides = {**CAMERA_SETTINGS[family][cameras], **env_options}
     if physics_timestep is not None:
         overrides["physics_timestep"] = physics_timestep
-    second_view = cameras.endswith("+second_view")
     t0 = time.perf_counter()
     env = envs.load(name, seed=seed, **overrides)
     build_s = time.perf_counter() - t0
@@ -128,8 +110,6 @@ def measure(name: str, cameras: str, steps: int, seed: int = 0,
         t = time.perf_counter()
         for i in range(done, done + n):
             timestep = env.step(actions[i])
-            if second_view:
-                env.render("front_camera", 84, 84)
             if timestep.last():
                 n = i - done + 1
                 break
@@ -147,9 +127,6 @@ def measure(name: str, cameras: str, steps: int, seed: int = 0,
     env.close()
     steps_per_s = steps / env_time
     limit_per_s = steps / raw_time
-    original = ORIGINAL_STEPS_PER_S.get((family, cameras))
-    # Only the original task, at the original's timestep, is compared with it.
-    same_timestep = math.isclose(timestep_s, ORIGINAL_TIMESTEP[family]) and not env_options
     return {
         "env": name,
         "cameras": ([] if cameras == "none"
@@ -159,8 +136,6 @@ def measure(name: str, cameras: str, steps: int, seed: int = 0,
         "steps_per_s": round(steps_per_s, 1),
         "physics_limit_steps_per_s": round(limit_per_s, 1),
         "ratio": round(steps_per_s / limit_per_s, 3),
-        "x_original": (round(steps_per_s / original, 1)
-                       if original is not None and same_timestep else None),
         "reset_s": round(float(np.mean(reset_times)), 5),
         "first_reset_s": round(first_reset_s, 4),
         "build_s": round(build_s, 3),
@@ -177,16 +152,16 @@ def _main(argv=None) -> int:
                         help="environment names")
     all_settings = sorted({k for family in CAMERA_SETTINGS.values() for k in family})
     parser.add_argument("--cameras", nargs="+", metavar="SETTING",
-                        default=["none", "top_camera", "front_camera", "front_camera+second_view"],
+                        default=["none", "top_camera", "front_camera",
+                                 "front_camera+front_camera_2"],
                         help=f"camera settings, of {', '.join(all_settings)} (each measured "
                              f"where the environment has it)")
     parser.add_argument("--physics-timestep", type=cli.positive_float, default=None,
                         help="physics timestep in seconds (default: each environment's own, "
-                             "the original's); x_original is only given at the original's")
+                             "the original's)")
     parser.add_argument("--env-option", action="append", default=[], metavar="KEY=VALUE",
                         help="an envs.load override, e.g. noslip_iterations=0 or sleep=True "
-                             "(repeatable; VALUE is a Python literal); rows measured with one "
-                             "get no x_original")
+                             "(repeatable; VALUE is a Python literal)")
     args = parser.parse_args(argv)
     for setting in args.cameras:
         cli.choice("camera setting", setting, all_settings)
@@ -200,8 +175,8 @@ def _main(argv=None) -> int:
                             flag="--physics-timestep")
     cli.output_file(args.json, "--json")
 
-    header = (f"{'env':<22} {'cameras':<26} {'dt ms':>5} {'steps/s':>9} {'limit/s':>9} "
-              f"{'ratio':>6} {'x orig':>7} {'reset ms':>9}")
+    header = (f"{'env':<22} {'cameras':<28} {'dt ms':>5} {'steps/s':>9} {'limit/s':>9} "
+              f"{'ratio':>6} {'reset ms':>9}")
     print(header)
     print("-" * len(header))
     rows = []
@@ -212,10 +187,9 @@ def _main(argv=None) -> int:
             row = measure(name, cameras, args.steps, physics_timestep=args.physics_timestep,
                           env_options=env_options)
             rows.append(row)
-            x_orig = "-" if row["x_original"] is None else f"{row['x_original']:.1f}"
-            print(f"{name:<22} {cameras:<26} {row['physics_timestep'] * 1e3:>5.1f} "
+            print(f"{name:<22} {cameras:<28} {row['physics_timestep'] * 1e3:>5.1f} "
                   f"{row['steps_per_s']:>9.1f} {row['physics_limit_steps_per_s']:>9.1f} "
-                  f"{row['ratio']:>6.2f} {x_orig:>7} {row['reset_s'] * 1e3:>9.2f}", flush=True)
+                  f"{row['ratio']:>6.2f} {row['reset_s'] * 1e3:>9.2f}", flush=True)
     if args.json:
         write_json(args.json, rows)
     return 0

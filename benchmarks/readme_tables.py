@@ -30,8 +30,6 @@ import sys
 from pathlib import Path
 from typing import Callable
 
-import numpy as np
-
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
@@ -138,23 +136,14 @@ def _span(values, fmt=None) -> str:
     return low if low == high else f"{low}-{high}"
 
 
-def _speed_row(label: str, rows: list[dict], *, ratio: bool, original: bool,
-               level5: bool, level5_original: bool = False) -> str:
+def _speed_row(label: str, rows: list[dict], *, ratio: bool, level5: bool) -> str:
     steps = _span([r["steps_per_s"] for r in rows])
     fives = [r for r in rows if r["env"].startswith("mujoban/level5")]
     if level5 and fives:
         steps += f" (level 5: {_span([r['steps_per_s'] for r in fives])})"
     limit = _span([r["ratio"] for r in rows], "{:.2f}") if ratio else "-"
-    times = "-"
-    known = [r for r in rows if r.get("x_original")]
-    if original and known:
-        theirs = float(np.median([r["steps_per_s"] / r["x_original"] for r in known]))
-        times = f"{_span([r['x_original'] for r in known], '{:.1f}')}x its ~{theirs:.0f}"
-        fives = [r for r in known if r["env"].startswith("mujoban/level5")]
-        if level5_original and fives:
-            times += f" (level 5: {_span([r['x_original'] for r in fives], '{:.1f}')}x)"
     reset = _span([1000 * r["reset_s"] for r in rows]) + " ms"
-    return f"| {label} | {steps} | {limit} | {times} | {reset} |"
+    return f"| {label} | {steps} | {limit} | {reset} |"
 
 
 @table("env-speed")
@@ -165,23 +154,37 @@ def env_speed(results: Path) -> list[str]:
     mujoban = [r for r in rows if r["env"].startswith("mujoban/")]
     boards = [r for r in rows if not r["env"].startswith("mujoban/")]
     cams = lambda group, cameras: [r for r in group if r["cameras"] == cameras]  # noqa: E731
-    return ["| setting | steps/s | physics limit ratio | x the original (same timestep, same "
-            "cameras) | reset |",
-            "| --- | --- | --- | --- | --- |",
+    return ["| setting | steps/s | physics limit ratio | reset |",
+            "| --- | --- | --- | --- |",
             _speed_row("MuJoBan, cameras off, levels 1-5 with and without pegs",
-                       cams(mujoban, []), ratio=True, original=True, level5=True,
-                       level5_original=True),
+                       cams(mujoban, []), ratio=True, level5=True),
             _speed_row("MuJoBan, 96x96 top camera", cams(mujoban, ["top_camera"]),
-                       ratio=False, original=True, level5=True),
+                       ratio=False, level5=True),
             _speed_row("MuJoBan, both 96x96 cameras (the default observations), level 5", both,
-                       ratio=False, original=False, level5=False),
+                       ratio=False, level5=False),
             _speed_row("MuJoXO / MuJoGo, cameras off", cams(boards, []), ratio=True,
-                       original=False, level5=False),
+                       level5=False),
             _speed_row("MuJoXO / MuJoGo, 84x84 front camera (the paper's one camera)",
-                       cams(boards, ["front_camera"]), ratio=False, original=False, level5=False),
+                       cams(boards, ["front_camera"]), ratio=False, level5=False),
             _speed_row("MuJoXO / MuJoGo, two 84x84 views (the original code's set)",
-                       cams(boards, ["front_camera", "second_view"]), ratio=False, original=True,
+                       cams(boards, ["front_camera", "front_camera_2"]), ratio=False,
                        level5=False)]
+
+
+@table("original-speed")
+def original_speed(results: Path) -> list[str]:
+    """Ours and the original side by side (`benchmarks/original_speed.py`), per pair."""
+    d = _load(results / "original_speed.json")
+    lines = ["| pair (same timestep, cameras, random actions) | ours, steps/s | the original, "
+             "steps/s | x the original |",
+             "| --- | --- | --- | --- |"]
+    pairs = list(dict.fromkeys(r["pair"] for r in d["rows"]))
+    for pair in pairs:
+        rows = [r for r in d["rows"] if r["pair"] == pair]
+        lines.append(f"| {pair} | {_span([r['ours_steps_per_s'] for r in rows], '{:.0f}')} "
+                     f"| {_span([r['original_steps_per_s'] for r in rows], '{:.1f}')} "
+                     f"| {_span([r['x_original'] for r in rows], '{:.1f}')}x |")
+    return lines
 
 
 @table("learner-speed")
@@ -349,6 +352,64 @@ def compare_agents(results: Path) -> list[str]:
             else:
                 cells.append(f"{found['first_frames']:,} frames")
         lines.append(f"| {name} | {cells[0]} | {cells[1]} |")
+    return lines
+
+
+@table("agent-speed")
+def agent_speed(results: Path) -> list[str]:
+    """The camera agent against the environment alone (`benchmarks/agent_speed.py`)."""
+    d = _load(results / "agent_speed.json")
+    lines = [f"| code | `{d['env']}`: agent steps/s | environment alone, no camera | ratio "
+             f"| solved | time: physics / render / estimator / other |",
+             "| --- | --- | --- | --- | --- | --- |"]
+    for tree in ("current", "baseline"):
+        if tree not in d["summary"]:
+            continue
+        rows = [r["trees"][tree] for r in d["rounds"]]
+        s = d["summary"][tree]
+        label = ("this commit" if tree == "current" else f"before (`{d['baseline']}`)")
+        shares = s["shares"]
+        other = shares["other"] + shares["planner"] + shares["skill"]
+        lines.append(
+            f"| {label} | {_span([r['agent']['steps_per_s'] for r in rows], '{:.0f}')} "
+            f"| {_span([r['env']['steps_per_s'] for r in rows], '{:.0f}')} "
+            f"| **{_span([r['ratio'] for r in rows], '{:.3f}')}** "
+            f"| {100 * s['success_rate']:.0f}% of {len(rows)} x {d['episodes']} "
+            f"| {100 * shares['physics']:.0f}% / {100 * shares['render']:.0f}% / "
+            f"{100 * shares['estimator']:.0f}% / {100 * other:.0f}% |")
+    return lines
+
+
+@table("board-looks")
+def board_looks(results: Path) -> list[str]:
+    """Per board-game look: ms per 84x84 frame and the difference of its image
+    from the default look's (`benchmarks/board_looks.py`)."""
+    d = _load(results / "board_looks.json")
+    default = {r["env"]: r["ms_per_frame"] for r in d["rows"] if r["look"] == "default"}
+    lines = ["| environment | look | ms per 84x84 frame | x the default | mean difference "
+             "from the default (of 255) | pixels off by more than 8 |",
+             "| --- | --- | --- | --- | --- | --- |"]
+    for r in d["rows"]:
+        lines.append(f"| `{r['env']}` | {r['look']} | {r['ms_per_frame']:.1f} "
+                     f"| {r['ms_per_frame'] / default[r['env']]:.1f}x "
+                     f"| {r['vs_default']['mean_abs']:.2f} "
+                     f"| {100 * r['vs_default']['share_above_8']:.1f}% |")
+    return lines
+
+
+@table("camera-speed")
+def camera_speed(results: Path) -> list[str]:
+    """The paper's cameras, this code beside a baseline commit (`benchmarks/camera_speed.py`)."""
+    d = _load(results / "camera_speed.json")
+    lines = [f"| environment | cameras | steps/s now | steps/s at `{d['baseline']}` | speed-up |",
+             "| --- | --- | --- | --- | --- |"]
+    settings = list(dict.fromkeys((r["env"], r["cameras"]) for r in d["rows"]))
+    for env, cameras in settings:
+        rows = [r for r in d["rows"] if (r["env"], r["cameras"]) == (env, cameras)]
+        lines.append(f"| `{env}` | {cameras.replace('+', ', ')} "
+                     f"| {_span([r['steps_per_s'] for r in rows])} "
+                     f"| {_span([r['baseline_steps_per_s'] for r in rows])} "
+                     f"| {_span([r['x_baseline'] for r in rows], '{:.2f}')}x |")
     return lines
 
 
