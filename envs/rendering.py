@@ -140,6 +140,7 @@ class _KeepCurrentContext:
             from mujoco.egl import egl_ext as EGL
             display, draw, read, context = self._saved
             if context:
+                EGL.eglBindAPI(EGL.EGL_OPENGL_API)  # a context's free resets the thread's API
                 EGL.eglMakeCurrent(display, draw, read, context)
             else:
                 EGL.eglMakeCurrent(mujoco_egl.EGL_DISPLAY, EGL.EGL_NO_SURFACE,
@@ -263,9 +264,10 @@ class Cameras:
                 # make this renderer's context current first, or it would
                 # delete another live renderer's framebuffers (garbage frames).
                 gl_context = getattr(renderer, "_gl_context", None)
-                if gl_context is not None:
-                    gl_context.make_current()
-                renderer.close()
+                with _KeepCurrentContext():
+                    if gl_context is not None:
+                        gl_context.make_current()
+                    renderer.close()
             except Exception:  # the context may already be gone at interpreter exit
                 pass
         self._renderers.clear()

@@ -114,3 +114,28 @@ def test_frames_survive_another_renderer_freeing_its_context_after_ours_drew():
             np.testing.assert_array_equal(ours.render(data, "c", 48, 48), reference)
     finally:
         ours.close()
+
+
+def test_closing_our_cameras_leaves_another_renderers_context_current_and_working():
+    xml = """<mujoco><visual><global offwidth="64" offheight="64"/></visual>
+      <worldbody><light directional="true" dir="0 0 -1"/>
+      <geom type="sphere" size="0.3" rgba="0.2 0.6 0.9 1"/>
+      <camera name="c" pos="0 0 1.5" xyaxes="1 0 0 0 1 0"/></worldbody></mujoco>"""
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    other = mujoco.Renderer(model, 32, 32)   # another library's, current after creation
+    try:
+        other.update_scene(data, camera="c")
+        before = other.render()
+        ours = Cameras(model)
+        ours.render(data, "c", 48, 48)
+        ours.close()
+        if os.environ.get("MUJOCO_GL") == "egl":   # as dm_control assumes between its calls
+            from mujoco.egl import egl_ext as EGL
+            assert (ctypes.cast(EGL.eglGetCurrentContext(), ctypes.c_void_p).value
+                    == ctypes.cast(other._gl_context._context, ctypes.c_void_p).value)
+        other.update_scene(data, camera="c")
+        np.testing.assert_array_equal(other.render(), before)
+    finally:
+        other.close()
