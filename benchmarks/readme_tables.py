@@ -367,7 +367,7 @@ def agent_speed(results: Path) -> list[str]:
             continue
         rows = [r["trees"][tree] for r in d["rounds"]]
         s = d["summary"][tree]
-        label = ("this commit" if tree == "current" else f"before (`{d['baseline']}`)")
+        label = ("now" if tree == "current" else f"before (`{d['baseline']}`)")
         shares = s["shares"]
         other = shares["other"] + shares["planner"] + shares["skill"]
         lines.append(
