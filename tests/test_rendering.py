@@ -31,6 +31,27 @@ CASES = [
 ]
 
 
+def _scene(geom: str, offscreen: int = 64, quality: str = ""):
+    """A model of one ``geom`` under a directional light, a camera "c"
+    looking down at it, and its data after ``mj_forward``."""
+    xml = f"""<mujoco><visual>{quality}<global offwidth="{offscreen}" offheight="{offscreen}"/>
+      </visual><worldbody><light directional="true" dir="0 0 -1"/>{geom}
+      <camera name="c" pos="0 0 1.6" xyaxes="1 0 0 0 1 0"/></worldbody></mujoco>"""
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    return model, data
+
+
+def _assert_current(renderer) -> None:
+    """With EGL, ``renderer``'s context is the current one (as dm_control
+    assumes of its own between its calls)."""
+    if os.environ.get("MUJOCO_GL") == "egl":
+        from mujoco.egl import egl_ext as EGL
+        assert (ctypes.cast(EGL.eglGetCurrentContext(), ctypes.c_void_p).value
+                == ctypes.cast(renderer._gl_context._context, ctypes.c_void_p).value)
+
+
 @pytest.mark.parametrize("name,options", CASES, ids=[c[0] for c in CASES])
 def test_small_frames_match_the_models_own_tessellation(name, options):
     env = envs.load(name, seed=3, **options)
@@ -66,14 +87,8 @@ def test_the_coarse_tessellation_is_really_used_and_large_frames_keep_the_models
     # A lone sphere filling a small frame: its silhouette differs between
     # 16 and the model's 64 slices; a frame larger than SMALL_FRAME is drawn
     # with the model's 64 whichever the setting.
-    xml = """<mujoco><visual><quality numslices="64" numstacks="32"/>
-      <global offwidth="300" offheight="300"/></visual>
-      <worldbody><light directional="true" dir="0 0 -1"/>
-      <geom type="sphere" size="0.5" rgba="1 1 1 1"/>
-      <camera name="c" pos="0 0 1.6" xyaxes="1 0 0 0 1 0"/></worldbody></mujoco>"""
-    model = mujoco.MjModel.from_xml_string(xml)
-    data = mujoco.MjData(model)
-    mujoco.mj_forward(model, data)
+    model, data = _scene('<geom type="sphere" size="0.5" rgba="1 1 1 1"/>', offscreen=300,
+                         quality='<quality numslices="64" numstacks="32"/>')
     coarse, full = Cameras(model), Cameras(model, small_frame_tessellation=False)
     try:
         small = SMALL_FRAME
@@ -92,23 +107,15 @@ def test_frames_survive_another_renderer_freeing_its_context_after_ours_drew():
     # frees its GL objects in whatever context is current; it must not be
     # ours, or our next frames are garbage. After our frame the context
     # current before it (the other's) is current again, as dm_control assumes.
-    xml = """<mujoco><visual><global offwidth="64" offheight="64"/></visual>
-      <worldbody><light directional="true" dir="0 0 -1"/>
-      <geom type="box" size="0.3 0.2 0.1" rgba="0.8 0.3 0.1 1"/>
-      <camera name="c" pos="0 0 1.5" xyaxes="1 0 0 0 1 0"/></worldbody></mujoco>"""
-    model = mujoco.MjModel.from_xml_string(xml)
-    data = mujoco.MjData(model)
-    mujoco.mj_forward(model, data)
+    geom = '<geom type="box" size="0.3 0.2 0.1" rgba="0.8 0.3 0.1 1"/>'
+    model, data = _scene(geom)
     ours = Cameras(model)
     try:
         reference = ours.render(data, "c", 48, 48)
-        other = mujoco.Renderer(mujoco.MjModel.from_xml_string(xml), 32, 32)
+        other = mujoco.Renderer(_scene(geom)[0], 32, 32)
         other.render()
         ours.render(data, "c", 48, 48)      # ours drew last
-        if os.environ.get("MUJOCO_GL") == "egl":   # the other's context is current again
-            from mujoco.egl import egl_ext as EGL
-            assert (ctypes.cast(EGL.eglGetCurrentContext(), ctypes.c_void_p).value
-                    == ctypes.cast(other._gl_context._context, ctypes.c_void_p).value)
+        _assert_current(other)
         other.close()
         for _ in range(3):
             np.testing.assert_array_equal(ours.render(data, "c", 48, 48), reference)
@@ -117,13 +124,7 @@ def test_frames_survive_another_renderer_freeing_its_context_after_ours_drew():
 
 
 def test_closing_our_cameras_leaves_another_renderers_context_current_and_working():
-    xml = """<mujoco><visual><global offwidth="64" offheight="64"/></visual>
-      <worldbody><light directional="true" dir="0 0 -1"/>
-      <geom type="sphere" size="0.3" rgba="0.2 0.6 0.9 1"/>
-      <camera name="c" pos="0 0 1.5" xyaxes="1 0 0 0 1 0"/></worldbody></mujoco>"""
-    model = mujoco.MjModel.from_xml_string(xml)
-    data = mujoco.MjData(model)
-    mujoco.mj_forward(model, data)
+    model, data = _scene('<geom type="sphere" size="0.3" rgba="0.2 0.6 0.9 1"/>')
     other = mujoco.Renderer(model, 32, 32)   # another library's, current after creation
     try:
         other.update_scene(data, camera="c")
@@ -131,10 +132,7 @@ def test_closing_our_cameras_leaves_another_renderers_context_current_and_workin
         ours = Cameras(model)
         ours.render(data, "c", 48, 48)
         ours.close()
-        if os.environ.get("MUJOCO_GL") == "egl":   # as dm_control assumes between its calls
-            from mujoco.egl import egl_ext as EGL
-            assert (ctypes.cast(EGL.eglGetCurrentContext(), ctypes.c_void_p).value
-                    == ctypes.cast(other._gl_context._context, ctypes.c_void_p).value)
+        _assert_current(other)
         other.update_scene(data, camera="c")
         np.testing.assert_array_equal(other.render(), before)
     finally:
