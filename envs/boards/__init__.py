@@ -80,7 +80,8 @@ def check_mujoxo(*, epsilon: float = 0.25, seed=None, front_camera=(84, 84), fro
 
 def check_mujogo(*, board_size=7, level=10, epsilon=0.0, komi=5.5, seed=None,
                  front_camera=(84, 84), front_camera_2=None, arm_reset=True, time_limit=45.0,
-                 control_timestep=0.05, physics_timestep=0.002, registering="fingers", allow_double_pass=False,
+                 control_timestep=0.05, physics_timestep=0.002, registering="fingers",
+                 allow_double_pass=False,
                  piece_noise=None, gnugo_timeout=10.0, gnugo_command=None,
                  render_size=(256, 256), multisamples=0, shadows=False,
                  raise_on_physics_error=True,

@@ -73,7 +73,8 @@ Frame schedule (``estimate``): rendering and reading a frame costs about
 twice the physics of a level-5 step (``benchmarks/agent_speed.py``), so the
 estimator reads a frame every ``frame_every`` (3) steps, every
 ``near_every`` (2) while the walker is within `NEAR_BOX` of a box or a box
-moves, and locates the walker in every ``walker_every`` (2)-th frame read. In between it predicts: the walker by integrating its
+moves, and locates the walker in every ``walker_every`` (2)-th frame read.
+In between it predicts: the walker by integrating its
 velocimeter (trapezoid; drift < 0.03 cells between fixes), a box the walker
 touches and rolls into moves with the walker along that axis, any other box
 keeps its last measured velocity less the floor's friction deceleration
