@@ -365,13 +365,14 @@ def test_outputs_go_into_new_folders_and_the_json_is_written_after_every_episode
     out = tmp_path / "new" / "deeper" / "run.json"
     video = tmp_path / "other" / "first.mp4"
     seen = []
-    play = run_lib._play_episode
+    from hier_agents import players
+    play = players._play_episode
 
     def watched(env, view, agent, description, fam, episode, *rest):
         seen.append((episode, json.loads(out.read_text())))  # the file before this episode
         return play(env, view, agent, description, fam, episode, *rest)
 
-    monkeypatch.setattr(run_lib, "_play_episode", watched)
+    monkeypatch.setattr(players, "_play_episode", watched)
     assert run_lib.main(["mujoban/level1", "--episodes", "2", "--estimator", "oracle",
                          "--env-option", "time_limit=1", "--json", str(out),
                          "--video", str(video)]) == 0
@@ -389,14 +390,15 @@ def test_outputs_go_into_new_folders_and_the_json_is_written_after_every_episode
 def test_an_interrupted_run_keeps_the_episodes_it_played(tmp_path, monkeypatch, capsys):
     from hier_agents import run as run_lib
     out = tmp_path / "run.json"
-    play = run_lib._play_episode
+    from hier_agents import players
+    play = players._play_episode
 
     def interrupted(env, view, agent, description, fam, episode, *rest):
         if episode == 1:
             raise KeyboardInterrupt
         return play(env, view, agent, description, fam, episode, *rest)
 
-    monkeypatch.setattr(run_lib, "_play_episode", interrupted)
+    monkeypatch.setattr(players, "_play_episode", interrupted)
     assert run_lib.main(["mujoban/level1", "--episodes", "3", "--estimator", "oracle",
                          "--env-option", "time_limit=1", "--json", str(out)]) == 130
     summary = json.loads(out.read_text())
