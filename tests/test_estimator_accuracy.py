@@ -46,5 +46,8 @@ def test_estimator_accuracy_writes_its_json(tmp_path):
     assert rows["oracle"]["whole_grid_accuracy"] == 1.0
     assert rows["oracle"]["failures"] == 0
     assert set(result["per_source"]) == set(result["sources"])
-    assert set(result["render_ms_per_step"]) == {"none", "96x96",
-                                                 "x".join(map(str, module.FRAME_SHAPE))}
+    assert set(result["render_ms_per_step"]) == {
+        "none", "96x96", "x".join(map(str, module.FRAME_SHAPE)) + " (the estimator's)"}
+    for row in rows.values():
+        assert 0 <= row["teleport_frames"] <= row["frames"]
+        assert 0.0 <= row["whole_grid_accuracy_without_teleports"] <= 1.0
