@@ -76,6 +76,15 @@ def colour_table(looks) -> tuple[np.ndarray, tuple[int, ...]]:
     return table, tuple(sorted(confusable))
 
 
+@functools.lru_cache(maxsize=8)
+def _confusable_lookup(confusable: tuple[int, ...]) -> np.ndarray:
+    """A bool per colour class: True for the classes in ``confusable``."""
+    lookup = np.zeros(_BLUE_EAR + 1, bool)
+    lookup[list(confusable)] = True
+    lookup.flags.writeable = False
+    return lookup
+
+
 def dilate3(mask: np.ndarray) -> np.ndarray:
     """Binary dilation of a 2-D bool ``mask`` by a 3x3 square (outside the
     frame counts as False), computed only over the bounding box of its True
@@ -112,9 +121,7 @@ def masks(frame: np.ndarray, looks) -> dict:
     code <<= 8
     code |= frame[..., 2]
     cls = table[code]
-    is_confusable = np.zeros(_BLUE_EAR + 1, bool)
-    is_confusable[list(confusable)] = True
-    unsure = is_confusable[cls]
+    unsure = _confusable_lookup(confusable)[cls]
     if unsure.any():
         unsure = dilate3(unsure)
         cls = np.where(unsure & (cls >= _RED_EAR), _NONE, cls)
