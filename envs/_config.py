@@ -100,7 +100,7 @@ def check_timing(time_limit, control_timestep, physics_timestep) -> None:
     limit = check_real("time_limit", time_limit, low=0.0, low_open=True)
     if limit / control > MAX_EPISODE_STEPS:
         raise ValueError(f"time_limit {_show(time_limit)} is more than {MAX_EPISODE_STEPS:,} "
-                         f"control steps of {control:g} s")
+                         f"control steps of control_timestep {_show(control_timestep)} s")
 
 
 def check_common(seed, render_size, raise_on_physics_error, lazy_cameras) -> None:
