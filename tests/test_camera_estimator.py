@@ -284,3 +284,38 @@ def test_match_ears_equals_its_plain_definition(seed):
         fast = match_ears(start, lateral, red, blue, occ.copy(), world, radius, offsets)
         plain = _match_ears_plainly(start, lateral, red, blue, occ, world, radius, offsets)
         np.testing.assert_allclose(fast, plain, rtol=0, atol=1e-12)
+
+
+WALL_LEVEL = """; 0
+##########
+#        #
+#      @$#
+#        #
+#  .     #
+#        #
+#        #
+#        #
+#        #
+##########
+"""
+
+
+@pytest.mark.parametrize("pegs", [False, True])
+def test_a_box_against_a_wall_is_located_from_its_free_edge(tmp_path, pegs):
+    """A box pushed flat against the outer wall, the walker on its other
+    side: the walls' safety band cuts the box's far edge out of the frame
+    and the walker is nearer the free edge. The centre comes from the free
+    edge and the wall, within 0.03 cells (the cut edge put it 0.04 off)."""
+    levels = tmp_path / "wall.txt"
+    levels.write_text(WALL_LEVEL)
+    env = _env("mujoban/level1-pegs" if pegs else "mujoban/level1", levels=levels)
+    est = CameraEstimator(frame_every=1)
+    timestep = env.reset()
+    est.reset(env.description(), timestep)
+    x, y = env.task.cell_to_world(2, 8)
+    for shift in (0.098, 0.09, 0.08):     # flat against the wall, then 0.02 and 0.04 cells from it
+        env.task.set_box_position(env.physics, 0, (x + shift, y))
+        timestep = env.step(np.zeros(2))
+        scene = est.estimate(timestep)
+        _check_scene(env, scene, timestep, box_tol=0.03)
+    env.close()

@@ -1,7 +1,8 @@
 """Box geometry from box-coloured pixels in a top-camera frame, for
 `hier_agents.estimators.camera.CameraEstimator`: splitting a blob of several
-touching boxes (`split_points`, k-means) and a box's centre from its pixels
-(`box_centre`). Coordinates are continuous grid (row, col) in cells.
+touching boxes (`split_points`, k-means), which of a blob's edges may be hidden
+(`hidden_edges`) and a box's centre from its pixels (`box_centre`).
+Coordinates are continuous grid (row, col) in cells.
 """
 
 from __future__ import annotations
@@ -9,16 +10,27 @@ from __future__ import annotations
 import numpy as np
 from scipy import ndimage
 
-__all__ = ["find_boxes", "split_points", "box_centre"]
+__all__ = ["find_boxes", "split_points", "hidden_edges", "wall_limits", "box_centre"]
+
+#: A blob's edge counts as hidden when at least this share of the pixels
+#: just beyond it may hide a box (``hiding`` in `find_boxes`).
+HIDDEN_SHARE = 0.5
+_STEPS = ((1, 0), (-1, 0), (0, 1), (0, -1))
 
 
-def find_boxes(box_mask, grid, side, px, walker_g) -> list:
+def find_boxes(box_mask, grid, side, px, walker_g, hiding=None, walls=None,
+               half=None) -> list:
     """Grid (row, col) centres of the boxes in ``box_mask`` ((h, w) bool:
     box-coloured pixels where a box may be), ``grid`` the (h, w, 2) grid
     coordinates of each pixel at box-top height, ``side`` a box's side as
     seen (cells), ``px`` cells per pixel, ``walker_g`` the walker's grid
-    coordinates or None. Connected blobs under 12% of a box are dropped; a
-    blob of several boxes (by area) is split with `split_points`."""
+    coordinates or None, ``hiding`` an (h, w) bool mask of pixels that may
+    hide a box's top (where boxes are not looked for, ears, unsure colours)
+    or None, ``walls`` the (rows, cols) bool grid of wall cells and
+    ``half`` a box's half side (cells), or None. Connected blobs under 12%
+    of a box are dropped; a blob of several boxes (by area) is split with
+    `split_points`; a single box's centre comes from `box_centre` with its
+    `hidden_edges` and, beside walls, `wall_limits`."""
     labels, n = ndimage.label(box_mask)
     if n == 0:
         return []
@@ -33,12 +45,48 @@ def find_boxes(box_mask, grid, side, px, walker_g) -> list:
         g = grid[sl][comp]                                # (n, 2) grid coords
         count = max(1, int(round(area / (0.93 * area1))))
         if count == 1:
-            groups = [g]
+            hidden = None
+            near = (slice(max(sl[0].start - 1, 0), sl[0].stop + 1),
+                    slice(max(sl[1].start - 1, 0), sl[1].stop + 1))
+            if hiding is not None and hiding[near].any():   # an edge may be hidden
+                rows, cols = np.nonzero(comp)
+                hidden = hidden_edges(rows + sl[0].start, cols + sl[1].start, labels, k,
+                                      hiding, grid)
+            limits = None if walls is None else wall_limits(g.mean(axis=0), walls, half)
+            found.append(box_centre(g, side, px, walker_g, hidden, limits))
         else:
-            groups = split_points(g, count)
-        for pts in groups:
-            found.append(box_centre(pts, side, px, walker_g))
+            found.extend(box_centre(pts, side, px, walker_g)
+                         for pts in split_points(g, count))
     return found
+
+
+def hidden_edges(rows, cols, labels, k, hiding, grid) -> np.ndarray:
+    """Which edges of a blob may be hidden: a (2, 2) bool array, ``[axis,
+    0]`` its low edge along grid axis ``axis`` (0 row, 1 col), ``[axis,
+    1]`` its high edge. ``rows``/``cols`` are the blob's pixel indices,
+    ``labels == k`` its pixels (``ndimage.label``), ``hiding`` the (h, w) mask of pixels that
+    may hide a box, ``grid`` the (h, w, 2) grid coordinates of each pixel.
+    An edge is hidden when at least `HIDDEN_SHARE` of the blob's pixels on
+    it have their neighbour beyond it (one pixel on, in the image direction
+    that moves furthest along that grid axis) in ``hiding`` or outside the
+    frame."""
+    h, w = labels.shape
+    out = np.zeros((2, 2), bool)
+    for dr, dc in _STEPS:
+        rr, cc = rows + dr, cols + dc
+        inside = (rr >= 0) & (rr < h) & (cc >= 0) & (cc < w)
+        if not inside.any():
+            continue
+        rin, cin = rr[inside], cc[inside]
+        step = (grid[rin, cin] - grid[rows[inside], cols[inside]]).mean(axis=0)
+        axis = int(np.argmax(np.abs(step)))
+        beyond = np.ones(len(rr), bool)                  # outside the frame: hidden
+        beyond[inside] = hiding[rin, cin]
+        edge = np.ones(len(rr), bool)
+        edge[inside] = labels[rin, cin] != k
+        if edge.any() and beyond[edge].mean() >= HIDDEN_SHARE:
+            out[axis, int(step[axis] > 0)] = True
+    return out
 
 
 def split_points(points, k):
@@ -62,28 +110,55 @@ def split_points(points, k):
     return [points[lab == j] for j in range(k) if np.any(lab == j)]
 
 
-def box_centre(pts, side, px, walker_g):
+def wall_limits(centre, walls, half) -> np.ndarray:
+    """Bounds a wall puts on a box's centre: (2, 2), ``[axis, 0]`` the
+    lowest and ``[axis, 1]`` the highest grid coordinate along ``axis``
+    (infinite without a wall there). ``centre`` is a rough grid (row, col)
+    of the box, ``walls`` the bool grid of wall cells, ``half`` the box's
+    half side (cells): a box in cell ``(r, c)`` with a wall at ``(r, c + 1)``
+    has its centre at most at ``c + 0.5 - half``."""
+    r, c = (int(v) for v in np.rint(centre))
+    rows, cols = walls.shape
+    out = np.array([[-np.inf, np.inf], [-np.inf, np.inf]])
+    for axis, (cell, size) in enumerate(((r, rows), (c, cols))):
+        for side_, step in ((0, -1), (1, 1)):
+            nr, nc = (r + step, c) if axis == 0 else (r, c + step)
+            if not (0 <= nr < rows and 0 <= nc < cols) or walls[nr, nc]:
+                out[axis, side_] = cell + step * (0.5 - half)
+    return out
+
+
+def box_centre(pts, side, px, walker_g, hidden=None, limits=None):
     """Grid (row, col) of a box's centre from its visible pixels (their
     centres' grid coordinates ``pts``; ``px`` cells per pixel).
 
     Frames are not antialiased: a pixel is box-coloured when its centre
-    lies on the box, so the first and last box pixel along an axis bound
-    each edge within one pixel; with the known side length the centre
-    lies in the intersection of the two bounds (its midpoint is taken).
-    When the blob is shorter than the box (an ear hides one side) only
-    the far edge is used.
+    lies on the box. Along each axis the first and last box pixel (``vmin``,
+    ``vmax``) lie on the box, so the centre is at most ``side / 2`` past
+    either; an edge that is not hidden also lies within one pixel beyond
+    its last pixel, which bounds the centre from the other side. The centre
+    is the midpoint of the interval these bounds leave. ``hidden`` (2, 2)
+    (`hidden_edges`) says which edges may be hidden (they give only their
+    one-sided bound); without it, a blob more than 1.2 pixels shorter than
+    the box along an axis is taken to be cut on the side nearer the walker
+    (an ear hides the near side). ``limits`` (`wall_limits`) narrows the
+    interval where walls stop the box.
     """
     centre = np.empty(2)
     for axis in range(2):
         v = pts[:, axis]
         vmin, vmax = v.min(), v.max()
-        span = vmax - vmin + px
-        if span >= side - 1.2 * px or walker_g is None:
-            lo = max(vmin - px + side / 2, vmax - side / 2)
-            hi = min(vmin + side / 2, vmax + px - side / 2)
-            centre[axis] = 0.5 * (lo + hi) if lo <= hi else 0.5 * (vmin + vmax)
-        elif abs(walker_g[axis] - vmin) < abs(walker_g[axis] - vmax):
-            centre[axis] = vmax + px / 2 - side / 2   # near side hidden
-        else:
-            centre[axis] = vmin - px / 2 + side / 2
+        cut_lo, cut_hi = (False, False) if hidden is None else map(bool, hidden[axis])
+        if (not (cut_lo or cut_hi) and walker_g is not None
+                and vmax - vmin + px < side - 1.2 * px):
+            near_lo = abs(walker_g[axis] - vmin) < abs(walker_g[axis] - vmax)
+            cut_lo, cut_hi = near_lo, not near_lo
+        lo = vmax - side / 2 if cut_lo else max(vmin - px + side / 2, vmax - side / 2)
+        hi = vmin + side / 2 if cut_hi else min(vmin + side / 2, vmax + px - side / 2)
+        mid = 0.5 * (lo + hi) if lo <= hi else 0.5 * (vmin + vmax)
+        if limits is not None:
+            lo, hi = max(lo, limits[axis, 0]), min(hi, limits[axis, 1])
+            mid = 0.5 * (lo + hi) if lo <= hi else min(max(mid, limits[axis, 0]),
+                                                        limits[axis, 1])
+        centre[axis] = mid
     return centre
