@@ -10,7 +10,10 @@ A skill is a closed-loop controller for one kind of body:
   ``env.step`` from the current timestep and the estimator's scene for it
   (`skills.scene`), and updates ``status``;
 * ``hold() -> action`` keeps the body still (used while no estimate can be
-  made).
+  made);
+* ``forget_history()`` drops what the skill carries between subgoals (the
+  agent calls it at every episode start, so an episode plays the same
+  whatever the episodes before it).
 
 Skills see the subgoal, the scene estimate, the timestep's observations and
 the public description, never the simulator (the observation boundary).
@@ -61,6 +64,13 @@ class Skill(abc.ABC):
     @abc.abstractmethod
     def hold(self) -> np.ndarray:
         """An action that keeps the body still."""
+
+    def forget_history(self) -> None:
+        """Drops what the skill carries from one subgoal to the next (rates,
+        filters, back-off counts): called when it did not see the frames
+        before its next ``reset`` (a new episode or level, a scripted
+        fast-forward), so that an episode plays the same whatever came
+        before it. No-op by default."""
 
     def close(self) -> None:
         """Frees external resources (none by default). Idempotent."""

@@ -516,3 +516,18 @@ def test_controller_pieces_on_a_straight_leg():
     assert speed_limit([(3.0, 0.0)], 1.0, 3.5, 4.0) == pytest.approx(math.sqrt(8.0))
     assert speed_limit([(0.5, 0.0)], 1.0, 3.5, 4.0) == 3.5  # behind: ignored
     assert CONTACT == pytest.approx(0.6)
+
+
+def test_forget_history_drops_what_is_carried_between_subgoals():
+    """After ``forget_history`` the skill holds nothing of earlier subgoals:
+    the yaw-rate history, the drive direction, the back-offs, the legs."""
+    skill = BallSkill()
+    skill._drive.prev_heading, skill._drive.sign = 1.0, -1.0
+    skill._contact.backoffs, skill._contact.backing = 3, True
+    skill._legs = [object()]
+    skill.forget_history()
+    fresh = BallSkill()
+    assert (skill._drive.prev_heading, skill._drive.sign) == (fresh._drive.prev_heading,
+                                                             fresh._drive.sign)
+    assert (skill._contact.backoffs, skill._contact.backing) == (0, False)
+    assert skill._legs == []

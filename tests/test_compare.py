@@ -266,6 +266,33 @@ def test_a_train_job_whose_checkpoints_are_gone_is_run_again_when_needed(tmp_pat
     assert ran == []
 
 
+def test_a_training_costs_its_own_cpu_count_over_every_attempt(tmp_path):
+    """A resumed training's CPU is its learner's ``cpu_s`` counter (every
+    attempt); a record without one counts only its last attempt, and the
+    table marks that series' CPU hours as a lower bound."""
+    text = SPEC + '\n[[agent]]\nlabel = "e2e"\ntrain = { actors = 1 }\nbudgets = [200]\n'
+    spec = load(write_spec(tmp_path, text))
+    planned = [j for j in jobs_mod.plan(spec) if j.point["agent"] == "e2e"]
+    seed0, seed1 = sorted((j for j in planned if j.kind == "train"),
+                          key=lambda j: j.inputs["seed"])
+    jobs_mod.store_record(spec.cache, {**seed0.to_json(), "cpu_s": 100.0, "attempts": 3,
+                                       "result": {"counters": {"cpu_s": 7200.0}}})
+    jobs_mod.store_record(spec.cache, {**seed1.to_json(), "cpu_s": 3600.0, "attempts": 1,
+                                       "result": {"counters": {}}})
+    _fake_records(spec.cache, planned, [j for j in planned if j.kind == "eval"])
+    records = {j.key: jobs_mod.load_record(spec.cache, j.key) for j in planned}
+    cost, = report.series_cost(spec, planned, records)
+    assert cost["train_cpu_hours"] == pytest.approx(3.0) and cost["cpu_partial_jobs"] == 0
+    assert ">=" not in report.format_table(spec, report.points(spec, planned, records), [cost])
+    # Seed 1 was retried, and its record knows only the last attempt's CPU.
+    jobs_mod.store_record(spec.cache, {**seed1.to_json(), "cpu_s": 3600.0, "attempts": 2,
+                                       "result": {"counters": {}}})
+    records[seed1.key] = jobs_mod.load_record(spec.cache, seed1.key)
+    cost, = report.series_cost(spec, planned, records)
+    assert cost["train_cpu_hours"] == pytest.approx(3.0) and cost["cpu_partial_jobs"] == 1
+    assert ">=3.00" in report.format_table(spec, report.points(spec, planned, records), [cost])
+
+
 def test_failed_jobs_are_retried_then_reported_and_their_dependents_skipped(tmp_path,
                                                                            monkeypatch):
     from hier_agents.compare.backends import JobFailed
@@ -391,6 +418,23 @@ def test_two_workers_give_the_rows_of_one(tmp_path):
     assert one["success_rate"] == two["success_rate"]
     tail = run("mujoban/level1", 3, 3, agent="random:10", progress=False, first_episode=3)
     assert strip(tail["rows"]) == strip(one["rows"][3:])
+
+
+def test_a_modular_episode_plays_the_same_whatever_the_episodes_before():
+    """What the skill carries between subgoals (drive direction, yaw rate,
+    back-offs) is dropped at each episode start: an episode played after
+    another in one player equals the episode played first. (Medium level
+    34 after level 33, camera estimator, once ran out of time this way.)"""
+    from hier_agents.players import ModularPlayer, Play
+
+    play = Play("mujoban/level5-pegs", levels=str(BOXOBAN.parent / "medium-valid-000.txt"))
+    after, alone = ModularPlayer(play), ModularPlayer(play)
+    try:
+        after.play(33)
+        assert strip([after.play(34)[0]]) == strip([alone.play(34)[0]])
+    finally:
+        after.close()
+        alone.close()
 
 
 # -- slow: the real command killed and resumed; the modular agent on Boxoban levels ------------

@@ -153,6 +153,7 @@ class ModularAgent:
         self.description = description
         self.runner.adapter = adapter_for(description)
         self.runner.clear()
+        self.skill.forget_history()   # an episode plays the same whatever came before
         with PROFILE.section("planner"):
             self.planner.reset(seed)
         with PROFILE.section("estimator"):

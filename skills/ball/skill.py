@@ -52,8 +52,11 @@ class BallSkill(Skill):
 
     def forget_history(self) -> None:
         """The skill did not see the frames before its next ``reset``: no yaw
-        rate from the last heading it saw."""
-        self._drive.prev_heading = None
+        rate from the last heading it saw, the drive direction and the
+        back-offs from the start, no leg to carry on."""
+        self._drive = self.make_drive()
+        self._contact = Contact()
+        self._legs, self._leg = [], 0
 
     # -- reset: the trajectory ------------------------------------------------------
 

@@ -19,8 +19,6 @@ the agent and the benchmarks run it like a scripted skill, and adds:
   the skill supplies the action: the skill-training environment);
 * ``training_frames``: control steps simulated to train the policy (0 when
   not learned);
-* ``forget_history()``: the skill did not see the frames before its next
-  ``reset`` (no yaw rate from a stale heading).
 
 ``FEATURES`` (a class attribute: the names of the feature entries) is what a
 checkpoint is checked against (`skills.learned.policy.load_policy`).
@@ -60,11 +58,6 @@ class LearnedSkill(Skill):
 
     def env_action(self, policy_action) -> np.ndarray:
         raise NotImplementedError
-
-    def forget_history(self) -> None:
-        """Drops what the skill remembers of earlier frames (rates, filters):
-        called when it did not see the frames before its next ``reset`` (a
-        new level, a scripted fast-forward). No-op by default."""
 
     @property
     def training_frames(self) -> int:
