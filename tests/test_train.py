@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import time
 
 import numpy as np
 import pytest
@@ -17,10 +18,14 @@ TINY = dict(env="mujoban/level1", unroll_length=5, batch_size=2, actors=1, envs_
 
 
 def test_a_tiny_run_updates_logs_and_checkpoints(tmp_path):
+    own = time.process_time()
     counters = train(TrainConfig(condition="expert-planner", steps=30, logdir=str(tmp_path),
                                  **TINY))
+    own = time.process_time() - own
     # 30 frames at 2 unrolls x 5 steps per update: 3 updates.
     assert counters["updates"] == 3 and counters["frames"] == 30
+    # CPU seconds count the actor processes too, not only this (learner) process.
+    assert counters["cpu_s"] > own
     ckpt = load_checkpoint(tmp_path)
     assert ckpt["counters"]["frames"] == 30 and ckpt["config"]["condition"] == "expert-planner"
     net, spec = net_from_checkpoint(ckpt)
@@ -47,6 +52,8 @@ def test_a_resumed_run_continues_from_its_step_count(tmp_path):
     frames = [json.loads(line)["frames"] for line in open(tmp_path / "scalars.jsonl")]
     assert frames == [10, 20, 30, 40]
     assert json.loads((tmp_path / "config.json").read_text())["steps"] == 40
+    # CPU seconds add up over the resumed parts.
+    assert counters["cpu_s"] > first["counters"]["cpu_s"] > 0
     # The resumed weights are the saved ones, trained further.
     second = load_checkpoint(tmp_path)
     assert any(not torch.equal(first["model"][k], second["model"][k]) for k in first["model"])

@@ -10,7 +10,10 @@ Across seeds: the mean with a 95% percentile-bootstrap interval over seeds
 interquartile mean (`hier_agents.stats.iqm`) with its own bootstrap interval,
 the per-seed values, and the pooled Wilson interval over all episodes for
 reference. Series also report the CPU hours their jobs cost (training and
-evaluation, from the job records).
+evaluation, from the job records: a training's own ``cpu_s`` counter, which
+spans every resumed attempt; otherwise the record's ``cpu_s``, which covers
+only the attempt that finished, counted in ``cpu_partial_jobs`` and marked
+``>=`` in the table).
 """
 
 from __future__ import annotations
@@ -97,7 +100,9 @@ def points(spec, jobs, records) -> list[dict]:
 
 def series_cost(spec, jobs, records) -> list[dict]:
     """Per agent and environment: CPU hours of training (all seeds, all
-    budgets: one run per seed) and of evaluation, and the jobs counted."""
+    budgets: one run per seed) and of evaluation, the jobs counted, and
+    ``cpu_partial_jobs``: jobs retried whose CPU covers only their last
+    attempt (a lower bound; see the module docstring)."""
     out = {}
     for job in jobs:
         record = records.get(job.key)
@@ -105,9 +110,15 @@ def series_cost(spec, jobs, records) -> list[dict]:
             continue
         key = (job.point["agent"], job.point["env"])
         entry = out.setdefault(key, {"agent": key[0], "env": key[1], "train_cpu_hours": 0.0,
-                                     "eval_cpu_hours": 0.0, "train_jobs": 0, "eval_jobs": 0})
-        hours = float(record.get("cpu_s", 0.0)) / 3600
-        entry[f"{job.kind}_cpu_hours"] += hours
+                                     "eval_cpu_hours": 0.0, "train_jobs": 0, "eval_jobs": 0,
+                                     "cpu_partial_jobs": 0})
+        counters = (record.get("result") or {}).get("counters") or {}
+        if "cpu_s" in counters:           # the training's own count, every attempt
+            seconds = float(counters["cpu_s"])
+        else:
+            seconds = float(record.get("cpu_s", 0.0))
+            entry["cpu_partial_jobs"] += int(record.get("attempts", 1)) > 1
+        entry[f"{job.kind}_cpu_hours"] += seconds / 3600
         entry[f"{job.kind}_jobs"] += 1
     return list(out.values())
 
@@ -134,10 +145,11 @@ def format_table(spec, pts: list[dict], costs: list[dict], *, use_iqm: bool = Fa
             per = " ".join(f"{100 * v:.0f}" for v in p["per_seed"])
             c = cost.get((p["agent"], p["env"]), {})
             train_h = c.get("train_cpu_hours", 0.0)
+            at_least = ">=" if c.get("cpu_partial_jobs") else ""
             lines.append(f"  {p['agent']:<{width}} {p['training_frames']:>13,} "
                          f"{100 * p[stat]:>7.1f} [{100 * lo:5.1f},{100 * hi:5.1f}] "
                          f"{len(p['seeds']):>5}  {per:<22} "
-                         f"{(f'{train_h:.2f}' if p['kind'] == 'train' else '-'):>11}  "
+                         f"{(f'{at_least}{train_h:.2f}' if p['kind'] == 'train' else '-'):>11}  "
                          f"{p['observations']}")
         lines.append("")
     return "\n".join(lines).rstrip()

@@ -162,6 +162,7 @@ class Actor:
                     self._obs[i] = res.obs
                     self._first[i] = False
         self.frames += T * n
+        cpu_s = time.process_time()  # this actor process's CPU seconds so far
         out = []
         for i in range(n):
             out.append({
@@ -173,6 +174,7 @@ class Actor:
                 "state": start_state[i],
                 "stream": (self.actor_id, i),
                 "episodes": episodes if i == 0 else [],
+                "cpu_s": cpu_s,
             })
         return out
 

@@ -28,7 +28,10 @@ batch); a budget below one unroll is refused.
 
 A run whose logdir holds a checkpoint of the same environment, condition and
 observations resumes from it: weights, optimiser, frame and update counts,
-episode statistics, random states. ``config.json`` records the
+episode statistics, random states, and the counters ``wall_s`` (seconds the
+run's processes were alive, a paused machine included) and ``cpu_s`` (CPU
+seconds of the learner and its actors, over every resumed part: the cost a
+comparison reports). ``config.json`` records the
 configuration, the trainer and, once the first environment is built, what
 the agent observes: ``observations`` (the input keys, `InputSpec.keys`) and
 ``privileged`` (`InputSpec.privileged`).
@@ -296,7 +299,7 @@ def _build(config: TrainConfig, run: RunDir):
     optimizer = torch.optim.RMSprop(net.parameters(), lr=config.learning_rate,
                                     alpha=config.rmsprop_alpha, eps=config.rmsprop_eps,
                                     momentum=config.rmsprop_momentum)
-    counters = {"frames": 0, "updates": 0, "episodes": 0, "wall_s": 0.0}
+    counters = {"frames": 0, "updates": 0, "episodes": 0, "wall_s": 0.0, "cpu_s": 0.0}
     recent: deque = deque(maxlen=100)
     ckpt = run.load()
     if ckpt is not None:
@@ -311,12 +314,13 @@ def _build(config: TrainConfig, run: RunDir):
 
 
 def _gather(actors, pending: list, batch_size: int, counters: dict, recent: deque,
-            run: RunDir) -> None:
+            run: RunDir, actor_cpu: dict) -> None:
     """Takes unrolls (and their finished episodes) until ``batch_size`` are
-    pending or a stop."""
+    pending or a stop; ``actor_cpu`` keeps each actor's latest CPU seconds."""
     while len(pending) < batch_size and not run.stop_requested:
         unrolls = actors.get(should_stop=lambda: run.stop_requested)
         for u in unrolls or ():
+            actor_cpu[u["stream"][0]] = float(u.pop("cpu_s", 0.0))
             for ep in u.pop("episodes"):
                 counters["episodes"] += 1
                 recent.append({"return": float(ep.get("episode_return", 0.0)),
@@ -330,7 +334,8 @@ def _scalars(stats: dict, counters: dict, recent: deque, fps: float, lags: list)
     scalars = {"frames": counters["frames"], **{f"loss/{k}": float(v) for k, v in stats.items()}}
     scalars.update({"perf/frames_per_s": fps, "perf/updates": counters["updates"],
                     "perf/policy_lag": float(np.mean(lags)) if lags else 0.0,
-                    "episodes/count": counters["episodes"], "wall_s": counters["wall_s"]})
+                    "episodes/count": counters["episodes"], "wall_s": counters["wall_s"],
+                    "cpu_s": counters["cpu_s"]})
     if recent:
         for key, name in (("success", "success_rate"), ("return", "return"), ("steps", "steps"),
                           ("subgoals", "subgoals_reached")):
@@ -395,6 +400,13 @@ def _loop(config, run: RunDir, net, optimizer, spec, counters, recent, batch_siz
                        unit="frame", disable=not config.progress)
     start = last_ckpt = last_log = time.perf_counter()
     wall0, frames_at_log = counters["wall_s"], counters["frames"]
+    # CPU seconds: earlier processes' (the checkpoint's), this one's since
+    # here, and each of this run's actors' (reported with their unrolls).
+    cpu0, process0, actor_cpu = counters.get("cpu_s", 0.0), time.process_time(), {}
+
+    def count_cpu():
+        counters["cpu_s"] = cpu0 + (time.process_time() - process0) + sum(actor_cpu.values())
+
     pending: list[dict] = []
     value_states: dict = {}  # stream -> value-core (h, c) after its last unroll
     stats: dict = {}
@@ -407,7 +419,7 @@ def _loop(config, run: RunDir, net, optimizer, spec, counters, recent, batch_siz
                 target = min([b for b in save_at if b > counters["frames"]] + [config.steps])
                 take = min(batch_size, math.ceil((target - counters["frames"])
                                                  / config.unroll_length))
-                _gather(actors, pending, take, counters, recent, run)
+                _gather(actors, pending, take, counters, recent, run, actor_cpu)
                 if run.stop_requested:  # the partial batch is dropped
                     break
                 batch_unrolls, pending = pending[:take], pending[take:]
@@ -423,6 +435,7 @@ def _loop(config, run: RunDir, net, optimizer, spec, counters, recent, batch_siz
                 bar.update(new_frames)
                 now = time.perf_counter()
                 counters["wall_s"] = wall0 + (now - start)
+                count_cpu()
                 if recent:
                     bar.set_postfix(success=f"{np.mean([e['success'] for e in recent]):.2f}",
                                     ret=f"{np.mean([e['return'] for e in recent]):.2f}",
@@ -441,6 +454,7 @@ def _loop(config, run: RunDir, net, optimizer, spec, counters, recent, batch_siz
             bar.close()
             actors.close()
             counters["wall_s"] = wall0 + (time.perf_counter() - start)
+            count_cpu()
             save(keep=config.keep_checkpoints or counters["frames"] in save_at)
     if run.stop_requested:
         print(f"interrupted: checkpoint saved at {plural(counters['frames'], 'frame')}; run "
