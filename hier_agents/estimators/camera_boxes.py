@@ -24,9 +24,9 @@ def find_boxes(box_mask, grid, side, px, walker_g, hiding=None, walls=None,
     box-coloured pixels where a box may be), ``grid`` the (h, w, 2) grid
     coordinates of each pixel at box-top height, ``side`` a box's side as
     seen (cells), ``px`` cells per pixel, ``walker_g`` the walker's grid
-    coordinates or None, ``hiding`` an (h, w) bool mask of pixels that may
-    hide a box's top (where boxes are not looked for, ears, unsure colours)
-    or None, ``walls`` the (rows, cols) bool grid of wall cells and
+    coordinates or None, ``hiding`` a sequence of (h, w) bool masks of
+    pixels that may hide a box's top (where boxes are not looked for, ears,
+    unsure colours) or None, ``walls`` the (rows, cols) bool grid of wall cells and
     ``half`` a box's half side (cells), or None. Connected blobs under 12%
     of a box are dropped; a blob of several boxes (by area) is split with
     `split_points`; a single box's centre comes from `box_centre` with its
@@ -48,7 +48,7 @@ def find_boxes(box_mask, grid, side, px, walker_g, hiding=None, walls=None,
             hidden = None
             near = (slice(max(sl[0].start - 1, 0), sl[0].stop + 1),
                     slice(max(sl[1].start - 1, 0), sl[1].stop + 1))
-            if hiding is not None and hiding[near].any():   # an edge may be hidden
+            if hiding is not None and any(m[near].any() for m in hiding):  # an edge may be hidden
                 rows, cols = np.nonzero(comp)
                 hidden = hidden_edges(rows + sl[0].start, cols + sl[1].start, labels, k,
                                       hiding, grid)
@@ -64,12 +64,12 @@ def hidden_edges(rows, cols, labels, k, hiding, grid) -> np.ndarray:
     """Which edges of a blob may be hidden: a (2, 2) bool array, ``[axis,
     0]`` its low edge along grid axis ``axis`` (0 row, 1 col), ``[axis,
     1]`` its high edge. ``rows``/``cols`` are the blob's pixel indices,
-    ``labels == k`` its pixels (``ndimage.label``), ``hiding`` the (h, w) mask of pixels that
+    ``labels == k`` its pixels (``ndimage.label``), ``hiding`` the (h, w) masks of pixels that
     may hide a box, ``grid`` the (h, w, 2) grid coordinates of each pixel.
     An edge is hidden when at least `HIDDEN_SHARE` of the blob's pixels on
     it have their neighbour beyond it (one pixel on, in the image direction
-    that moves furthest along that grid axis) in ``hiding`` or outside the
-    frame."""
+    that moves furthest along that grid axis) in one of ``hiding`` or
+    outside the frame."""
     h, w = labels.shape
     out = np.zeros((2, 2), bool)
     for dr, dc in _STEPS:
@@ -81,7 +81,7 @@ def hidden_edges(rows, cols, labels, k, hiding, grid) -> np.ndarray:
         step = (grid[rin, cin] - grid[rows[inside], cols[inside]]).mean(axis=0)
         axis = int(np.argmax(np.abs(step)))
         beyond = np.ones(len(rr), bool)                  # outside the frame: hidden
-        beyond[inside] = hiding[rin, cin]
+        beyond[inside] = np.any([m[rin, cin] for m in hiding], axis=0)
         edge = np.ones(len(rr), bool)
         edge[inside] = labels[rin, cin] != k
         if edge.any() and beyond[edge].mean() >= HIDDEN_SHARE:
