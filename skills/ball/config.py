@@ -84,6 +84,12 @@ class BallConfig:
     #: ``max_recentre`` m), so the ball's sideways motion drags it back.
     k_recentre: float = 1.0
     max_recentre: float = 0.3
+    #: A touched box that has not advanced for ``stall_steps`` control steps
+    #: while more than ``stall_off`` metres off its line is caught on a peg:
+    #: the carrot moves ``max_recentre`` sideways from the ball, towards the
+    #: line, so the ball's motion drags the box free.
+    stall_steps: int = 5
+    stall_off: float = 0.02
 
     # -- controller gains ----------------------------------------------------------
     #: Pure pursuit look-ahead: ``look_base + look_gain * speed`` metres.

@@ -97,19 +97,20 @@ class Contact:
       touched: the ball has met the box on this leg (it then pushes it).
       backing: the ball is backing off to meet the box again, aligned.
       backoffs: back-offs so far (each widens the alignment tolerance).
+      stalled: control steps the touched box has not advanced.
     """
 
-    __slots__ = ("touched", "backing", "backoffs")
+    __slots__ = ("touched", "backing", "backoffs", "stalled", "_last_rem")
 
     def __init__(self) -> None:
-        self.touched = False
-        self.backing = False
-        self.backoffs = 0
+        self.new_leg()
 
     def new_leg(self) -> None:
         self.touched = False
         self.backing = False
         self.backoffs = 0
+        self.stalled = 0
+        self._last_rem = None
 
     def push(self, config: BallConfig, leg, on_last_segment, px, py, box_xy, carrot_xy, v_des,
              two_a):
@@ -161,10 +162,18 @@ class Contact:
                 box_off = ((by if dx else bx) - leg.cell_lat)
                 shift = max(-config.max_recentre, min(config.max_recentre,
                                                       -config.k_recentre * box_off))
+                lat = leg.cell_lat + shift
+                # A box off its line that stops advancing is caught on a
+                # peg: the ball drags it sideways, towards its line, from
+                # wherever the ball is (the fixed aim may lie behind it).
+                last, self._last_rem = self._last_rem, rem
+                self.stalled = self.stalled + 1 if last is not None and rem > last - 0.002 else 0
+                if self.stalled >= config.stall_steps and abs(box_off) > config.stall_off:
+                    lat = (px if not dx else py) - math.copysign(config.max_recentre, box_off)
                 if dx:
-                    carrot_y = leg.cell_lat + shift
+                    carrot_y = lat
                 else:
-                    carrot_x = leg.cell_lat + shift
+                    carrot_x = lat
             elif gap > 0.0:
                 v = math.sqrt(config.contact_speed ** 2 + two_a * gap)
                 if v < v_des:
