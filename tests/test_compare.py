@@ -266,6 +266,34 @@ def test_a_train_job_whose_checkpoints_are_gone_is_run_again_when_needed(tmp_pat
     assert ran == []
 
 
+def test_the_report_counts_the_code_versions_of_its_records_and_warns_on_a_mix(tmp_path,
+                                                                             capsys):
+    import json
+
+    from hier_agents.compare.__main__ import main
+
+    spec_path = write_spec(tmp_path)
+    spec = load(spec_path)
+    planned = jobs_mod.plan(spec)
+    _fake_records(spec.cache, planned, planned)
+    for i, job in enumerate(planned):
+        record = jobs_mod.load_record(spec.cache, job.key)
+        record["provenance"] = {"commit": "aaa" if i % 4 else "bbb+dirty"}
+        jobs_mod.store_record(spec.cache, record)
+    assert main([str(spec_path), "--report-only"]) == 0
+    err = capsys.readouterr().err
+    assert "warning: the job records come from 2 code versions" in err
+    out = json.loads((spec.cache / "comparison.json").read_text())
+    assert out["code_versions"] == {"aaa": len(planned) - len(planned[::4]),
+                                    "bbb+dirty": len(planned[::4])}
+    for job in planned:                      # one version: no warning
+        record = jobs_mod.load_record(spec.cache, job.key)
+        record["provenance"] = {"commit": "aaa"}
+        jobs_mod.store_record(spec.cache, record)
+    assert main([str(spec_path), "--report-only"]) == 0
+    assert "code versions" not in capsys.readouterr().err
+
+
 def test_a_training_costs_its_own_cpu_count_over_every_attempt(tmp_path):
     """A resumed training's CPU is its learner's ``cpu_s`` counter (every
     attempt); a record without one counts only its last attempt, and the

@@ -15,7 +15,11 @@ CPU hours, provenance), ``comparison.txt`` (the table) and
 ``comparison.png`` (one panel per environment) into the cache folder
 (`hier_agents.compare.report`). Finished jobs are cached by a key of their
 inputs: a killed experiment continues where it stopped, an extended one runs
-only its new jobs, and a re-run with a warm cache rewrites nothing.
+only its new jobs, and a re-run with a warm cache rewrites nothing. The key
+leaves out the code: every record keeps the commit it ran at, and
+``comparison.json`` counts them (``code_versions``; the command warns when
+there is more than one). To run jobs again after a change that matters,
+delete their records, ``CACHE/jobs/KEY.json`` (``--plan`` lists the keys).
 """
 
 __all__ = ["jobs", "spec", "backends", "report"]

@@ -123,6 +123,16 @@ def series_cost(spec, jobs, records) -> list[dict]:
     return list(out.values())
 
 
+def code_versions(records) -> dict:
+    """How many of ``records`` ran at each commit (their provenance; a
+    ``+dirty`` commit had uncommitted code changes), most first."""
+    counts: dict = {}
+    for record in records.values():
+        commit = (record.get("provenance") or {}).get("commit") or "unknown"
+        counts[commit] = counts.get(commit, 0) + 1
+    return dict(sorted(counts.items(), key=lambda kv: (-kv[1], kv[0])))
+
+
 def format_table(spec, pts: list[dict], costs: list[dict], *, use_iqm: bool = False) -> str:
     """The comparison as text: one block per environment, one row per point."""
     stat = "iqm" if use_iqm else "mean"
