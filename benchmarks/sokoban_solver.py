@@ -1,10 +1,16 @@
 """Solve every level of a Boxoban file with the abstract Sokoban solver.
 
     python benchmarks/sokoban_solver.py [--levels FILE] [--time-limit S]
-                                        [--limit N] [--json PATH]
+                                        [--planner sokoban-solver|sokoban-solver:time]
+                                        [--weight W] [--limit N] [--json PATH]
 
-For each level this runs ``abstract_planners.sokoban_solver.solve`` with the
-given time limit (10 s by default) and records whether it solved the level,
+For each level this runs the planner's search with the given time limit
+(10 s by default): ``sokoban-solver`` (the default) is the exact push solver
+``abstract_planners.sokoban_solver.solve``; ``sokoban-solver:time`` is
+MuJoBan's default planner, `abstract_planners.sokoban_time_solver.
+TimeSolverPlanner` (the execution-time search at weight ``--weight``, 2 by
+default, and the push solver, each with half the time; the plan estimated
+faster), and it records whether it solved the level,
 the wall time, nodes expanded, pushes and moves of the solution, its time
 features and the control steps the ball skill is estimated to need for it
 (`abstract_planners.sokoban_time`), and the reason (``solved`` /
@@ -17,7 +23,7 @@ max milliseconds, mean nodes expanded, mean pushes, mean estimated control
 steps and how many solutions are estimated to need more than MuJoBan's 900.
 With --json the summary (keys total, solved, median_ms, p95_ms, max_ms,
 mean_nodes, mean_pushes, mean_estimated_steps, over_time_limit,
-time_limit_s, levels_file) and per-level rows (index, solved, ms, nodes,
+time_limit_s, levels_file, planner, weight) and per-level rows (index, solved, ms, nodes,
 pushes, moves, features, estimated_steps, reason) are written to PATH.
 
 The default level file is the shipped ``unfiltered-valid-000.txt``; the
@@ -39,6 +45,7 @@ from tqdm import tqdm  # noqa: E402
 
 from abstract_planners.sokoban import SokobanState  # noqa: E402
 from abstract_planners.sokoban_solver import solve  # noqa: E402
+from abstract_planners.sokoban_time_solver import TimeSolverPlanner  # noqa: E402
 from abstract_planners.sokoban_time import estimate_steps, plan_features  # noqa: E402
 from envs.mujoban.levels import BOXOBAN_DIR, read_levels  # noqa: E402
 
@@ -54,7 +61,15 @@ def percentile(values: list[float], q: float) -> float:
     return ordered[rank - 1]
 
 
-def run(levels_file: Path, time_limit: float, limit: int | None = None) -> dict:
+PLANNERS = ("sokoban-solver", "sokoban-solver:time")
+
+
+def run(levels_file: Path, time_limit: float, limit: int | None = None,
+        planner: str = "sokoban-solver", weight: float = 2.0) -> dict:
+    if planner == "sokoban-solver":
+        search = lambda state: solve(state, time_limit=time_limit)  # noqa: E731
+    else:
+        search = TimeSolverPlanner(time_limit=time_limit, weight=weight).search
     levels = read_levels(levels_file)
     if limit is not None:
         levels = levels[:limit]
@@ -62,7 +77,7 @@ def run(levels_file: Path, time_limit: float, limit: int | None = None) -> dict:
     for position, level in enumerate(tqdm(levels, desc=levels_file.name, unit="level")):
         index = int(level.name) if level.name is not None and level.name.isdigit() else position
         start = SokobanState.from_level(level)
-        result = solve(start, time_limit=time_limit)
+        result = search(start)
         row = {"index": index, "solved": result.solved, "ms": round(result.ms, 3),
                "nodes": result.nodes, "pushes": result.pushes,
                "moves": "".join(result.moves), "reason": result.reason}
@@ -79,6 +94,8 @@ def run(levels_file: Path, time_limit: float, limit: int | None = None) -> dict:
     return {
         "levels_file": str(levels_file),
         "time_limit_s": time_limit,
+        "planner": planner,
+        "weight": weight if planner != "sokoban-solver" else None,
         "total": len(rows),
         "solved": solved,
         "solved_pct": 100.0 * solved / len(rows) if rows else 0.0,
@@ -105,7 +122,9 @@ def print_summary(summary: dict) -> None:
               "-" if pushes is None else f"{pushes:.1f}", "-" if est is None else f"{est:.0f}",
               str(summary["over_time_limit"]))
     widths = [max(len(h), len(v)) for h, v in zip(header, values)]
-    print(f"\n{summary['levels_file']} (time limit {summary['time_limit_s']} s)")
+    weight = "" if summary["weight"] is None else f", weight {summary['weight']}"
+    print(f"\n{summary['levels_file']}: {summary['planner']}{weight} "
+          f"(time limit {summary['time_limit_s']} s)")
     print("  ".join(h.rjust(w) for h, w in zip(header, widths)))
     print("  ".join(v.rjust(w) for v, w in zip(values, widths)))
 
@@ -116,13 +135,18 @@ def _main(argv=None) -> int:
                         metavar="FILE", help="Boxoban level file")
     parser.add_argument("--time-limit", type=cli.positive_float, default=10.0,
                         help="seconds per level")
+    parser.add_argument("--planner", default="sokoban-solver", metavar="NAME",
+                        help=f"one of {', '.join(PLANNERS)} (default: sokoban-solver)")
+    parser.add_argument("--weight", type=cli.positive_float, default=2.0,
+                        help="sokoban-solver:time: the weight of its A* heuristic (default 2)")
     parser.add_argument("--limit", type=cli.positive_int, default=None,
                         help="solve only the first N levels (default: all)")
     parser.add_argument("--json", type=Path, default=None, help="write results to PATH")
     args = parser.parse_args(argv)
+    cli.choice("--planner", args.planner, PLANNERS)
     read_levels(args.levels)  # a malformed file fails here (LevelError: one line)
     cli.output_file(args.json, "--json")
-    summary = run(args.levels, args.time_limit, args.limit)
+    summary = run(args.levels, args.time_limit, args.limit, args.planner, args.weight)
     print_summary(summary)
     if args.json is not None:
         write_json(args.json, summary, indent=1)

@@ -58,3 +58,27 @@ def test_provenance_is_dirty_only_when_code_differs_from_the_commit(tmp_path):
     assert _commit(tmp_path) == head
     (tmp_path / "code.py").write_text("x = 2\n")
     assert _commit(tmp_path) == head + "+dirty"
+
+
+def test_sokoban_solver_benchmark_with_the_time_planner_never_estimates_slower(tmp_path):
+    import importlib.util
+
+    from envs.mujoban.levels import BOXOBAN_DIR
+
+    if str(ROOT / "benchmarks") not in sys.path:
+        sys.path.insert(0, str(ROOT / "benchmarks"))  # the scripts import `_common`
+    spec = importlib.util.spec_from_file_location("benchmark_sokoban_solver_run",
+                                                  ROOT / "benchmarks" / "sokoban_solver.py")
+    sokoban_solver = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(sokoban_solver)
+
+    levels = BOXOBAN_DIR / "medium-valid-000.txt"
+    push = sokoban_solver.run(levels, 10.0, limit=4)
+    timed = sokoban_solver.run(levels, 10.0, limit=4, planner="sokoban-solver:time", weight=1.5)
+    assert timed["planner"] == "sokoban-solver:time" and timed["weight"] == 1.5
+    assert push["planner"] == "sokoban-solver" and push["weight"] is None
+    assert timed["solved"] == push["solved"] == 4
+    for a, b in zip(timed["levels"], push["levels"]):
+        assert a["estimated_steps"] <= b["estimated_steps"] + 1e-6
+    assert sokoban_solver.main(["--levels", str(levels), "--limit", "2", "--planner",
+                                "sokoban-solver:time", "--json", str(tmp_path / "s.json")]) == 0

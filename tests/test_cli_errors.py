@@ -198,6 +198,8 @@ CASES = [
     ("bench/sokoban_solver", ["--levels", MISSING], "no such file"),
     ("bench/sokoban_solver", ["--levels", GARBAGE], "unknown character"),
     ("bench/sokoban_solver", ["--time-limit", "0"], "--time-limit"),
+    ("bench/sokoban_solver", ["--planner", "sokoban-time"], "--planner"),
+    ("bench/sokoban_solver", ["--weight", "-1"], "--weight"),
 ]
 
 
