@@ -413,6 +413,24 @@ def camera_speed(results: Path) -> list[str]:
     return lines
 
 
+@table("render-profile")
+def render_profile(results: Path) -> list[str]:
+    """One frame's cost, part by part, per camera (`benchmarks/render_profile.py`)."""
+    d = _load(results / "render_profile.json")
+    lines = ["| looks | camera | size, samples | scene update | render passes | read-back "
+             "| whole frame | of which reflection | shadows | skybox |",
+             "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+    for r in d["rows"]:
+        full = r["update_ms"] + r["render_ms"]
+        parts = [max(full - r[k], 0.0) for k in ("no_reflection_ms", "no_shadow_ms",
+                                                   "no_skybox_ms")]
+        lines.append(f"| {r['case']} | {r['camera']} | {r['height']}x{r['width']}, "
+                     f"{r['multisamples']} | {r['update_ms']:.3f} | {r['draw_ms']:.2f} "
+                     f"| {r['readback_ms']:.3f} | {r['frame_ms']:.2f} | "
+                     + " | ".join(f"{p:.2f}" for p in parts) + " |")
+    return lines
+
+
 @table("parallel-eval")
 def parallel_eval(results: Path) -> list[str]:
     """``hier_agents.run --workers N`` against one worker (`benchmarks/parallel_eval.py`)."""

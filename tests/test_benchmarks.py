@@ -82,3 +82,18 @@ def test_sokoban_solver_benchmark_with_the_time_planner_never_estimates_slower(t
         assert a["estimated_steps"] <= b["estimated_steps"] + 1e-6
     assert sokoban_solver.main(["--levels", str(levels), "--limit", "2", "--planner",
                                 "sokoban-solver:time", "--json", str(tmp_path / "s.json")]) == 0
+
+
+def test_render_profile_rows_for_every_camera(tmp_path):
+    out = tmp_path / "profile.json"
+    subprocess.run([sys.executable, str(ROOT / "benchmarks" / "render_profile.py"), "--frames",
+                    "1", "--rounds", "1", "--json", str(out)], check=True, cwd=ROOT,
+                   capture_output=True)
+    rows = json.loads(out.read_text())["rows"]
+    cameras = {(r["case"], r["camera"]) for r in rows}
+    assert len(cameras) == len(rows) == 10
+    assert {r["multisamples"] for r in rows if "original" in r["case"]} == {4}
+    for r in rows:
+        for key in ("update_ms", "render_ms", "draw_ms", "readback_ms", "flip_ms", "frame_ms",
+                    "no_reflection_ms", "no_shadow_ms", "no_skybox_ms"):
+            assert r[key] >= 0, (r["case"], r["camera"], key)

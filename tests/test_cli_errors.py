@@ -200,6 +200,7 @@ CASES = [
     ("bench/sokoban_solver", ["--time-limit", "0"], "--time-limit"),
     ("bench/sokoban_solver", ["--planner", "sokoban-time"], "--planner"),
     ("bench/sokoban_solver", ["--weight", "-1"], "--weight"),
+    ("bench/render_profile", ["--frames", "0"], "--frames"),
 ]
 
 
