@@ -120,7 +120,7 @@ def wall_limits(centre, walls, half) -> np.ndarray:
     r, c = (int(v) for v in np.rint(centre))
     rows, cols = walls.shape
     out = np.array([[-np.inf, np.inf], [-np.inf, np.inf]])
-    for axis, (cell, size) in enumerate(((r, rows), (c, cols))):
+    for axis, cell in enumerate((r, c)):
         for side_, step in ((0, -1), (1, 1)):
             nr, nc = (r + step, c) if axis == 0 else (r, c + step)
             if not (0 <= nr < rows and 0 <= nc < cols) or walls[nr, nc]:
@@ -139,9 +139,9 @@ def box_centre(pts, side, px, walker_g, hidden=None, limits=None):
     its last pixel, which bounds the centre from the other side. The centre
     is the midpoint of the interval these bounds leave. ``hidden`` (2, 2)
     (`hidden_edges`) says which edges may be hidden (they give only their
-    one-sided bound); without it, a blob more than 1.2 pixels shorter than
-    the box along an axis is taken to be cut on the side nearer the walker
-    (an ear hides the near side). ``limits`` (`wall_limits`) narrows the
+    one-sided bound); where it flags neither (or is None), a blob more than
+    1.2 pixels shorter than the box along an axis is taken to be cut on the
+    side nearer the walker (an ear or the ball hides the near side). ``limits`` (`wall_limits`) narrows the
     interval where walls stop the box.
     """
     centre = np.empty(2)
