@@ -54,8 +54,10 @@ Per frame (``estimate``):
   A box is an axis-aligned 0.8-cell square that never turns: along each axis
   the first and last box pixel bound each edge within a pixel and the known
   side length narrows the centre to their intersection (the frame size,
-  199 px, makes the side 14.5 px, which halves that interval); when an ear
-  hides one side, the far edge minus half the side
+  199 px, makes the side 14.5 px, which halves that interval); an edge
+  beyond which the frame may hide the box (the walls' safety band, an ear,
+  unsure colours; else, for a blob too short, the side nearer the walker)
+  bounds the centre from one side only, and an adjacent wall from the other
   (`hier_agents.estimators.camera_boxes`). Boxes keep their order
   (optimal assignment to the previous positions).
 * heading and velocity: proprioception (`skills.scene.heading_from_orientation`,

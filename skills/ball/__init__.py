@@ -76,7 +76,10 @@ and comes in again, the tolerance widening by itself per back-off, also
 across re-plans of the same push) and, once touching, aims ``k_recentre`` times the box's
 offset from its cell's centre line on the other side of that line: its
 sideways motion drags the box back onto the line before the pegs can catch
-it.
+it. A box that stops advancing while off its line (caught on a peg
+already) is dragged from wherever the ball is: the carrot moves
+``max_recentre`` sideways from the ball, towards the line, until the box
+moves on (``stall_steps``, ``stall_off``).
 
 *Speed*: the minimum of the cruise speed and, for every constraint at path
 distance ``s`` ahead with speed ``v_c`` (arcs ``sqrt(a_lat r)``, sharp
