@@ -292,7 +292,7 @@ class CameraEstimator(Estimator):
         side = 2 * desc.box_half / desc.cell_size - 2 * self._inset * px
         walker_g = (None if walker_xy is None else desc.world_to_grid(np.asarray(walker_xy)))
         # What may hide a box's edge: where boxes are not looked for, ears, unsure colours.
-        hiding = (self._box_hidden, masks["unsure"], masks["red_ear"], masks["blue_ear"])
+        hiding = self._box_hidden | masks["unsure"] | masks["red_ear"] | masks["blue_ear"]
         found = find_boxes(masks["box"] & self._box_allowed, self._grid[self._box_z], side, px,
                            walker_g, hiding, self._wall_grid, desc.box_half / desc.cell_size)
         return [self._grid_to_world(c) for c in found]

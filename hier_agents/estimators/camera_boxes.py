@@ -24,13 +24,13 @@ def find_boxes(box_mask, grid, side, px, walker_g, hiding=None, walls=None,
     box-coloured pixels where a box may be), ``grid`` the (h, w, 2) grid
     coordinates of each pixel at box-top height, ``side`` a box's side as
     seen (cells), ``px`` cells per pixel, ``walker_g`` the walker's grid
-    coordinates or None, ``hiding`` a sequence of (h, w) bool masks of
-    pixels that may hide a box's top (where boxes are not looked for, ears,
-    unsure colours) or None, ``walls`` the (rows, cols) bool grid of wall cells and
+    coordinates or None, ``hiding`` an (h, w) bool mask of pixels that may
+    hide a box's top (where boxes are not looked for, ears, unsure colours)
+    or None, ``walls`` the (rows, cols) bool grid of wall cells and
     ``half`` a box's half side (cells), or None. Connected blobs under 12%
     of a box are dropped; a blob of several boxes (by area) is split with
     `split_points`; a single box's centre comes from `box_centre` with its
-    `hidden_edges` and, beside walls, `wall_limits`."""
+    `hidden_edges` and, where one is hidden, `wall_limits`."""
     labels, n = ndimage.label(box_mask)
     if n == 0:
         return []
@@ -45,14 +45,13 @@ def find_boxes(box_mask, grid, side, px, walker_g, hiding=None, walls=None,
         g = grid[sl][comp]                                # (n, 2) grid coords
         count = max(1, int(round(area / (0.93 * area1))))
         if count == 1:
-            hidden = None
+            hidden = limits = None
             near = (slice(max(sl[0].start - 1, 0), sl[0].stop + 1),
                     slice(max(sl[1].start - 1, 0), sl[1].stop + 1))
-            if hiding is not None and any(m[near].any() for m in hiding):  # an edge may be hidden
-                rows, cols = np.nonzero(comp)
-                hidden = hidden_edges(rows + sl[0].start, cols + sl[1].start, labels, k,
-                                      hiding, grid)
-            limits = None if walls is None else wall_limits(g.mean(axis=0), walls, half)
+            if hiding is not None and hiding[near].any():   # an edge may be hidden
+                hidden = hidden_edges(sl, hiding, grid)
+                if walls is not None and hidden.any():
+                    limits = wall_limits(g.mean(axis=0), walls, half)
             found.append(box_centre(g, side, px, walker_g, hidden, limits))
         else:
             found.extend(box_centre(pts, side, px, walker_g)
@@ -60,31 +59,28 @@ def find_boxes(box_mask, grid, side, px, walker_g, hiding=None, walls=None,
     return found
 
 
-def hidden_edges(rows, cols, labels, k, hiding, grid) -> np.ndarray:
+def hidden_edges(sl, hiding, grid) -> np.ndarray:
     """Which edges of a blob may be hidden: a (2, 2) bool array, ``[axis,
     0]`` its low edge along grid axis ``axis`` (0 row, 1 col), ``[axis,
-    1]`` its high edge. ``rows``/``cols`` are the blob's pixel indices,
-    ``labels == k`` its pixels (``ndimage.label``), ``hiding`` the (h, w) masks of pixels that
-    may hide a box, ``grid`` the (h, w, 2) grid coordinates of each pixel.
-    An edge is hidden when at least `HIDDEN_SHARE` of the blob's pixels on
-    it have their neighbour beyond it (one pixel on, in the image direction
-    that moves furthest along that grid axis) in one of ``hiding`` or
-    outside the frame."""
-    h, w = labels.shape
+    1]`` its high edge. ``sl`` is the blob's bounding box (slices of the
+    frame), ``hiding`` the (h, w) mask of pixels that may hide a box,
+    ``grid`` the (h, w, 2) grid coordinates of each pixel. A box is an
+    axis-aligned square seen from above, so its edges are the box's sides:
+    an edge is hidden when at least `HIDDEN_SHARE` of the pixels just
+    beyond that side are in ``hiding``, or it is the frame's border."""
+    h, w = hiding.shape
+    r0, r1, c0, c1 = sl[0].start, sl[0].stop, sl[1].start, sl[1].stop
+    rc, cc = (r0 + r1) // 2, (c0 + c1) // 2
     out = np.zeros((2, 2), bool)
-    for dr, dc in _STEPS:
-        rr, cc = rows + dr, cols + dc
-        inside = (rr >= 0) & (rr < h) & (cc >= 0) & (cc < w)
-        if not inside.any():
-            continue
-        rin, cin = rr[inside], cc[inside]
-        step = (grid[rin, cin] - grid[rows[inside], cols[inside]]).mean(axis=0)
-        axis = int(np.argmax(np.abs(step)))
-        beyond = np.ones(len(rr), bool)                  # outside the frame: hidden
-        beyond[inside] = np.any([m[rin, cin] for m in hiding], axis=0)
-        edge = np.ones(len(rr), bool)
-        edge[inside] = labels[rin, cin] != k
-        if edge.any() and beyond[edge].mean() >= HIDDEN_SHARE:
+    for r, c, dr, dc in ((r0 - 1, None, -1, 0), (r1, None, 1, 0),
+                         (None, c0 - 1, 0, -1), (None, c1, 0, 1)):
+        if r is not None:
+            hidden = not 0 <= r < h or hiding[r, c0:c1].mean() >= HIDDEN_SHARE
+        else:
+            hidden = not 0 <= c < w or hiding[r0:r1, c].mean() >= HIDDEN_SHARE
+        if hidden:
+            step = grid[min(max(rc + dr, 0), h - 1), min(max(cc + dc, 0), w - 1)] - grid[rc, cc]
+            axis = int(np.argmax(np.abs(step)))
             out[axis, int(step[axis] > 0)] = True
     return out
 
