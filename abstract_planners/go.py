@@ -21,13 +21,11 @@ which does not pass while dead opponent stones remain on the board.
 
 from __future__ import annotations
 
-import math
 import numbers
 import shutil
 import time
 import warnings
 
-import numpy as np
 import pyspiel
 
 from abstract_planners.base import Planner, Subgoal
@@ -35,6 +33,7 @@ from abstract_planners.board_random import check_decision_state
 from abstract_planners.gtp import (INSTALL_HINT, GnuGoNotFoundError, GTPClient, GTPError,
                                    default_gnugo_command)
 from abstract_planners.gtp_process import close_quietly
+from abstract_planners.openspiel_bots import MCTSPlanner, _check_int, _check_real
 
 __all__ = [
     "GTP_COLUMNS",
@@ -51,23 +50,6 @@ __all__ = [
 #: GTP column letters: ``A``..``Z`` without ``I``.
 GTP_COLUMNS = "ABCDEFGHJKLMNOPQRSTUVWXYZ"
 MIN_BOARD_SIZE, MAX_BOARD_SIZE = 5, 19
-
-
-def _check_real(value, name: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
-        raise ValueError(f"{name} must be a finite number, got {value!r}")
-    return float(value)
-
-
-def _check_int(value, name: str, low: int, high: int | None = None) -> int:
-    ok = isinstance(value, numbers.Integral) and not isinstance(value, bool)
-    if ok:
-        value = int(value)
-        ok = value >= low and (high is None or value <= high)
-    if not ok:
-        allowed = f"{low}..{high}" if high is not None else f">= {low}"
-        raise ValueError(f"{name} must be an integer in the range {allowed}, got {value!r}")
-    return value
 
 
 def go_game(board_size: int = 7, komi: float = 5.5) -> pyspiel.Game:
@@ -281,81 +263,3 @@ class GnuGoPlanner(Planner):
 
     def __repr__(self) -> str:
         return f"GnuGoPlanner(level={self.level}, board_size={self.board_size}, komi={self.komi:g})"
-
-
-class MCTSPlanner(Planner):
-    """Monte-Carlo tree search (OpenSpiel's C++ ``MCTSBot``) with random rollouts.
-
-    Works on any turn-based pyspiel game (Go, tic-tac-toe, ...).
-
-    Args:
-      simulations: tree simulations per move (>= 1).
-      rollouts: random rollouts per leaf evaluation (>= 1); the rollout
-        policy is uniformly random over legal actions (passes included).
-      uct_c: UCT exploration constant (> 0).
-      seed: seeds the search and the rollouts; ``reset(seed)`` reseeds.
-        None draws a seed from fresh entropy.
-      solve: let MCTS-Solver back up proven wins/losses.
-      max_memory_mb: the bot's tree memory cap.
-
-    Subgoal info: ``simulations``, ``visits`` (root visits of the chosen
-    action), ``value`` (its mean rollout return for the mover, in [-1, 1]),
-    ``ms``.
-    """
-
-    name = "mcts"
-
-    def __init__(self, simulations: int = 1000, *, rollouts: int = 1, uct_c: float = 2.0,
-                 seed: int | None = None, solve: bool = False, max_memory_mb: int = 1000):
-        self.simulations = _check_int(simulations, "simulations", 1)
-        self.rollouts = _check_int(rollouts, "rollouts", 1)
-        self.uct_c = _check_real(uct_c, "uct_c")
-        if self.uct_c <= 0:
-            raise ValueError(f"uct_c must be a number > 0, got {uct_c!r}")
-        self.max_memory_mb = _check_int(max_memory_mb, "max_memory_mb", 1)
-        self.solve = bool(solve)
-        if seed is not None:
-            _check_int(seed, "seed", 0)
-        self._seed_rng = np.random.default_rng(seed)
-        self._bots: dict[str, tuple] = {}
-
-    def reset(self, seed: int | None = None) -> None:
-        if seed is not None:
-            _check_int(seed, "seed", 0)
-            self._seed_rng = np.random.default_rng(seed)
-            self._bots.clear()
-
-    def _bot(self, game) -> pyspiel.MCTSBot:
-        key = str(game)
-        if key not in self._bots:
-            bot_seed, rollout_seed = (int(x) for x in self._seed_rng.integers(0, 2 ** 31 - 1, size=2))
-            evaluator = pyspiel.RandomRolloutEvaluator(self.rollouts, rollout_seed)
-            bot = pyspiel.MCTSBot(game, evaluator, self.uct_c, self.simulations,
-                                  self.max_memory_mb, self.solve, bot_seed, False)
-            self._bots[key] = (bot, evaluator)  # keep the evaluator alive with the bot
-        return self._bots[key][0]
-
-    def plan(self, state) -> Subgoal:
-        check_decision_state(state, self.name)
-        bot = self._bot(state.get_game())
-        start = time.perf_counter()
-        root = bot.mcts_search(state)
-        best = root.best_child()
-        ms = (time.perf_counter() - start) * 1e3
-        action = int(best.action)
-        visits = int(best.explore_count)
-        info = {
-            "simulations": self.simulations,
-            "visits": visits,
-            "value": float(best.total_reward) / visits if visits else 0.0,
-            "ms": ms,
-        }
-        if self.solve and best.outcome:
-            info["proven_returns"] = tuple(best.outcome)
-        return Subgoal(action, state.child(action), info=info)
-
-    def close(self) -> None:
-        self._bots.clear()
-
-    def __repr__(self) -> str:
-        return f"MCTSPlanner(simulations={self.simulations}, rollouts={self.rollouts}, uct_c={self.uct_c:g})"
