@@ -218,13 +218,14 @@ class BoardDescription:
     """The public facts of a board-game environment (MuJoXO, MuJoGo).
 
     Attributes:
-      game: ``"tic_tac_toe"`` or ``"go"``.
+      game: a registered game (`envs.boards.games.GAMES`): ``"tic_tac_toe"``,
+        ``"go"``, ``"connect_four"``, ...
       board_size: points per side.
       komi: Go's komi (0 for tic-tac-toe).
-      num_points: ``board_size ** 2``; actions below it are board points.
+      num_points: ``rows * cols``, the board's points.
       pass_action: the pass action id (Go) or None.
       point_positions: (num_points, 3) world (x, y, z) of each point on the
-        board's top, in action order (``row * size + col``).
+        board's top, in action order (``row * cols + col``).
       pad_half: half-side (m) of each point's touch-sensitive square.
       pass_zones: per side (``"left"``, ``"right"``) the pass area's centre
         (x, y, z of its top) and half-sizes (x, y); empty without passes.
@@ -235,10 +236,16 @@ class BoardDescription:
       control_timestep, time_limit_steps: as in `MujobanDescription`.
       arm: the arm's kinematic model.
       front_camera: the front camera (``shape`` None when off).
+      rows, cols: the board's points per column and per row (``board_size``
+        is ``rows`` when they are equal, else ``(rows, cols)``).
+      input: how touches play (`envs.boards.games.GameRules`): ``"point"``,
+        ``"column"`` or ``"move"``.
+      agent_player: the agent's OpenSpiel player, 0, 1 or ``"random"``
+        (drawn per episode; the ``agent_player`` observation says which).
     """
 
     game: str
-    board_size: int
+    board_size: int | tuple
     komi: float
     num_points: int
     pass_action: int | None
@@ -252,6 +259,10 @@ class BoardDescription:
     time_limit_steps: int
     arm: ArmDescription
     front_camera: CameraDescription | None = None
+    rows: int = 0
+    cols: int = 0
+    input: str = "point"
+    agent_player: int | str = 0
 
     def point_position(self, action: int) -> np.ndarray:
         """World (x, y, z) of board point ``action`` on the board's top."""

@@ -39,7 +39,7 @@ from dm_env import specs
 from gymnasium import spaces
 
 from envs.core import Environment
-from envs.registry import load, names, overrides as env_overrides, unknown_keywords_message
+from envs.registry import gymnasium_id, load, names, overrides as env_overrides, unknown_keywords_message
 
 #: The ``obs=`` choices of `GymnasiumEnv`, with what each holds.
 OBSERVATIONS = {
@@ -239,8 +239,5 @@ def register_all() -> None:
     """Registers every `envs` name with gymnasium (idempotent), so that
     ``gymnasium.make(name)`` works after ``import envs`` and
     ``gymnasium.make("envs:" + name)`` works without it."""
-    registry = gymnasium.envs.registration.registry
     for name in names():
-        if name not in registry:
-            gymnasium.register(id=name, entry_point="envs.gymnasium_env:GymnasiumEnv",
-                               kwargs={"env_name": name})
+        gymnasium_id(name)

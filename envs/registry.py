@@ -32,9 +32,21 @@ _REGISTRY: dict[str, EnvEntry] = {}
 
 
 def register(entry: EnvEntry) -> None:
+    """Makes ``entry.name`` loadable with `load` and, as the same id, with
+    ``gymnasium.make``. Raises ValueError when the name is taken."""
     if entry.name in _REGISTRY:
         raise ValueError(f"environment {entry.name!r} is already registered")
     _REGISTRY[entry.name] = entry
+    gymnasium_id(entry.name)
+
+
+def gymnasium_id(name: str) -> None:
+    """Registers ``name`` with gymnasium (idempotent): ``gymnasium.make(name)``
+    builds `envs.gymnasium_env.GymnasiumEnv` on it."""
+    import gymnasium
+    if name not in gymnasium.envs.registration.registry:
+        gymnasium.register(id=name, entry_point="envs.gymnasium_env:GymnasiumEnv",
+                           kwargs={"env_name": name})
 
 
 def names() -> list[str]:

@@ -45,16 +45,17 @@ def _drive(env, goal, steps, stop=None, gain=8.0):
     return timestep
 
 
-def touch_point(env, target_xyz, *, press_depth=0.01, steps=80):
+def touch_point(env, target_xyz, *, press_depth=0.01, steps=80, until=None):
     """Moves the closed hand over ``target_xyz``, presses down, lifts.
 
     Returns the last timestep (the move registers while pressing; with the
-    arm reset on, the arm then jumps to a new random pose).
+    arm reset on, the arm then jumps to a new random pose). The press stops
+    when a move registers, or when ``until()`` (if given) is true.
     """
     task = env.task
     target = np.asarray(target_xyz, float)
     before = task.moves_registered
-    registered = lambda: task.moves_registered > before  # noqa: E731
+    registered = until or (lambda: task.moves_registered > before)  # noqa: E731
     pinch = task.pinch_site_position()
     high = max(pinch[2], target[2] + SAFE_HEIGHT)
     for goal, stop in ((np.array([pinch[0], pinch[1], high]), None),

@@ -1,4 +1,5 @@
-"""MuJoXO and MuJoGo: tic-tac-toe and Go touched with a Jaco arm (Mirza et al. 2020).
+"""MuJoXO and MuJoGo: tic-tac-toe and Go touched with a Jaco arm (Mirza et al.
+2020); MuJoBoard: other OpenSpiel games (`envs.boards.mujoboard`).
 
 Names registered with `envs.load` and gymnasium:
 
@@ -40,6 +41,11 @@ def _check_epsilon(epsilon) -> float:
     return float(epsilon)
 
 
+def _check_agent_player(agent_player) -> None:
+    if isinstance(agent_player, bool) or agent_player not in (0, 1, "random"):
+        raise ValueError(f"agent_player must be 0, 1 or 'random', got {agent_player!r}")
+
+
 def _check_level(level) -> int:
     if not isinstance(level, numbers.Integral) or isinstance(level, bool) or not 1 <= level <= 10:
         raise ValueError(f"level (GNU Go strength) must be an integer in 1..10, got {level!r}")
@@ -61,14 +67,15 @@ def _check_board_common(*, seed, front_camera, front_camera_2, arm_reset, time_l
         _config.check_real("piece_noise", piece_noise, low=0.0, high=1.0)
 
 
-def check_mujoxo(*, epsilon: float = 0.25, seed=None, front_camera=(84, 84), front_camera_2=None,
-                 arm_reset=True,
+def check_mujoxo(*, epsilon: float = 0.25, agent_player=0, seed=None, front_camera=(84, 84),
+                 front_camera_2=None, arm_reset=True,
                  time_limit=30.0, control_timestep=0.05, physics_timestep=0.002,
                  piece_noise=None, render_size=(256, 256), multisamples=0, shadows=False,
                  raise_on_physics_error=True,
                  lazy_cameras=False) -> None:
     """Checks `make_mujoxo`'s arguments without building anything (`envs._config`)."""
     _check_epsilon(epsilon)
+    _check_agent_player(agent_player)
     _check_board_common(seed=seed, front_camera=front_camera, front_camera_2=front_camera_2,
                         arm_reset=arm_reset,
                         time_limit=time_limit, control_timestep=control_timestep,
@@ -78,7 +85,7 @@ def check_mujoxo(*, epsilon: float = 0.25, seed=None, front_camera=(84, 84), fro
                         lazy_cameras=lazy_cameras)
 
 
-def check_mujogo(*, board_size=7, level=10, epsilon=0.0, komi=5.5, seed=None,
+def check_mujogo(*, board_size=7, level=10, epsilon=0.0, komi=5.5, agent_player=0, seed=None,
                  front_camera=(84, 84), front_camera_2=None, arm_reset=True, time_limit=45.0,
                  control_timestep=0.05, physics_timestep=0.002, registering="fingers",
                  allow_double_pass=False,
@@ -91,6 +98,7 @@ def check_mujogo(*, board_size=7, level=10, epsilon=0.0, komi=5.5, seed=None,
     _config.check_int("board_size", board_size, 5, 19)
     _check_level(level)
     _check_epsilon(epsilon)
+    _check_agent_player(agent_player)
     _config.check_real("komi", komi, low=-1000.0, high=1000.0)
     _check_board_common(seed=seed, front_camera=front_camera, front_camera_2=front_camera_2,
                         arm_reset=arm_reset,
@@ -116,7 +124,8 @@ def check_mujogo(*, board_size=7, level=10, epsilon=0.0, komi=5.5, seed=None,
             raise ValueError(f"gnugo_command: executable {words[0]!r} not found")
 
 
-def make_mujoxo(*, epsilon: float = 0.25, seed: int | None = None, front_camera=(84, 84),
+def make_mujoxo(*, epsilon: float = 0.25, agent_player=0, seed: int | None = None,
+                front_camera=(84, 84),
                 front_camera_2=None, arm_reset: bool = True, time_limit: float = 30.0,
                 control_timestep: float = 0.05, physics_timestep: float = 0.002,
                 piece_noise: float | None = None, render_size=(256, 256),
@@ -126,8 +135,12 @@ def make_mujoxo(*, epsilon: float = 0.25, seed: int | None = None, front_camera=
 
     Any contact pressing a square's touch sensor registers a move. Rewards at
     the game's end: 1 win, 0.5 draw, 0 loss. Time limit 30 s (600 control
-    steps), then truncation. ``piece_noise``: the opponent's pieces land within
-    this fraction of the sensor half-size (None: the original's 1).
+    steps), then truncation. ``agent_player``: the agent's OpenSpiel player,
+    0 (crosses, moves first: the paper's), 1 (noughts; the opponent's first
+    move is on the board in the first observation) or ``"random"`` (drawn
+    per episode; the ``agent_player`` observation says which).
+    ``piece_noise``: the opponent's pieces land within this fraction of the
+    sensor half-size (None: the original's 1).
     ``front_camera_2``: ``(height, width)`` of the original code's second
     view (a higher, steeper front camera), off by default as in the paper.
     Looks: ``multisamples`` (samples per pixel, default 0) and ``shadows``
@@ -135,7 +148,8 @@ def make_mujoxo(*, epsilon: float = 0.25, seed: int | None = None, front_camera=
     frames with 4 samples and shadows (``multisamples=4, shadows=True``),
     at many times the cost per frame (README, "Looks of the board games").
     """
-    check_mujoxo(epsilon=epsilon, seed=seed, front_camera=front_camera,
+    check_mujoxo(epsilon=epsilon, agent_player=agent_player, seed=seed,
+                 front_camera=front_camera,
                  front_camera_2=front_camera_2, arm_reset=arm_reset,
                  time_limit=time_limit, control_timestep=control_timestep,
                  physics_timestep=physics_timestep, piece_noise=piece_noise,
@@ -148,13 +162,14 @@ def make_mujoxo(*, epsilon: float = 0.25, seed: int | None = None, front_camera=
                      front_camera_2=front_camera_2, time_limit=time_limit,
                      piece_noise=piece_noise, control_timestep=control_timestep,
                      physics_timestep=physics_timestep, render_size=render_size,
-                     multisamples=multisamples, shadows=shadows)
+                     multisamples=multisamples, shadows=shadows, agent_player=agent_player)
     return Environment(task, seed=seed, raise_on_physics_error=raise_on_physics_error,
                        lazy_cameras=lazy_cameras)
 
 
 def make_mujogo(*, board_size: int = 7, level: int = 10, epsilon: float = 0.0,
-                komi: float = 5.5, seed: int | None = None, front_camera=(84, 84),
+                komi: float = 5.5, agent_player=0, seed: int | None = None,
+                front_camera=(84, 84),
                 front_camera_2=None, arm_reset: bool = True, time_limit: float = 45.0,
                 control_timestep: float = 0.05, physics_timestep: float = 0.002,
                 registering: str = "fingers", allow_double_pass: bool = False,
@@ -173,10 +188,12 @@ def make_mujogo(*, board_size: int = 7, level: int = 10, epsilon: float = 0.0,
     time limit (45 s; 60 s for evaluation) is a loss. ``gnugo_command`` runs
     another GTP engine (a list of arguments); ``gnugo_timeout`` bounds every
     GTP reply (seconds): a hung engine raises ``GTPError``, a dead one is
-    restarted and replays the game. ``front_camera_2``, ``multisamples``,
+    restarted and replays the game. ``agent_player`` (0: black, the
+    paper's; 1: white; ``"random"``), ``front_camera_2``, ``multisamples``,
     ``shadows``: as in `make_mujoxo`.
     """
-    check_mujogo(board_size=board_size, level=level, epsilon=epsilon, komi=komi, seed=seed,
+    check_mujogo(board_size=board_size, level=level, epsilon=epsilon, komi=komi,
+                 agent_player=agent_player, seed=seed,
                  front_camera=front_camera, front_camera_2=front_camera_2, arm_reset=arm_reset,
                  time_limit=time_limit, control_timestep=control_timestep,
                  physics_timestep=physics_timestep, registering=registering,
@@ -197,7 +214,8 @@ def make_mujogo(*, board_size: int = 7, level: int = 10, epsilon: float = 0.0,
                          time_limit=time_limit, timeout_is_loss=True,
                          allow_double_pass=allow_double_pass, piece_noise=piece_noise,
                          control_timestep=control_timestep, physics_timestep=physics_timestep,
-                         render_size=render_size, multisamples=multisamples, shadows=shadows)
+                         render_size=render_size, multisamples=multisamples, shadows=shadows,
+                         agent_player=agent_player)
         return Environment(task, seed=seed, raise_on_physics_error=raise_on_physics_error,
                        lazy_cameras=lazy_cameras)
     except BaseException:
@@ -227,4 +245,6 @@ def _register() -> None:
 
 _register()
 
-__all__ = ["BoardGame", "BoardTask", "make_mujogo", "make_mujoxo"]
+from envs.boards.mujoboard import make_mujoboard  # noqa: E402  (registers mujoboard/*)
+
+__all__ = ["BoardGame", "BoardTask", "make_mujoboard", "make_mujogo", "make_mujoxo"]

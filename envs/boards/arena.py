@@ -21,7 +21,15 @@ pieces' colours, groups and positions change.
   fingers touch and where;
 * **lines** (Go): render-only thin boxes on the board;
 * **pieces**: one render-only cylinder per point, hidden while the point is
-  empty. Pieces never collide.
+  empty, taller for a promoted piece (checkers' kings). Pieces never
+  collide. Move games add a render-only yellow disc under the selected
+  piece (``selection``).
+
+Other OpenSpiel games (`envs.boards.games.GAMES`) are laid out from their
+rules: the board centred like Go's and as wide or as deep as the 7x7 Go
+board (`GO_REFERENCE_SIZE` x 0.10 m), a square grid or a hex
+rhombus (each row shifted by half a point), with checker squares, plain
+tiles or a wooden board with lines (`GameRules.look`).
 
 Point ``a`` of an N x N board sits at row ``a // N`` and column ``a % N``;
 column 0 is at -x, row 0 is the row farthest from the arm (-y) and rows grow
@@ -37,6 +45,8 @@ from __future__ import annotations
 
 import numpy as np
 from dm_control import composer
+
+from envs.boards import games as games_lib
 
 HIDDEN_GROUP = 5
 #: Where the arm's base is attached (the original's ``_ARM_Y_OFFSET``).
@@ -55,67 +65,93 @@ TOUCH_THRESHOLD = 1e-3
 #: Original Go board size; other sizes shrink the squares to keep its width.
 GO_REFERENCE_SIZE = 7
 
-COLOURS = {
-    # The original's marker colours: agent red, opponent blue (alpha 0.5) ...
-    "tic_tac_toe": ((1.0, 0.0, 0.0, 0.5), (0.0, 0.0, 1.0, 0.5)),
-    # ... and black (agent), white at alpha 0.75.
-    "go": ((0.0, 0.0, 0.0, 0.75), (1.0, 1.0, 1.0, 0.75)),
-}
+#: Colour (rgba) of the plain tiles (`GameRules.look` ``"plain"``).
+PLAIN_TILE = (0.16, 0.45, 0.24, 1.0)
+#: Colour (rgba) of the disc under a selected piece (move games).
+SELECTION_RGBA = (1.0, 0.85, 0.0, 1.0)
+#: A promoted piece's height, in plain pieces' heights.
+KING_HEIGHT = 2.5
 #: Side (texels) of the shadow map with ``shadows``: the original leaves
 #: MuJoCo's 4096; at 84x84 this draws frames within 0.4 of 255 on average of
 #: those (0.7% of pixels off by more than 8, on shadow edges) at half the
 #: cost (``benchmarks/board_looks.py``).
 SHADOW_MAP_SIZE = 2048
-#: Marker (cylinder) radius and half-height, as the original's.
+#: Marker (cylinder) radius and half-height, as the original's; other games'
+#: pieces have `PIECE_FRACTION` of a square's half-width as radius.
 PIECE_SIZE = {"tic_tac_toe": (0.025, 0.01), "go": (0.04, 0.01)}
+PIECE_FRACTION = 0.7
 
 
 class BoardArena(composer.Arena):
     """Floor, board, squares with touch sensors, pieces, light and the front camera.
 
     Args:
-      kind: ``"tic_tac_toe"`` or ``"go"``.
-      size: board size (3 for tic-tac-toe).
+      game: the `envs.boards.games.BoardGame` (its rules give the layout).
       offscreen_size: largest (height, width) rendered.
       physics_timestep: seconds (the original's 0.002).
       multisamples: samples per pixel of rendered frames (the original's 4).
       shadows: the light casts shadows (the original's does).
     """
 
-    def _build(self, kind="go", size=7, offscreen_size=(256, 256), physics_timestep=0.002,
+    def _build(self, game=None, offscreen_size=(256, 256), physics_timestep=0.002,
                multisamples=0, shadows=False, name="board_arena"):
         # composer's base arena: timestep 2 ms, elliptic cones, noslip 5.
         super()._build(name=name)
+        if game is None:
+            from envs.boards.games import BoardGame
+            game = BoardGame("go", GO_REFERENCE_SIZE)
         root = self._mjcf_root
-        self.kind, self.size = kind, int(size)
-        n = self.size
-        if kind == "tic_tac_toe":
-            half = SQUARE_HALF
+        self.game = game
+        self.kind, self.size = game.name, game.size
+        self.rows, self.cols = game.rows, game.cols
+        rules = game.rules
+        self.hex = rules.layout == "hex"
+        if game.name == "tic_tac_toe":
+            spacing = 2 * SQUARE_HALF
             self.centre = (0.0, 0.0)
-        else:
-            half = SQUARE_HALF * GO_REFERENCE_SIZE / n
+        else:   # the 7x7 Go board's extent (7 x 0.10 m) for every board
+            spacing = 2 * SQUARE_HALF * GO_REFERENCE_SIZE / max(
+                games_lib.layout_width(game), games_lib.layout_depth(game))
             self.centre = (0.0, GO_Y_OFFSET)
+        self.spacing = spacing
+        #: Distance between rows (a hex board's rows are closer).
+        self.row_spacing = spacing * (np.sqrt(3) / 2 if self.hex else 1.0)
+        half = 0.5 * min(spacing, self.row_spacing)
         self.square_half = half
-        self.spacing = 2 * half
-        self.half_board = n * half
+        self.half_board = 0.5 * spacing * games_lib.layout_width(game)
+        self.half_depth = 0.5 * self.row_spacing * self.rows
         #: Half-size of a touch sensor's site: a press registers inside it.
         self.pad_half = SENSOR_FRACTION * half
 
         self._add_scene(offscreen_size, physics_timestep, multisamples, shadows)
         board, sensor_mat = self._add_points()
         self.pass_geom = self.pass_site = None
-        if kind == "go":
-            self._add_go_markings(board, sensor_mat)
-        radius, piece_half_height = PIECE_SIZE[kind]
-        if kind == "go" and n != GO_REFERENCE_SIZE:
-            radius *= GO_REFERENCE_SIZE / n
+        if rules.pass_zones:
+            self._add_pass_zones(board, sensor_mat)
+        if rules.look == "wood":
+            self._add_lines(board)
+        elif rules.look == "plain" and not self.hex:
+            self._add_lines(board, between=True)
+        if game.name in PIECE_SIZE:
+            radius, piece_half_height = PIECE_SIZE[game.name]
+            if game.name == "go" and self.size != GO_REFERENCE_SIZE:
+                radius *= GO_REFERENCE_SIZE / self.size
+        else:
+            radius, piece_half_height = PIECE_FRACTION * half, PIECE_SIZE["go"][1]
         self.piece_radius, self.piece_half_height = radius, piece_half_height
+        self.colours = rules.colours
         self.pieces = [
             root.worldbody.add("geom", name=f"piece_{a}", type="cylinder",
                                size=(radius, piece_half_height), pos=(0, 0, -1),
                                group=HIDDEN_GROUP, contype=0, conaffinity=0,
-                               rgba=COLOURS[kind][0])
-            for a in range(n * n)]
+                               rgba=self.colours[0])
+            for a in range(game.num_points)]
+        self.selection = None
+        if rules.input == "move":
+            self.selection = root.worldbody.add(
+                "geom", name="selection", type="cylinder", size=(0.95 * half, 0.001),
+                pos=(0, 0, -1), group=HIDDEN_GROUP, contype=0, conaffinity=0,
+                rgba=SELECTION_RGBA)
         # The original's front camera, facing the arm and the board (fovy 45).
         self.front_camera = root.worldbody.add(
             "camera", name="front_camera", pos=(0.0, -0.6, 0.75),
@@ -153,29 +189,33 @@ class BoardArena(composer.Arena):
 
     def _add_points(self):
         """The board body: per point a square geom and a touch-sensor site (a
-        wooden board under Go's invisible squares). Returns (board body, the
-        sensor sites' material)."""
-        root, kind, n, half = self._mjcf_root, self.kind, self.size, self.square_half
+        wooden board under invisible squares for the ``"wood"`` look).
+        Returns (board body, the sensor sites' material)."""
+        root, game, half = self._mjcf_root, self.game, self.square_half
         cx, cy = self.centre
         board = root.worldbody.add("body", name="board")
         self.board_body = board
         dark = root.asset.add("material", name="square_dark", rgba=(0.2, 0.2, 0.2, 1))
         light = root.asset.add("material", name="square_light", rgba=(0.8, 0.8, 0.8, 1))
+        tile = root.asset.add("material", name="square_plain", rgba=PLAIN_TILE)
         sensor_mat = root.asset.add("material", name="sensor", rgba=(0, 1, 0, 0.3))
         box = (half, half, SQUARE_HALF_HEIGHT)
         site_size = (self.pad_half, self.pad_half, 0.5 * SQUARE_HALF_HEIGHT)
-        if kind == "go":
+        look = game.rules.look
+        if look == "wood":
             board.add("geom", name="goboard", type="box",
-                      size=(half * n, half * n, SQUARE_HALF_HEIGHT),
+                      size=(self.half_board, self.half_depth, SQUARE_HALF_HEIGHT),
                       pos=(cx, cy, SQUARE_HALF_HEIGHT), rgba=(0.85, 0.65, 0.35, 1))
         self.squares, self.sensor_sites, self.touch_sensors = [], [], []
-        self.point_xy = np.zeros((n * n, 2))
-        for a in range(n * n):
-            row, col = divmod(a, n)
+        self.point_xy = np.zeros((game.num_points, 2))
+        for a in range(game.num_points):
+            row, col = divmod(a, game.cols)
             x, y = self.point_position(a)
             self.point_xy[a] = (x, y)
-            if kind == "go":  # invisible squares on the wooden board
+            if look == "wood":  # invisible squares on the wooden board
                 style = dict(rgba=(0, 1, 0, 0), group=HIDDEN_GROUP)
+            elif look == "plain":
+                style = dict(material=tile)
             else:
                 style = dict(material=dark if row % 2 == col % 2 else light)
             self.squares.append(board.add("geom", name=f"square_{a}", type="box", size=box,
@@ -186,38 +226,45 @@ class BoardArena(composer.Arena):
             self.sensor_sites.append(site)
         return board, sensor_mat
 
-    def _add_go_markings(self, board, sensor_mat) -> None:
-        """Go's pass area (a hidden geom and its sensor site around the board)
-        and the board's lines."""
+    def _add_pass_zones(self, board, sensor_mat) -> None:
+        """Go's pass area: a hidden geom and its sensor site around the board."""
         cx, cy = self.centre
-        n, half = self.size, self.square_half
-        pass_size = (2 * half * n, half * n, 0.5 * SQUARE_HALF_HEIGHT)
+        pass_size = (2 * self.half_board, self.half_depth, 0.5 * SQUARE_HALF_HEIGHT)
         self.pass_geom = board.add("geom", name="pass", type="box", size=pass_size,
                                    pos=(cx, cy, 0.0), rgba=(0, 1, 0, 0),
                                    group=HIDDEN_GROUP)
         self.pass_site = board.add("site", name="pass", type="box", size=pass_size,
                                    pos=(cx, cy, 0.0), material=sensor_mat,
                                    group=composer.SENSOR_SITES_GROUP)
+
+    def _add_lines(self, board, between: bool = False) -> None:
+        """Render-only lines on a square board: through the points (the
+        wooden board) or, ``between``, along the tiles' edges."""
+        cx, cy = self.centre
         line_rgba = (0.1, 0.08, 0.05, 1)
         line_half = 0.002
-        extent = (n - 1) * half
         z = BOARD_TOP + 0.0005
-        for k in range(n):
-            o = (k - (n - 1) / 2) * self.spacing
-            board.add("geom", name=f"line_x_{k}", type="box", pos=(cx, cy + o, z),
-                      size=(extent + line_half, line_half, 0.0005), rgba=line_rgba,
+        rows, cols = (self.rows + 1, self.cols + 1) if between else (self.rows, self.cols)
+        extent_x = 0.5 * (cols - 1) * self.spacing
+        extent_y = 0.5 * (rows - 1) * self.row_spacing
+        for k in range(rows):
+            y = cy + (k - (rows - 1) / 2) * self.row_spacing
+            board.add("geom", name=f"line_x_{k}", type="box", pos=(cx, y, z),
+                      size=(extent_x + line_half, line_half, 0.0005), rgba=line_rgba,
                       contype=0, conaffinity=0)
-            board.add("geom", name=f"line_y_{k}", type="box", pos=(cx + o, cy, z),
-                      size=(line_half, extent + line_half, 0.0005), rgba=line_rgba,
+        for k in range(cols):
+            x = cx + (k - (cols - 1) / 2) * self.spacing
+            board.add("geom", name=f"line_y_{k}", type="box", pos=(x, cy, z),
+                      size=(line_half, extent_y + line_half, 0.0005), rgba=line_rgba,
                       contype=0, conaffinity=0)
 
     def point_position(self, action: int) -> tuple[float, float]:
         """World (x, y) of board point ``action``."""
-        n = self.size
-        row, col = divmod(int(action), n)
+        row, col = divmod(int(action), self.cols)
         cx, cy = self.centre
-        return (cx + (col - (n - 1) / 2) * self.spacing,
-                cy + (row - (n - 1) / 2) * self.spacing)
+        shift = 0.5 * row - 0.5 * games_lib.hex_offset(self.rows) if self.hex else 0.0
+        return (cx + (col + shift - (self.cols - 1) / 2) * self.spacing,
+                cy + (row - (self.rows - 1) / 2) * self.row_spacing)
 
     def attach_arm(self, arm):
         """Attaches the arm's base at `ARM_OFFSET`."""

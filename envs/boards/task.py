@@ -58,7 +58,7 @@ from envs.boards.games import AGENT, BoardGame  # noqa: F401  (AGENT: re-export)
 from envs.boards.task_arm import (_REJECTION_SAMPLES, DOWN_QUAT, HOME_ARM_QPOS,  # noqa: F401
                                   TCP_HIGH, TCP_LOW, ArmPoseMixin, _quat_mul)
 from envs.boards.task_observations import ObservationsMixin
-from envs.boards.task_record import PIECE_NOISE, GameRecordMixin
+from envs.boards.task_record import HALF_MOVE_TIMEOUT, PIECE_NOISE, GameRecordMixin
 from envs.core import PhysicsTask
 from envs.rendering import CameraConfig
 
@@ -73,8 +73,14 @@ class BoardTask(GameRecordMixin, ArmPoseMixin, ObservationsMixin, PhysicsTask):
     hooks, rewards and termination are here.
 
     Args:
-      game: the `BoardGame` (tic-tac-toe or Go of some size).
-      opponent: planner for the second player (gets OpenSpiel states).
+      game: the `BoardGame` (tic-tac-toe, Go or another registered game).
+      opponent: planner for the other player (gets OpenSpiel states).
+      agent_player: the agent's OpenSpiel player: 0 (moves first, the
+        paper's), 1, or ``"random"`` (drawn per episode). When the opponent
+        moves first, its move is on the board in the first observation.
+      half_move_timeout: move games: seconds after which a selected piece
+        whose move was not completed is deselected; a press held on it
+        selects it again only after it is released.
       registering: which geoms register a move: ``"arm"`` (any contact on the
         board; MuJoXO), ``"fingers"`` (a finger geom, knuckle or tip, must
         touch the square; MuJoGo) or ``"fingertips"`` (only the tips).
@@ -97,7 +103,7 @@ class BoardTask(GameRecordMixin, ArmPoseMixin, ObservationsMixin, PhysicsTask):
     """
 
     #: The referee's record of the game (the paper's agents observe cameras
-    #: and proprioception only).
+    #: and proprioception only); move games add ``selected_point``.
     privileged_observations = frozenset({"board_state", "move_history"})
     state_observations = ("board_state",)
 
@@ -105,14 +111,20 @@ class BoardTask(GameRecordMixin, ArmPoseMixin, ObservationsMixin, PhysicsTask):
                  arm_reset=True, front_camera=(84, 84), front_camera_2=None, time_limit=30.0,
                  timeout_is_loss=False, piece_noise=None, allow_double_pass=False,
                  control_timestep=0.05, physics_timestep=0.002, render_size=(256, 256),
-                 multisamples=0, shadows=False):
+                 multisamples=0, shadows=False, agent_player=AGENT,
+                 half_move_timeout=HALF_MOVE_TIMEOUT):
         if registering not in ("arm", "fingers", "fingertips"):
             raise ValueError(f"registering must be 'arm', 'fingers' or 'fingertips', "
                              f"got {registering!r}")
         if time_limit <= 0:
             raise ValueError(f"time_limit must be positive seconds, got {time_limit}")
+        if agent_player not in (0, 1, "random") or isinstance(agent_player, bool):
+            raise ValueError(f"agent_player must be 0, 1 or 'random', got {agent_player!r}")
+        if not half_move_timeout > 0:
+            raise ValueError(f"half_move_timeout must be positive seconds, got "
+                             f"{half_move_timeout!r}")
         if piece_noise is None:
-            piece_noise = PIECE_NOISE[game.name]
+            piece_noise = PIECE_NOISE.get(game.name, PIECE_NOISE["go"])
         if not 0 <= piece_noise <= 1:
             raise ValueError(f"piece_noise must be in [0, 1], got {piece_noise}")
         if not isinstance(opponent, Planner):
@@ -129,8 +141,11 @@ class BoardTask(GameRecordMixin, ArmPoseMixin, ObservationsMixin, PhysicsTask):
         self.render_size = tuple(int(v) for v in render_size)
         sizes = [tuple(s) for s in (front_camera, front_camera_2, render_size) if s]
         offscreen = (max(s[0] for s in sizes), max(s[1] for s in sizes))
-        self._arena = arena_lib.BoardArena(kind=game.name, size=game.size,
-                                           offscreen_size=offscreen,
+        self.agent_player = agent_player
+        if game.rules.input == "move":
+            self.privileged_observations = self.privileged_observations | {"selected_point"}
+        self._agent = AGENT if agent_player == "random" else int(agent_player)
+        self._arena = arena_lib.BoardArena(game=game, offscreen_size=offscreen,
                                            physics_timestep=physics_timestep,
                                            multisamples=multisamples, shadows=shadows)
         self._arm = kinova.JacoArm(name="arm")
@@ -145,6 +160,8 @@ class BoardTask(GameRecordMixin, ArmPoseMixin, ObservationsMixin, PhysicsTask):
         self.set_timesteps(control_timestep=control_timestep, physics_timestep=physics_timestep)
         self._add_sensors(self.physics_steps_per_control_step)
         self.time_limit_steps = int(round(time_limit / control_timestep))
+        self.half_move_timeout = float(half_move_timeout)
+        self._half_move_steps = max(1, int(round(half_move_timeout / control_timestep)))
         self.state = None  # the OpenSpiel state of the current game
         self._resigned = False
         self.main_camera = "front_camera"
@@ -207,6 +224,8 @@ class BoardTask(GameRecordMixin, ArmPoseMixin, ObservationsMixin, PhysicsTask):
         self._num_squares = self.game.num_points
         self._has_pass = arena.pass_geom is not None
         self._piece_ids = np.array([bind(p).element_id for p in arena.pieces])
+        self._selection_id = (bind(arena.selection).element_id
+                              if arena.selection is not None else None)
         self._point_xy = arena.point_xy
         joints = list(self._arm.joints) + list(self._hand.joints)
         self._joint_qpos = np.array([bind(j).qposadr for j in joints]).ravel()
@@ -247,19 +266,28 @@ class BoardTask(GameRecordMixin, ArmPoseMixin, ObservationsMixin, PhysicsTask):
 
     def initialize_episode(self, physics, random_state):
         self.opponent.reset(seed=int(random_state.integers(2**31)))
+        if self.agent_player == "random":
+            self._agent = int(random_state.integers(2))
         self.state = self._spiel_game.new_initial_state()
-        self._owners = np.full(self.game.num_points, -1, np.int8)
+        self._players = np.full(self.game.num_points, -1, np.int8)
+        self._kings = np.zeros(self.game.num_points, bool)
         self._moves: list[int] = []
         self._history = np.full(self._max_moves, -1, np.int32)
-        self._planes = self.game.board_planes(self.state)
+        self._planes = self.game.board_planes(self.state, self._agent)
         m = self._model
         m.geom_group[self._piece_ids] = arena_lib.HIDDEN_GROUP
+        m.geom_size[self._piece_ids, 1] = self._arena.piece_half_height
         self._reward = 0.0
         self._game_over = False
         self._resigned = False
         self._last_agent_move_passed = False
+        self._effects_key = self._effects = None
+        self._steps = 0
+        self._stale = -1
+        self._set_selected(-1)
         self.moves_registered = 0
         self.ik_failures = 0
+        self._others_turn(random_state)       # the opponent's first move, if it has it
         self._place_arm(random_state)
 
     def before_step(self, physics, action, random_state):
@@ -267,16 +295,28 @@ class BoardTask(GameRecordMixin, ArmPoseMixin, ObservationsMixin, PhysicsTask):
 
     def after_step(self, physics, random_state):
         self._reward = 0.0
+        self._steps += 1
         if self._game_over:
             return
+        if self._selected >= 0 and self._steps - self._selected_at >= self._half_move_steps:
+            # The half move timed out; its piece is selected again only by a
+            # new press (after its sensor has been released).
+            self._stale = self._selected
+            self._set_selected(-1)
         h = self._data.history
         order = (int(h[self._cursor_adr]) + 1 + self._arange) % self._nsample
         pressure = h[self._touch_idx[:, order]]  # (zones, substeps), oldest first
+        if self._stale >= 0 and not pressure[self._stale].min() > arena_lib.TOUCH_THRESHOLD:
+            self._stale = -1
         if not pressure.max() > arena_lib.TOUCH_THRESHOLD:
             return
-        registered = self.registered_move(pressure, order)
-        if registered is not None:
-            self._play_agent_move(*registered, random_state)
+        registered = self.registered_touch(pressure, order)
+        if registered is None:
+            return
+        if registered[0] == "select":
+            self._set_selected(registered[1])
+        else:
+            self._play_agent_move(registered[1], registered[2], random_state)
 
     # -- rewards and termination --------------------------------------------
 
@@ -288,6 +328,11 @@ class BoardTask(GameRecordMixin, ArmPoseMixin, ObservationsMixin, PhysicsTask):
 
     def get_discount(self, physics):
         return 0.0 if self._game_over else 1.0
+
+    @property
+    def agent(self) -> int:
+        """The agent's OpenSpiel player in the current episode."""
+        return self._agent
 
     @property
     def succeeded(self) -> bool:

@@ -48,7 +48,7 @@ class ObservationsMixin:
             base_position=tuple(float(v) for v in arena_lib.ARM_OFFSET),
             action_minimum=tuple(float(v) for v in spec[:, 0]),
             action_maximum=tuple(float(v) for v in spec[:, 1]))
-        n = self.game.size
+        game = self.game
         cx, cy = arena.centre
         zones = {}
         if arena.pass_geom is not None:
@@ -67,34 +67,42 @@ class ObservationsMixin:
             (self._cameras["front_camera"].height, self._cameras["front_camera"].width)
             if "front_camera" in self._cameras else None)
         return BoardDescription(
-            game=self.game.name, board_size=n, komi=float(self.game.komi),
-            num_points=self.game.num_points, pass_action=self.game.pass_action,
+            game=game.name, board_size=game.size, komi=float(game.komi),
+            num_points=game.num_points, pass_action=game.pass_action,
             point_positions=tuple(tuple(float(v) for v in self.point_position(a))
-                                  for a in range(self.game.num_points)),
+                                  for a in range(game.num_points)),
             pad_half=float(arena.pad_half), pass_zones=zones,
             board_centre=(float(cx), float(cy)), board_half=float(arena.half_board),
             registering=self._registering, control_timestep=float(self.control_timestep),
-            time_limit_steps=int(self.time_limit_steps), arm=arm_desc, front_camera=front)
+            time_limit_steps=int(self.time_limit_steps), arm=arm_desc, front_camera=front,
+            rows=game.rows, cols=game.cols, input=game.rules.input,
+            agent_player=self.agent_player)
 
     # -- observations -------------------------------------------------------
 
     def observation_spec(self):
-        n, dof = self.game.size, len(self._joint_qpos)
-        return {
+        game, dof = self.game, len(self._joint_qpos)
+        spec = {
             "arm/joints_pos": specs.Array((dof,), np.float64, "arm/joints_pos"),
             "arm/joints_vel": specs.Array((dof,), np.float64, "arm/joints_vel"),
             "arm/joints_torque": specs.Array((dof,), np.float64, "arm/joints_torque"),
             "arm/pinch_site_pos": specs.Array((3,), np.float64, "arm/pinch_site_pos"),
             "arm/pinch_site_rmat": specs.Array((9,), np.float64, "arm/pinch_site_rmat"),
-            "board_state": specs.Array((n, n, 3), bool, "board_state"),
+            "board_state": specs.Array((game.rows, game.cols, game.num_planes), bool,
+                                       "board_state"),
             "move_history": specs.BoundedArray((self._max_moves,), np.int32, -1,
                                                self._spiel_game.num_distinct_actions() - 1,
                                                "move_history"),
+            "agent_player": specs.BoundedArray((), np.int32, 0, 1, "agent_player"),
         }
+        if game.rules.input == "move":
+            spec["selected_point"] = specs.BoundedArray((), np.int32, -1, game.num_points - 1,
+                                                        "selected_point")
+        return spec
 
     def observe(self, physics):
         d = self._data
-        return {
+        obs = {
             "arm/joints_pos": self._qpos[self._joint_qpos],
             "arm/joints_vel": self._qvel[self._joint_dof],
             "arm/joints_torque": self._qfrc_actuator[self._joint_dof],
@@ -102,7 +110,11 @@ class ObservationsMixin:
             "arm/pinch_site_rmat": d.site_xmat[self._pinch_site].copy(),
             "board_state": self._planes.copy(),
             "move_history": self._history.copy(),
+            "agent_player": np.array(self._agent, np.int32),
         }
+        if self.game.rules.input == "move":
+            obs["selected_point"] = np.array(self._selected, np.int32)
+        return obs
 
     # -- positions ---------------------------------------------------------
 

@@ -18,10 +18,13 @@ import mujoco
 import numpy as np
 
 from envs.boards import arena as arena_lib
-from envs.boards.games import AGENT
 
-#: Piece jitter as a fraction of the sensor's half-size (the original's).
+#: Piece jitter as a fraction of the sensor's half-size (the original's;
+#: other games take Go's).
 PIECE_NOISE = {"tic_tac_toe": 1.0, "go": 0.25}
+#: Move games: seconds before a selected piece whose move was not completed
+#: is deselected (`envs.boards.task.BoardTask`'s ``half_move_timeout``).
+HALF_MOVE_TIMEOUT = 10.0
 
 
 class GameRecordMixin:
@@ -51,11 +54,14 @@ class GameRecordMixin:
                                data="found", nsample=nsample)
                     for j, body in enumerate(finger_bodies)])
 
-    def registered_move(self, pressure: np.ndarray, order: np.ndarray):
-        """The first substep's move that registers: (action, piece (x, y) or None), or None.
+    def registered_touch(self, pressure: np.ndarray, order: np.ndarray):
+        """The first substep's touch that does something: ``("move", action,
+        piece (x, y) or None)``, ``("select", point)`` (move games), or None.
 
-        ``pressure`` holds the zones' (squares, then pass) touch readings per
+        ``pressure`` holds the zones' (points, then pass) touch readings per
         substep, oldest first; ``order`` maps those substeps to history slots.
+        What a touch on a zone does comes from the game
+        (`envs.boards.games.BoardGame.zone_effects`).
         """
         n2, threshold = self._num_squares, arena_lib.TOUCH_THRESHOLD
         squares = pressure[:n2]
@@ -76,26 +82,75 @@ class GameRecordMixin:
             steps, zones = steps[keep], zones[keep]
         if not steps.size:
             return None
-        legal = np.zeros(n2 + 1, bool)
-        legal[self.state.legal_actions()] = True
-        if self._has_pass and self._last_agent_move_passed and not self._allow_double_pass:
-            legal[n2] = False
-        keep = np.flatnonzero(legal[zones])
+        act, select = self._zone_effects()
+        does = (act >= 0) | select
+        if self._stale >= 0:
+            does = does.copy()
+            does[self._stale] = False
+        keep = np.flatnonzero(does[zones])
         if not keep.size:
             return None
         step, zone = int(steps[keep[0]]), int(zones[keep[0]])
-        action = self.game.pass_action if zone == n2 else zone
+        if act[zone] < 0:
+            return "select", zone
         piece_xy = None
-        if zone < n2:
+        if zone < n2 and self.game.rules.input == "point":
             found, x, y, _ = self._data.history[self._pos_idx[zone, order[step]]]
             piece_xy = (float(x), float(y)) if found > 0 else tuple(self._point_xy[zone])
-        return action, piece_xy
+        return "move", int(act[zone]), piece_xy
+
+    def _zone_effects(self):
+        """`BoardGame.zone_effects` of the current decision (cached), with
+        the agent's second consecutive pass removed unless allowed."""
+        key = (len(self._moves), self._selected)
+        if self._effects_key != key:
+            act, select = self.game.zone_effects(self.state, self._selected)
+            if self._has_pass and self._last_agent_move_passed and not self._allow_double_pass:
+                act[self._num_squares] = -1
+            self._effects_key, self._effects = key, (act, select)
+        return self._effects
+
+    def _set_selected(self, point: int) -> None:
+        """Selects ``point``'s piece for the half move in progress (-1: none)
+        and shows or hides the selection disc."""
+        self._selected = int(point)
+        self._selected_at = self._steps
+        if self._selection_id is None:
+            return
+        m = self._model
+        if point < 0:
+            m.geom_group[self._selection_id] = arena_lib.HIDDEN_GROUP
+            return
+        x, y = self._point_xy[point]
+        m.geom_pos[self._selection_id] = (x, y, arena_lib.BOARD_TOP + 0.001)
+        m.geom_group[self._selection_id] = 0
 
     def _play_agent_move(self, action: int, piece_xy, rng) -> None:
+        self._set_selected(-1)
         self._apply(action, piece_xy=piece_xy)
         self._last_agent_move_passed = action == self.game.pass_action
         self.moves_registered += 1
-        if not self.state.is_terminal():
+        self._others_turn(rng)
+        if self._game_over:
+            return
+        if self.state.is_terminal():
+            self._game_over = True
+            self._reward = self.game.final_reward(self.state, self._agent)
+        elif self._arm_reset:
+            self._place_arm(rng)
+
+    def _others_turn(self, rng) -> None:
+        """Plays until the agent must move or the game ends: the opponent's
+        moves (a checkers jump sequence is several) and the passes the
+        referee plays (`BoardGame.forced_pass`), the agent's included. An
+        opponent's resignation ends the game as the agent's win."""
+        while not self.state.is_terminal():
+            forced = self.game.forced_pass(self.state)
+            if forced is not None:
+                self._apply(forced, piece_xy=None)
+                continue
+            if self.state.current_player() == self._agent:
+                return
             subgoal = self.opponent.plan(self.state)
             if subgoal.info.get("resigned"):
                 # The opponent (GNU Go) resigned: the game ends as the agent's
@@ -105,41 +160,44 @@ class GameRecordMixin:
                 self._reward = 1.0
                 return
             self._apply(int(subgoal.action), piece_xy=None, rng=rng)
-        if self.state.is_terminal():
-            self._game_over = True
-            self._reward = self.game.final_reward(self.state)
-        elif self._arm_reset:
-            self._place_arm(rng)
 
     def _apply(self, action: int, *, piece_xy, rng=None) -> None:
-        """Plays ``action`` for the player to move and updates the pieces."""
-        player = self.state.current_player()
+        """Plays ``action`` for the player to move and updates the pieces:
+        a new piece lands at its point (the opponent's with the piece
+        noise), at ``piece_xy`` when given; a piece that changes colour or
+        is promoted stays where it is; a removed one is hidden."""
         self.state.apply_action(action)
         self._history[len(self._moves)] = action
         self._moves.append(action)
-        owners = self.game.owners(self.state)
-        changed = np.flatnonzero(owners != self._owners)
+        players = self.game.players(self.state)
+        kings = self.game.kings(self.state)
+        changed = np.flatnonzero((players != self._players) | (kings != self._kings))
         m = self._model
-        colours = arena_lib.COLOURS[self.game.name]
-        half = self._arena.pad_half
+        arena = self._arena
+        half = arena.pad_half
         for point in changed:
             geom = self._piece_ids[point]
-            owner = owners[point]
-            if owner < 0:  # captured
+            player = players[point]
+            if player < 0:  # captured or moved away
                 m.geom_group[geom] = arena_lib.HIDDEN_GROUP
                 continue
-            px, py = self._point_xy[point]
-            if point == action and player == AGENT and piece_xy is not None:
-                x, y = piece_xy
+            height = arena.piece_half_height * (arena_lib.KING_HEIGHT if kings[point] else 1.0)
+            m.geom_size[geom, 1] = height
+            if self._players[point] < 0:  # a new piece
+                if piece_xy is not None and point == action:
+                    x, y = piece_xy
+                else:
+                    px, py = self._point_xy[point]
+                    noise = (rng.uniform(-1, 1, 2) * self._piece_noise * half
+                             if rng is not None else (0.0, 0.0))
+                    x, y = px + noise[0], py + noise[1]
             else:
-                noise = (rng.uniform(-1, 1, 2) * self._piece_noise * half
-                         if rng is not None else (0.0, 0.0))
-                x, y = px + noise[0], py + noise[1]
-            m.geom_pos[geom] = (x, y, arena_lib.BOARD_TOP)
-            m.geom_rgba[geom] = colours[owner]
+                x, y = m.geom_pos[geom, :2]
+            m.geom_pos[geom] = (x, y, arena_lib.BOARD_TOP + height - arena.piece_half_height)
+            m.geom_rgba[geom] = arena.colours[player]
             m.geom_group[geom] = 0
-        self._owners = owners
-        self._planes = self.game.board_planes(self.state)
+        self._players, self._kings = players, kings
+        self._planes = self.game.board_planes(self.state, self._agent)
 
     # -- the game, for agents and tests -------------------------------------
 
@@ -160,7 +218,7 @@ class GameRecordMixin:
             if probe.is_terminal() or a not in probe.legal_actions():
                 raise ValueError(f"action {a} is illegal after {list(probe.history())}")
             probe.apply_action(a)
-        if probe.is_terminal() or probe.current_player() != AGENT:
+        if probe.is_terminal() or probe.current_player() != self._agent:
             raise ValueError(f"after {actions} the agent must be to move in a running game")
         for a in actions:
             self._apply(a, piece_xy=None)
@@ -188,5 +246,5 @@ class GameRecordMixin:
             return "win"
         if self.state is None or not self.state.is_terminal():
             return None
-        value = self.state.returns()[AGENT]
+        value = self.state.returns()[self._agent]
         return "win" if value > 0 else ("draw" if value == 0 else "loss")
