@@ -58,12 +58,17 @@ class ArmScene:
       qpos: (9,) arm and hand joint positions (the ``arm/joints_pos``
         observation; the qpos of the arm's own model).
       qvel: (9,) joint velocities.
+      selected: move games: the point whose piece is selected for the half
+        move in progress, or -1.
+      agent: the agent's OpenSpiel player (0 or 1).
     """
 
     state: object
     moves: tuple[int, ...]
     qpos: np.ndarray
     qvel: np.ndarray
+    selected: int = -1
+    agent: int = 0
 
 
 def heading_from_orientation(orientation) -> float:

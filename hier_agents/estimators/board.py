@@ -1,10 +1,12 @@
-"""`BoardEstimator` (``board``): MuJoXO / MuJoGo scenes from observations.
+"""`BoardEstimator` (``board``): board-game scenes (MuJoXO, MuJoGo, MuJoBoard)
+from observations.
 
 The game comes from the ``move_history`` observation (the game record)
-replayed in OpenSpiel and checked against the ``board_state`` markers; the
-arm from its joint observations (``arm/joints_pos``, ``arm/joints_vel``,
-which are the qpos and qvel of the arm's own model,
-`envs.description.ArmDescription`). Observation-only.
+replayed in OpenSpiel and checked against the ``board_state`` markers, seen
+from the side the ``agent_player`` observation names; a move game's half
+move from ``selected_point``; the arm from its joint observations
+(``arm/joints_pos``, ``arm/joints_vel``, which are the qpos and qvel of the
+arm's own model, `envs.description.ArmDescription`). Observation-only.
 """
 
 from __future__ import annotations
@@ -37,14 +39,16 @@ class BoardEstimator(Estimator):
             raise RuntimeError("BoardEstimator.estimate called before reset")
         game, spiel = self._game
         obs = timestep.observation
+        agent = int(obs.get("agent_player", 0))
         history = np.asarray(obs["move_history"])
         end = int(np.argmax(history < 0)) if (history < 0).any() else len(history)
         played = history[:end]
         state = spiel.new_initial_state()
         for action in played:
             state.apply_action(int(action))
-        if not np.array_equal(game.board_planes(state), obs["board_state"]):
+        if not np.array_equal(game.board_planes(state, agent), obs["board_state"]):
             raise EstimationError("move_history and board_state disagree")
         return ArmScene(state=state, moves=tuple(int(a) for a in played),
                         qpos=np.array(obs["arm/joints_pos"], float),
-                        qvel=np.array(obs["arm/joints_vel"], float))
+                        qvel=np.array(obs["arm/joints_vel"], float),
+                        selected=int(obs.get("selected_point", -1)), agent=agent)

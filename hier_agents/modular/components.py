@@ -35,8 +35,9 @@ what a parameter names (a checkpoint) so a command can refuse it before
 playing.
 
 Families: ``mujoban`` (Sokoban states, the ball walker), ``mujoxo``
-(tic-tac-toe) and ``mujogo`` (Go), both with the Jaco arm. An environment
-outside them raises `ValueError` (`family`).
+(tic-tac-toe), ``mujogo`` (Go) and ``mujoboard`` (the other OpenSpiel games,
+`envs.boards.mujoboard`), all with the Jaco arm. An environment outside them
+raises `ValueError` (`family`).
 """
 
 from __future__ import annotations
@@ -122,6 +123,7 @@ def _load_arm_policy(path):
 
 _SIMULATIONS = Parameter("N", "tree simulations per move, an integer >= 1", _int_in(1))
 _GNUGO_LEVEL = Parameter("LEVEL", "GNU Go's strength, an integer 1..10", _int_in(1, 10))
+_DEPTH = Parameter("D", "plies searched, an integer >= 1", _int_in(1))
 _OPTION_POLICY = Parameter("PATH", "a python -m hier_agents.learning.train_options "
                            "checkpoint file or run directory", _path, _load_option_policy)
 _BALL_POLICY = Parameter("PATH", "a learned-ball checkpoint (python -m "
@@ -170,8 +172,20 @@ def _gnugo(description, seed, arg=10):
 
 @_takes(_SIMULATIONS)
 def _mcts(description, seed, arg=1000):
-    from abstract_planners.go import MCTSPlanner
+    from abstract_planners.openspiel_bots import MCTSPlanner
     return MCTSPlanner(arg, seed=seed)
+
+
+@_takes(_SIMULATIONS)
+def _mcts_strong(description, seed, arg=2000):
+    """MCTS for the larger boards: 2,000 simulations by default."""
+    return _mcts(description, seed, arg)
+
+
+@_takes(_DEPTH)
+def _alphabeta(description, seed, arg=4):
+    from abstract_planners.openspiel_bots import AlphaBetaPlanner
+    return AlphaBetaPlanner(arg, seed=seed)
 
 
 def _ball(description, seed):
@@ -300,12 +314,16 @@ PLANNERS: dict[str, ComponentTable] = {
                              {"minimax": _minimax, "mcts": _mcts, "random": _board_random}),
     "mujogo": ComponentTable("planner", "mujogo",
                              {"gnugo": _gnugo, "mcts": _mcts, "random": _board_random}),
+    "mujoboard": ComponentTable("planner", "mujoboard",
+                                {"mcts": _mcts_strong, "alphabeta": _alphabeta,
+                                 "random": _board_random}),
 }
 #: family -> name -> factory(description, seed); the first entry is the default.
 SKILLS: dict[str, ComponentTable] = {
     "mujoban": ComponentTable("skill", "mujoban", {"ball": _ball, "learned-ball": _learned_ball}),
     "mujoxo": ComponentTable("skill", "mujoxo", {"arm-touch": _arm, "learned-arm": _learned_arm}),
     "mujogo": ComponentTable("skill", "mujogo", {"arm-touch": _arm, "learned-arm": _learned_arm}),
+    "mujoboard": ComponentTable("skill", "mujoboard", {"arm-touch": _arm}),
 }
 #: family -> name -> factory(description, seed, simulator=None).
 ESTIMATORS: dict[str, ComponentTable] = {
@@ -314,6 +332,7 @@ ESTIMATORS: dict[str, ComponentTable] = {
         "entity-layer": _privileged(EntityLayerEstimator)}),
     "mujoxo": ComponentTable("estimator", "mujoxo", {"board": _board}),
     "mujogo": ComponentTable("estimator", "mujogo", {"board": _board}),
+    "mujoboard": ComponentTable("estimator", "mujoboard", {"board": _board}),
 }
 
 _TABLES = {"planner": PLANNERS, "skill": SKILLS, "estimator": ESTIMATORS}

@@ -6,7 +6,7 @@ here:
 
 =========================  ==========================  ==========================
                            `SokobanAdapter` (mujoban)  `BoardAdapter` (mujoxo,
-                                                       mujogo)
+                                                       mujogo, mujoboard)
 =========================  ==========================  ==========================
 abstract state             `SokobanState`              an OpenSpiel state
 subgoal of a planner       ``next_push`` (walk, then   ``plan`` (one move)
@@ -20,15 +20,15 @@ deviation                  the boxes left the          none (the skill sees a
 option-env actions         the four moves ``MOVES``    OpenSpiel's distinct
                                                        actions
 option-env observation     ``(4, H, W)`` planes:       OpenSpiel's observation
-                           walls, pads, boxes, player  tensor for player 0
+                           walls, pads, boxes, player  tensor for the mover
 scored by                  solved or not               win / draw / loss (games)
 level files, learned       yes (``level_files``)       no
 option-policy planners
 =========================  ==========================  ==========================
 
 `family(env_name)` names an environment's family; `adapter(family)` returns
-its adapter. A new family (another OpenSpiel game played by touch) either
-reuses `BoardAdapter` or adds one adapter here.
+its adapter. Every OpenSpiel game played by touch (`envs.boards.games`)
+reuses `BoardAdapter`; a new kind of task adds one adapter here.
 """
 
 from __future__ import annotations
@@ -158,7 +158,8 @@ class SokobanAdapter(FamilyAdapter):
 
 
 class BoardAdapter(FamilyAdapter):
-    """MuJoXO and MuJoGo: OpenSpiel states; the agent is player 0."""
+    """Board games (MuJoXO, MuJoGo, MuJoBoard): OpenSpiel states; options
+    are the actions of the player to move (the agent, when asked)."""
 
     games = True
 
@@ -173,30 +174,35 @@ class BoardAdapter(FamilyAdapter):
                 gym.spaces.Box(0.0, 1.0, shape, np.float32))
 
     def option_subgoal(self, state, action: int) -> Subgoal | None:
-        if state.is_terminal() or state.current_player() != 0 \
+        if state.is_terminal() or state.current_player() < 0 \
                 or action not in state.legal_actions():
             return None
         return Subgoal(action, state.child(action))
 
     def legal_mask(self, state, n: int) -> np.ndarray:
         mask = np.zeros(n, np.int8)
-        if not state.is_terminal() and state.current_player() == 0:
+        if not state.is_terminal() and state.current_player() >= 0:
             mask[list(state.legal_actions())] = 1
         return mask
 
     def observation(self, state, space) -> np.ndarray:
-        return np.asarray(state.observation_tensor(0), np.float32).reshape(space.shape)
+        """OpenSpiel's observation tensor for the player to move (player 0's
+        once the game is over)."""
+        player = max(state.current_player(), 0) if not state.is_terminal() else 0
+        return np.asarray(state.observation_tensor(player), np.float32).reshape(space.shape)
 
 
 #: family name -> adapter.
 FAMILIES: dict[str, FamilyAdapter] = {"mujoban": SokobanAdapter(),
                                       "mujoxo": BoardAdapter("mujoxo"),
-                                      "mujogo": BoardAdapter("mujogo")}
+                                      "mujogo": BoardAdapter("mujogo"),
+                                      "mujoboard": BoardAdapter("mujoboard")}
 
 
 def family(env_name: str) -> str:
-    """The family (``"mujoban"``, ``"mujoxo"``, ``"mujogo"``) of an
-    environment name; ValueError for environments without a modular agent."""
+    """The family (``"mujoban"``, ``"mujoxo"``, ``"mujogo"``, ``"mujoboard"``)
+    of an environment name; ValueError for environments without a modular
+    agent."""
     prefix = str(env_name).split("/", 1)[0]
     if prefix not in FAMILIES:
         raise ValueError(f"no modular agent for {env_name!r}; environment families: "
@@ -219,5 +225,6 @@ def adapter_for(description) -> FamilyAdapter:
     if hasattr(description, "grid_shape"):
         return FAMILIES["mujoban"]
     if hasattr(description, "board_size"):
-        return FAMILIES["mujoxo" if int(description.board_size) == 3 else "mujogo"]
+        return FAMILIES[{"tic_tac_toe": "mujoxo", "go": "mujogo"}.get(description.game,
+                                                                       "mujoboard")]
     return GENERIC

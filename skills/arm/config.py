@@ -67,7 +67,7 @@ class ArmTouchConfig:
         (against 1 for the pinch site's position).
 
     Giving up:
-      max_steps: steps before FAILURE ``"timeout"``.
+      max_steps: steps per touch (a move game's move is two) before FAILURE ``"timeout"``.
       stall_steps: steps without progress before FAILURE ``"no progress"``.
       max_presses: presses without a registered move before FAILURE
         ``"no registration"``.

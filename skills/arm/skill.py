@@ -14,7 +14,7 @@ from skills.arm.geometry import DOWN
 from skills.arm.model import ArmModel
 from skills.arm.motion import lift_command, line_command
 from skills.arm.postures import PosturePlanner, joint_acceleration
-from skills.arm.targets import touch_target
+from skills.arm.targets import touch_target, touch_zones
 from skills.arm.touch import TouchIK
 from skills.base import Skill, Status
 
@@ -79,9 +79,11 @@ class ArmTouchSkill(Skill):
 
     def reset(self, description, subgoal, scene) -> None:
         """Plans the touch of ``subgoal.action`` from ``scene`` (an `ArmScene`)
-        in the board of ``description`` (a `BoardDescription`)."""
-        arm = self._model(description.arm)
-        cfg = self.config
+        in the board of ``description`` (a `BoardDescription`). A move game's
+        move is two touches (`touch_zones`): the piece, then, once the scene
+        shows it selected, its destination."""
+        self._model(description.arm)
+        self._description = description
         self.subgoal = subgoal
         self.status = Status.RUNNING
         self.failure_reason = None
@@ -89,6 +91,29 @@ class ArmTouchSkill(Skill):
         self.phase_steps = {"travel": 0, "descend": 0, "touch": 0}
         self._dt = float(description.control_timestep)
         self._moves_before = len(scene.moves)
+        self.plan_ms = 0.0
+        self.planned_time = math.nan
+        self.events = []
+        self._reselects = 0
+        action = int(subgoal.action)
+        state = scene.state
+        legal = state.legal_actions() if state is not None and not state.is_terminal() else []
+        zones = touch_zones(description, state, action) if action in legal else None
+        self._zones = zones if zones is not None else (action,)
+        self._stage = 0
+        q = self._aim(scene)
+        if q is None:
+            return
+        if action not in legal:
+            self._fail(f"illegal: action {action} is not legal in the planned-from state")
+            return
+        self._plan_touch(q)
+
+    def _aim(self, scene) -> np.ndarray | None:
+        """Starts the touch of zone ``_zones[_stage]``: clears the touch's
+        state and sets its target. Returns the arm's posture, or None after
+        failing (the zone is not a point of the board)."""
+        arm, cfg = self._arm, self.config
         self._presses = 0
         self._pressing = 0
         self._lifting = False
@@ -98,31 +123,50 @@ class ArmTouchSkill(Skill):
         self._landing_kind = None
         self._touch_direction = DOWN
         self._last_tool, self._tool_speed = None, np.zeros(3)
-        self.plan_ms = 0.0
-        self.planned_time = math.nan
-        self.events = []
         self._set_phase("travel")
         q = arm.set_posture(scene.qpos)
         tool, _ = arm.tool(arm.current.data)
-        action = int(subgoal.action)
-        self._target = touch_target(description, action, tool)
+        zone = self._zones[self._stage]
+        self._target = touch_target(self._description, zone, tool)
         if self._target is None:
             self._pad_top, self.target = None, None
-            self._fail(f"illegal: action {action} is not a point of this board")
-            return
+            self._fail(f"illegal: action {zone} is not a point of this board")
+            return None
         self._pad_top, self._tolerance = self._target.pad_top, self._target.tolerance
         self.target = self._pad_top - np.array([0.0, 0.0, cfg.press_depth])
-        state = scene.state
-        legal = state.legal_actions() if state is not None and not state.is_terminal() else []
-        if action not in legal:
-            self._fail(f"illegal: action {action} is not legal in the planned-from state")
-            return
+        return q
+
+    def _plan_touch(self, q: np.ndarray) -> None:
         start = time.perf_counter()
         self._plan = self._make_plan(q)
-        self.plan_ms = (time.perf_counter() - start) * 1e3
+        self.plan_ms += (time.perf_counter() - start) * 1e3
         if self._plan is None:
             self._fail(f"unreachable: no arm posture puts the fingertips on "
                        f"{np.round(self._pad_top, 3).tolist()}")
+
+    def _next_touch(self, scene) -> None:
+        """Move games: on to the destination once the piece shows selected;
+        back to the piece when its selection was lost (timed out), at most
+        ``max_recoveries`` times."""
+        if len(self._zones) < 2:
+            return
+        source = self._zones[0]
+        if self._stage == 0 and scene.selected == source:
+            self._stage = 1
+            self.events.append(f"{self.steps}: selected {source}")
+        elif self._stage == 1 and scene.selected != source:
+            self._reselects += 1
+            if self._reselects > self.config.max_recoveries:
+                self._fail(f"no registration: the selection of {source} was lost "
+                           f"{self._reselects} times")
+                return
+            self._stage = 0
+            self.events.append(f"{self.steps}: selection of {source} lost")
+        else:
+            return
+        q = self._aim(scene)
+        if q is not None:
+            self._plan_touch(q)
 
     def act(self, timestep, scene) -> np.ndarray:
         """The joint-velocity action after ``timestep`` (``scene`` estimated from it)."""
@@ -131,8 +175,11 @@ class ArmTouchSkill(Skill):
             raise RuntimeError("ArmTouchSkill.act called before reset")
         if self.status is Status.RUNNING:
             self._check_outcome(timestep, scene)
-        if self.status is Status.RUNNING and self.steps >= self.config.max_steps:
-            self._fail(f"timeout: no move registered in {self.config.max_steps} steps")
+        if self.status is Status.RUNNING:
+            self._next_touch(scene)
+        limit = self.config.max_steps * len(self._zones)       # per touch
+        if self.status is Status.RUNNING and self.steps >= limit:
+            self._fail(f"timeout: no move registered in {limit} steps")
         if self.status is not Status.RUNNING:
             self.phase = "done"
             return self.hold()

@@ -1,15 +1,21 @@
-"""Where the arm touches for a move: a board point's pad, or a Go pass area.
+"""Where the arm touches for a move: which zones, in order (`touch_zones`:
+a board point, a Go pass area, or a move game's piece then its
+destination), and where each is (`touch_target`).
 
-All from the public `envs.description.BoardDescription`: the points' positions
-on the board's top, the pads' half-side, the pass zones beside the board.
+All from the public `envs.description.BoardDescription` (the points'
+positions on the board's top, the pads' half-side, the pass zones beside the
+board) and the game's rules (`envs.boards.games`).
 """
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
 import numpy as np
+
+from envs.boards.games import BoardGame
 
 #: Where the skill touches a pass area (the floor-level zones beside the Go
 #: board): this far (m) out from the board's side edge, with this tolerance
@@ -30,15 +36,32 @@ class TouchTarget:
     tolerance: float
 
 
-def touch_target(description, action: int, tool: np.ndarray) -> TouchTarget | None:
-    """The target of ``action`` (a board point or the pass) in the board of
-    ``description``, the pass on the side of the tool point ``tool``; None if
-    the action is neither."""
-    action = int(action)
-    if description.pass_action is not None and action == description.pass_action:
+@functools.lru_cache(maxsize=16)
+def _game(name: str, board_size, komi: float) -> BoardGame:
+    return BoardGame(name, board_size, komi=komi)
+
+
+def touch_zones(description, state, action: int) -> tuple[int, ...] | None:
+    """The zones to touch, in order, to play ``action`` from ``state`` (the
+    game's `envs.boards.games.BoardGame.touches`: a point, the pass zone,
+    or a move's piece then its destination); None if ``action`` is not
+    legal there or not played by a touch."""
+    game = _game(description.game, description.board_size, float(description.komi))
+    try:
+        return game.touches(state, int(action))
+    except ValueError:
+        return None
+
+
+def touch_target(description, zone: int, tool: np.ndarray) -> TouchTarget | None:
+    """The target of ``zone`` (a board point, or the pass zone whose id is
+    the pass action) in the board of ``description``, the pass on the side
+    of the tool point ``tool``; None if the zone is neither."""
+    zone = int(zone)
+    if description.pass_action is not None and zone == description.pass_action:
         return TouchTarget(pass_point(description, tool), PASS_TOLERANCE)
-    if 0 <= action < description.num_points:
-        return TouchTarget(description.point_position(action), float(description.pad_half))
+    if 0 <= zone < description.num_points:
+        return TouchTarget(description.point_position(zone), float(description.pad_half))
     return None
 
 
