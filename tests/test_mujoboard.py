@@ -149,15 +149,35 @@ def _touch(env, point, **kwargs):
     return touch_point(env, env.task.point_position(point), **kwargs)
 
 
-def _central_move(task):
-    """The legal move whose two points lie nearest the board's centre (the
-    test helper's IK reaches those best)."""
+def _central_action(task):
+    """The legal action whose touches lie nearest the board's centre."""
     centre = np.array(task.arena.centre)
-    moves = task.game.move_points(task.state)
 
     def spread(action):
-        return max(np.abs(task.arena.point_xy[p] - centre).max() for p in moves[action])
-    return min(sorted(moves), key=spread)
+        zones = task.game.touches(task.state, action)
+        return max(np.abs(task.arena.point_xy[z] - centre).max() for z in zones)
+    return min(sorted(task.state.legal_actions()), key=spread)
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_each_game_plays_an_opening_by_touch_as_openspiel_does(name):
+    """Two moves of the agent, touched with the arm (a move game's as piece
+    then destination), each answered by the opponent: the record, the board
+    observation and the pieces shown agree with OpenSpiel after each."""
+    env = _env(name, opponent="random")
+    task = env.task
+    for turn in range(2):
+        action = _central_action(task)
+        before = len(task.moves)
+        zones = task.game.touches(task.state, action)
+        if len(zones) == 2:
+            _touch(env, zones[0], until=lambda: task._selected == zones[0])
+        timestep = _touch(env, zones[-1])
+        assert task.moves[before] == action, f"turn {turn}"
+        assert_board_matches_openspiel(env, timestep)
+        assert timestep.reward == (task.game.final_reward(task.state, task.agent)
+                                   if task.state.is_terminal() else 0.0)
+    env.close()
 
 
 def test_connect_four_a_touch_anywhere_on_a_column_drops_a_piece_in_it():
@@ -191,7 +211,7 @@ def test_othello_flips_are_shown_and_the_opponents_first_move_is_seen():
 def test_a_move_game_plays_a_piece_then_its_destination(name):
     env = _env(name, opponent="random")
     task, game = env.task, env.task.game
-    action = _central_move(task)
+    action = _central_action(task)
     src, dst = game.touches(task.state, action)
     selected = lambda: task._selected == src  # noqa: E731
     timestep = _touch(env, src, until=selected)
@@ -209,7 +229,7 @@ def test_a_move_game_plays_a_piece_then_its_destination(name):
 def test_a_half_move_times_out_and_its_destination_then_does_nothing():
     env = _env("mujoboard/breakthrough-6x6", opponent="random", half_move_timeout=1.0)
     task, game = env.task, env.task.game
-    action = _central_move(task)
+    action = _central_action(task)
     src, dst = game.touches(task.state, action)
     _touch(env, src, until=lambda: task._selected == src)
     for _ in range(int(1.0 / 0.05) + 1):
