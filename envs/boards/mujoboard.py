@@ -28,7 +28,7 @@ import math
 from abstract_planners.epsilon_greedy import EpsilonGreedy
 from abstract_planners.openspiel_bots import make_bot
 from envs import _config
-from envs.boards import _check_agent_player
+from envs.boards import _check_agent_player, _check_board_common
 from envs.boards.games import GAMES, BoardGame
 from envs.boards.task import BoardTask
 from envs.boards.task_record import HALF_MOVE_TIMEOUT
@@ -64,19 +64,17 @@ def check_mujoboard(*, game, board_size=None, opponent="mcts:100", epsilon=0.0, 
     make_bot(opponent)           # raises for a bad name
     _config.check_real("epsilon", epsilon, low=0.0, high=1.0)
     _check_agent_player(agent_player)
-    _config.check_common(seed, render_size, raise_on_physics_error, lazy_cameras)
-    _config.check_int("multisamples", multisamples, 0, 16)
-    _config.check_bool("shadows", shadows)
-    _config.check_camera("front_camera", front_camera)
-    _config.check_camera("front_camera_2", front_camera_2)
-    _config.check_bool("arm_reset", arm_reset)
-    _config.check_timing(time_limit if time_limit is not None else 60.0, control_timestep,
-                         physics_timestep)
+    _check_board_common(seed=seed, front_camera=front_camera, front_camera_2=front_camera_2,
+                        arm_reset=arm_reset,
+                        time_limit=time_limit if time_limit is not None else 60.0,
+                        control_timestep=control_timestep, physics_timestep=physics_timestep,
+                        piece_noise=piece_noise, render_size=render_size,
+                        multisamples=multisamples, shadows=shadows,
+                        raise_on_physics_error=raise_on_physics_error,
+                        lazy_cameras=lazy_cameras)
     _config.check_choice("registering", registering, ("arm", "fingers", "fingertips"))
     _config.check_real("half_move_timeout", half_move_timeout, low=0.0, low_open=True,
                        high=3600.0)
-    if piece_noise is not None:
-        _config.check_real("piece_noise", piece_noise, low=0.0, high=1.0)
     return board
 
 
