@@ -242,6 +242,9 @@ class BoardDescription:
         ``"column"`` or ``"move"``.
       agent_player: the agent's OpenSpiel player, 0, 1 or ``"random"``
         (drawn per episode; the ``agent_player`` observation says which).
+      allow_double_pass: False when the task ignores the agent's pass right
+        after its own pass until it plays a stone (MuJoGo, the original's
+        rule).
     """
 
     game: str
@@ -263,6 +266,7 @@ class BoardDescription:
     cols: int = 0
     input: str = "point"
     agent_player: int | str = 0
+    allow_double_pass: bool = True
 
     def point_position(self, action: int) -> np.ndarray:
         """World (x, y, z) of board point ``action`` on the board's top."""

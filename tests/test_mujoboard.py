@@ -342,3 +342,47 @@ def test_alpha_beta_breaks_ties_by_its_seed():
 def test_bad_bot_names_raise(spec, word):
     with pytest.raises(ValueError, match=word):
         make_bot(spec)
+
+
+# -- the agent and the task's pass rule ------------------------------------------
+
+class _AlwaysPass:
+    def plan(self, state):
+        from abstract_planners.base import Subgoal
+        action = state.get_game().num_distinct_actions() - 1
+        return Subgoal(action, state.child(action))
+
+
+def test_the_agent_plays_a_stone_where_the_task_would_ignore_its_second_pass():
+    import types
+
+    import pyspiel
+
+    from hier_agents.modular.families import adapter
+    state = pyspiel.load_game("go", {"board_size": 5, "komi": 5.5}).new_initial_state()
+    # Black (the agent) surrounds point 0 (an eye: 1 and 5 are black), passes;
+    # White plays elsewhere; Black's planner wants to pass again.
+    for action in (1, 24, 5, 23, 25, 22):
+        state.apply_action(action)
+    positions = tuple((c * 0.1, r * 0.1, 0.02) for r in range(5) for c in range(5))
+    rules = dict(game="go", board_size=5, komi=5.5, pass_action=25, board_centre=(0.2, 0.2),
+                 point_positions=positions)
+    refused = types.SimpleNamespace(**rules, allow_double_pass=False)
+    allowed = types.SimpleNamespace(**rules, allow_double_pass=True)
+    go = adapter("mujogo/7x7")
+    subgoal = go.next_subgoal(_AlwaysPass(), state, refused)
+    assert subgoal.action == 12                    # the centre, not the eye at 0 nor a pass
+    assert subgoal.info["replaced_pass"]
+    assert go.next_subgoal(_AlwaysPass(), state, allowed).action == 25
+    state.apply_action(2)
+    state.apply_action(21)          # the agent's last move is a stone: a pass is fine
+    assert go.next_subgoal(_AlwaysPass(), state, refused).action == 25
+
+
+def test_the_description_says_whether_a_second_pass_counts():
+    env = envs.load("mujogo/7x7", **NO_CAMERA)
+    assert env.description().allow_double_pass is False
+    env.close()
+    env = envs.load("mujogo/7x7", allow_double_pass=True, **NO_CAMERA)
+    assert env.description().allow_double_pass is True
+    env.close()

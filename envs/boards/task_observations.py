@@ -76,7 +76,8 @@ class ObservationsMixin:
             registering=self._registering, control_timestep=float(self.control_timestep),
             time_limit_steps=int(self.time_limit_steps), arm=arm_desc, front_camera=front,
             rows=game.rows, cols=game.cols, input=game.rules.input,
-            agent_player=self.agent_player)
+            agent_player=self.agent_player,
+            allow_double_pass=self._allow_double_pass or game.pass_action is None)
 
     # -- observations -------------------------------------------------------
 

@@ -231,7 +231,7 @@ class ModularAgent:
         else:
             with PROFILE.section("planner"):
                 if self._use_pushes:
-                    subgoal = adapter.next_subgoal(self.planner, state)
+                    subgoal = adapter.next_subgoal(self.planner, state, self.description)
                 else:
                     subgoal = self.planner.plan(state)
         self.episode_stats.issued += int(self._counted)

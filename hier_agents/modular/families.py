@@ -71,8 +71,9 @@ class FamilyAdapter:
         """True when nothing is left to plan (the agent holds still)."""
         return False
 
-    def next_subgoal(self, planner, state) -> Subgoal:
-        """The planner's next subgoal from ``state``."""
+    def next_subgoal(self, planner, state, description=None) -> Subgoal:
+        """The planner's next subgoal from ``state`` (``description``: the
+        task's public description, for rules the planner does not know)."""
         return planner.plan(state)
 
     # -- the semi-MDP environment ---------------------------------------------
@@ -131,7 +132,7 @@ class SokobanAdapter(FamilyAdapter):
     def idle(self, state) -> bool:
         return bool(state.is_solved())
 
-    def next_subgoal(self, planner, state) -> Subgoal:
+    def next_subgoal(self, planner, state, description=None) -> Subgoal:
         if hasattr(planner, "next_push"):
             return planner.next_push(state)
         return planner.plan(state)
@@ -166,6 +167,31 @@ class BoardAdapter(FamilyAdapter):
     def __init__(self, name: str) -> None:
         self.name = name
 
+    def next_subgoal(self, planner, state, description=None) -> Subgoal:
+        """The planner's move, unless the task would ignore it: a pass right
+        after the agent's own pass where ``description.allow_double_pass``
+        is False (MuJoGo, the original's rule). Then the legal point nearest
+        the board's centre (the easiest to reach) that does not fill one of
+        the agent's own eyes (a point whose neighbours are all the agent's
+        stones), or the legal point nearest the centre."""
+        subgoal = planner.plan(state)
+        pass_action = getattr(description, "pass_action", None)
+        if (pass_action is None or subgoal.action != pass_action
+                or getattr(description, "allow_double_pass", True)):
+            return subgoal
+        history = state.history()
+        if len(history) < 2 or history[-2] != pass_action:
+            return subgoal
+        centre = np.asarray(description.board_centre, float)
+        points = sorted((a for a in state.legal_actions() if a != pass_action),
+                        key=lambda a: float(np.linalg.norm(
+                            np.asarray(description.point_positions[a][:2]) - centre)))
+        if not points:
+            return subgoal
+        action = next((a for a in points if not _own_eye(state, a, description)), points[0])
+        info = dict(subgoal.info, replaced_pass=True)
+        return Subgoal(action, state.child(action), info=info)
+
     def spaces(self, description, state):
         game = state.get_game()
         shape = tuple(int(v) for v in game.observation_tensor_shape())
@@ -190,6 +216,20 @@ class BoardAdapter(FamilyAdapter):
         once the game is over)."""
         player = max(state.current_player(), 0) if not state.is_terminal() else 0
         return np.asarray(state.observation_tensor(player), np.float32).reshape(space.shape)
+
+
+def _own_eye(state, point: int, description) -> bool:
+    """Whether every orthogonal neighbour of ``point`` on the board of
+    ``description`` holds a stone of the player to move."""
+    from envs.boards.games import BoardGame
+    game = BoardGame(description.game, description.board_size, komi=description.komi)
+    players = game.players(state)
+    mover = state.current_player()
+    row, col = divmod(int(point), game.cols)
+    neighbours = [(r, c) for r, c in ((row - 1, col), (row + 1, col), (row, col - 1),
+                                      (row, col + 1))
+                  if 0 <= r < game.rows and 0 <= c < game.cols]
+    return all(players[r * game.cols + c] == mover for r, c in neighbours)
 
 
 #: family name -> adapter.
