@@ -31,6 +31,15 @@ loop would. The one difference: the opponent's reply and the arm reset
 happen after the control step's last substep instead of right after the
 registering substep.
 
+**Other games** (MuJoBoard, `envs.boards.games`): what a touch on a zone does
+comes from the game's `GameRules` (a point, a column, or a move game's
+piece-then-destination with a selection that times out after
+``half_move_timeout``); the same hardest-press rule picks the zone. After
+the agent's move the opponent plays until the agent must move again (a
+checkers jump sequence is several moves; forced passes are played by the
+referee), and with ``agent_player=1`` the opponent's first move is played
+at reset.
+
 **Arm reset.** At episode start and after every registered move (unless
 ``arm_reset=False``) the arm is put, as by dm_control's
 ``ToolCenterPointInitializer``, with its tool centre point (the hand's grip
