@@ -54,6 +54,11 @@ class MCTSPlanner(Planner):
       solve: let MCTS-Solver back up proven wins/losses.
       max_memory_mb: the bot's tree memory cap.
 
+    The move is searched once per position and episode: asking again about
+    the same game (the same history) before the next ``reset`` returns the
+    same move, as when the option layer re-plans a touch cut off at
+    ``T_abs``, so a physical agent finishes the move it started.
+
     Subgoal info: ``simulations``, ``visits`` (root visits of the chosen
     action), ``value`` (its mean rollout return for the mover, in [-1, 1]),
     ``ms``.
@@ -74,8 +79,10 @@ class MCTSPlanner(Planner):
             _check_int(seed, "seed", 0)
         self._seed_rng = np.random.default_rng(seed)
         self._bots: dict[str, tuple] = {}
+        self._chosen: dict[tuple, Subgoal] = {}
 
     def reset(self, seed: int | None = None) -> None:
+        self._chosen.clear()
         if seed is not None:
             _check_int(seed, "seed", 0)
             self._seed_rng = np.random.default_rng(seed)
@@ -93,6 +100,10 @@ class MCTSPlanner(Planner):
 
     def plan(self, state) -> Subgoal:
         check_decision_state(state, self.name)
+        key = (str(state.get_game()), tuple(state.history()))
+        chosen = self._chosen.get(key)
+        if chosen is not None:
+            return Subgoal(chosen.action, state.child(chosen.action), info=dict(chosen.info))
         bot = self._bot(state.get_game())
         start = time.perf_counter()
         root = bot.mcts_search(state)
@@ -108,10 +119,13 @@ class MCTSPlanner(Planner):
         }
         if self.solve and best.outcome:
             info["proven_returns"] = tuple(best.outcome)
-        return Subgoal(action, state.child(action), info=info)
+        subgoal = Subgoal(action, state.child(action), info=info)
+        self._chosen[key] = subgoal
+        return subgoal
 
     def close(self) -> None:
         self._bots.clear()
+        self._chosen.clear()
 
     def __repr__(self) -> str:
         return f"MCTSPlanner(simulations={self.simulations}, rollouts={self.rollouts}, uct_c={self.uct_c:g})"

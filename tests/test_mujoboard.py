@@ -386,3 +386,20 @@ def test_the_description_says_whether_a_second_pass_counts():
     env = envs.load("mujogo/7x7", allow_double_pass=True, **NO_CAMERA)
     assert env.description().allow_double_pass is True
     env.close()
+
+
+def test_mcts_keeps_its_move_for_a_position_until_reset():
+    """A re-plan of the same position (after an option was cut off) returns
+    the move the arm may already be pressing; a new episode searches again."""
+    import pyspiel
+
+    from abstract_planners.openspiel_bots import MCTSPlanner
+    state = pyspiel.load_game("breakthrough", {"rows": 6, "columns": 6}).new_initial_state()
+    planner = MCTSPlanner(8, seed=0)      # a small search: its picks vary with the seed stream
+    first = planner.plan(state).action
+    assert all(planner.plan(state.clone()).action == first for _ in range(20))
+    picks = set()
+    for _ in range(20):
+        planner.reset()
+        picks.add(planner.plan(state).action)
+    assert len(picks) > 1
