@@ -142,7 +142,7 @@ def assert_board_matches_openspiel(env, timestep):
     played = list(task.state.history())
     history = obs["move_history"]
     assert list(history[:len(played)]) == played and (history[len(played):] == -1).all()
-    assert int(obs["agent_player"]) == task.agent
+    assert int(obs["agent_player"][0]) == task.agent
 
 
 def _touch(env, point, **kwargs):
@@ -216,11 +216,11 @@ def test_a_move_game_plays_a_piece_then_its_destination(name):
     selected = lambda: task._selected == src  # noqa: E731
     timestep = _touch(env, src, until=selected)
     assert selected() and task.moves == ()
-    assert int(timestep.observation["selected_point"]) == src
+    assert int(timestep.observation["selected_point"][0]) == src
     assert env.physics.model.geom_group[task._selection_id] == 0       # the disc shows
     timestep = _touch(env, dst)
     assert task.moves[0] == action and task.moves_registered == 1
-    assert int(timestep.observation["selected_point"]) == -1
+    assert int(timestep.observation["selected_point"][0]) == -1
     assert env.physics.model.geom_group[task._selection_id] == arena_lib.HIDDEN_GROUP
     assert_board_matches_openspiel(env, timestep)
     env.close()
@@ -234,7 +234,7 @@ def test_a_half_move_times_out_and_its_destination_then_does_nothing():
     _touch(env, src, until=lambda: task._selected == src)
     for _ in range(int(1.0 / 0.05) + 1):
         timestep = env.step(hold_action(env))
-    assert task._selected == -1 and int(timestep.observation["selected_point"]) == -1
+    assert task._selected == -1 and int(timestep.observation["selected_point"][0]) == -1
     _touch(env, dst, steps=60)
     assert task.moves == () and task.moves_registered == 0
     env.close()
@@ -267,7 +267,7 @@ def test_as_second_player_the_agent_first_sees_the_opponents_move(name):
 
 def test_agent_player_random_draws_both_sides_and_rewards_the_agents_result():
     env = envs.load("mujoxo/optimal", seed=0, agent_player="random", **NO_CAMERA)
-    sides = {int(env.reset().observation["agent_player"]) for _ in range(8)}
+    sides = {int(env.reset().observation["agent_player"][0]) for _ in range(8)}
     assert sides == {0, 1}
     env.close()
     # As noughts (player 1): set up a position where one touch wins.

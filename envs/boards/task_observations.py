@@ -94,10 +94,10 @@ class ObservationsMixin:
             "move_history": specs.BoundedArray((self._max_moves,), np.int32, -1,
                                                self._spiel_game.num_distinct_actions() - 1,
                                                "move_history"),
-            "agent_player": specs.BoundedArray((), np.int32, 0, 1, "agent_player"),
+            "agent_player": specs.BoundedArray((1,), np.int32, 0, 1, "agent_player"),
         }
         if game.rules.input == "move":
-            spec["selected_point"] = specs.BoundedArray((), np.int32, -1, game.num_points - 1,
+            spec["selected_point"] = specs.BoundedArray((1,), np.int32, -1, game.num_points - 1,
                                                         "selected_point")
         return spec
 
@@ -111,10 +111,10 @@ class ObservationsMixin:
             "arm/pinch_site_rmat": d.site_xmat[self._pinch_site].copy(),
             "board_state": self._planes.copy(),
             "move_history": self._history.copy(),
-            "agent_player": np.array(self._agent, np.int32),
+            "agent_player": np.array([self._agent], np.int32),
         }
         if self.game.rules.input == "move":
-            obs["selected_point"] = np.array(self._selected, np.int32)
+            obs["selected_point"] = np.array([self._selected], np.int32)
         return obs
 
     # -- positions ---------------------------------------------------------
