@@ -28,7 +28,7 @@ from abstract_planners.epsilon_greedy import EpsilonGreedy
 from abstract_planners.go import GnuGoPlanner
 from abstract_planners.tictactoe import MinimaxPlanner
 from envs.boards.games import BoardGame
-from envs.boards.task import BoardTask
+from envs.boards.task import BoardTask, check_agent_player
 from envs import _config
 from envs.core import Environment
 from envs.registry import EnvEntry, register
@@ -39,11 +39,6 @@ def _check_epsilon(epsilon) -> float:
             or not 0.0 <= float(epsilon) <= 1.0):
         raise ValueError(f"epsilon must be a number in [0, 1], got {epsilon!r}")
     return float(epsilon)
-
-
-def _check_agent_player(agent_player) -> None:
-    if isinstance(agent_player, bool) or agent_player not in (0, 1, "random"):
-        raise ValueError(f"agent_player must be 0, 1 or 'random', got {agent_player!r}")
 
 
 def _check_level(level) -> int:
@@ -75,7 +70,7 @@ def check_mujoxo(*, epsilon: float = 0.25, agent_player=0, seed=None, front_came
                  lazy_cameras=False) -> None:
     """Checks `make_mujoxo`'s arguments without building anything (`envs._config`)."""
     _check_epsilon(epsilon)
-    _check_agent_player(agent_player)
+    check_agent_player(agent_player)
     _check_board_common(seed=seed, front_camera=front_camera, front_camera_2=front_camera_2,
                         arm_reset=arm_reset,
                         time_limit=time_limit, control_timestep=control_timestep,
@@ -98,7 +93,7 @@ def check_mujogo(*, board_size=7, level=10, epsilon=0.0, komi=5.5, agent_player=
     _config.check_int("board_size", board_size, 5, 19)
     _check_level(level)
     _check_epsilon(epsilon)
-    _check_agent_player(agent_player)
+    check_agent_player(agent_player)
     _config.check_real("komi", komi, low=-1000.0, high=1000.0)
     _check_board_common(seed=seed, front_camera=front_camera, front_camera_2=front_camera_2,
                         arm_reset=arm_reset,

@@ -28,9 +28,9 @@ import math
 from abstract_planners.epsilon_greedy import EpsilonGreedy
 from abstract_planners.openspiel_bots import make_bot
 from envs import _config
-from envs.boards import _check_agent_player, _check_board_common
+from envs.boards import _check_board_common
 from envs.boards.games import GAMES, BoardGame
-from envs.boards.task import BoardTask
+from envs.boards.task import BoardTask, check_agent_player
 from envs.boards.task_record import HALF_MOVE_TIMEOUT
 from envs.core import Environment
 from envs.registry import EnvEntry, register
@@ -63,7 +63,7 @@ def check_mujoboard(*, game, board_size=None, opponent="mcts:100", epsilon=0.0, 
     board = BoardGame(game, board_size if board_size is not None else _first_size(game))
     make_bot(opponent)           # raises for a bad name
     _config.check_real("epsilon", epsilon, low=0.0, high=1.0)
-    _check_agent_player(agent_player)
+    check_agent_player(agent_player)
     _check_board_common(seed=seed, front_camera=front_camera, front_camera_2=front_camera_2,
                         arm_reset=arm_reset,
                         time_limit=time_limit if time_limit is not None else 60.0,

@@ -72,6 +72,12 @@ from envs.core import PhysicsTask
 from envs.rendering import CameraConfig
 
 
+def check_agent_player(agent_player) -> None:
+    """Raises ValueError unless ``agent_player`` is 0, 1 or ``"random"``."""
+    if isinstance(agent_player, bool) or agent_player not in (0, 1, "random"):
+        raise ValueError(f"agent_player must be 0, 1 or 'random', got {agent_player!r}")
+
+
 class BoardTask(GameRecordMixin, ArmPoseMixin, ObservationsMixin, PhysicsTask):
     """A two-player board game against a planner, played with a Jaco arm.
 
@@ -127,8 +133,7 @@ class BoardTask(GameRecordMixin, ArmPoseMixin, ObservationsMixin, PhysicsTask):
                              f"got {registering!r}")
         if time_limit <= 0:
             raise ValueError(f"time_limit must be positive seconds, got {time_limit}")
-        if agent_player not in (0, 1, "random") or isinstance(agent_player, bool):
-            raise ValueError(f"agent_player must be 0, 1 or 'random', got {agent_player!r}")
+        check_agent_player(agent_player)
         if not half_move_timeout > 0:
             raise ValueError(f"half_move_timeout must be positive seconds, got "
                              f"{half_move_timeout!r}")

@@ -188,7 +188,10 @@ class BoardAdapter(FamilyAdapter):
                             np.asarray(description.point_positions[a][:2]) - centre)))
         if not points:
             return subgoal
-        action = next((a for a in points if not _own_eye(state, a, description)), points[0])
+        from envs.boards.games import BoardGame
+        game = BoardGame(description.game, description.board_size, komi=description.komi)
+        players, mover = game.players(state), state.current_player()
+        action = next((a for a in points if not _own_eye(game, players, mover, a)), points[0])
         info = dict(subgoal.info, replaced_pass=True)
         return Subgoal(action, state.child(action), info=info)
 
@@ -218,13 +221,9 @@ class BoardAdapter(FamilyAdapter):
         return np.asarray(state.observation_tensor(player), np.float32).reshape(space.shape)
 
 
-def _own_eye(state, point: int, description) -> bool:
-    """Whether every orthogonal neighbour of ``point`` on the board of
-    ``description`` holds a stone of the player to move."""
-    from envs.boards.games import BoardGame
-    game = BoardGame(description.game, description.board_size, komi=description.komi)
-    players = game.players(state)
-    mover = state.current_player()
+def _own_eye(game, players, mover: int, point: int) -> bool:
+    """Whether every orthogonal neighbour of ``point`` on ``game``'s board
+    holds a stone of ``mover`` (``players``: `BoardGame.players` of the state)."""
     row, col = divmod(int(point), game.cols)
     neighbours = [(r, c) for r, c in ((row - 1, col), (row + 1, col), (row, col - 1),
                                       (row, col + 1))
