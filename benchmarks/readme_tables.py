@@ -328,30 +328,23 @@ def option_policy(results: Path) -> list[str]:
     return lines
 
 
-@table("compare-agents")
-def compare_agents(results: Path) -> list[str]:
-    """The equal-budget comparison (`benchmarks/compare_agents.py`), one row per agent."""
-    data = _load(results / "compare" / "mujoban_level1.json")
-    lines = ["| agent | observes | training frames | solved [95% CI] | mean steps |",
-             "| --- | --- | --- | --- | --- |"]
-    for r in data["rows"]:
-        lines.append(f"| {r['label']} | {r['observations']} | {r['training_frames']:,} "
-                     f"| {_ci(r['success_rate'], r['success_interval'])} | {r['mean_steps']:.0f} |")
-    lines.append("")
-    lines.append("| series | first budget clearing random actions (new draw each step) "
-                 "| first budget clearing random actions held 10 steps |")
-    lines.append("| --- | --- | --- |")
-    for name, by_floor in data["clears_random_floor"].items():
-        cells = []
-        for floor in ("random:1", "random:10"):
-            found = by_floor.get(floor)
-            if found is None:
-                cells.append("-")
-            elif found["first_frames"] is None:
-                cells.append(f"not within {found['largest_frames_tried']:,} frames")
-            else:
-                cells.append(f"{found['first_frames']:,} frames")
-        lines.append(f"| {name} | {cells[0]} | {cells[1]} |")
+@table("compare-mujoban")
+def compare_mujoban(results: Path) -> list[str]:
+    """The shipped comparison (``python -m hier_agents.compare experiments/mujoban.toml``):
+    one row per environment and point, then each series' CPU hours."""
+    from hier_agents.compare import report
+    data = _load(results / "compare" / "mujoban" / "comparison.json")
+    if data["jobs_missing"]:
+        raise ValueError(f"comparison.json: {data['jobs_missing']} jobs missing")
+    lines = report.format_markdown(data["spec"]["envs"], data["points"], data["series_cost"])
+    lines += ["", "| series | environment | training CPU-h | evaluation CPU-h | jobs |",
+              "| --- | --- | --- | --- | --- |"]
+    for c in data["series_cost"]:
+        train, evals = (f"{'>=' if c[f'cpu_partial_{kind}_jobs'] else ''}"
+                        f"{c[f'{kind}_cpu_hours']:.2f}" for kind in ("train", "eval"))
+        lines.append(f"| {c['agent']} | `{c['env']}` | {train if c['train_jobs'] else '-'} "
+                     f"| {evals} "
+                     f"| {c['train_jobs']} training, {c['eval_jobs']} evaluation |")
     return lines
 
 

@@ -295,7 +295,7 @@ def training_frames(agent) -> int:
 
     The sum of the parts' ``training_frames`` (a learned skill's, a learned
     planner's); 0 for scripted parts. Frames, not wall time: what
-    `benchmarks/compare_agents.py` puts beside the end-to-end agents' frames.
+    `hier_agents.compare` puts beside the end-to-end agents' frames.
     """
     if agent is None:
         return 0

@@ -318,7 +318,21 @@ def test_a_training_costs_its_own_cpu_count_over_every_attempt(tmp_path):
     records[seed1.key] = jobs_mod.load_record(spec.cache, seed1.key)
     cost, = report.series_cost(spec, planned, records)
     assert cost["train_cpu_hours"] == pytest.approx(3.0) and cost["cpu_partial_jobs"] == 1
-    assert ">=3.00" in report.format_table(spec, report.points(spec, planned, records), [cost])
+    assert (cost["cpu_partial_train_jobs"], cost["cpu_partial_eval_jobs"]) == (1, 0)
+    pts = report.points(spec, planned, records)
+    assert ">=3.00" in report.format_table(spec, pts, [cost])
+    markdown = report.format_markdown(spec.envs, pts, [cost])
+    assert len(markdown) == 2 + len(pts) and all(">=3.00" in line for line in markdown[2:])
+    # A retried evaluation makes the evaluation CPU a lower bound, not the training's.
+    seed1_eval = next(j for j in planned if j.kind == "eval" and j.inputs["seed"] == 1)
+    jobs_mod.store_record(spec.cache, {**jobs_mod.load_record(spec.cache, seed1_eval.key),
+                                       "attempts": 2})
+    jobs_mod.store_record(spec.cache, {**seed1.to_json(), "cpu_s": 3600.0, "attempts": 1,
+                                       "result": {"counters": {}}})
+    records = {j.key: jobs_mod.load_record(spec.cache, j.key) for j in planned}
+    cost, = report.series_cost(spec, planned, records)
+    assert (cost["cpu_partial_train_jobs"], cost["cpu_partial_eval_jobs"]) == (0, 1)
+    assert ">=" not in report.format_table(spec, pts, [cost])
 
 
 def test_failed_jobs_are_retried_then_reported_and_their_dependents_skipped(tmp_path,

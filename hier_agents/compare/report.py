@@ -102,7 +102,8 @@ def series_cost(spec, jobs, records) -> list[dict]:
     """Per agent and environment: CPU hours of training (all seeds, all
     budgets: one run per seed) and of evaluation, the jobs counted, and
     ``cpu_partial_jobs``: jobs retried whose CPU covers only their last
-    attempt (a lower bound; see the module docstring)."""
+    attempt (a lower bound; see the module docstring), also split by kind
+    (``cpu_partial_train_jobs``, ``cpu_partial_eval_jobs``)."""
     out = {}
     for job in jobs:
         record = records.get(job.key)
@@ -111,13 +112,16 @@ def series_cost(spec, jobs, records) -> list[dict]:
         key = (job.point["agent"], job.point["env"])
         entry = out.setdefault(key, {"agent": key[0], "env": key[1], "train_cpu_hours": 0.0,
                                      "eval_cpu_hours": 0.0, "train_jobs": 0, "eval_jobs": 0,
-                                     "cpu_partial_jobs": 0})
+                                     "cpu_partial_jobs": 0, "cpu_partial_train_jobs": 0,
+                                     "cpu_partial_eval_jobs": 0})
         counters = (record.get("result") or {}).get("counters") or {}
         if "cpu_s" in counters:           # the training's own count, every attempt
             seconds = float(counters["cpu_s"])
         else:
             seconds = float(record.get("cpu_s", 0.0))
-            entry["cpu_partial_jobs"] += int(record.get("attempts", 1)) > 1
+            partial = int(record.get("attempts", 1)) > 1
+            entry["cpu_partial_jobs"] += partial
+            entry[f"cpu_partial_{job.kind}_jobs"] += partial
         entry[f"{job.kind}_cpu_hours"] += seconds / 3600
         entry[f"{job.kind}_jobs"] += 1
     return list(out.values())
@@ -131,6 +135,19 @@ def code_versions(records) -> dict:
         commit = (record.get("provenance") or {}).get("commit") or "unknown"
         counts[commit] = counts.get(commit, 0) + 1
     return dict(sorted(counts.items(), key=lambda kv: (-kv[1], kv[0])))
+
+
+def _cells(p: dict, cost: dict, stat: str) -> dict:
+    """One point's table cells: success with its interval over seeds, per-seed
+    values, and its series' training CPU hours (``>=`` where some attempts'
+    CPU was not counted; ``-`` for agents without training)."""
+    lo, hi = p[f"{stat}_interval"]
+    c = cost.get((p["agent"], p["env"]), {})
+    at_least = ">=" if c.get("cpu_partial_train_jobs") else ""
+    return {"value": f"{100 * p[stat]:.1f}", "interval": f"[{100 * lo:.1f}, {100 * hi:.1f}]",
+            "per_seed": " ".join(f"{100 * v:.0f}" for v in p["per_seed"]),
+            "train_h": (f"{at_least}{c.get('train_cpu_hours', 0.0):.2f}"
+                        if p["kind"] == "train" else "-")}
 
 
 def format_table(spec, pts: list[dict], costs: list[dict], *, use_iqm: bool = False) -> str:
@@ -151,18 +168,30 @@ def format_table(spec, pts: list[dict], costs: list[dict], *, use_iqm: bool = Fa
         lines.append(head)
         lines.append("  " + "-" * (len(head) - 2))
         for p in rows:
-            lo, hi = p[f"{stat}_interval"]
-            per = " ".join(f"{100 * v:.0f}" for v in p["per_seed"])
-            c = cost.get((p["agent"], p["env"]), {})
-            train_h = c.get("train_cpu_hours", 0.0)
-            at_least = ">=" if c.get("cpu_partial_jobs") else ""
+            c = _cells(p, cost, stat)
             lines.append(f"  {p['agent']:<{width}} {p['training_frames']:>13,} "
-                         f"{100 * p[stat]:>7.1f} [{100 * lo:5.1f},{100 * hi:5.1f}] "
-                         f"{len(p['seeds']):>5}  {per:<22} "
-                         f"{(f'{at_least}{train_h:.2f}' if p['kind'] == 'train' else '-'):>11}  "
-                         f"{p['observations']}")
+                         f"{c['value']:>7} {c['interval']:>14} {len(p['seeds']):>5}  "
+                         f"{c['per_seed']:<22} {c['train_h']:>11}  {p['observations']}")
         lines.append("")
     return "\n".join(lines).rstrip()
+
+
+def format_markdown(envs, pts: list[dict], costs: list[dict], *,
+                    use_iqm: bool = False) -> list[str]:
+    """The comparison as Markdown lines (the README's table): one row per
+    environment and point, in ``envs`` order, with `format_table`'s cells."""
+    stat = "iqm" if use_iqm else "mean"
+    cost = {(c["agent"], c["env"]): c for c in costs}
+    lines = [f"| environment | agent | training frames | success, {stat} over seeds [95% CI] "
+             f"| per seed | mean steps | training CPU-h (all seeds) | observes |",
+             "| --- | --- | --- | --- | --- | --- | --- | --- |"]
+    for env in envs:
+        for p in (p for p in pts if p["env"] == env):
+            c = _cells(p, cost, stat)
+            lines.append(f"| `{env}` | {p['agent']} | {p['training_frames']:,} "
+                         f"| {c['value']}% {c['interval']} | {c['per_seed']} "
+                         f"| {p['mean_steps']:.0f} | {c['train_h']} | {p['observations']} |")
+    return lines
 
 
 def plot(spec, pts: list[dict], path: Path, *, use_iqm: bool = False) -> None:

@@ -46,8 +46,8 @@ Observations (``obs``, a dict of fresh numpy arrays):
   current abstract state at every step (MuJoBan: the entity planes of
   ``full_entity_layer``, C = 4, **privileged**: the simulator's rounded cells,
   as the entity-layer estimator reads them; board games: ``board_state``,
-  C = 3). With ``cameras=False`` this is the "state" observation setting of
-  `benchmarks/compare_agents.py`: the agent sees the grid (or board) and its
+  C = 3). With ``cameras=False`` this is the comparison's "state" setting
+  (``experiments/mujoban.toml``): the agent sees the grid (or board) and its
   proprioception, no images.
 
 Actions: ``step`` clips the policy's action to [-1, 1] and maps it affinely
