@@ -34,6 +34,9 @@ def _right(env, scene) -> bool:
 
 def test_the_camera_estimator_needs_no_record_and_asks_for_its_camera():
     assert not reads_record("mujoboard", "camera") and reads_record("mujoboard", "board")
+    for bad in (0, 1.5, True):
+        with pytest.raises(ValueError, match="frame_every"):
+            BoardCameraEstimator(frame_every=bad)
     overrides = env_overrides("mujoboard/hex-7x7", "camera")
     assert overrides[CAMERA] == (128, 128) and overrides["front_camera"] is None
     env, view = _env("mujoboard/hex-7x7")
@@ -95,7 +98,7 @@ def test_touched_moves_and_replies_are_found_among_the_continuations(name):
     env, view = _env(name, opponent="random")
     task = env.task
     timestep = view.reset()
-    estimator = BoardCameraEstimator()
+    estimator = BoardCameraEstimator(frame_every=1)   # called once a turn here: read each time
     estimator.reset(view.description(), timestep)
     for turn in range(3):
         if task.state.is_terminal():

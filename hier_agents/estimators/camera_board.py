@@ -38,14 +38,21 @@ How it keeps the game (`estimate`): the OpenSpiel state of the last
 deciding it) is extended by the legal continuations: the player to move,
 then the other, until the agent is to move again (a forced pass played as
 the referee plays it, a checkers jump sequence as several moves). Each
-continuation is scored by the read cells it contradicts; the best (fewest
-contradictions, then fewest changed cells it cannot see, then fewest moves)
-becomes the estimate, and the anchor when it contradicts nothing and every
-cell it changed was seen. The search keeps `BEAM` states per move and looks
+continuation is scored, and the best becomes the estimate: fewest cells
+read surely that it contradicts, then the smallest distance between the
+visible cells' colour shares and its pieces (an unsure cell still counts
+a little), then fewest changed cells not read surely, then fewest moves.
+It becomes the anchor when it contradicts no cell read surely and every
+cell it changed was read surely. The search keeps `BEAM` states per move and looks
 at most `MAX_MOVES` moves ahead; a frame that the current estimate already
 explains costs no search. When an episode ends with the game (a terminal
 timestep, discount 0), a finished game is preferred: the winning piece may
 still be under the hand.
+
+Frame schedule: a frame is read every `FRAME_EVERY` steps, and at once when
+the arm's joints jump (the arm reset after a registered move), while the
+estimate is not confirmed, and at the episode's last step; in between the
+last estimate is returned with the new joints.
 
 Its camera (``env_overrides``): ``front_camera_2`` at `FRAME_SHAPE`, the
 other camera off, rendered only when read (``lazy_cameras=True``).
@@ -91,6 +98,12 @@ RING = (0.8, 0.9)
 #: a selection; the arm can hide the disc but never shows its colour, so a
 #: partly hidden ring still counts.
 SELECTED = 0.15
+#: Frame schedule: a frame is read every `FRAME_EVERY` steps, and at once
+#: when a joint moved more than `ARM_JUMP` (rad) in a step (the arm reset
+#: that follows a registered move), while the estimate is unconfirmed, and
+#: at an episode's last step.
+FRAME_EVERY = 3
+ARM_JUMP = 0.3
 #: Search: states kept per move, and moves looked ahead of the anchor.
 BEAM = 8
 MAX_MOVES = 8
@@ -252,7 +265,7 @@ class BoardView:
         return img[self.index]
 
     def read(self, frame, qpos, background):
-        """(cells, hidden, selection) of one frame.
+        """(cells, hidden, selection, fractions) of one frame.
 
         ``background`` (n, k, 3): each patch sample's colour on the empty
         board (a selected cell's is the selection disc). A sample shows
@@ -263,7 +276,8 @@ class BoardView:
         Returns ``cells`` (n,) int8: 0 or 1 (a player's piece), -1 (empty)
         or `UNSEEN` (hidden or unsure); ``hidden`` (n,) bool: under the arm;
         ``selection`` (n,) float: the fraction of each cell's ring showing
-        the selection disc's colour.
+        the selection disc's colour; ``fractions`` (n, 2): the fraction of
+        each patch showing each player's piece.
         """
         px = self.samples(frame)
         img = np.asarray(frame, float).reshape(-1, 3)
@@ -285,7 +299,7 @@ class BoardView:
         cells[f0 + f1 <= EMPTY] = EMPTY_CELL
         hidden = self.silhouette.hidden(qpos, self.centres, self.radius)
         cells[hidden] = UNSEEN
-        return cells, hidden, selection
+        return cells, hidden, selection, np.stack([f0, f1], axis=1)
 
 
 class BoardCameraEstimator(Estimator):
@@ -297,7 +311,10 @@ class BoardCameraEstimator(Estimator):
     #: Its camera (see the module docstring).
     env_overrides = {"front_camera": None, CAMERA: FRAME_SHAPE, "lazy_cameras": True}
 
-    def __init__(self) -> None:
+    def __init__(self, frame_every: int = FRAME_EVERY) -> None:
+        if not isinstance(frame_every, int) or isinstance(frame_every, bool) or frame_every < 1:
+            raise ValueError(f"frame_every must be an integer >= 1, got {frame_every!r}")
+        self.frame_every = frame_every
         self._views = {}
         self._view = None
         self.searches = 0
@@ -316,6 +333,7 @@ class BoardCameraEstimator(Estimator):
         self._belief = self._anchor.clone()
         self._selected = -1
         self._cache = {}
+        self._since, self._qpos = self.frame_every, None      # the first estimate reads
         # The empty board's colours, per patch sample: learnt from the first
         # frame (the cells empty in the game's initial position, unless their
         # colour is far from their parity's median: a piece the opponent has
@@ -335,8 +353,8 @@ class BoardCameraEstimator(Estimator):
         if self._view is None:
             raise RuntimeError("BoardCameraEstimator.read called before reset")
         obs = timestep.observation
-        cells, hidden, _ = self._view.read(obs[CAMERA], obs["arm/joints_pos"],
-                                           self._filled_background())
+        cells, hidden, _, _ = self._view.read(obs[CAMERA], obs["arm/joints_pos"],
+                                              self._filled_background())
         return cells, hidden
 
     def _learn(self, state, samples, visible, check: bool = False) -> None:
@@ -400,8 +418,16 @@ class BoardCameraEstimator(Estimator):
             raise RuntimeError("BoardCameraEstimator.estimate called before reset")
         obs = timestep.observation
         qpos = np.array(obs["arm/joints_pos"], float)
-        cells, hidden, selection = self._view.read(obs[CAMERA], qpos,
-                                                   self._filled_background())
+        self._since += 1
+        jumped = self._qpos is not None and np.abs(qpos - self._qpos).max() > ARM_JUMP
+        self._qpos = qpos
+        if (self._since < self.frame_every and not jumped and not timestep.last()
+                and self._belief.history() == self._anchor.history()
+                and self._settled(self._belief)):
+            return self._scene(qpos, obs)          # between frames: as last read
+        self._since = 0
+        cells, hidden, selection, fractions = self._view.read(obs[CAMERA], qpos,
+                                                              self._filled_background())
         seen = cells != UNSEEN
         game = self._game
         players = game.players(self._belief)
@@ -409,7 +435,8 @@ class BoardCameraEstimator(Estimator):
         over = timestep.last() and float(timestep.discount or 0.0) == 0.0
         if (np.any(players[seen] != cells[seen]) or not self._settled(self._belief)
                 or (over and not self._belief.is_terminal())):
-            self._belief, confirmed = self._search(cells, over)
+            self._belief, confirmed = self._search(cells, np.where(hidden[:, None], np.nan,
+                                                                   fractions), over)
             if confirmed:
                 self._anchor = self._belief.clone()
         elif self._belief.history() != self._anchor.history():
@@ -420,6 +447,9 @@ class BoardCameraEstimator(Estimator):
                 self._background[:, 0, 0]).any():
             self._learn(self._anchor, self._view.samples(obs[CAMERA]), seen)
         self._selected = self._selection(selection, hidden)
+        return self._scene(qpos, obs)
+
+    def _scene(self, qpos, obs) -> ArmScene:
         state = self._belief.clone()
         return ArmScene(state=state, moves=tuple(int(a) for a in state.history()),
                         qpos=qpos, qvel=np.array(obs["arm/joints_vel"], float),
@@ -435,12 +465,15 @@ class BoardCameraEstimator(Estimator):
             return self._selected                  # under the arm: as last seen
         return -1
 
-    def _search(self, cells, over: bool = False):
+    def _search(self, cells, fractions, over: bool = False):
         """(state, confirmed): the best-explaining continuation of the anchor
-        and whether it becomes the anchor (see the module docstring); with
-        ``over`` (the episode ended with the game) only a finished game is
-        accepted, if one is found."""
-        key = (tuple(self._anchor.history()), cells.tobytes(), over)
+        and whether it becomes the anchor (see the module docstring).
+        ``fractions`` (n, 2): each visible cell's share of each piece colour
+        (NaN under the arm); with ``over`` (the episode ended with the game)
+        only a finished game is accepted, if one is found."""
+        visible = ~np.isnan(fractions[:, 0])
+        key = (tuple(self._anchor.history()), cells.tobytes(),
+               np.round(np.nan_to_num(fractions, nan=-1.0) * 20).astype(np.int8).tobytes(), over)
         if key in self._cache:
             state, confirmed = self._cache[key]
             return state.clone(), confirmed
@@ -448,12 +481,21 @@ class BoardCameraEstimator(Estimator):
         game = self._game
         seen = cells != UNSEEN
         base = game.players(self._anchor)
+        shares = fractions[visible]
 
         def score(state):
+            """(not finished though the game is over, cells read surely and
+            contradicted, how far the visible cells' colour shares are from
+            the state's pieces, changed cells not read surely)."""
             players = game.players(state)
             wrong = int(np.count_nonzero(players[seen] != cells[seen]))
+            pieces = np.stack([players[visible] == 0, players[visible] == 1], axis=1)
+            soft = round(float(np.abs(shares - pieces).sum()), 3)
             blind = int(np.count_nonzero((players != base) & ~seen))
-            return (over and not state.is_terminal()), wrong, blind
+            return (over and not state.is_terminal()), wrong, soft, blind
+
+        def confirmed(s):
+            return not s[0] and s[1] == 0 and s[3] == 0
 
         start = self._anchor.clone()
         best = (score(start), 0, start) if self._settled(start) else None
@@ -473,7 +515,7 @@ class BoardCameraEstimator(Estimator):
             for s, child in children:
                 if self._settled(child) and (best is None or (s, depth) < (best[0], best[1])):
                     best = (s, depth, child)
-            if best is not None and best[0] == (False, 0, 0):
+            if best is not None and confirmed(best[0]):
                 break
             frontier, boards = [], set()
             for s, child in children:
@@ -487,7 +529,7 @@ class BoardCameraEstimator(Estimator):
         if best is None:
             result = (self._belief.clone(), False)
         else:
-            result = (best[2], best[0] == (False, 0, 0))
+            result = (best[2], confirmed(best[0]))
         if len(self._cache) > 256:
             self._cache.clear()
         self._cache[key] = (result[0].clone(), result[1])
