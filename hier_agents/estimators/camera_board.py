@@ -43,7 +43,9 @@ read surely that it contradicts, then the smallest distance between the
 visible cells' colour shares and its pieces (an unsure cell still counts
 a little), then fewest changed cells not read surely, then fewest moves.
 It becomes the anchor when it contradicts no cell read surely and every
-cell it changed was read surely. The search keeps `BEAM` states per move and looks
+cell it changed was read surely. When the last anchor's continuations
+contradict a cell read surely (a move taken for a pass, or for another
+under the arm), the `BACKTRACK` anchors before it are tried. The search keeps `BEAM` states per move and looks
 at most `MAX_MOVES` moves ahead; a frame that the current estimate already
 explains costs no search. When an episode ends with the game (a terminal
 timestep, discount 0), a finished game is preferred: the winning piece may
@@ -104,9 +106,11 @@ SELECTED = 0.15
 #: at an episode's last step.
 FRAME_EVERY = 3
 ARM_JUMP = 0.3
-#: Search: states kept per move, and moves looked ahead of the anchor.
+#: Search: states kept per move, moves looked ahead of an anchor, and
+#: anchors tried back from the last.
 BEAM = 8
 MAX_MOVES = 8
+BACKTRACK = 3
 
 UNSEEN = -2     # a cell not read this frame (hidden or unsure)
 EMPTY_CELL = -1
@@ -328,9 +332,10 @@ class BoardCameraEstimator(Estimator):
         self._view = self._views[key]
         self._game, self._spiel = game, game.load()
         self._agent = _scalar(timestep.observation, "agent_player", 0)
-        self._anchor = self._spiel.new_initial_state()
-        self._settle(self._anchor)
-        self._belief = self._anchor.clone()
+        initial = self._spiel.new_initial_state()
+        self._settle(initial)
+        self._anchors = [initial]
+        self._belief = initial.clone()
         self._selected = -1
         self._cache = {}
         self._since, self._qpos = self.frame_every, None      # the first estimate reads
@@ -435,17 +440,15 @@ class BoardCameraEstimator(Estimator):
         over = timestep.last() and float(timestep.discount or 0.0) == 0.0
         if (np.any(players[seen] != cells[seen]) or not self._settled(self._belief)
                 or (over and not self._belief.is_terminal())):
-            self._belief, confirmed = self._search(cells, np.where(hidden[:, None], np.nan,
-                                                                   fractions), over)
-            if confirmed:
-                self._anchor = self._belief.clone()
+            self._belief = self._explain(cells, np.where(hidden[:, None], np.nan, fractions),
+                                         over)
         elif self._belief.history() != self._anchor.history():
             changed = game.players(self._anchor) != players
             if not np.any(changed & ~seen):
-                self._anchor = self._belief.clone()
+                self._anchors.append(self._belief.clone())
         if self._belief.history() == self._anchor.history() and np.isnan(
                 self._background[:, 0, 0]).any():
-            self._learn(self._anchor, self._view.samples(obs[CAMERA]), seen)
+            self._learn(self._anchor, self._view.samples(obs[CAMERA]), cells == EMPTY_CELL)
         self._selected = self._selection(selection, hidden)
         return self._scene(qpos, obs)
 
@@ -465,22 +468,46 @@ class BoardCameraEstimator(Estimator):
             return self._selected                  # under the arm: as last seen
         return -1
 
-    def _search(self, cells, fractions, over: bool = False):
-        """(state, confirmed): the best-explaining continuation of the anchor
-        and whether it becomes the anchor (see the module docstring).
+    @property
+    def _anchor(self):
+        return self._anchors[-1]
+
+    def _explain(self, cells, fractions, over: bool):
+        """The state that best explains a frame: the best continuation of the
+        last anchor, or, when that contradicts a cell read surely, of one of
+        the `BACKTRACK` anchors before it (a move first taken for a pass, or
+        for another under the arm); later anchors are then dropped. A
+        confirmed state becomes the last anchor."""
+        tried = []
+        for back in range(min(BACKTRACK, len(self._anchors))):
+            anchor = self._anchors[-1 - back]
+            state, score = self._search(anchor, cells, fractions, over)
+            tried.append((score, back, state))
+            if not score[0] and score[1] == 0:
+                break
+        score, back, state = min(tried, key=lambda t: (t[0], t[1]))
+        if back:
+            del self._anchors[len(self._anchors) - back:]
+        if not score[0] and score[1] == 0 and score[3] == 0:
+            self._anchors.append(state.clone())
+        return state
+
+    def _search(self, anchor, cells, fractions, over: bool = False):
+        """(state, score): the best-explaining continuation of ``anchor`` and
+        its score (see the module docstring).
         ``fractions`` (n, 2): each visible cell's share of each piece colour
         (NaN under the arm); with ``over`` (the episode ended with the game)
         only a finished game is accepted, if one is found."""
         visible = ~np.isnan(fractions[:, 0])
-        key = (tuple(self._anchor.history()), cells.tobytes(),
+        key = (tuple(anchor.history()), cells.tobytes(),
                np.round(np.nan_to_num(fractions, nan=-1.0) * 20).astype(np.int8).tobytes(), over)
         if key in self._cache:
-            state, confirmed = self._cache[key]
-            return state.clone(), confirmed
+            state, score = self._cache[key]
+            return state.clone(), score
         self.searches += 1
         game = self._game
         seen = cells != UNSEEN
-        base = game.players(self._anchor)
+        base = game.players(anchor)
         shares = fractions[visible]
 
         def score(state):
@@ -497,7 +524,7 @@ class BoardCameraEstimator(Estimator):
         def confirmed(s):
             return not s[0] and s[1] == 0 and s[3] == 0
 
-        start = self._anchor.clone()
+        start = anchor.clone()
         best = (score(start), 0, start) if self._settled(start) else None
         frontier = [start]
         for depth in range(1, MAX_MOVES + 1):
@@ -526,10 +553,10 @@ class BoardCameraEstimator(Estimator):
                 frontier.append(child)
                 if len(frontier) >= BEAM:
                     break
-        if best is None:
-            result = (self._belief.clone(), False)
+        if best is None:      # nothing settled within reach: keep the estimate, unconfirmed
+            result = (self._belief.clone(), (True, len(cells), 0.0, len(cells)))
         else:
-            result = (best[2], confirmed(best[0]))
+            result = (best[2], best[0])
         if len(self._cache) > 256:
             self._cache.clear()
         self._cache[key] = (result[0].clone(), result[1])
