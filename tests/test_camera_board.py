@@ -143,3 +143,55 @@ def test_the_last_move_under_the_hand_is_found_when_the_game_ends():
     scene = estimator.estimate(timestep)
     assert scene.state.is_terminal() and _right(env, scene)
     env.close()
+
+
+def test_a_stone_first_taken_for_a_pass_is_found_when_seen(request):
+    """Go: the agent's stone under the hand and the opponent's reply in view
+    are first explained as the agent's pass and the reply (nothing contradicts
+    it); once the stone shows, the estimate has it."""
+    request.getfixturevalue("gnugo")
+    env, view = _env("mujogo/7x7")
+    timestep = view.reset()
+    estimator = BoardCameraEstimator()
+    estimator.reset(view.description(), timestep)
+    game = BoardGame.from_description(view.description())
+    n = game.num_points
+    mine, reply = 24, 25
+    truth = np.full(n, -1, np.int8)
+    truth[[mine, reply]] = [0, 1]
+    shares = np.stack([truth == 0, truth == 1], axis=1).astype(float)
+    hidden = np.zeros(n, bool)
+    hidden[mine] = True
+    cells = np.where(hidden, UNSEEN, truth).astype(np.int8)
+    first = estimator._explain(cells, np.where(hidden[:, None], np.nan, shares), over=False)
+    assert first.history() == [game.pass_action, reply]       # nothing contradicts it
+    second = estimator._explain(truth.copy(), shares, over=False)
+    # The stone in view: the board and the player to move are the game's again
+    # (the history may keep the pass, the opponent's pass answering the stone).
+    np.testing.assert_array_equal(game.players(second), truth)
+    assert second.current_player() == 0
+    env.close()
+
+
+def test_a_frame_the_last_anchor_cannot_explain_is_explained_from_an_earlier_one():
+    """Hex: a reply first read at B (confirmed), then seen at C with B empty:
+    no continuation of the first explanation fits, the one before it does."""
+    env, view = _env("mujoboard/hex-7x7", opponent="random")
+    timestep = view.reset()
+    estimator = BoardCameraEstimator()
+    estimator.reset(view.description(), timestep)
+    game = BoardGame.from_description(view.description())
+
+    def frame(pieces):
+        board = np.full(game.num_points, -1, np.int8)
+        for point, player in pieces.items():
+            board[point] = player
+        return board, np.stack([board == 0, board == 1], axis=1).astype(float)
+
+    mine, first_reply, true_reply = 24, 25, 31
+    cells, shares = frame({mine: 0, first_reply: 1})
+    assert estimator._explain(cells, shares, over=False).history() == [mine, first_reply]
+    cells, shares = frame({mine: 0, true_reply: 1})
+    assert estimator._explain(cells, shares, over=False).history() == [mine, true_reply]
+    assert [a.history() for a in estimator._anchors] == [[], [mine, true_reply]]
+    env.close()

@@ -15,8 +15,9 @@ How it reads a frame (`BoardView`):
 * **Cells.** Each point's patch is a disc of `PATCH` half-spacings around
   the point, projected into the frame with the described camera.
 * **The arm.** The arm's own model is posed at the observed joints; each of
-  its geoms' convex hulls is projected, and a cell whose patch comes within
-  `ARM_MARGIN` pixels of one is hidden: not read this frame.
+  its geoms' convex hulls is projected, and the patch samples within
+  `ARM_MARGIN` pixels of one are not read; a cell with less than
+  `MIN_VISIBLE` of its samples left is hidden this frame.
 * **The empty board.** Each patch sample's colour on the empty board is
   learnt from the first frame (the cells empty in the game's initial
   position; when the opponent has moved first, less any that stand out
@@ -56,6 +57,13 @@ the arm's joints jump (the arm reset after a registered move), while the
 estimate is not confirmed, and at the episode's last step; in between the
 last estimate is returned with the new joints.
 
+The arm reset tells more: a move was registered, by the touch under the
+pinch site just before the jump (the arm's own model at the previous
+joints). The next search then ranks continuations that start with the
+move that touch plays (`envs.boards.games.BoardGame.zone_effects`) above
+the others, right after the cells they contradict: the agent's own piece
+is often still hidden by the arm.
+
 Its camera (``env_overrides``): ``front_camera_2`` at `FRAME_SHAPE`, the
 other camera off, rendered only when read (``lazy_cameras=True``).
 """
@@ -78,8 +86,10 @@ FRAME_SHAPE = (128, 128)
 PATCH = 0.8
 #: Height (m) above the board's top at which patches are projected (a piece's top half).
 PATCH_HEIGHT = 0.005
-#: Pixels: how near a cell's patch may come to the arm's outline and still be read.
+#: Pixels: how near a patch sample may come to the arm's outline and still be
+#: read; a cell with less than `MIN_VISIBLE` of its samples read is hidden.
 ARM_MARGIN = 1.5
+MIN_VISIBLE = 0.6
 #: RGB distance (0-255) within which a pixel has a piece's colour.
 PIECE_RADIUS = 110.0
 #: RGB distance within which a pixel has the selection disc's colour.
@@ -139,6 +149,7 @@ class ArmSilhouette:
         self._hull2d = ConvexHull
         self.model = arm.model()
         self.data = mujoco.MjData(self.model)
+        self._pinch = self.model.site(arm.pinch_site).id
         self.camera, self.shape = camera, tuple(shape)
         m = self.model
         self._geoms, self._local = [], []
@@ -177,6 +188,21 @@ class ArmSilhouette:
                                    np.c_[np.zeros(16), r * ring]])
         return None
 
+    def touched_zone(self, qpos, zones) -> int | None:
+        """The zone under the pinch site with the arm at ``qpos``: the index
+        of the first of ``zones`` ((centre x, y), (half x, y)) holding its
+        (x, y), else the nearest zone centre within 1.5 half-sizes, else None."""
+        d = self.data
+        d.qpos[:] = np.asarray(qpos, float)
+        self._mujoco.mj_kinematics(self.model, d)
+        xy = d.site_xpos[self._pinch][:2]
+        for i, (centre, half) in enumerate(zones):
+            if np.all(np.abs(xy - centre) <= half):
+                return i
+        dist = [np.max(np.abs(xy - c) / h) for c, h in zones]
+        best = int(np.argmin(dist))
+        return best if dist[best] <= 1.5 else None
+
     def outlines(self, qpos) -> list[np.ndarray]:
         """Per geom, its projected outline: (k, 2) pixel (row, col) vertices of
         a convex polygon, counter-clockwise in (col, row)."""
@@ -199,16 +225,22 @@ class ArmSilhouette:
         ``radius`` (n,) pixels) an outline covers or comes within their
         radius of (a convex polygon's largest signed edge distance)."""
         centres = np.asarray(centres, float)
+        radius = np.broadcast_to(np.asarray(radius, float), (len(centres),))
         hidden = np.zeros(len(centres), bool)
+        reach = radius.max(initial=0.0)
         for poly in self.outlines(qpos):
+            low, high = poly.min(axis=0) - reach, poly.max(axis=0) + reach
+            near = np.flatnonzero(np.all((centres >= low) & (centres <= high), axis=1))
+            if not len(near):
+                continue
             a = poly[:, ::-1]                     # (col, row), counter-clockwise
             b = np.roll(a, -1, axis=0)
             edge = b - a
             normal = np.stack([edge[:, 1], -edge[:, 0]], axis=1)
             normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-9)
-            rel = centres[:, None, ::-1] - a[None]
+            rel = centres[near][:, None, ::-1] - a[None]
             dist = (rel * normal[None]).sum(-1).max(axis=1)   # outward normals of a CCW hull
-            hidden |= dist < radius
+            hidden[near] |= dist < radius[near]
         return hidden
 
 
@@ -231,6 +263,8 @@ class BoardView:
         gaps = np.linalg.norm(points[:, None, :2] - points[None, :, :2], axis=-1)
         gaps[np.arange(n), np.arange(n)] = np.inf
         half = 0.5 * float(gaps.min())
+        #: Half the distance between neighbouring points (m).
+        self.half = half
         grid = np.linspace(-1, 1, 9)
         offsets = np.array([(x, y) for x in grid for y in grid if x * x + y * y <= 1.0])
         world = points[:, None, :] + np.c_[PATCH * half * offsets,
@@ -240,6 +274,7 @@ class BoardView:
         rows = np.clip(np.floor(px[..., 0]).astype(int), 0, h - 1)
         cols = np.clip(np.floor(px[..., 1]).astype(int), 0, w - 1)
         self.index = rows * w + cols                     # (n, k) flat pixel of each sample
+        self.sample_px = px                              # (n, k, 2) their (row, col)
         angles = np.linspace(0, 2 * np.pi, 24, endpoint=False)
         ring = np.concatenate([r * np.stack([np.cos(angles), np.sin(angles)], axis=1)
                                for r in RING])
@@ -249,6 +284,7 @@ class BoardView:
                      + np.clip(np.floor(px[..., 1]).astype(int), 0, w - 1))
         self.centres = camera.project(points + [0, 0, PATCH_HEIGHT], self.shape)
         radius = np.linalg.norm(px - self.centres[:, None], axis=-1).max(axis=1)
+        #: Each patch's radius in pixels plus `ARM_MARGIN`: a cell wholly clear of the arm.
         self.radius = radius + ARM_MARGIN
         colours = game.rules.colours
         self.piece_rgb = np.array([c[:3] for c in colours], float) * 255.0
@@ -294,14 +330,20 @@ class BoardView:
         alpha = self.piece_alpha[:, None, None, None]
         expected = alpha * self.piece_rgb[:, None, None, :] + (1 - alpha) * background[None]
         d0, d1 = np.linalg.norm(px[None] - expected, axis=-1)
-        is0 = (d0 < PIECE_RADIUS) & (d0 < d_bg) & (d0 < d1)
-        is1 = (d1 < PIECE_RADIUS) & (d1 < d_bg) & (d1 <= d0)
-        f0, f1 = is0.mean(axis=1), is1.mean(axis=1)
+        # Samples under the arm (within ARM_MARGIN pixels of its outline) are
+        # not read; a cell with less than MIN_VISIBLE of its samples left is hidden.
+        n, k = self.index.shape
+        covered = self.silhouette.hidden(qpos, self.sample_px.reshape(-1, 2),
+                                         ARM_MARGIN + 0.5).reshape(n, k)
+        shown = (~covered).sum(axis=1)
+        hidden = shown < MIN_VISIBLE * k
+        is0 = (d0 < PIECE_RADIUS) & (d0 < d_bg) & (d0 < d1) & ~covered
+        is1 = (d1 < PIECE_RADIUS) & (d1 < d_bg) & (d1 <= d0) & ~covered
+        f0, f1 = (is0.sum(axis=1) / np.maximum(shown, 1), is1.sum(axis=1) / np.maximum(shown, 1))
         cells = np.full(len(px), UNSEEN, np.int8)
         cells[(f0 >= OCCUPIED) & (f0 >= f1)] = 0
         cells[(f1 >= OCCUPIED) & (f1 > f0)] = 1
         cells[f0 + f1 <= EMPTY] = EMPTY_CELL
-        hidden = self.silhouette.hidden(qpos, self.centres, self.radius)
         cells[hidden] = UNSEEN
         return cells, hidden, selection, np.stack([f0, f1], axis=1)
 
@@ -339,6 +381,14 @@ class BoardCameraEstimator(Estimator):
         self._selected = -1
         self._cache = {}
         self._since, self._qpos = self.frame_every, None      # the first estimate reads
+        self._touched = None
+        # Each touch zone's centre (x, y) and half-sizes: the points, then the pass areas.
+        half = self._view.half
+        self._zones = [(np.asarray(p[:2], float), np.array([half, half]))
+                       for p in description.point_positions]
+        if description.pass_action is not None:
+            self._zones += [(np.asarray(z["centre"][:2], float), np.asarray(z["half"], float))
+                            for z in description.pass_zones.values()]
         # The empty board's colours, per patch sample: learnt from the first
         # frame (the cells empty in the game's initial position, unless their
         # colour is far from their parity's median: a piece the opponent has
@@ -425,6 +475,10 @@ class BoardCameraEstimator(Estimator):
         qpos = np.array(obs["arm/joints_pos"], float)
         self._since += 1
         jumped = self._qpos is not None and np.abs(qpos - self._qpos).max() > ARM_JUMP
+        if jumped:
+            # The arm is reset only after a registered move: the touch that
+            # played it was under the hand before the jump.
+            self._touched = self._view.silhouette.touched_zone(self._qpos, self._zones)
         self._qpos = qpos
         if (self._since < self.frame_every and not jumped and not timestep.last()
                 and self._belief.history() == self._anchor.history()
@@ -439,9 +493,10 @@ class BoardCameraEstimator(Estimator):
         # The episode ended with the game (not at the time limit): the game is over.
         over = timestep.last() and float(timestep.discount or 0.0) == 0.0
         if (np.any(players[seen] != cells[seen]) or not self._settled(self._belief)
-                or (over and not self._belief.is_terminal())):
+                or (over and not self._belief.is_terminal()) or self._touched is not None):
             self._belief = self._explain(cells, np.where(hidden[:, None], np.nan, fractions),
                                          over)
+            self._touched = None
         elif self._belief.history() != self._anchor.history():
             changed = game.players(self._anchor) != players
             if not np.any(changed & ~seen):
@@ -488,7 +543,7 @@ class BoardCameraEstimator(Estimator):
         score, back, state = min(tried, key=lambda t: (t[0], t[1]))
         if back:
             del self._anchors[len(self._anchors) - back:]
-        if not score[0] and score[1] == 0 and score[3] == 0:
+        if not score[0] and score[1] == 0 and score[4] == 0:
             self._anchors.append(state.clone())
         return state
 
@@ -499,7 +554,7 @@ class BoardCameraEstimator(Estimator):
         (NaN under the arm); with ``over`` (the episode ended with the game)
         only a finished game is accepted, if one is found."""
         visible = ~np.isnan(fractions[:, 0])
-        key = (tuple(anchor.history()), cells.tobytes(),
+        key = (tuple(anchor.history()), cells.tobytes(), self._touched, self._selected,
                np.round(np.nan_to_num(fractions, nan=-1.0) * 20).astype(np.int8).tobytes(), over)
         if key in self._cache:
             state, score = self._cache[key]
@@ -510,19 +565,30 @@ class BoardCameraEstimator(Estimator):
         base = game.players(anchor)
         shares = fractions[visible]
 
+        played = None             # the action the touch before an arm reset played
+        if self._touched is not None and anchor.current_player() == self._agent:
+            zone = min(self._touched, game.num_zones - 1)
+            action = game.zone_effects(anchor, self._selected)[0][zone]
+            played = int(action) if action >= 0 else None
+        start_len = len(anchor.history())
+
         def score(state):
             """(not finished though the game is over, cells read surely and
             contradicted, how far the visible cells' colour shares are from
-            the state's pieces, changed cells not read surely)."""
+            the state's pieces, not starting with the move the touch before
+            an arm reset played, changed cells not read surely)."""
             players = game.players(state)
             wrong = int(np.count_nonzero(players[seen] != cells[seen]))
             pieces = np.stack([players[visible] == 0, players[visible] == 1], axis=1)
             soft = round(float(np.abs(shares - pieces).sum()), 3)
+            history = state.history()
+            miss = played is not None and (len(history) <= start_len
+                                           or history[start_len] != played)
             blind = int(np.count_nonzero((players != base) & ~seen))
-            return (over and not state.is_terminal()), wrong, soft, blind
+            return (over and not state.is_terminal()), wrong, soft, int(miss), blind
 
         def confirmed(s):
-            return not s[0] and s[1] == 0 and s[3] == 0
+            return not s[0] and s[1] == 0 and s[4] == 0
 
         start = anchor.clone()
         best = (score(start), 0, start) if self._settled(start) else None
@@ -542,7 +608,7 @@ class BoardCameraEstimator(Estimator):
             for s, child in children:
                 if self._settled(child) and (best is None or (s, depth) < (best[0], best[1])):
                     best = (s, depth, child)
-            if best is not None and confirmed(best[0]):
+            if best is not None and confirmed(best[0]) and not best[0][3]:
                 break
             frontier, boards = [], set()
             for s, child in children:
@@ -554,7 +620,7 @@ class BoardCameraEstimator(Estimator):
                 if len(frontier) >= BEAM:
                     break
         if best is None:      # nothing settled within reach: keep the estimate, unconfirmed
-            result = (self._belief.clone(), (True, len(cells), 0.0, len(cells)))
+            result = (self._belief.clone(), (True, len(cells), 0.0, 1, len(cells)))
         else:
             result = (best[2], best[0])
         if len(self._cache) > 256:
