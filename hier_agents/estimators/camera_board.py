@@ -42,7 +42,9 @@ the referee plays it, a checkers jump sequence as several moves). Each
 continuation is scored, and the best becomes the estimate: fewest cells
 read surely that it contradicts, then the smallest distance between the
 visible cells' colour shares and its pieces (an unsure cell still counts
-a little), then fewest changed cells not read surely, then fewest moves.
+a little), then keeping the moves already estimated (two orders of the
+same moves can give one board; the skill and the planner read the
+record), then fewest changed cells not read surely, then fewest moves.
 It becomes the anchor when it contradicts no cell read surely and every
 cell it changed was read surely. When the last anchor's continuations
 contradict a cell read surely (a move taken for a pass, or for another
@@ -61,8 +63,8 @@ The arm reset tells more: a move was registered, by the touch under the
 pinch site just before the jump (the arm's own model at the previous
 joints). The next search then ranks continuations that start with the
 move that touch plays (`envs.boards.games.BoardGame.zone_effects`) above
-the others, right after the cells they contradict: the agent's own piece
-is often still hidden by the arm.
+the others, after what the cells show and the moves already estimated:
+the agent's own piece is often still hidden by the arm.
 
 Its camera (``env_overrides``): ``front_camera_2`` at `FRAME_SHAPE`, the
 other camera off, rendered only when read (``lazy_cameras=True``).
@@ -543,7 +545,7 @@ class BoardCameraEstimator(Estimator):
         score, back, state = min(tried, key=lambda t: (t[0], t[1]))
         if back:
             del self._anchors[len(self._anchors) - back:]
-        if not score[0] and score[1] == 0 and score[4] == 0:
+        if not score[0] and score[1] == 0 and score[5] == 0:
             self._anchors.append(state.clone())
         return state
 
@@ -571,12 +573,15 @@ class BoardCameraEstimator(Estimator):
             action = game.zone_effects(anchor, self._selected)[0][zone]
             played = int(action) if action >= 0 else None
         start_len = len(anchor.history())
+        believed = list(self._belief.history())
 
         def score(state):
             """(not finished though the game is over, cells read surely and
             contradicted, how far the visible cells' colour shares are from
-            the state's pieces, not starting with the move the touch before
-            an arm reset played, changed cells not read surely)."""
+            the state's pieces, rewriting moves of the current estimate (two
+            orders of the same moves can give one board), not starting with
+            the move the touch before an arm reset played, changed cells not
+            read surely)."""
             players = game.players(state)
             wrong = int(np.count_nonzero(players[seen] != cells[seen]))
             pieces = np.stack([players[visible] == 0, players[visible] == 1], axis=1)
@@ -585,10 +590,12 @@ class BoardCameraEstimator(Estimator):
             miss = played is not None and (len(history) <= start_len
                                            or history[start_len] != played)
             blind = int(np.count_nonzero((players != base) & ~seen))
-            return (over and not state.is_terminal()), wrong, soft, int(miss), blind
+            common = min(len(history), len(believed))
+            rewrite = history[:common] != believed[:common]
+            return (over and not state.is_terminal()), wrong, soft, int(rewrite), int(miss), blind
 
         def confirmed(s):
-            return not s[0] and s[1] == 0 and s[4] == 0
+            return not s[0] and s[1] == 0 and s[5] == 0
 
         start = anchor.clone()
         best = (score(start), 0, start) if self._settled(start) else None
@@ -608,7 +615,7 @@ class BoardCameraEstimator(Estimator):
             for s, child in children:
                 if self._settled(child) and (best is None or (s, depth) < (best[0], best[1])):
                     best = (s, depth, child)
-            if best is not None and confirmed(best[0]) and not best[0][3]:
+            if best is not None and confirmed(best[0]) and not best[0][4]:
                 break
             frontier, boards = [], set()
             for s, child in children:
@@ -620,7 +627,7 @@ class BoardCameraEstimator(Estimator):
                 if len(frontier) >= BEAM:
                     break
         if best is None:      # nothing settled within reach: keep the estimate, unconfirmed
-            result = (self._belief.clone(), (True, len(cells), 0.0, 1, len(cells)))
+            result = (self._belief.clone(), (True, len(cells), 0.0, 0, 1, len(cells)))
         else:
             result = (best[2], best[0])
         if len(self._cache) > 256:
