@@ -55,6 +55,8 @@ def row(path: Path) -> str:
     else:
         result = _pct(s["success_rate"], s["success_interval"])
     estimator = s.get("estimator", "?") + (" (**privileged**)" if s.get("privileged") else "")
+    if estimator == "board":       # the board games' estimator that reads the referee's record
+        estimator = "board (game record)"
     sub = s.get("subgoal_success_rate")
     speed = s.get("control_steps_per_s")
     paper = "-" if levels or options else PAPER.get(name, "-")

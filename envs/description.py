@@ -236,6 +236,8 @@ class BoardDescription:
       control_timestep, time_limit_steps: as in `MujobanDescription`.
       arm: the arm's kinematic model.
       front_camera: the front camera (``shape`` None when off).
+      front_camera_2: the original code's second, higher view, the whole
+        board in view (``shape`` None when off, the default).
       rows, cols: the board's points per column and per row (``board_size``
         is ``rows`` when they are equal, else ``(rows, cols)``).
       input: how touches play (`envs.boards.games.GameRules`): ``"point"``,
@@ -267,6 +269,7 @@ class BoardDescription:
     input: str = "point"
     agent_player: int | str = 0
     allow_double_pass: bool = True
+    front_camera_2: CameraDescription | None = None
 
     def point_position(self, action: int) -> np.ndarray:
         """World (x, y, z) of board point ``action`` on the board's top."""

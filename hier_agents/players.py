@@ -15,13 +15,14 @@ import time
 from dataclasses import dataclass, field
 from typing import Callable
 
+import numpy as np
 
 import envs
 from envs.profile import PROFILE, SECTIONS
-from hier_agents.boundary import BoundaryEnv
+from hier_agents.boundary import PRIVILEGED_OBSERVATIONS, BoundaryEnv
 from hier_agents.modular.agent import OptionStats
 from hier_agents.modular.components import (env_overrides, family, is_privileged,
-                                            make_agent)
+                                            make_agent, reads_record)
 from hier_agents.modular.families import adapter
 
 
@@ -64,8 +65,11 @@ class ModularPlayer:
             self.env = envs.load(play.env_name, seed=play.seed, **overrides)
             privileged = is_privileged(fam, play.estimator)
             # An observation-only agent sees the environment through the boundary
-            # (no simulator, no ground-truth layers); the harness keeps `env` to judge.
-            self.view = self.env if privileged else BoundaryEnv(self.env)
+            # (no simulator, no ground-truth layers; the board games' record only
+            # for the estimator that reads it); the harness keeps `env` to judge.
+            strip = (PRIVILEGED_OBSERVATIONS if reads_record(fam, play.estimator)
+                     else self.env.privileged_observations)
+            self.view = self.env if privileged else BoundaryEnv(self.env, strip=strip)
             self.description = self.view.description()
             # The agent gets the public description and timesteps; only a privileged
             # estimator is handed the simulator, on purpose.
@@ -304,12 +308,25 @@ def training_frames(agent) -> int:
     return int(sum(int(getattr(part, "training_frames", 0) or 0) for part in parts))
 
 
+def _estimate_right(task, scene) -> bool:
+    """Board games: whether the agent's last scene has the referee's board
+    (every point's owner) and player to move. The harness's judgement of an
+    estimator; the agent never sees it."""
+    if scene is None or getattr(scene, "state", None) is None:
+        return False
+    game, truth, state = task.game, task.state, scene.state
+    return (state.current_player() == truth.current_player()
+            and np.array_equal(game.players(state), game.players(truth)))
+
+
 def _play_episode(env, view, agent, description, fam, episode, seed, frames):
     """One episode; any error inside it (reset, estimator, planner, skill, GTP
     engine) ends it with ``error`` and ``failure_reason`` in its row.
     Returns (row, the agent's subgoal counters for it)."""
     start = time.perf_counter()
     timestep, ret, steps, reason, error, started = None, 0.0, 0, None, None, False
+    games = adapter(fam).games
+    estimates = wrong_estimates = 0
     try:
         env.seed(seed, episode=episode)
         timestep = view.reset()
@@ -319,6 +336,9 @@ def _play_episode(env, view, agent, description, fam, episode, seed, frames):
             if frames is not None:
                 frames.append(env.render(env.task.main_camera, 256, 256))
             action = agent.act(timestep)
+            if games:
+                estimates += 1
+                wrong_estimates += not _estimate_right(env.task, agent.scene)
             if agent.gave_up is not None:
                 reason = agent.gave_up
                 break
@@ -336,7 +356,10 @@ def _play_episode(env, view, agent, description, fam, episode, seed, frames):
            "wall_s": time.perf_counter() - start,
            "subgoals_issued": stats.issued, "subgoals_reached": stats.reached,
            "estimation_failures": stats.estimation_failures}
-    if not adapter(fam).games:
+    if games:
+        # The harness judges the agent's board against the referee's, per step.
+        row["estimates"], row["wrong_estimates"] = estimates, wrong_estimates
+    if not games:
         # (after a failed reset the task still shows the last episode's end)
         row["solved"] = timestep is not None and bool(getattr(env.task, "solved", False))
         if not row["solved"]:

@@ -53,6 +53,9 @@ def summarize(env_name, fam, rows, totals: OptionStats, seed, planner, skill) ->
             out[f"{outcome}_rate"] = count / n
             out[f"{outcome}_interval"] = wilson_interval(count, n)
         out["success_rate"] = out["win_rate"]
+        estimates = sum(r.get("estimates", 0) for r in rows)
+        wrong = sum(r.get("wrong_estimates", 0) for r in rows)
+        out["estimate_accuracy"] = 1.0 - wrong / estimates if estimates else None
     out["mean_return"] = float(np.mean([r["return"] for r in rows]))
     out["mean_steps"] = float(np.mean([r["steps"] for r in rows]))
     rate = totals.success_rate
@@ -129,6 +132,9 @@ def format_table(summary: dict) -> str:
                      f"({summary['subgoals']['reached']}/{summary['subgoals']['issued']} issued)")
     else:
         lines.append("  subgoal success   - (no subgoals)")
+    if summary.get("estimate_accuracy") is not None:
+        lines.append(f"  estimated board   {100 * summary['estimate_accuracy']:.2f}% of steps "
+                     f"right (the referee's board and player to move)")
     if summary.get("episode_failures"):
         lines.append("  unsolved because  " + ", ".join(
             f"{k} x{v}" for k, v in sorted(summary["episode_failures"].items())))

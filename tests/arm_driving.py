@@ -67,6 +67,17 @@ def touch_point(env, target_xyz, *, press_depth=0.01, steps=80, until=None):
     return _drive(env, np.array([target[0], target[1], high]), steps // 2)
 
 
+def central_action(task):
+    """The legal action of a board task whose touches lie nearest the board's
+    centre (the easiest to reach)."""
+    centre = np.array(task.arena.centre)
+
+    def spread(action):
+        zones = task.game.touches(task.state, action)
+        return max(np.abs(task.arena.point_xy[z] - centre).max() for z in zones)
+    return min(sorted(task.state.legal_actions()), key=spread)
+
+
 # -- set-ups that place the arm directly (for tests of registration) ---------
 
 def _yaw_quat(yaw, base):

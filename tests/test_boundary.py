@@ -13,14 +13,14 @@ import pytest
 
 import envs
 from hier_agents.boundary import BoundaryEnv, BoundaryViolation, PRIVILEGED_OBSERVATIONS
-from hier_agents.modular.components import (ESTIMATORS, PLANNERS, SKILLS, env_overrides, is_privileged,
-                                    make_agent)
+from hier_agents.modular.components import (ESTIMATORS, PLANNERS, SKILLS, env_overrides,
+                                            is_privileged, make_agent, reads_record)
 
 ROOT = Path(__file__).resolve().parents[1]
 #: One short environment per family (a shortened time limit keeps every
 #: combination's episode short).
 FAMILY_ENVS = {"mujoban": ("mujoban/level1-pegs", 8.0), "mujoxo": ("mujoxo/mixture", 8.0),
-               "mujogo": ("mujogo/7x7", 8.0)}
+               "mujogo": ("mujogo/7x7", 8.0), "mujoboard": ("mujoboard/breakthrough-6x6", 8.0)}
 
 
 def _combinations():
@@ -42,7 +42,9 @@ def test_every_listed_combination_plays_through_the_boundary(name, limit, estima
         request.getfixturevalue("gnugo")
     fam = name.split("/")[0]
     env = envs.load(name, seed=1, time_limit=limit, **env_overrides(name, estimator))
-    view = BoundaryEnv(env)
+    # Only the board estimator, which reads the game record, keeps it.
+    view = BoundaryEnv(env, strip=PRIVILEGED_OBSERVATIONS if reads_record(fam, estimator)
+                       else env.privileged_observations)
     privileged = is_privileged(fam, estimator)
     agent = make_agent(name, view.description(), planner=planner, skill=skill,
                        estimator=estimator, seed=1, simulator=view if privileged else None)
@@ -50,6 +52,8 @@ def test_every_listed_combination_plays_through_the_boundary(name, limit, estima
     try:
         timestep = view.reset()
         assert not PRIVILEGED_OBSERVATIONS & set(timestep.observation)
+        if not reads_record(fam, estimator):
+            assert not env.privileged_observations & set(timestep.observation)
         if privileged:
             with pytest.raises(BoundaryViolation):
                 agent.reset(view.description(), timestep, seed=1)

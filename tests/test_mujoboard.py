@@ -9,7 +9,7 @@ from gymnasium.utils.env_checker import check_env
 
 import envs
 from abstract_planners.openspiel_bots import AlphaBetaPlanner, make_bot
-from arm_driving import hold_action, touch_point
+from arm_driving import central_action, hold_action, touch_point
 from envs.boards import arena as arena_lib
 from envs.boards.games import GAMES, BoardGame, GameRules, register_game
 from envs.boards.mujoboard import REGISTERED
@@ -149,16 +149,6 @@ def _touch(env, point, **kwargs):
     return touch_point(env, env.task.point_position(point), **kwargs)
 
 
-def _central_action(task):
-    """The legal action whose touches lie nearest the board's centre."""
-    centre = np.array(task.arena.centre)
-
-    def spread(action):
-        zones = task.game.touches(task.state, action)
-        return max(np.abs(task.arena.point_xy[z] - centre).max() for z in zones)
-    return min(sorted(task.state.legal_actions()), key=spread)
-
-
 @pytest.mark.parametrize("name", NAMES)
 def test_each_game_plays_an_opening_by_touch_as_openspiel_does(name):
     """Two moves of the agent, touched with the arm (a move game's as piece
@@ -167,7 +157,7 @@ def test_each_game_plays_an_opening_by_touch_as_openspiel_does(name):
     env = _env(name, opponent="random")
     task = env.task
     for turn in range(2):
-        action = _central_action(task)
+        action = central_action(task)
         before = len(task.moves)
         zones = task.game.touches(task.state, action)
         if len(zones) == 2:
@@ -211,7 +201,7 @@ def test_othello_flips_are_shown_and_the_opponents_first_move_is_seen():
 def test_a_move_game_plays_a_piece_then_its_destination(name):
     env = _env(name, opponent="random")
     task, game = env.task, env.task.game
-    action = _central_action(task)
+    action = central_action(task)
     src, dst = game.touches(task.state, action)
     selected = lambda: task._selected == src  # noqa: E731
     timestep = _touch(env, src, until=selected)
@@ -229,7 +219,7 @@ def test_a_move_game_plays_a_piece_then_its_destination(name):
 def test_a_half_move_times_out_and_its_destination_then_does_nothing():
     env = _env("mujoboard/breakthrough-6x6", opponent="random", half_move_timeout=1.0)
     task, game = env.task, env.task.game
-    action = _central_action(task)
+    action = central_action(task)
     src, dst = game.touches(task.state, action)
     _touch(env, src, until=lambda: task._selected == src)
     for _ in range(int(1.0 / 0.05) + 1):

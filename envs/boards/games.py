@@ -34,6 +34,7 @@ New games: `register_game(name, rules)` (see the README's "Add a game").
 
 from __future__ import annotations
 
+import functools
 import math
 import numbers
 from dataclasses import dataclass, field
@@ -199,9 +200,17 @@ class BoardGame:
         if self.draw_reward is None:
             object.__setattr__(self, "draw_reward", float(rules.draw_reward))
 
+    @staticmethod
+    def from_description(description) -> "BoardGame":
+        """The game a task's public description (`envs.description.BoardDescription`)
+        names, built once per (game, size, komi) in a process."""
+        return _from_description(description.game, description.board_size,
+                                 float(description.komi))
+
     # -- the OpenSpiel game ---------------------------------------------------
 
     def load(self) -> pyspiel.Game:
+        """The OpenSpiel game (loaded once per `BoardGame`; pyspiel caches it too)."""
         params = dict(self.rules.params(self.rows, self.cols))
         if self.name == "go":
             params["komi"] = float(self.komi)
@@ -374,6 +383,11 @@ class BoardGame:
             return ((self.rows // 2) * self.cols + action,)
         return self.move_points(state)[action]
 
+
+
+@functools.lru_cache(maxsize=32)
+def _from_description(name: str, board_size, komi: float) -> BoardGame:
+    return BoardGame(name, board_size, komi=komi)
 
 # -- the games ------------------------------------------------------------------
 

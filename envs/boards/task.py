@@ -162,6 +162,7 @@ class BoardTask(GameRecordMixin, ArmPoseMixin, ObservationsMixin, PhysicsTask):
         self._arena = arena_lib.BoardArena(game=game, offscreen_size=offscreen,
                                            physics_timestep=physics_timestep,
                                            multisamples=multisamples, shadows=shadows)
+        self._multisamples = int(multisamples)
         self._arm = kinova.JacoArm(name="arm")
         self._hand = kinova.JacoHand(name="hand")  # tool centre point: the grip site
         self._arm.attach(self._hand)
@@ -287,10 +288,10 @@ class BoardTask(GameRecordMixin, ArmPoseMixin, ObservationsMixin, PhysicsTask):
         self._kings = np.zeros(self.game.num_points, bool)
         self._moves: list[int] = []
         self._history = np.full(self._max_moves, -1, np.int32)
-        self._planes = self.game.board_planes(self.state, self._agent)
         m = self._model
         m.geom_group[self._piece_ids] = arena_lib.HIDDEN_GROUP
         m.geom_size[self._piece_ids, 1] = self._arena.piece_half_height
+        self._show_pieces()                   # the initial pieces (othello, move games)
         self._reward = 0.0
         self._game_over = False
         self._resigned = False

@@ -60,12 +60,14 @@ class ObservationsMixin:
                 zones[side] = {"centre": (cx + sign * 0.5 * (arena.half_board + size[0]), cy,
                                           size[2]),
                                "half": (0.5 * (size[0] - arena.half_board), size[1])}
-        cam = arena.front_camera
-        front = CameraDescription(
-            "front_camera", tuple(float(v) for v in cam.pos),
-            tuple(float(v) for v in cam.xyaxes), float(cam.fovy or 45.0),
-            (self._cameras["front_camera"].height, self._cameras["front_camera"].width)
-            if "front_camera" in self._cameras else None)
+        front, front_2 = (
+            CameraDescription(
+                name, tuple(float(v) for v in cam.pos), tuple(float(v) for v in cam.xyaxes),
+                float(cam.fovy or 45.0),
+                (self._cameras[name].height, self._cameras[name].width)
+                if name in self._cameras else None, multisamples=self._multisamples)
+            for name, cam in (("front_camera", arena.front_camera),
+                              ("front_camera_2", arena.front_camera_2)))
         return BoardDescription(
             game=game.name, board_size=game.size, komi=float(game.komi),
             num_points=game.num_points, pass_action=game.pass_action,
@@ -75,6 +77,7 @@ class ObservationsMixin:
             board_centre=(float(cx), float(cy)), board_half=float(arena.half_board),
             registering=self._registering, control_timestep=float(self.control_timestep),
             time_limit_steps=int(self.time_limit_steps), arm=arm_desc, front_camera=front,
+            front_camera_2=front_2,
             rows=game.rows, cols=game.cols, input=game.rules.input,
             agent_player=self.agent_player,
             allow_double_pass=self._allow_double_pass or game.pass_action is None)

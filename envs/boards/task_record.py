@@ -162,13 +162,20 @@ class GameRecordMixin:
             self._apply(int(subgoal.action), piece_xy=None, rng=rng)
 
     def _apply(self, action: int, *, piece_xy, rng=None) -> None:
-        """Plays ``action`` for the player to move and updates the pieces:
-        a new piece lands at its point (the opponent's with the piece
-        noise), at ``piece_xy`` when given; a piece that changes colour or
-        is promoted stays where it is; a removed one is hidden."""
+        """Plays ``action`` for the player to move and updates the pieces
+        (`_show_pieces`)."""
         self.state.apply_action(action)
         self._history[len(self._moves)] = action
         self._moves.append(action)
+        self._show_pieces(action=action, piece_xy=piece_xy, rng=rng)
+
+    def _show_pieces(self, *, action=None, piece_xy=None, rng=None) -> None:
+        """Makes the piece geoms show ``self.state``: a new piece lands at
+        its point (with the piece noise when ``rng`` is given: the
+        opponent's), at ``piece_xy`` for the point ``action`` when given; a
+        piece that changes colour or is promoted stays where it is; a
+        removed one is hidden. At reset (all pieces hidden, ``_players``
+        all -1) it draws the game's initial pieces at their points."""
         players = self.game.players(self.state)
         kings = self.game.kings(self.state)
         changed = np.flatnonzero((players != self._players) | (kings != self._kings))

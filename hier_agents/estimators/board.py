@@ -34,11 +34,10 @@ class BoardEstimator(Estimator):
         self._game = None
 
     def reset(self, description, timestep) -> None:
-        key = (description.game, description.board_size, description.komi)
-        if key not in self._games:
-            game = BoardGame(description.game, description.board_size, komi=description.komi)
-            self._games[key] = (game, game.load())
-        self._game = self._games[key]
+        game = BoardGame.from_description(description)
+        if game not in self._games:
+            self._games[game] = (game, game.load())
+        self._game = self._games[game]
 
     def estimate(self, timestep) -> ArmScene:
         if self._game is None:

@@ -53,7 +53,7 @@ from hier_agents.modular.options import T_ABS
 
 __all__ = ["PLANNERS", "SKILLS", "ESTIMATORS", "ComponentTable", "Parameter", "Resolved",
            "UsageError", "check", "env_overrides", "estimator_name", "family", "forms",
-           "is_privileged", "make_agent", "resolve"]
+           "is_privileged", "make_agent", "reads_record", "resolve"]
 
 Factory = Callable[..., object]
 
@@ -215,8 +215,32 @@ def _camera(description, seed, simulator=None):
     return CameraEstimator()
 
 
+def _camera_overrides():
+    from hier_agents.estimators.camera import CameraEstimator
+    return CameraEstimator.env_overrides
+
+
+_camera.env_overrides = _camera_overrides
+
+
 def _board(description, seed, simulator=None):
     return BoardEstimator()
+
+
+_board.reads_record = True
+
+
+def _board_camera(description, seed, simulator=None):
+    from hier_agents.estimators.camera_board import BoardCameraEstimator
+    return BoardCameraEstimator()
+
+
+def _board_camera_overrides():
+    from hier_agents.estimators.camera_board import BoardCameraEstimator
+    return BoardCameraEstimator.env_overrides
+
+
+_board_camera.env_overrides = _board_camera_overrides
 
 
 def _privileged(cls):
@@ -330,9 +354,10 @@ ESTIMATORS: dict[str, ComponentTable] = {
     "mujoban": ComponentTable("estimator", "mujoban", {
         "camera": _camera, "oracle": _privileged(OracleEstimator),
         "entity-layer": _privileged(EntityLayerEstimator)}),
-    "mujoxo": ComponentTable("estimator", "mujoxo", {"board": _board}),
-    "mujogo": ComponentTable("estimator", "mujogo", {"board": _board}),
-    "mujoboard": ComponentTable("estimator", "mujoboard", {"board": _board}),
+    "mujoxo": ComponentTable("estimator", "mujoxo", {"board": _board, "camera": _board_camera}),
+    "mujogo": ComponentTable("estimator", "mujogo", {"board": _board, "camera": _board_camera}),
+    "mujoboard": ComponentTable("estimator", "mujoboard", {"board": _board,
+                                                           "camera": _board_camera}),
 }
 
 _TABLES = {"planner": PLANNERS, "skill": SKILLS, "estimator": ESTIMATORS}
@@ -389,6 +414,14 @@ def is_privileged(fam: str, estimator: str | None) -> bool:
     return bool(getattr(resolve("estimator", fam, estimator).factory, "privileged", False))
 
 
+def reads_record(fam: str, estimator: str | None) -> bool:
+    """Whether the named estimator (None: the default) reads a board game's
+    record (``board_state``, ``move_history``), which the task declares
+    privileged: the ``board`` estimators. Every other observation-only
+    estimator is run with all of a task's privileged observations removed."""
+    return bool(getattr(resolve("estimator", fam, estimator).factory, "reads_record", False))
+
+
 def estimator_name(fam: str, estimator: str | None) -> str:
     """The estimator's name (the default's when None)."""
     return estimator or next(iter(ESTIMATORS[fam]))
@@ -400,9 +433,9 @@ def env_overrides(env_name: str, estimator: str | None = None) -> dict:
     import envs
     fam = family(env_name)
     overrides = dict(envs.no_cameras(env_name))
-    if estimator_name(fam, estimator) == "camera":
-        from hier_agents.estimators.camera import CameraEstimator
-        overrides.update(CameraEstimator.env_overrides)
+    asks = getattr(resolve("estimator", fam, estimator).factory, "env_overrides", None)
+    if asks is not None:
+        overrides.update(asks())
     return overrides
 
 

@@ -189,7 +189,7 @@ class BoardAdapter(FamilyAdapter):
         if not points:
             return subgoal
         from envs.boards.games import BoardGame
-        game = BoardGame(description.game, description.board_size, komi=description.komi)
+        game = BoardGame.from_description(description)
         players, mover = game.players(state), state.current_player()
         action = next((a for a in points if not _own_eye(game, players, mover, a)), points[0])
         info = dict(subgoal.info, replaced_pass=True)

@@ -9,7 +9,6 @@ board) and the game's rules (`envs.boards.games`).
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass
 
@@ -36,17 +35,12 @@ class TouchTarget:
     tolerance: float
 
 
-@functools.lru_cache(maxsize=16)
-def _game(name: str, board_size, komi: float) -> BoardGame:
-    return BoardGame(name, board_size, komi=komi)
-
-
 def touch_zones(description, state, action: int) -> tuple[int, ...] | None:
     """The zones to touch, in order, to play ``action`` from ``state`` (the
     game's `envs.boards.games.BoardGame.touches`: a point, the pass zone,
     or a move's piece then its destination); None if ``action`` is not
     legal there or not played by a touch."""
-    game = _game(description.game, description.board_size, float(description.komi))
+    game = BoardGame.from_description(description)
     try:
         return game.touches(state, int(action))
     except ValueError:

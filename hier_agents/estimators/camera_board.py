@@ -1,0 +1,636 @@
+"""`BoardCameraEstimator` (``camera``): a board game seen through a camera.
+
+Observation-only: it reads the RGB frames of the board's high front view
+(``front_camera_2``, the whole board in view), the arm's joint observations
+(``arm/joints_pos``, ``arm/joints_vel``) and ``agent_player``, and the public
+description: each point's world position, the camera's pose and
+intrinsics, the arm's own kinematic model; the game's rules
+(`envs.boards.games.GameRules`: its pieces' colours) come from the game the
+description names, the selection disc's colour from the arena's look
+(`envs.boards.arena.SELECTION_RGBA`). It never reads ``board_state``, ``move_history`` or
+``selected_point``.
+
+How it reads a frame (`BoardView`):
+
+* **Cells.** Each point's patch is a disc of `PATCH` half-spacings around
+  the point, projected into the frame with the described camera.
+* **The arm.** The arm's own model is posed at the observed joints; each of
+  its geoms' convex hulls is projected, and the patch samples within
+  `ARM_MARGIN` pixels of one are not read; a cell with less than
+  `MIN_VISIBLE` of its samples left is hidden this frame.
+* **The empty board.** Each patch sample's colour on the empty board is
+  learnt from the first frame (the cells empty in the game's initial
+  position; when the opponent has moved first, less any that stand out
+  from their row: a piece it played) and from later frames (cells a confirmed state says are
+  empty); an unlearnt cell borrows the nearest learnt cell's samples of
+  the same checkerboard parity, in its row if it can.
+* **Pieces.** A sample shows player p's piece when it is nearer to that
+  piece's colour over the empty board there (the game's rgba, blended by
+  its alpha) than to the empty board and to the other piece, and within
+  `PIECE_RADIUS` (RGB, 0-255) of it. A visible cell holds a player's piece
+  when at least `OCCUPIED` of its patch shows it, is empty when at most
+  `EMPTY` shows either, and is unsure otherwise.
+* **Selection** (move games): the cell whose ring (`RING`, around its
+  piece) shows the most of the selection disc's colour, at least `SELECTED`
+  of it; a selection hidden under the arm is remembered.
+
+How it keeps the game (`estimate`): the OpenSpiel state of the last
+*anchor* (a state every visible cell confirmed, with no hidden cell
+deciding it) is extended by the legal continuations: the player to move,
+then the other, until the agent is to move again (a forced pass played as
+the referee plays it, a checkers jump sequence as several moves). Each
+continuation is scored, and the best becomes the estimate: fewest cells
+read surely that it contradicts, then the smallest distance between the
+visible cells' colour shares and its pieces (an unsure cell still counts
+a little), then keeping the moves already estimated (two orders of the
+same moves can give one board; the skill and the planner read the
+record), then fewest changed cells not read surely, then fewest moves.
+It becomes the anchor when it contradicts no cell read surely and every
+cell it changed was read surely. When the last anchor's continuations
+contradict a cell read surely (a move taken for a pass, or for another
+under the arm), the `BACKTRACK` anchors before it are tried. The search keeps `BEAM` states per move and looks
+at most `MAX_MOVES` moves ahead; a frame that the current estimate already
+explains costs no search. When an episode ends with the game (a terminal
+timestep, discount 0), a finished game is preferred: the winning piece may
+still be under the hand.
+
+Frame schedule: a frame is read every `FRAME_EVERY` steps, and at once when
+the arm's joints jump (the arm reset after a registered move), while the
+estimate is not confirmed, and at the episode's last step; in between the
+last estimate is returned with the new joints.
+
+The arm reset tells more: a move was registered, by the touch under the
+pinch site just before the jump (the arm's own model at the previous
+joints). The next search then ranks continuations that start with the
+move that touch plays (`envs.boards.games.BoardGame.zone_effects`) above
+the others, after what the cells show and the moves already estimated:
+the agent's own piece is often still hidden by the arm.
+
+Its camera (``env_overrides``): ``front_camera_2`` at `FRAME_SHAPE`, the
+other camera off, rendered only when read (``lazy_cameras=True``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from envs.boards.arena import SELECTION_RGBA
+from envs.boards.games import BoardGame
+from hier_agents.estimators.base import EstimationError, Estimator
+from skills.scene import ArmScene
+
+__all__ = ["BoardCameraEstimator", "BoardView", "ArmSilhouette", "FRAME_SHAPE"]
+
+#: The camera read and its frame size (height, width).
+CAMERA = "front_camera_2"
+FRAME_SHAPE = (128, 128)
+#: A cell's patch radius, in half-spacings between neighbouring points.
+PATCH = 0.8
+#: Height (m) above the board's top at which patches are projected (a piece's top half).
+PATCH_HEIGHT = 0.005
+#: Pixels: how near a patch sample may come to the arm's outline and still be
+#: read; a cell with less than `MIN_VISIBLE` of its samples read is hidden.
+ARM_MARGIN = 1.5
+MIN_VISIBLE = 0.6
+#: RGB distance (0-255) within which a pixel has a piece's colour.
+PIECE_RADIUS = 110.0
+#: RGB distance within which a pixel has the selection disc's colour.
+SELECTION_RADIUS = 90.0
+#: Fractions of a patch: a piece when at least `OCCUPIED` has its colour,
+#: empty when at most `EMPTY` has a piece colour.
+OCCUPIED = 0.3
+EMPTY = 0.1
+#: Learning the empty board (`BoardCameraEstimator._learn`): RGB distance
+#: from the row's median beyond which a sample is odd, and the largest
+#: fraction of odd samples of a cell learnt.
+BACKGROUND_SPREAD = 60.0
+BACKGROUND_ODD = 0.3
+#: Radii (half-spacings) of the rings read for the selection disc, which
+#: shows between a piece's edge (0.7) and the disc's (0.95).
+RING = (0.8, 0.9)
+#: Fraction of a cell's ring showing the selection disc's colour that marks
+#: a selection; the arm can hide the disc but never shows its colour, so a
+#: partly hidden ring still counts.
+SELECTED = 0.15
+#: Frame schedule: a frame is read every `FRAME_EVERY` steps, and at once
+#: when a joint moved more than `ARM_JUMP` (rad) in a step (the arm reset
+#: that follows a registered move), while the estimate is unconfirmed, and
+#: at an episode's last step.
+FRAME_EVERY = 3
+ARM_JUMP = 0.3
+#: Search: states kept per move, moves looked ahead of an anchor, and
+#: anchors tried back from the last.
+BEAM = 8
+MAX_MOVES = 8
+BACKTRACK = 3
+
+UNSEEN = -2     # a cell not read this frame (hidden or unsure)
+EMPTY_CELL = -1
+
+
+def _scalar(obs, key: str, default: int) -> int:
+    value = obs.get(key)
+    return default if value is None else int(np.asarray(value).reshape(-1)[0])
+
+
+class ArmSilhouette:
+    """Where the arm hides the board: the arm's own model (`envs.description.
+    ArmDescription`) posed at observed joints, each geom's convex hull
+    projected into a camera's frames.
+
+    Args:
+      arm: the arm's description (its model compiles on its own).
+      camera: the `envs.description.CameraDescription` of the frames.
+      shape: (height, width) of the frames.
+    """
+
+    def __init__(self, arm, camera, shape) -> None:
+        import mujoco
+        from scipy.spatial import ConvexHull
+        self._mujoco = mujoco
+        self._hull2d = ConvexHull
+        self.model = arm.model()
+        self.data = mujoco.MjData(self.model)
+        self._pinch = self.model.site(arm.pinch_site).id
+        self.camera, self.shape = camera, tuple(shape)
+        m = self.model
+        self._geoms, self._local = [], []
+        for g in range(m.ngeom):
+            if m.geom_rgba[g, 3] <= 0:
+                continue
+            local = self._geom_points(m, g)
+            if local is None:
+                continue
+            if len(local) > 8:
+                local = local[ConvexHull(local).vertices]
+            self._geoms.append(g)
+            self._local.append(local)
+
+    @staticmethod
+    def _geom_points(m, g) -> np.ndarray | None:
+        """Points (geom frame) whose convex hull is the geom (or bounds it)."""
+        import mujoco
+        kind, size = int(m.geom_type[g]), m.geom_size[g]
+        if kind == mujoco.mjtGeom.mjGEOM_MESH:
+            mesh = int(m.geom_dataid[g])
+            start, count = int(m.mesh_vertadr[mesh]), int(m.mesh_vertnum[mesh])
+            return np.array(m.mesh_vert[start:start + count], float)
+        angles = np.linspace(0, 2 * np.pi, 16, endpoint=False)
+        ring = np.stack([np.cos(angles), np.sin(angles)], axis=1)
+        if kind in (mujoco.mjtGeom.mjGEOM_CYLINDER, mujoco.mjtGeom.mjGEOM_CAPSULE):
+            r, h = size[0], size[1] + (size[0] if kind == mujoco.mjtGeom.mjGEOM_CAPSULE else 0)
+            return np.concatenate([np.c_[r * ring, np.full(16, z)] for z in (-h, h)])
+        if kind == mujoco.mjtGeom.mjGEOM_BOX:
+            corners = np.array(np.meshgrid([-1, 1], [-1, 1], [-1, 1])).reshape(3, -1).T
+            return corners * size
+        if kind == mujoco.mjtGeom.mjGEOM_SPHERE:
+            r = size[0]
+            return np.concatenate([np.c_[r * ring, np.zeros(16)], np.c_[r * ring[:, :1],
+                                   np.zeros(16), r * ring[:, 1:]],
+                                   np.c_[np.zeros(16), r * ring]])
+        return None
+
+    def touched_zone(self, qpos, zones) -> int | None:
+        """The zone under the pinch site with the arm at ``qpos``: the index
+        of the first of ``zones`` ((centre x, y), (half x, y)) holding its
+        (x, y), else the nearest zone centre within 1.5 half-sizes, else None."""
+        d = self.data
+        d.qpos[:] = np.asarray(qpos, float)
+        self._mujoco.mj_kinematics(self.model, d)
+        xy = d.site_xpos[self._pinch][:2]
+        for i, (centre, half) in enumerate(zones):
+            if np.all(np.abs(xy - centre) <= half):
+                return i
+        dist = [np.max(np.abs(xy - c) / h) for c, h in zones]
+        best = int(np.argmin(dist))
+        return best if dist[best] <= 1.5 else None
+
+    def outlines(self, qpos) -> list[np.ndarray]:
+        """Per geom, its projected outline: (k, 2) pixel (row, col) vertices of
+        a convex polygon, counter-clockwise in (col, row)."""
+        m, d = self.model, self.data
+        d.qpos[:] = np.asarray(qpos, float)
+        self._mujoco.mj_kinematics(m, d)
+        out = []
+        for g, local in zip(self._geoms, self._local):
+            world = d.geom_xpos[g] + local @ d.geom_xmat[g].reshape(3, 3).T
+            px = self.camera.project(world, self.shape)
+            try:
+                hull = self._hull2d(px[:, ::-1])
+            except Exception:       # a degenerate projection (edge-on): skip it
+                continue
+            out.append(px[hull.vertices])
+        return out
+
+    def hidden(self, qpos, centres, radius) -> np.ndarray:
+        """(n,) bool: which discs (``centres`` (n, 2) pixel row, col and
+        ``radius`` (n,) pixels) an outline covers or comes within their
+        radius of (a convex polygon's largest signed edge distance)."""
+        centres = np.asarray(centres, float)
+        radius = np.broadcast_to(np.asarray(radius, float), (len(centres),))
+        hidden = np.zeros(len(centres), bool)
+        reach = radius.max(initial=0.0)
+        for poly in self.outlines(qpos):
+            low, high = poly.min(axis=0) - reach, poly.max(axis=0) + reach
+            near = np.flatnonzero(np.all((centres >= low) & (centres <= high), axis=1))
+            if not len(near):
+                continue
+            a = poly[:, ::-1]                     # (col, row), counter-clockwise
+            b = np.roll(a, -1, axis=0)
+            edge = b - a
+            normal = np.stack([edge[:, 1], -edge[:, 0]], axis=1)
+            normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-9)
+            rel = centres[near][:, None, ::-1] - a[None]
+            dist = (rel * normal[None]).sum(-1).max(axis=1)   # outward normals of a CCW hull
+            hidden[near] |= dist < radius[near]
+        return hidden
+
+
+class BoardView:
+    """Reads one frame of a board: each cell's piece (or none, or unsure)
+    and the selected cell. See the module docstring.
+
+    Args:
+      description: the task's `envs.description.BoardDescription`.
+      game: its `envs.boards.games.BoardGame`.
+      camera: the `envs.description.CameraDescription` of the frames read.
+    """
+
+    def __init__(self, description, game: BoardGame, camera) -> None:
+        if camera is None or camera.shape is None:
+            raise EstimationError(f"the {CAMERA} camera is off: the camera estimator reads it")
+        self.camera, self.shape = camera, tuple(camera.shape)
+        points = np.asarray(description.point_positions, float)
+        n = len(points)
+        gaps = np.linalg.norm(points[:, None, :2] - points[None, :, :2], axis=-1)
+        gaps[np.arange(n), np.arange(n)] = np.inf
+        half = 0.5 * float(gaps.min())
+        #: Half the distance between neighbouring points (m).
+        self.half = half
+        grid = np.linspace(-1, 1, 9)
+        offsets = np.array([(x, y) for x in grid for y in grid if x * x + y * y <= 1.0])
+        world = points[:, None, :] + np.c_[PATCH * half * offsets,
+                                          np.full(len(offsets), PATCH_HEIGHT)][None]
+        px = camera.project(world, self.shape)
+        h, w = self.shape
+        rows = np.clip(np.floor(px[..., 0]).astype(int), 0, h - 1)
+        cols = np.clip(np.floor(px[..., 1]).astype(int), 0, w - 1)
+        self.index = rows * w + cols                     # (n, k) flat pixel of each sample
+        self.sample_px = px                              # (n, k, 2) their (row, col)
+        angles = np.linspace(0, 2 * np.pi, 24, endpoint=False)
+        ring = np.concatenate([r * np.stack([np.cos(angles), np.sin(angles)], axis=1)
+                               for r in RING])
+        world = points[:, None, :] + np.c_[half * ring, np.zeros(len(ring))][None]
+        px = camera.project(world, self.shape)
+        self.ring = (np.clip(np.floor(px[..., 0]).astype(int), 0, h - 1) * w
+                     + np.clip(np.floor(px[..., 1]).astype(int), 0, w - 1))
+        self.centres = camera.project(points + [0, 0, PATCH_HEIGHT], self.shape)
+        radius = np.linalg.norm(px - self.centres[:, None], axis=-1).max(axis=1)
+        #: Each patch's radius in pixels plus `ARM_MARGIN`: a cell wholly clear of the arm.
+        self.radius = radius + ARM_MARGIN
+        colours = game.rules.colours
+        self.piece_rgb = np.array([c[:3] for c in colours], float) * 255.0
+        self.piece_alpha = np.array([c[3] for c in colours], float)
+        #: Each cell's checkerboard parity (a background learnt on one cell
+        #: stands in for an unlearnt cell of the same parity).
+        self.row = np.arange(n) // description.cols
+        self.parity = (self.row + np.arange(n) % description.cols) % 2
+        self.selection_rgb = np.array(SELECTION_RGBA[:3], float) * 255.0
+        self.silhouette = ArmSilhouette(description.arm, camera, self.shape)
+
+    def samples(self, frame) -> np.ndarray:
+        """(n, k, 3) float RGB of each cell's patch samples in ``frame``."""
+        img = np.asarray(frame, float).reshape(-1, 3)
+        if img.shape[0] != self.shape[0] * self.shape[1]:
+            raise EstimationError(f"{CAMERA} frames are {np.asarray(frame).shape[:2]}, "
+                                  f"the description says {self.shape}")
+        return img[self.index]
+
+    def read(self, frame, qpos, background):
+        """(cells, hidden, selection, fractions) of one frame.
+
+        ``background`` (n, k, 3): each patch sample's colour on the empty
+        board (a selected cell's is the selection disc). A sample shows
+        player p's piece when it is nearer to that piece's colour over the
+        background (its rgba blended with alpha) than to the background and
+        to the other piece, and within `PIECE_RADIUS` of it.
+
+        Returns ``cells`` (n,) int8: 0 or 1 (a player's piece), -1 (empty)
+        or `UNSEEN` (hidden or unsure); ``hidden`` (n,) bool: under the arm;
+        ``selection`` (n,) float: the fraction of each cell's ring showing
+        the selection disc's colour; ``fractions`` (n, 2): the fraction of
+        each patch showing each player's piece.
+        """
+        px = self.samples(frame)
+        img = np.asarray(frame, float).reshape(-1, 3)
+        selection = (np.linalg.norm(img[self.ring] - self.selection_rgb, axis=-1)
+                     < SELECTION_RADIUS).mean(axis=1)
+        # A selected piece stands on the selection disc, seen through it.
+        background = np.where((selection >= SELECTED)[:, None, None], self.selection_rgb,
+                              background)
+        d_bg = np.linalg.norm(px - background, axis=-1)
+        alpha = self.piece_alpha[:, None, None, None]
+        expected = alpha * self.piece_rgb[:, None, None, :] + (1 - alpha) * background[None]
+        d0, d1 = np.linalg.norm(px[None] - expected, axis=-1)
+        # Samples under the arm (within ARM_MARGIN pixels of its outline) are
+        # not read; a cell with less than MIN_VISIBLE of its samples left is hidden.
+        n, k = self.index.shape
+        covered = self.silhouette.hidden(qpos, self.sample_px.reshape(-1, 2),
+                                         ARM_MARGIN + 0.5).reshape(n, k)
+        shown = (~covered).sum(axis=1)
+        hidden = shown < MIN_VISIBLE * k
+        is0 = (d0 < PIECE_RADIUS) & (d0 < d_bg) & (d0 < d1) & ~covered
+        is1 = (d1 < PIECE_RADIUS) & (d1 < d_bg) & (d1 <= d0) & ~covered
+        f0, f1 = (is0.sum(axis=1) / np.maximum(shown, 1), is1.sum(axis=1) / np.maximum(shown, 1))
+        cells = np.full(len(px), UNSEEN, np.int8)
+        cells[(f0 >= OCCUPIED) & (f0 >= f1)] = 0
+        cells[(f1 >= OCCUPIED) & (f1 > f0)] = 1
+        cells[f0 + f1 <= EMPTY] = EMPTY_CELL
+        cells[hidden] = UNSEEN
+        return cells, hidden, selection, np.stack([f0, f1], axis=1)
+
+
+class BoardCameraEstimator(Estimator):
+    """The game from the camera: `BoardView` reads each frame, legal
+    continuations of the last confirmed state explain it. See the module
+    docstring."""
+
+    name = "camera"
+    #: Its camera (see the module docstring).
+    env_overrides = {"front_camera": None, CAMERA: FRAME_SHAPE, "lazy_cameras": True}
+
+    def __init__(self, frame_every: int = FRAME_EVERY) -> None:
+        if not isinstance(frame_every, int) or isinstance(frame_every, bool) or frame_every < 1:
+            raise ValueError(f"frame_every must be an integer >= 1, got {frame_every!r}")
+        self.frame_every = frame_every
+        self._views = {}
+        self._view = None
+        self.searches = 0
+
+    def reset(self, description, timestep) -> None:
+        game = BoardGame.from_description(description)
+        camera = getattr(description, CAMERA, None)
+        key = (game, camera)
+        if key not in self._views:
+            self._views[key] = BoardView(description, game, camera)
+        self._view = self._views[key]
+        self._game, self._spiel = game, game.load()
+        self._agent = _scalar(timestep.observation, "agent_player", 0)
+        initial = self._spiel.new_initial_state()
+        self._settle(initial)
+        self._anchors = [initial]
+        self._belief = initial.clone()
+        self._selected = -1
+        self._cache = {}
+        self._since, self._qpos = self.frame_every, None      # the first estimate reads
+        self._touched = None
+        # Each touch zone's centre (x, y) and half-sizes: the points, then the pass areas.
+        half = self._view.half
+        self._zones = [(np.asarray(p[:2], float), np.array([half, half]))
+                       for p in description.point_positions]
+        if description.pass_action is not None:
+            self._zones += [(np.asarray(z["centre"][:2], float), np.asarray(z["half"], float))
+                            for z in description.pass_zones.values()]
+        # The empty board's colours, per patch sample: learnt from the first
+        # frame (the cells empty in the game's initial position, unless their
+        # colour is far from their parity's median: a piece the opponent has
+        # already put there) and later from cells a confirmed state says are empty.
+        obs = timestep.observation
+        view = self._view
+        samples = view.samples(obs[CAMERA])
+        hidden = view.silhouette.hidden(obs["arm/joints_pos"], view.centres, view.radius)
+        self._background = np.full(samples.shape, np.nan)
+        # Nothing can stand out when the agent moves first: no move was played.
+        self._learn(self._anchor, samples, ~hidden, check=not self._settled(self._anchor))
+
+    def read(self, timestep):
+        """(cells, hidden) of ``timestep``'s frame as `estimate` reads it
+        (`BoardView.read` with the learnt background), without changing the
+        estimate."""
+        if self._view is None:
+            raise RuntimeError("BoardCameraEstimator.read called before reset")
+        obs = timestep.observation
+        cells, hidden, _, _ = self._view.read(obs[CAMERA], obs["arm/joints_pos"],
+                                              self._filled_background())
+        return cells, hidden
+
+    def _learn(self, state, samples, visible, check: bool = False) -> None:
+        """Learns the background of the cells ``state`` says are empty,
+        ``visible`` and not learnt yet. With ``check``, a cell is learnt only if at most
+        `BACKGROUND_ODD` of its samples lie farther than `BACKGROUND_SPREAD`
+        from their median over the candidate cells of its row and parity
+        (all of its parity's in a row with fewer than three), when there are
+        at least three: a piece already there is not taken for the board."""
+        view = self._view
+        new = visible & (self._game.players(state) < 0) & np.isnan(self._background[:, 0, 0])
+        for key in set(zip(view.row[new], view.parity[new])):
+            group = np.flatnonzero(new & (view.row == key[0]) & (view.parity == key[1]))
+            # Compared with its row's cells of its parity, or in a short row
+            # with all of its parity's.
+            pool = group if len(group) >= 3 else np.flatnonzero(new & (view.parity == key[1]))
+            if check and len(pool) >= 3:
+                median = np.median(samples[pool], axis=0)
+                odd = (np.linalg.norm(samples[group] - median, axis=-1)
+                       > BACKGROUND_SPREAD).mean(axis=1)
+                group = group[odd <= BACKGROUND_ODD]
+            self._background[group] = samples[group]
+
+    def _filled_background(self) -> np.ndarray:
+        """The background, an unlearnt cell's borrowed sample by sample from
+        the nearest learnt cell of its parity in its row, else of its
+        parity, else any (the samples lie at the same offsets from each
+        point, so a wooden board's lines fall on the same samples)."""
+        bg = self._background
+        known = ~np.isnan(bg[:, 0, 0])
+        if known.all():
+            return bg
+        out = bg.copy()
+        view = self._view
+        for cell in np.flatnonzero(~known):
+            same = known & (view.parity == view.parity[cell])
+            for pool in (same & (view.row == view.row[cell]), same, known):
+                if pool.any():
+                    pool = np.flatnonzero(pool)
+                    near = pool[np.argmin(np.linalg.norm(view.centres[pool]
+                                                         - view.centres[cell], axis=1))]
+                    out[cell] = bg[near]
+                    break
+            else:
+                out[cell] = 0.0
+        return out
+
+    def _settle(self, state) -> None:
+        """Plays the passes the referee plays (`BoardGame.forced_pass`)."""
+        forced = self._game.forced_pass(state)
+        while forced is not None:
+            state.apply_action(forced)
+            forced = self._game.forced_pass(state)
+
+    def _settled(self, state) -> bool:
+        """A state the agent can be shown: the agent to move, or the end."""
+        return state.is_terminal() or state.current_player() == self._agent
+
+    def estimate(self, timestep) -> ArmScene:
+        if self._view is None:
+            raise RuntimeError("BoardCameraEstimator.estimate called before reset")
+        obs = timestep.observation
+        qpos = np.array(obs["arm/joints_pos"], float)
+        self._since += 1
+        jumped = self._qpos is not None and np.abs(qpos - self._qpos).max() > ARM_JUMP
+        if jumped:
+            # The arm is reset only after a registered move: the touch that
+            # played it was under the hand before the jump.
+            self._touched = self._view.silhouette.touched_zone(self._qpos, self._zones)
+        self._qpos = qpos
+        if (self._since < self.frame_every and not jumped and not timestep.last()
+                and self._belief.history() == self._anchor.history()
+                and self._settled(self._belief)):
+            return self._scene(qpos, obs)          # between frames: as last read
+        self._since = 0
+        cells, hidden, selection, fractions = self._view.read(obs[CAMERA], qpos,
+                                                              self._filled_background())
+        seen = cells != UNSEEN
+        game = self._game
+        players = game.players(self._belief)
+        # The episode ended with the game (not at the time limit): the game is over.
+        over = timestep.last() and float(timestep.discount or 0.0) == 0.0
+        if (np.any(players[seen] != cells[seen]) or not self._settled(self._belief)
+                or (over and not self._belief.is_terminal()) or self._touched is not None):
+            self._belief = self._explain(cells, np.where(hidden[:, None], np.nan, fractions),
+                                         over)
+            self._touched = None
+        elif self._belief.history() != self._anchor.history():
+            changed = game.players(self._anchor) != players
+            if not np.any(changed & ~seen):
+                self._anchors.append(self._belief.clone())
+        if self._belief.history() == self._anchor.history() and np.isnan(
+                self._background[:, 0, 0]).any():
+            self._learn(self._anchor, self._view.samples(obs[CAMERA]), cells == EMPTY_CELL)
+        self._selected = self._selection(selection, hidden)
+        return self._scene(qpos, obs)
+
+    def _scene(self, qpos, obs) -> ArmScene:
+        state = self._belief.clone()
+        return ArmScene(state=state, moves=tuple(int(a) for a in state.history()),
+                        qpos=qpos, qvel=np.array(obs["arm/joints_vel"], float),
+                        selected=self._selected, agent=self._agent)
+
+    def _selection(self, selection, hidden) -> int:
+        if self._game.rules.input != "move":
+            return -1
+        best = int(np.argmax(selection))
+        if selection[best] >= SELECTED:
+            return best
+        if self._selected >= 0 and hidden[self._selected]:
+            return self._selected                  # under the arm: as last seen
+        return -1
+
+    @property
+    def _anchor(self):
+        return self._anchors[-1]
+
+    def _explain(self, cells, fractions, over: bool):
+        """The state that best explains a frame: the best continuation of the
+        last anchor, or, when that contradicts a cell read surely, of one of
+        the `BACKTRACK` anchors before it (a move first taken for a pass, or
+        for another under the arm); later anchors are then dropped. A
+        confirmed state becomes the last anchor."""
+        tried = []
+        for back in range(min(BACKTRACK, len(self._anchors))):
+            anchor = self._anchors[-1 - back]
+            state, score = self._search(anchor, cells, fractions, over)
+            tried.append((score, back, state))
+            if not score[0] and score[1] == 0:
+                break
+        score, back, state = min(tried, key=lambda t: (t[0], t[1]))
+        if back:
+            del self._anchors[len(self._anchors) - back:]
+        if not score[0] and score[1] == 0 and score[5] == 0:
+            self._anchors.append(state.clone())
+        return state
+
+    def _search(self, anchor, cells, fractions, over: bool = False):
+        """(state, score): the best-explaining continuation of ``anchor`` and
+        its score (see the module docstring).
+        ``fractions`` (n, 2): each visible cell's share of each piece colour
+        (NaN under the arm); with ``over`` (the episode ended with the game)
+        only a finished game is accepted, if one is found."""
+        visible = ~np.isnan(fractions[:, 0])
+        key = (tuple(anchor.history()), cells.tobytes(), self._touched, self._selected,
+               np.round(np.nan_to_num(fractions, nan=-1.0) * 20).astype(np.int8).tobytes(), over)
+        if key in self._cache:
+            state, score = self._cache[key]
+            return state.clone(), score
+        self.searches += 1
+        game = self._game
+        seen = cells != UNSEEN
+        base = game.players(anchor)
+        shares = fractions[visible]
+
+        played = None             # the action the touch before an arm reset played
+        if self._touched is not None and anchor.current_player() == self._agent:
+            zone = min(self._touched, game.num_zones - 1)
+            action = game.zone_effects(anchor, self._selected)[0][zone]
+            played = int(action) if action >= 0 else None
+        start_len = len(anchor.history())
+        believed = list(self._belief.history())
+
+        def score(state):
+            """(not finished though the game is over, cells read surely and
+            contradicted, how far the visible cells' colour shares are from
+            the state's pieces, rewriting moves of the current estimate (two
+            orders of the same moves can give one board), not starting with
+            the move the touch before an arm reset played, changed cells not
+            read surely)."""
+            players = game.players(state)
+            wrong = int(np.count_nonzero(players[seen] != cells[seen]))
+            pieces = np.stack([players[visible] == 0, players[visible] == 1], axis=1)
+            soft = round(float(np.abs(shares - pieces).sum()), 3)
+            history = state.history()
+            miss = played is not None and (len(history) <= start_len
+                                           or history[start_len] != played)
+            blind = int(np.count_nonzero((players != base) & ~seen))
+            common = min(len(history), len(believed))
+            rewrite = history[:common] != believed[:common]
+            return (over and not state.is_terminal()), wrong, soft, int(rewrite), int(miss), blind
+
+        def confirmed(s):
+            return not s[0] and s[1] == 0 and s[5] == 0
+
+        start = anchor.clone()
+        best = (score(start), 0, start) if self._settled(start) else None
+        frontier = [start]
+        for depth in range(1, MAX_MOVES + 1):
+            children = []
+            for state in frontier:
+                if state.is_terminal():
+                    continue
+                for action in state.legal_actions():
+                    child = state.child(action)
+                    self._settle(child)
+                    children.append((score(child), child))
+            if not children:
+                break
+            children.sort(key=lambda item: item[0])
+            for s, child in children:
+                if self._settled(child) and (best is None or (s, depth) < (best[0], best[1])):
+                    best = (s, depth, child)
+            if best is not None and confirmed(best[0]) and not best[0][4]:
+                break
+            frontier, boards = [], set()
+            for s, child in children:
+                board = (game.players(child).tobytes(), child.current_player())
+                if board in boards or child.is_terminal():
+                    continue
+                boards.add(board)
+                frontier.append(child)
+                if len(frontier) >= BEAM:
+                    break
+        if best is None:      # nothing settled within reach: keep the estimate, unconfirmed
+            result = (self._belief.clone(), (True, len(cells), 0.0, 0, 1, len(cells)))
+        else:
+            result = (best[2], best[0])
+        if len(self._cache) > 256:
+            self._cache.clear()
+        self._cache[key] = (result[0].clone(), result[1])
+        return result

@@ -1,0 +1,197 @@
+"""The board games' camera estimator (`hier_agents.estimators.camera_board`):
+what it reads of a frame, the arm's silhouette, and the game it keeps, judged
+against the referee (which it never reads)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import envs
+from arm_driving import central_action, touch_point
+from envs.boards.mujoboard import REGISTERED
+from hier_agents.boundary import BoundaryEnv
+from hier_agents.estimators.camera_board import (CAMERA, UNSEEN, BoardCameraEstimator,
+                                                 BoardView)
+from hier_agents.modular.components import env_overrides, reads_record
+from envs.boards.games import BoardGame
+
+BOARDS = [f"mujoboard/{name}" for name, _, _ in REGISTERED] + ["mujoxo/optimal"]
+
+
+def _env(name, **kwargs):
+    """The environment as the camera estimator asks for it, seen through the
+    boundary that removes everything the task declares privileged."""
+    env = envs.load(name, seed=2, **{**env_overrides(name, "camera"), **kwargs})
+    return env, BoundaryEnv(env, strip=env.privileged_observations)
+
+
+def _right(env, scene) -> bool:
+    game, truth = env.task.game, env.task.state
+    return (scene.state.current_player() == truth.current_player()
+            and np.array_equal(game.players(scene.state), game.players(truth)))
+
+
+def test_the_camera_estimator_needs_no_record_and_asks_for_its_camera():
+    assert not reads_record("mujoboard", "camera") and reads_record("mujoboard", "board")
+    for bad in (0, 1.5, True):
+        with pytest.raises(ValueError, match="frame_every"):
+            BoardCameraEstimator(frame_every=bad)
+    overrides = env_overrides("mujoboard/hex-7x7", "camera")
+    assert overrides[CAMERA] == (128, 128) and overrides["front_camera"] is None
+    env, view = _env("mujoboard/hex-7x7")
+    obs = view.reset().observation
+    assert not {"board_state", "move_history"} & set(obs) and CAMERA in obs
+    env.close()
+
+
+@pytest.mark.parametrize("name", BOARDS)
+def test_the_first_frame_reads_as_the_referees_board(name):
+    """Every cell read (not under the arm, not unsure) is the referee's, most
+    cells are read, and as second player the first estimate already holds
+    the opponent's first move (othello's and the move games' initial pieces
+    are drawn from the first frame)."""
+    env, view = _env(name, agent_player=1,
+                     **({"opponent": "random"} if name.startswith("mujoboard") else {}))
+    timestep = view.reset()
+    description = view.description()
+    estimator = BoardCameraEstimator()
+    estimator.reset(description, timestep)
+    cells, hidden = estimator.read(timestep)
+    truth = env.task.game.players(env.task.state)
+    seen = cells != UNSEEN
+    assert seen.mean() > 0.7, f"only {seen.sum()} of {len(cells)} cells read"
+    np.testing.assert_array_equal(cells[seen], truth[seen])
+    scene = estimator.estimate(timestep)
+    assert len(env.task.moves) >= 1 and _right(env, scene)
+    assert scene.agent == 1 and scene.moves == tuple(env.task.state.history())
+    env.close()
+
+
+def test_the_arm_hides_the_cells_under_the_hand():
+    """With the fingertips pressed on a point, that point's cell is hidden
+    (its own model, posed at the observed joints, projected into the frame)."""
+    env, view = _env("mujoboard/gomoku-9x9", opponent="random")
+    view.reset()
+    description = view.description()
+    board = BoardView(description, BoardGame.from_description(description),
+                      description.front_camera_2)
+    point = 4 * 9 + 4
+    target = description.point_position(point)
+    pressing = lambda: (np.linalg.norm(env.task.pinch_site_position()[:2] - target[:2])  # noqa: E731
+                        < 0.01 and env.task.pinch_site_position()[2] < target[2] + 0.03)
+    timestep = touch_point(env, target, until=pressing)
+    assert pressing()
+    obs = timestep.observation
+    hidden = board.silhouette.hidden(obs["arm/joints_pos"], board.centres, board.radius)
+    assert hidden[point] and hidden.sum() < len(hidden) // 2
+    env.close()
+
+
+@pytest.mark.parametrize("name", ["mujoboard/hex-7x7", "mujoboard/othello-8x8",
+                                  "mujoboard/breakthrough-6x6"])
+def test_touched_moves_and_replies_are_found_among_the_continuations(name):
+    """Three moves touched with the arm (a move game's as piece, then
+    destination, the selection seen in between), each answered by the
+    opponent: after each, the estimate is the referee's board and player to
+    move, from camera frames and joints only."""
+    env, view = _env(name, opponent="random")
+    task = env.task
+    timestep = view.reset()
+    estimator = BoardCameraEstimator(frame_every=1)   # called once a turn here: read each time
+    estimator.reset(view.description(), timestep)
+    for turn in range(3):
+        if task.state.is_terminal():
+            break
+        action = central_action(task)
+        zones = task.game.touches(task.state, action)
+        if len(zones) == 2:
+            touch_point(env, task.point_position(zones[0]),
+                        until=lambda: task._selected == zones[0])
+            timestep = touch_point(env, task.point_position(zones[0]) + (0, 0, 0.1), steps=20)
+            assert estimator.estimate(timestep).selected == zones[0], f"turn {turn}"
+        before = len(task.moves)
+        for _ in range(3):      # a touch from an awkward arm pose may miss: again
+            touch_point(env, task.point_position(zones[-1]))
+            if len(task.moves) > before:
+                break
+        assert task.moves[before] == action
+        timestep = view.step(np.zeros(view.action_spec().shape))
+        scene = estimator.estimate(timestep)
+        assert _right(env, scene), f"turn {turn}: {scene.moves} != {task.moves}"
+        assert scene.selected == -1
+    env.close()
+
+
+def test_the_last_move_under_the_hand_is_found_when_the_game_ends():
+    """A game that ends on the agent's touch: the piece may still be under the
+    hand in the last frame, and the estimate must still be the finished game."""
+    env, view = _env("mujoboard/connect_four", opponent="random")
+    timestep = view.reset()
+    task = env.task
+    estimator = BoardCameraEstimator()
+    estimator.reset(view.description(), timestep)
+    # Play the agent's pieces straight into column 3 by the referee's own hand,
+    # the opponent answering in column 0, until one touch wins.
+    for _ in range(3):
+        task._apply(3, piece_xy=None)
+        task._apply(0, piece_xy=None, rng=np.random.default_rng(0))
+    timestep = view.step(np.zeros(view.action_spec().shape))
+    estimator.estimate(timestep)
+    timestep = touch_point(env, task.point_position(3 * 7 + 3))
+    assert timestep.last() and task.state.is_terminal()
+    scene = estimator.estimate(timestep)
+    assert scene.state.is_terminal() and _right(env, scene)
+    env.close()
+
+
+def test_a_stone_first_taken_for_a_pass_is_found_when_seen(request):
+    """Go: the agent's stone under the hand and the opponent's reply in view
+    are first explained as the agent's pass and the reply (nothing contradicts
+    it); once the stone shows, the estimate has it."""
+    request.getfixturevalue("gnugo")
+    env, view = _env("mujogo/7x7")
+    timestep = view.reset()
+    estimator = BoardCameraEstimator()
+    estimator.reset(view.description(), timestep)
+    game = BoardGame.from_description(view.description())
+    n = game.num_points
+    mine, reply = 24, 25
+    truth = np.full(n, -1, np.int8)
+    truth[[mine, reply]] = [0, 1]
+    shares = np.stack([truth == 0, truth == 1], axis=1).astype(float)
+    hidden = np.zeros(n, bool)
+    hidden[mine] = True
+    cells = np.where(hidden, UNSEEN, truth).astype(np.int8)
+    first = estimator._explain(cells, np.where(hidden[:, None], np.nan, shares), over=False)
+    assert first.history() == [game.pass_action, reply]       # nothing contradicts it
+    second = estimator._explain(truth.copy(), shares, over=False)
+    # The stone in view: the board and the player to move are the game's again
+    # (the history may keep the pass, the opponent's pass answering the stone).
+    np.testing.assert_array_equal(game.players(second), truth)
+    assert second.current_player() == 0
+    env.close()
+
+
+def test_a_frame_the_last_anchor_cannot_explain_is_explained_from_an_earlier_one():
+    """Hex: a reply first read at B (confirmed), then seen at C with B empty:
+    no continuation of the first explanation fits, the one before it does."""
+    env, view = _env("mujoboard/hex-7x7", opponent="random")
+    timestep = view.reset()
+    estimator = BoardCameraEstimator()
+    estimator.reset(view.description(), timestep)
+    game = BoardGame.from_description(view.description())
+
+    def frame(pieces):
+        board = np.full(game.num_points, -1, np.int8)
+        for point, player in pieces.items():
+            board[point] = player
+        return board, np.stack([board == 0, board == 1], axis=1).astype(float)
+
+    mine, first_reply, true_reply = 24, 25, 31
+    cells, shares = frame({mine: 0, first_reply: 1})
+    assert estimator._explain(cells, shares, over=False).history() == [mine, first_reply]
+    cells, shares = frame({mine: 0, true_reply: 1})
+    assert estimator._explain(cells, shares, over=False).history() == [mine, true_reply]
+    assert [a.history() for a in estimator._anchors] == [[], [mine, true_reply]]
+    env.close()
