@@ -13,10 +13,10 @@ from envs.boards.mujoboard import REGISTERED
 from hier_agents.boundary import BoundaryEnv
 from hier_agents.estimators.camera_board import (CAMERA, UNSEEN, BoardCameraEstimator,
                                                  BoardView)
-from hier_agents.modular.components import env_overrides, reads_record
+from hier_agents.modular.components import ESTIMATORS, env_overrides, reads_record
 from envs.boards.games import BoardGame
 
-BOARDS = [f"mujoboard/{name}" for name, _, _ in REGISTERED] + ["mujoxo/optimal"]
+BOARDS = [f"mujoboard/{name}" for name, _, _ in REGISTERED] + ["mujogo/7x7"]
 
 
 def _env(name, **kwargs):
@@ -34,6 +34,7 @@ def _right(env, scene) -> bool:
 
 def test_the_camera_estimator_needs_no_record_and_asks_for_its_camera():
     assert not reads_record("mujoboard", "camera") and reads_record("mujoboard", "board")
+    assert "camera" not in ESTIMATORS["mujoxo"]      # not offered: see the components table
     for bad in (0, 1.5, True):
         with pytest.raises(ValueError, match="frame_every"):
             BoardCameraEstimator(frame_every=bad)
@@ -46,11 +47,13 @@ def test_the_camera_estimator_needs_no_record_and_asks_for_its_camera():
 
 
 @pytest.mark.parametrize("name", BOARDS)
-def test_the_first_frame_reads_as_the_referees_board(name):
+def test_the_first_frame_reads_as_the_referees_board(name, request):
     """Every cell read (not under the arm, not unsure) is the referee's, most
     cells are read, and as second player the first estimate already holds
     the opponent's first move (othello's and the move games' initial pieces
     are drawn from the first frame)."""
+    if name.startswith("mujogo"):            # the opponent is GNU Go
+        request.getfixturevalue("gnugo")
     env, view = _env(name, agent_player=1,
                      **({"opponent": "random"} if name.startswith("mujoboard") else {}))
     timestep = view.reset()
