@@ -11,11 +11,13 @@ observation-only estimator that reads them fails loudly instead of quietly
 cheating.
 
 The board games declare their game record (``board_state``,
-``move_history``) privileged too (`envs.boards.task.BoardTask`), but it is
-let through: the board agents' estimator (`hier_agents.estimators.board`)
-reads it, so board agents observe the referee's record, not only cameras
-and proprioception. ``BoundaryEnv(env, strip=env.privileged_observations)``
-strips every key the environment declares.
+``move_history``, ``selected_point``) privileged too
+(`envs.boards.task.BoardTask`). ``BoundaryEnv(env,
+strip=env.privileged_observations)`` strips every key the environment
+declares: ``hier_agents.run`` does so for every observation-only estimator
+except the ``board`` one (`hier_agents.estimators.board`), which reads the
+referee's record (`hier_agents.modular.components.reads_record`); the
+camera board estimator reads cameras and proprioception only.
 
 ``python -m hier_agents.run`` puts every observation-only agent behind it;
 ``tests/test_boundary.py`` plays every listed estimator/planner/skill
