@@ -11,8 +11,8 @@ import envs
 from arm_driving import central_action, touch_point
 from envs.boards.mujoboard import REGISTERED
 from hier_agents.boundary import BoundaryEnv
-from hier_agents.estimators.camera_board import (CAMERA, UNSEEN, BoardCameraEstimator,
-                                                 BoardView)
+from hier_agents.estimators.board_view import UNSEEN, BoardView
+from hier_agents.estimators.camera_board import CAMERA, BoardCameraEstimator
 from hier_agents.modular.components import ESTIMATORS, env_overrides, reads_record
 from envs.boards.games import BoardGame
 

@@ -4,8 +4,10 @@
   frames and the walker's proprioception), `OracleEstimator` (``oracle``,
   privileged: the simulator's positions), `EntityLayerEstimator`
   (``entity-layer``, privileged: the environment's ground-truth grid);
-* MuJoXO / MuJoGo: `BoardEstimator` (``board``: the game record and board
-  observations, the arm's joint observations).
+* MuJoXO / MuJoGo / MuJoBoard: `BoardEstimator` (``board``: the game record
+  and board observations, the arm's joint observations);
+  `hier_agents.estimators.camera_board.BoardCameraEstimator` (``camera``,
+  MuJoGo and MuJoBoard: the board from a camera, observation-only).
 """
 
 from hier_agents.estimators.base import EstimationError, Estimator

@@ -18,7 +18,7 @@ from hier_agents.estimators.base import EstimationError, Estimator
 from skills.scene import ArmScene
 
 
-def _scalar(obs, key: str, default: int) -> int:
+def scalar(obs, key: str, default: int) -> int:
     """The integer of a one-element observation, or ``default`` without it."""
     value = obs.get(key)
     return default if value is None else int(np.asarray(value).reshape(-1)[0])
@@ -44,7 +44,7 @@ class BoardEstimator(Estimator):
             raise RuntimeError("BoardEstimator.estimate called before reset")
         game, spiel = self._game
         obs = timestep.observation
-        agent = _scalar(obs, "agent_player", 0)
+        agent = scalar(obs, "agent_player", 0)
         history = np.asarray(obs["move_history"])
         end = int(np.argmax(history < 0)) if (history < 0).any() else len(history)
         played = history[:end]
@@ -56,4 +56,4 @@ class BoardEstimator(Estimator):
         return ArmScene(state=state, moves=tuple(int(a) for a in played),
                         qpos=np.array(obs["arm/joints_pos"], float),
                         qvel=np.array(obs["arm/joints_vel"], float),
-                        selected=_scalar(obs, "selected_point", -1), agent=agent)
+                        selected=scalar(obs, "selected_point", -1), agent=agent)

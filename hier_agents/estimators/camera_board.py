@@ -10,29 +10,16 @@ description names, the selection disc's colour from the arena's look
 (`envs.boards.arena.SELECTION_RGBA`). It never reads ``board_state``, ``move_history`` or
 ``selected_point``.
 
-How it reads a frame (`BoardView`):
+How it reads a frame: `hier_agents.estimators.board_view.BoardView` (cells
+projected from the described camera, the arm hidden with its own model,
+pieces against the empty board, the selection disc). What it learns:
 
-* **Cells.** Each point's patch is a disc of `PATCH` half-spacings around
-  the point, projected into the frame with the described camera.
-* **The arm.** The arm's own model is posed at the observed joints; each of
-  its geoms' convex hulls is projected, and the patch samples within
-  `ARM_MARGIN` pixels of one are not read; a cell with less than
-  `MIN_VISIBLE` of its samples left is hidden this frame.
 * **The empty board.** Each patch sample's colour on the empty board is
   learnt from the first frame (the cells empty in the game's initial
   position; when the opponent has moved first, less any that stand out
   from their row: a piece it played) and from later frames (cells a confirmed state says are
   empty); an unlearnt cell borrows the nearest learnt cell's samples of
   the same checkerboard parity, in its row if it can.
-* **Pieces.** A sample shows player p's piece when it is nearer to that
-  piece's colour over the empty board there (the game's rgba, blended by
-  its alpha) than to the empty board and to the other piece, and within
-  `PIECE_RADIUS` (RGB, 0-255) of it. A visible cell holds a player's piece
-  when at least `OCCUPIED` of its patch shows it, is empty when at most
-  `EMPTY` shows either, and is unsure otherwise.
-* **Selection** (move games): the cell whose ring (`RING`, around its
-  piece) shows the most of the selection disc's colour, at least `SELECTED`
-  of it; a selection hidden under the arm is remembered.
 
 How it keeps the game (`estimate`): the OpenSpiel state of the last
 *anchor* (a state every visible cell confirmed, with no hidden cell
@@ -74,44 +61,22 @@ from __future__ import annotations
 
 import numpy as np
 
-from envs.boards.arena import SELECTION_RGBA
 from envs.boards.games import BoardGame
-from hier_agents.estimators.base import EstimationError, Estimator
+from hier_agents.estimators.base import Estimator
+from hier_agents.estimators.board import scalar
+from hier_agents.estimators.board_view import EMPTY_CELL, SELECTED, UNSEEN, BoardView
 from skills.scene import ArmScene
 
-__all__ = ["BoardCameraEstimator", "BoardView", "ArmSilhouette", "FRAME_SHAPE"]
+__all__ = ["BoardCameraEstimator", "CAMERA", "FRAME_SHAPE"]
 
 #: The camera read and its frame size (height, width).
 CAMERA = "front_camera_2"
 FRAME_SHAPE = (128, 128)
-#: A cell's patch radius, in half-spacings between neighbouring points.
-PATCH = 0.8
-#: Height (m) above the board's top at which patches are projected (a piece's top half).
-PATCH_HEIGHT = 0.005
-#: Pixels: how near a patch sample may come to the arm's outline and still be
-#: read; a cell with less than `MIN_VISIBLE` of its samples read is hidden.
-ARM_MARGIN = 1.5
-MIN_VISIBLE = 0.6
-#: RGB distance (0-255) within which a pixel has a piece's colour.
-PIECE_RADIUS = 110.0
-#: RGB distance within which a pixel has the selection disc's colour.
-SELECTION_RADIUS = 90.0
-#: Fractions of a patch: a piece when at least `OCCUPIED` has its colour,
-#: empty when at most `EMPTY` has a piece colour.
-OCCUPIED = 0.3
-EMPTY = 0.1
 #: Learning the empty board (`BoardCameraEstimator._learn`): RGB distance
 #: from the row's median beyond which a sample is odd, and the largest
 #: fraction of odd samples of a cell learnt.
 BACKGROUND_SPREAD = 60.0
 BACKGROUND_ODD = 0.3
-#: Radii (half-spacings) of the rings read for the selection disc, which
-#: shows between a piece's edge (0.7) and the disc's (0.95).
-RING = (0.8, 0.9)
-#: Fraction of a cell's ring showing the selection disc's colour that marks
-#: a selection; the arm can hide the disc but never shows its colour, so a
-#: partly hidden ring still counts.
-SELECTED = 0.15
 #: Frame schedule: a frame is read every `FRAME_EVERY` steps, and at once
 #: when a joint moved more than `ARM_JUMP` (rad) in a step (the arm reset
 #: that follows a registered move), while the estimate is unconfirmed, and
@@ -123,231 +88,6 @@ ARM_JUMP = 0.3
 BEAM = 8
 MAX_MOVES = 8
 BACKTRACK = 3
-
-UNSEEN = -2     # a cell not read this frame (hidden or unsure)
-EMPTY_CELL = -1
-
-
-def _scalar(obs, key: str, default: int) -> int:
-    value = obs.get(key)
-    return default if value is None else int(np.asarray(value).reshape(-1)[0])
-
-
-class ArmSilhouette:
-    """Where the arm hides the board: the arm's own model (`envs.description.
-    ArmDescription`) posed at observed joints, each geom's convex hull
-    projected into a camera's frames.
-
-    Args:
-      arm: the arm's description (its model compiles on its own).
-      camera: the `envs.description.CameraDescription` of the frames.
-      shape: (height, width) of the frames.
-    """
-
-    def __init__(self, arm, camera, shape) -> None:
-        import mujoco
-        from scipy.spatial import ConvexHull
-        self._mujoco = mujoco
-        self._hull2d = ConvexHull
-        self.model = arm.model()
-        self.data = mujoco.MjData(self.model)
-        self._pinch = self.model.site(arm.pinch_site).id
-        self.camera, self.shape = camera, tuple(shape)
-        m = self.model
-        self._geoms, self._local = [], []
-        for g in range(m.ngeom):
-            if m.geom_rgba[g, 3] <= 0:
-                continue
-            local = self._geom_points(m, g)
-            if local is None:
-                continue
-            if len(local) > 8:
-                local = local[ConvexHull(local).vertices]
-            self._geoms.append(g)
-            self._local.append(local)
-
-    @staticmethod
-    def _geom_points(m, g) -> np.ndarray | None:
-        """Points (geom frame) whose convex hull is the geom (or bounds it)."""
-        import mujoco
-        kind, size = int(m.geom_type[g]), m.geom_size[g]
-        if kind == mujoco.mjtGeom.mjGEOM_MESH:
-            mesh = int(m.geom_dataid[g])
-            start, count = int(m.mesh_vertadr[mesh]), int(m.mesh_vertnum[mesh])
-            return np.array(m.mesh_vert[start:start + count], float)
-        angles = np.linspace(0, 2 * np.pi, 16, endpoint=False)
-        ring = np.stack([np.cos(angles), np.sin(angles)], axis=1)
-        if kind in (mujoco.mjtGeom.mjGEOM_CYLINDER, mujoco.mjtGeom.mjGEOM_CAPSULE):
-            r, h = size[0], size[1] + (size[0] if kind == mujoco.mjtGeom.mjGEOM_CAPSULE else 0)
-            return np.concatenate([np.c_[r * ring, np.full(16, z)] for z in (-h, h)])
-        if kind == mujoco.mjtGeom.mjGEOM_BOX:
-            corners = np.array(np.meshgrid([-1, 1], [-1, 1], [-1, 1])).reshape(3, -1).T
-            return corners * size
-        if kind == mujoco.mjtGeom.mjGEOM_SPHERE:
-            r = size[0]
-            return np.concatenate([np.c_[r * ring, np.zeros(16)], np.c_[r * ring[:, :1],
-                                   np.zeros(16), r * ring[:, 1:]],
-                                   np.c_[np.zeros(16), r * ring]])
-        return None
-
-    def touched_zone(self, qpos, zones) -> int | None:
-        """The zone under the pinch site with the arm at ``qpos``: the index
-        of the first of ``zones`` ((centre x, y), (half x, y)) holding its
-        (x, y), else the nearest zone centre within 1.5 half-sizes, else None."""
-        d = self.data
-        d.qpos[:] = np.asarray(qpos, float)
-        self._mujoco.mj_kinematics(self.model, d)
-        xy = d.site_xpos[self._pinch][:2]
-        for i, (centre, half) in enumerate(zones):
-            if np.all(np.abs(xy - centre) <= half):
-                return i
-        dist = [np.max(np.abs(xy - c) / h) for c, h in zones]
-        best = int(np.argmin(dist))
-        return best if dist[best] <= 1.5 else None
-
-    def outlines(self, qpos) -> list[np.ndarray]:
-        """Per geom, its projected outline: (k, 2) pixel (row, col) vertices of
-        a convex polygon, counter-clockwise in (col, row)."""
-        m, d = self.model, self.data
-        d.qpos[:] = np.asarray(qpos, float)
-        self._mujoco.mj_kinematics(m, d)
-        out = []
-        for g, local in zip(self._geoms, self._local):
-            world = d.geom_xpos[g] + local @ d.geom_xmat[g].reshape(3, 3).T
-            px = self.camera.project(world, self.shape)
-            try:
-                hull = self._hull2d(px[:, ::-1])
-            except Exception:       # a degenerate projection (edge-on): skip it
-                continue
-            out.append(px[hull.vertices])
-        return out
-
-    def hidden(self, qpos, centres, radius) -> np.ndarray:
-        """(n,) bool: which discs (``centres`` (n, 2) pixel row, col and
-        ``radius`` (n,) pixels) an outline covers or comes within their
-        radius of (a convex polygon's largest signed edge distance)."""
-        centres = np.asarray(centres, float)
-        radius = np.broadcast_to(np.asarray(radius, float), (len(centres),))
-        hidden = np.zeros(len(centres), bool)
-        reach = radius.max(initial=0.0)
-        for poly in self.outlines(qpos):
-            low, high = poly.min(axis=0) - reach, poly.max(axis=0) + reach
-            near = np.flatnonzero(np.all((centres >= low) & (centres <= high), axis=1))
-            if not len(near):
-                continue
-            a = poly[:, ::-1]                     # (col, row), counter-clockwise
-            b = np.roll(a, -1, axis=0)
-            edge = b - a
-            normal = np.stack([edge[:, 1], -edge[:, 0]], axis=1)
-            normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-9)
-            rel = centres[near][:, None, ::-1] - a[None]
-            dist = (rel * normal[None]).sum(-1).max(axis=1)   # outward normals of a CCW hull
-            hidden[near] |= dist < radius[near]
-        return hidden
-
-
-class BoardView:
-    """Reads one frame of a board: each cell's piece (or none, or unsure)
-    and the selected cell. See the module docstring.
-
-    Args:
-      description: the task's `envs.description.BoardDescription`.
-      game: its `envs.boards.games.BoardGame`.
-      camera: the `envs.description.CameraDescription` of the frames read.
-    """
-
-    def __init__(self, description, game: BoardGame, camera) -> None:
-        if camera is None or camera.shape is None:
-            raise EstimationError(f"the {CAMERA} camera is off: the camera estimator reads it")
-        self.camera, self.shape = camera, tuple(camera.shape)
-        points = np.asarray(description.point_positions, float)
-        n = len(points)
-        gaps = np.linalg.norm(points[:, None, :2] - points[None, :, :2], axis=-1)
-        gaps[np.arange(n), np.arange(n)] = np.inf
-        half = 0.5 * float(gaps.min())
-        #: Half the distance between neighbouring points (m).
-        self.half = half
-        grid = np.linspace(-1, 1, 9)
-        offsets = np.array([(x, y) for x in grid for y in grid if x * x + y * y <= 1.0])
-        world = points[:, None, :] + np.c_[PATCH * half * offsets,
-                                          np.full(len(offsets), PATCH_HEIGHT)][None]
-        px = camera.project(world, self.shape)
-        h, w = self.shape
-        rows = np.clip(np.floor(px[..., 0]).astype(int), 0, h - 1)
-        cols = np.clip(np.floor(px[..., 1]).astype(int), 0, w - 1)
-        self.index = rows * w + cols                     # (n, k) flat pixel of each sample
-        self.sample_px = px                              # (n, k, 2) their (row, col)
-        angles = np.linspace(0, 2 * np.pi, 24, endpoint=False)
-        ring = np.concatenate([r * np.stack([np.cos(angles), np.sin(angles)], axis=1)
-                               for r in RING])
-        world = points[:, None, :] + np.c_[half * ring, np.zeros(len(ring))][None]
-        px = camera.project(world, self.shape)
-        self.ring = (np.clip(np.floor(px[..., 0]).astype(int), 0, h - 1) * w
-                     + np.clip(np.floor(px[..., 1]).astype(int), 0, w - 1))
-        self.centres = camera.project(points + [0, 0, PATCH_HEIGHT], self.shape)
-        radius = np.linalg.norm(px - self.centres[:, None], axis=-1).max(axis=1)
-        #: Each patch's radius in pixels plus `ARM_MARGIN`: a cell wholly clear of the arm.
-        self.radius = radius + ARM_MARGIN
-        colours = game.rules.colours
-        self.piece_rgb = np.array([c[:3] for c in colours], float) * 255.0
-        self.piece_alpha = np.array([c[3] for c in colours], float)
-        #: Each cell's checkerboard parity (a background learnt on one cell
-        #: stands in for an unlearnt cell of the same parity).
-        self.row = np.arange(n) // description.cols
-        self.parity = (self.row + np.arange(n) % description.cols) % 2
-        self.selection_rgb = np.array(SELECTION_RGBA[:3], float) * 255.0
-        self.silhouette = ArmSilhouette(description.arm, camera, self.shape)
-
-    def samples(self, frame) -> np.ndarray:
-        """(n, k, 3) float RGB of each cell's patch samples in ``frame``."""
-        img = np.asarray(frame, float).reshape(-1, 3)
-        if img.shape[0] != self.shape[0] * self.shape[1]:
-            raise EstimationError(f"{CAMERA} frames are {np.asarray(frame).shape[:2]}, "
-                                  f"the description says {self.shape}")
-        return img[self.index]
-
-    def read(self, frame, qpos, background):
-        """(cells, hidden, selection, fractions) of one frame.
-
-        ``background`` (n, k, 3): each patch sample's colour on the empty
-        board (a selected cell's is the selection disc). A sample shows
-        player p's piece when it is nearer to that piece's colour over the
-        background (its rgba blended with alpha) than to the background and
-        to the other piece, and within `PIECE_RADIUS` of it.
-
-        Returns ``cells`` (n,) int8: 0 or 1 (a player's piece), -1 (empty)
-        or `UNSEEN` (hidden or unsure); ``hidden`` (n,) bool: under the arm;
-        ``selection`` (n,) float: the fraction of each cell's ring showing
-        the selection disc's colour; ``fractions`` (n, 2): the fraction of
-        each patch showing each player's piece.
-        """
-        px = self.samples(frame)
-        img = np.asarray(frame, float).reshape(-1, 3)
-        selection = (np.linalg.norm(img[self.ring] - self.selection_rgb, axis=-1)
-                     < SELECTION_RADIUS).mean(axis=1)
-        # A selected piece stands on the selection disc, seen through it.
-        background = np.where((selection >= SELECTED)[:, None, None], self.selection_rgb,
-                              background)
-        d_bg = np.linalg.norm(px - background, axis=-1)
-        alpha = self.piece_alpha[:, None, None, None]
-        expected = alpha * self.piece_rgb[:, None, None, :] + (1 - alpha) * background[None]
-        d0, d1 = np.linalg.norm(px[None] - expected, axis=-1)
-        # Samples under the arm (within ARM_MARGIN pixels of its outline) are
-        # not read; a cell with less than MIN_VISIBLE of its samples left is hidden.
-        n, k = self.index.shape
-        covered = self.silhouette.hidden(qpos, self.sample_px.reshape(-1, 2),
-                                         ARM_MARGIN + 0.5).reshape(n, k)
-        shown = (~covered).sum(axis=1)
-        hidden = shown < MIN_VISIBLE * k
-        is0 = (d0 < PIECE_RADIUS) & (d0 < d_bg) & (d0 < d1) & ~covered
-        is1 = (d1 < PIECE_RADIUS) & (d1 < d_bg) & (d1 <= d0) & ~covered
-        f0, f1 = (is0.sum(axis=1) / np.maximum(shown, 1), is1.sum(axis=1) / np.maximum(shown, 1))
-        cells = np.full(len(px), UNSEEN, np.int8)
-        cells[(f0 >= OCCUPIED) & (f0 >= f1)] = 0
-        cells[(f1 >= OCCUPIED) & (f1 > f0)] = 1
-        cells[f0 + f1 <= EMPTY] = EMPTY_CELL
-        cells[hidden] = UNSEEN
-        return cells, hidden, selection, np.stack([f0, f1], axis=1)
 
 
 class BoardCameraEstimator(Estimator):
@@ -375,7 +115,7 @@ class BoardCameraEstimator(Estimator):
             self._views[key] = BoardView(description, game, camera)
         self._view = self._views[key]
         self._game, self._spiel = game, game.load()
-        self._agent = _scalar(timestep.observation, "agent_player", 0)
+        self._agent = scalar(timestep.observation, "agent_player", 0)
         initial = self._spiel.new_initial_state()
         self._settle(initial)
         self._anchors = [initial]

@@ -1,0 +1,126 @@
+"""`ArmSilhouette`: where a robot arm hides a board in a camera's frames.
+
+The arm's own kinematic model (`envs.description.ArmDescription`) is posed
+at observed joints; each of its geoms' convex hulls is projected with a
+described camera (`envs.description.CameraDescription`). Used by the board
+games' camera estimator (`hier_agents.estimators.board_view`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["ArmSilhouette"]
+
+
+class ArmSilhouette:
+    """Where the arm hides the board: the arm's own model (`envs.description.
+    ArmDescription`) posed at observed joints, each geom's convex hull
+    projected into a camera's frames.
+
+    Args:
+      arm: the arm's description (its model compiles on its own).
+      camera: the `envs.description.CameraDescription` of the frames.
+      shape: (height, width) of the frames.
+    """
+
+    def __init__(self, arm, camera, shape) -> None:
+        import mujoco
+        from scipy.spatial import ConvexHull
+        self._mujoco = mujoco
+        self._hull2d = ConvexHull
+        self.model = arm.model()
+        self.data = mujoco.MjData(self.model)
+        self._pinch = self.model.site(arm.pinch_site).id
+        self.camera, self.shape = camera, tuple(shape)
+        m = self.model
+        self._geoms, self._local = [], []
+        for g in range(m.ngeom):
+            if m.geom_rgba[g, 3] <= 0:
+                continue
+            local = self._geom_points(m, g)
+            if local is None:
+                continue
+            if len(local) > 8:
+                local = local[ConvexHull(local).vertices]
+            self._geoms.append(g)
+            self._local.append(local)
+
+    @staticmethod
+    def _geom_points(m, g) -> np.ndarray | None:
+        """Points (geom frame) whose convex hull is the geom (or bounds it)."""
+        import mujoco
+        kind, size = int(m.geom_type[g]), m.geom_size[g]
+        if kind == mujoco.mjtGeom.mjGEOM_MESH:
+            mesh = int(m.geom_dataid[g])
+            start, count = int(m.mesh_vertadr[mesh]), int(m.mesh_vertnum[mesh])
+            return np.array(m.mesh_vert[start:start + count], float)
+        angles = np.linspace(0, 2 * np.pi, 16, endpoint=False)
+        ring = np.stack([np.cos(angles), np.sin(angles)], axis=1)
+        if kind in (mujoco.mjtGeom.mjGEOM_CYLINDER, mujoco.mjtGeom.mjGEOM_CAPSULE):
+            r, h = size[0], size[1] + (size[0] if kind == mujoco.mjtGeom.mjGEOM_CAPSULE else 0)
+            return np.concatenate([np.c_[r * ring, np.full(16, z)] for z in (-h, h)])
+        if kind == mujoco.mjtGeom.mjGEOM_BOX:
+            corners = np.array(np.meshgrid([-1, 1], [-1, 1], [-1, 1])).reshape(3, -1).T
+            return corners * size
+        if kind == mujoco.mjtGeom.mjGEOM_SPHERE:
+            r = size[0]
+            return np.concatenate([np.c_[r * ring, np.zeros(16)], np.c_[r * ring[:, :1],
+                                   np.zeros(16), r * ring[:, 1:]],
+                                   np.c_[np.zeros(16), r * ring]])
+        return None
+
+    def touched_zone(self, qpos, zones) -> int | None:
+        """The zone under the pinch site with the arm at ``qpos``: the index
+        of the first of ``zones`` ((centre x, y), (half x, y)) holding its
+        (x, y), else the nearest zone centre within 1.5 half-sizes, else None."""
+        d = self.data
+        d.qpos[:] = np.asarray(qpos, float)
+        self._mujoco.mj_kinematics(self.model, d)
+        xy = d.site_xpos[self._pinch][:2]
+        for i, (centre, half) in enumerate(zones):
+            if np.all(np.abs(xy - centre) <= half):
+                return i
+        dist = [np.max(np.abs(xy - c) / h) for c, h in zones]
+        best = int(np.argmin(dist))
+        return best if dist[best] <= 1.5 else None
+
+    def outlines(self, qpos) -> list[np.ndarray]:
+        """Per geom, its projected outline: (k, 2) pixel (row, col) vertices of
+        a convex polygon, counter-clockwise in (col, row)."""
+        m, d = self.model, self.data
+        d.qpos[:] = np.asarray(qpos, float)
+        self._mujoco.mj_kinematics(m, d)
+        out = []
+        for g, local in zip(self._geoms, self._local):
+            world = d.geom_xpos[g] + local @ d.geom_xmat[g].reshape(3, 3).T
+            px = self.camera.project(world, self.shape)
+            try:
+                hull = self._hull2d(px[:, ::-1])
+            except Exception:       # a degenerate projection (edge-on): skip it
+                continue
+            out.append(px[hull.vertices])
+        return out
+
+    def hidden(self, qpos, centres, radius) -> np.ndarray:
+        """(n,) bool: which discs (``centres`` (n, 2) pixel row, col and
+        ``radius`` (n,) pixels) an outline covers or comes within their
+        radius of (a convex polygon's largest signed edge distance)."""
+        centres = np.asarray(centres, float)
+        radius = np.broadcast_to(np.asarray(radius, float), (len(centres),))
+        hidden = np.zeros(len(centres), bool)
+        reach = radius.max(initial=0.0)
+        for poly in self.outlines(qpos):
+            low, high = poly.min(axis=0) - reach, poly.max(axis=0) + reach
+            near = np.flatnonzero(np.all((centres >= low) & (centres <= high), axis=1))
+            if not len(near):
+                continue
+            a = poly[:, ::-1]                     # (col, row), counter-clockwise
+            b = np.roll(a, -1, axis=0)
+            edge = b - a
+            normal = np.stack([edge[:, 1], -edge[:, 0]], axis=1)
+            normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-9)
+            rel = centres[near][:, None, ::-1] - a[None]
+            dist = (rel * normal[None]).sum(-1).max(axis=1)   # outward normals of a CCW hull
+            hidden[near] |= dist < radius[near]
+        return hidden

@@ -1,0 +1,168 @@
+"""`BoardView`: one camera frame of a board read cell by cell.
+
+For the board games' camera estimator (`hier_agents.estimators.camera_board`):
+the points come from the task's description, the pieces' colours from the
+game's rules (`envs.boards.games.GameRules.colours`), the selection disc's
+from the arena's look (`envs.boards.arena.SELECTION_RGBA`).
+
+* **Cells.** Each point's patch is a disc of `PATCH` half-spacings around
+  the point, projected into the frame with the described camera.
+* **The arm.** The arm's own model is posed at the observed joints; each of
+  its geoms' convex hulls is projected, and the patch samples within
+  `ARM_MARGIN` pixels of one are not read; a cell with less than
+  `MIN_VISIBLE` of its samples left is hidden this frame.
+* **Pieces.** A sample shows player p's piece when it is nearer to that
+  piece's colour over the empty board there (the game's rgba, blended by
+  its alpha) than to the empty board and to the other piece, and within
+  `PIECE_RADIUS` (RGB, 0-255) of it. A visible cell holds a player's piece
+  when at least `OCCUPIED` of its patch shows it, is empty when at most
+  `EMPTY` shows either, and is unsure otherwise.
+* **Selection** (move games): the cell whose ring (`RING`, around its
+  piece) shows the most of the selection disc's colour, at least `SELECTED`
+  of it; a selection hidden under the arm is remembered.
+
+The empty board's colour per patch sample (``background``) is the
+caller's: the estimator learns it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from envs.boards.arena import SELECTION_RGBA
+from envs.boards.games import BoardGame
+from hier_agents.estimators.arm_silhouette import ArmSilhouette
+from hier_agents.estimators.base import EstimationError
+
+__all__ = ["BoardView", "UNSEEN", "EMPTY_CELL"]
+
+#: A cell's patch radius, in half-spacings between neighbouring points.
+PATCH = 0.8
+#: Height (m) above the board's top at which patches are projected (a piece's top half).
+PATCH_HEIGHT = 0.005
+#: Pixels: how near a patch sample may come to the arm's outline and still be
+#: read; a cell with less than `MIN_VISIBLE` of its samples read is hidden.
+ARM_MARGIN = 1.5
+MIN_VISIBLE = 0.6
+#: RGB distance (0-255) within which a pixel has a piece's colour.
+PIECE_RADIUS = 110.0
+#: RGB distance within which a pixel has the selection disc's colour.
+SELECTION_RADIUS = 90.0
+#: Fractions of a patch: a piece when at least `OCCUPIED` has its colour,
+#: empty when at most `EMPTY` has a piece colour.
+OCCUPIED = 0.3
+EMPTY = 0.1
+#: Radii (half-spacings) of the rings read for the selection disc, which
+#: shows between a piece's edge (0.7) and the disc's (0.95).
+RING = (0.8, 0.9)
+#: Fraction of a cell's ring showing the selection disc's colour that marks
+#: a selection; the arm can hide the disc but never shows its colour, so a
+#: partly hidden ring still counts.
+SELECTED = 0.15
+
+UNSEEN = -2     # a cell not read this frame (hidden or unsure)
+EMPTY_CELL = -1
+
+
+class BoardView:
+    """Reads one frame of a board: each cell's piece (or none, or unsure)
+    and the selected cell. See the module docstring.
+
+    Args:
+      description: the task's `envs.description.BoardDescription`.
+      game: its `envs.boards.games.BoardGame`.
+      camera: the `envs.description.CameraDescription` of the frames read.
+    """
+
+    def __init__(self, description, game: BoardGame, camera) -> None:
+        if camera is None or camera.shape is None:
+            raise EstimationError("the camera the board view reads is off (its shape is None)")
+        self.camera, self.shape = camera, tuple(camera.shape)
+        points = np.asarray(description.point_positions, float)
+        n = len(points)
+        gaps = np.linalg.norm(points[:, None, :2] - points[None, :, :2], axis=-1)
+        gaps[np.arange(n), np.arange(n)] = np.inf
+        half = 0.5 * float(gaps.min())
+        #: Half the distance between neighbouring points (m).
+        self.half = half
+        grid = np.linspace(-1, 1, 9)
+        offsets = np.array([(x, y) for x in grid for y in grid if x * x + y * y <= 1.0])
+        world = points[:, None, :] + np.c_[PATCH * half * offsets,
+                                          np.full(len(offsets), PATCH_HEIGHT)][None]
+        px = camera.project(world, self.shape)
+        h, w = self.shape
+        rows = np.clip(np.floor(px[..., 0]).astype(int), 0, h - 1)
+        cols = np.clip(np.floor(px[..., 1]).astype(int), 0, w - 1)
+        self.index = rows * w + cols                     # (n, k) flat pixel of each sample
+        self.sample_px = px                              # (n, k, 2) their (row, col)
+        angles = np.linspace(0, 2 * np.pi, 24, endpoint=False)
+        ring = np.concatenate([r * np.stack([np.cos(angles), np.sin(angles)], axis=1)
+                               for r in RING])
+        world = points[:, None, :] + np.c_[half * ring, np.zeros(len(ring))][None]
+        px = camera.project(world, self.shape)
+        self.ring = (np.clip(np.floor(px[..., 0]).astype(int), 0, h - 1) * w
+                     + np.clip(np.floor(px[..., 1]).astype(int), 0, w - 1))
+        self.centres = camera.project(points + [0, 0, PATCH_HEIGHT], self.shape)
+        radius = np.linalg.norm(px - self.centres[:, None], axis=-1).max(axis=1)
+        #: Each patch's radius in pixels plus `ARM_MARGIN`: a cell wholly clear of the arm.
+        self.radius = radius + ARM_MARGIN
+        colours = game.rules.colours
+        self.piece_rgb = np.array([c[:3] for c in colours], float) * 255.0
+        self.piece_alpha = np.array([c[3] for c in colours], float)
+        #: Each cell's checkerboard parity (a background learnt on one cell
+        #: stands in for an unlearnt cell of the same parity).
+        self.row = np.arange(n) // description.cols
+        self.parity = (self.row + np.arange(n) % description.cols) % 2
+        self.selection_rgb = np.array(SELECTION_RGBA[:3], float) * 255.0
+        self.silhouette = ArmSilhouette(description.arm, camera, self.shape)
+
+    def samples(self, frame) -> np.ndarray:
+        """(n, k, 3) float RGB of each cell's patch samples in ``frame``."""
+        img = np.asarray(frame, float).reshape(-1, 3)
+        if img.shape[0] != self.shape[0] * self.shape[1]:
+            raise EstimationError(f"{self.camera.name} frames are {np.asarray(frame).shape[:2]}, "
+                                  f"the description says {self.shape}")
+        return img[self.index]
+
+    def read(self, frame, qpos, background):
+        """(cells, hidden, selection, fractions) of one frame.
+
+        ``background`` (n, k, 3): each patch sample's colour on the empty
+        board (a selected cell's is the selection disc). A sample shows
+        player p's piece when it is nearer to that piece's colour over the
+        background (its rgba blended with alpha) than to the background and
+        to the other piece, and within `PIECE_RADIUS` of it.
+
+        Returns ``cells`` (n,) int8: 0 or 1 (a player's piece), -1 (empty)
+        or `UNSEEN` (hidden or unsure); ``hidden`` (n,) bool: under the arm;
+        ``selection`` (n,) float: the fraction of each cell's ring showing
+        the selection disc's colour; ``fractions`` (n, 2): the fraction of
+        each patch showing each player's piece.
+        """
+        px = self.samples(frame)
+        img = np.asarray(frame, float).reshape(-1, 3)
+        selection = (np.linalg.norm(img[self.ring] - self.selection_rgb, axis=-1)
+                     < SELECTION_RADIUS).mean(axis=1)
+        # A selected piece stands on the selection disc, seen through it.
+        background = np.where((selection >= SELECTED)[:, None, None], self.selection_rgb,
+                              background)
+        d_bg = np.linalg.norm(px - background, axis=-1)
+        alpha = self.piece_alpha[:, None, None, None]
+        expected = alpha * self.piece_rgb[:, None, None, :] + (1 - alpha) * background[None]
+        d0, d1 = np.linalg.norm(px[None] - expected, axis=-1)
+        # Samples under the arm (within ARM_MARGIN pixels of its outline) are
+        # not read; a cell with less than MIN_VISIBLE of its samples left is hidden.
+        n, k = self.index.shape
+        covered = self.silhouette.hidden(qpos, self.sample_px.reshape(-1, 2),
+                                         ARM_MARGIN + 0.5).reshape(n, k)
+        shown = (~covered).sum(axis=1)
+        hidden = shown < MIN_VISIBLE * k
+        is0 = (d0 < PIECE_RADIUS) & (d0 < d_bg) & (d0 < d1) & ~covered
+        is1 = (d1 < PIECE_RADIUS) & (d1 < d_bg) & (d1 <= d0) & ~covered
+        f0, f1 = (is0.sum(axis=1) / np.maximum(shown, 1), is1.sum(axis=1) / np.maximum(shown, 1))
+        cells = np.full(len(px), UNSEEN, np.int8)
+        cells[(f0 >= OCCUPIED) & (f0 >= f1)] = 0
+        cells[(f1 >= OCCUPIED) & (f1 > f0)] = 1
+        cells[f0 + f1 <= EMPTY] = EMPTY_CELL
+        cells[hidden] = UNSEEN
+        return cells, hidden, selection, np.stack([f0, f1], axis=1)
