@@ -42,6 +42,7 @@ raises `ValueError` (`family`).
 
 from __future__ import annotations
 
+import importlib
 from dataclasses import dataclass
 from typing import Callable, NamedTuple
 
@@ -210,17 +211,21 @@ def _learned_arm(description, seed, arg=None):
     return LearnedArmSkill(arg)
 
 
-def _camera(description, seed, simulator=None):
-    from hier_agents.estimators.camera import CameraEstimator
-    return CameraEstimator()
+def _lazy_estimator(module: str, name: str):
+    """A factory of the estimator class ``name`` in ``module``, imported on
+    first use; its ``env_overrides()`` returns the class's `envs.load`
+    overrides (the cameras it reads)."""
+    def cls():
+        return getattr(importlib.import_module(module), name)
+
+    def factory(description, seed, simulator=None):
+        return cls()()
+    factory.env_overrides = lambda: cls().env_overrides
+    return factory
 
 
-def _camera_overrides():
-    from hier_agents.estimators.camera import CameraEstimator
-    return CameraEstimator.env_overrides
-
-
-_camera.env_overrides = _camera_overrides
+_camera = _lazy_estimator("hier_agents.estimators.camera", "CameraEstimator")
+_board_camera = _lazy_estimator("hier_agents.estimators.camera_board", "BoardCameraEstimator")
 
 
 def _board(description, seed, simulator=None):
@@ -228,19 +233,6 @@ def _board(description, seed, simulator=None):
 
 
 _board.reads_record = True
-
-
-def _board_camera(description, seed, simulator=None):
-    from hier_agents.estimators.camera_board import BoardCameraEstimator
-    return BoardCameraEstimator()
-
-
-def _board_camera_overrides():
-    from hier_agents.estimators.camera_board import BoardCameraEstimator
-    return BoardCameraEstimator.env_overrides
-
-
-_board_camera.env_overrides = _board_camera_overrides
 
 
 def _privileged(cls):
