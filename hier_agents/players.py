@@ -11,6 +11,7 @@ where it runs, never what it does, so any split gives the same rows.
 from __future__ import annotations
 
 import math
+import sys
 import time
 from dataclasses import dataclass, field
 from typing import Callable
@@ -236,35 +237,99 @@ def shards(indices: list[int], workers: int) -> list[list[int]]:
     return [indices[i:i + size] for i in range(0, len(indices), size)]
 
 
-def play_parallel(play: Play, indices, workers, ray_address, on_done) -> None:
+#: How many times a shard is played again after the process or Ray task
+#: playing it died (a crash in native code, the out-of-memory killer, a lost
+#: node); a shard that dies more often fails the run.
+WORKER_RETRIES = 3
+
+
+class WorkerDied(RuntimeError):
+    """A worker process died while playing a shard more than `WORKER_RETRIES`
+    times: the run stops; the episodes already played are kept."""
+
+
+def play_parallel(play: Play, indices, workers, ray_address, on_done) -> int:
     """Plays ``indices`` in `shards` over ``workers`` spawned processes (one
     player each), or as Ray tasks on the cluster at ``ray_address``; each
-    finished shard's results go to ``on_done`` as they arrive."""
+    finished shard's results go to ``on_done`` as they arrive.
+
+    A worker process that dies (a signal, an abort in native code) takes its
+    pool with it: the shards not yet reported are played again in a new pool
+    (episodes are seeded by index, so their rows are the ones they would have
+    been), with a line on stderr, at most `WORKER_RETRIES` times; Ray retries
+    a dead task as often. Returns how many times a local pool was replaced.
+
+    Raises:
+      WorkerDied: the workers died more than `WORKER_RETRIES` times.
+    """
     pieces = shards(indices, workers)
     if ray_address is not None:
         _play_ray(play, pieces, workers, ray_address, on_done)
-        return
+        return 0
+    from concurrent.futures.process import BrokenProcessPool
+
+    restarts = 0
+    while True:
+        try:
+            _play_pool(play, pieces, workers, on_done)
+            return restarts
+        except BrokenProcessPool as exc:
+            restarts += 1
+            if restarts > WORKER_RETRIES:
+                raise WorkerDied(
+                    f"a worker process died while playing {play.env_name} "
+                    f"{WORKER_RETRIES + 1} times ({exc.reason}); the episodes under way "
+                    "are not played") from exc
+            print(f"hier_agents: a worker process died ({exc.reason}); playing its "
+                  f"{len(pieces)} unfinished shard(s) again in new processes "
+                  f"(retry {restarts} of {WORKER_RETRIES})", file=sys.stderr, flush=True)
+
+
+def _play_pool(play: Play, pieces: list, workers: int, on_done) -> None:
+    """`play_parallel` in one process pool. Shards are removed from
+    ``pieces`` as their results are handed to ``on_done``; on
+    `BrokenProcessPool` (``reason`` set to what is known of the death) the
+    ones left are those still to play."""
     import multiprocessing
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+    from concurrent.futures.process import BrokenProcessPool
 
     context = multiprocessing.get_context("spawn")  # no GL or torch state inherited
     pool = ProcessPoolExecutor(max_workers=min(workers, len(pieces)), mp_context=context,
                                initializer=_worker_init)
     try:
-        pending = {pool.submit(play_shard, play, piece) for piece in pieces}
+        pending = {pool.submit(play_shard, play, piece): piece for piece in pieces}
         while pending:
-            done, pending = wait(pending, return_when=FIRST_COMPLETED)
+            done, _ = wait(pending, return_when=FIRST_COMPLETED)
             for future in done:
+                piece = pending.pop(future)
                 on_done(*future.result())
-    except BaseException:
-        # Ctrl-C or a failed shard: the shards under way are dropped, their
-        # workers stopped now rather than when their shard ends.
-        workers_alive = list(getattr(pool, "_processes", {}).values())
+                pieces.remove(piece)
+    except BaseException as exc:
+        # Ctrl-C, a failed shard or a dead worker: the shards under way are
+        # dropped, their workers stopped now rather than when their shard ends.
+        processes = list((getattr(pool, "_processes", None) or {}).values())
+        died = [p.exitcode for p in processes if p.exitcode not in (None, 0)]
         pool.shutdown(wait=False, cancel_futures=True)
-        for process in workers_alive:
+        for process in processes:
             process.terminate()
+        for process in processes:
+            process.join(5)
+        if isinstance(exc, BrokenProcessPool):
+            exc.reason = ", ".join(map(_exit_status, died)) or "exit status unknown"
         raise
     pool.shutdown(wait=True)
+
+
+def _exit_status(code: int) -> str:
+    """A process's exit code in words: ``"killed by SIGABRT"`` for -6."""
+    if code < 0:
+        import signal
+        try:
+            return f"killed by {signal.Signals(-code).name}"
+        except ValueError:
+            return f"killed by signal {-code}"
+    return f"exit code {code}"
 
 
 def _worker_init() -> None:
@@ -278,7 +343,7 @@ def _play_ray(play: Play, pieces, workers, address, on_done) -> None:
     from hier_agents.cluster import connect, remote
 
     ray = connect(address)
-    task = remote(play_shard, num_cpus=1, max_retries=3)
+    task = remote(play_shard, num_cpus=1, max_retries=WORKER_RETRIES)
     queue = list(pieces)
     running = []
     while queue or running:

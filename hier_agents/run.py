@@ -51,8 +51,9 @@ rates carry 95% Wilson intervals. JSON keys: env, episodes, estimator,
 privileged, success_rate, win_rate, draw_rate, loss_rate (board games),
 mean_return, mean_steps, subgoal_success_rate, episode_failures (reason ->
 count), wall_s, control_steps_per_s, plus planner, skill, seed, env_options,
-levels, episodes_requested, interrupted, finished, provenance and per-episode
-rows; checkpoint agents add their condition, training frames, ``observations``
+levels, episodes_requested, interrupted, finished, worker_restarts (how many
+times dead worker processes were replaced, `players.play_parallel`),
+provenance and per-episode rows; checkpoint agents add their condition, training frames, ``observations``
 (the input keys the policy reads) and ``privileged``.
 """
 
@@ -152,10 +153,11 @@ def run(env_name: str, episodes: int, seed: int = 0, *, planner: str | None = No
     played: list[tuple[dict, dict]] = []  # (row, subgoal counters)
     meta: dict = {}
     interrupted = False
+    restarts = [0]
 
     def summary_now(finished: bool) -> dict:
         return _summary(play, fam, sorted(played, key=lambda p: p[0]["episode"]), meta,
-                        len(indices), interrupted, finished)
+                        len(indices), interrupted, finished, restarts[0])
 
     bars = []  # the progress bar, shown once the agent is built (a bad one: no bar)
 
@@ -184,7 +186,7 @@ def run(env_name: str, episodes: int, seed: int = 0, *, planner: str | None = No
             play_here(play, indices, on_done, built)
         else:
             start_bar()
-            play_parallel(play, indices, workers, ray_address, on_done)
+            restarts[0] = play_parallel(play, indices, workers, ray_address, on_done)
     except KeyboardInterrupt:
         # Ctrl-C: the episodes played so far make the table (those under way are dropped).
         interrupted = True
@@ -194,13 +196,15 @@ def run(env_name: str, episodes: int, seed: int = 0, *, planner: str | None = No
     return summary_now(True)
 
 
-def _summary(play: Play, fam, played, meta, requested, interrupted, finished) -> dict:
+def _summary(play: Play, fam, played, meta, requested, interrupted, finished,
+             worker_restarts: int = 0) -> dict:
     rows = [row for row, _ in played]
     totals = OptionStats()
     for _, counters in played:
         totals.add(OptionStats(**counters))
     common = dict(env_options=play.env_options, levels=play.levels,
-                  episodes_requested=requested, interrupted=interrupted, finished=finished)
+                  episodes_requested=requested, interrupted=interrupted, finished=finished,
+                  worker_restarts=worker_restarts)
     if play.profile:
         common["profile"] = profile_summary(rows)
     if play.agent == "modular":

@@ -462,6 +462,48 @@ def test_two_workers_give_the_rows_of_one(tmp_path):
     assert strip(tail["rows"]) == strip(one["rows"][3:])
 
 
+def test_a_worker_killed_mid_run_is_replaced_and_the_rows_are_those_of_one_worker(capfd):
+    """A worker process that dies (here SIGKILL after the first shard; in CI
+    once, glibc's abort on a corrupted heap) does not lose the run: the
+    unfinished shards are played again in new processes, and said so."""
+    import multiprocessing
+    import signal
+
+    one = run("mujoban/level1", 8, 5, agent="random:10", progress=False)
+    killed = []
+
+    def kill_one_worker(summary):
+        if not killed and summary["episodes"] < 8:
+            victim = multiprocessing.active_children()[0]
+            os.kill(victim.pid, signal.SIGKILL)
+            killed.append(victim.pid)
+
+    two = run("mujoban/level1", 8, 5, agent="random:10", progress=False, workers=2,
+              on_progress=kill_one_worker)
+    assert killed and two["worker_restarts"] == 1 and one["worker_restarts"] == 0
+    assert strip(one["rows"]) == strip(two["rows"])
+    assert "killed by SIGKILL" in capfd.readouterr().err
+
+
+def test_workers_that_keep_dying_stop_the_run_with_a_clear_error(monkeypatch):
+    from concurrent.futures.process import BrokenProcessPool
+
+    from hier_agents import players
+
+    calls = []
+
+    def dies(play, pieces, workers, on_done):
+        calls.append(len(pieces))
+        exc = BrokenProcessPool("gone")
+        exc.reason = "killed by SIGABRT"
+        raise exc
+
+    monkeypatch.setattr(players, "_play_pool", dies)
+    with pytest.raises(players.WorkerDied, match="SIGABRT"):
+        run("mujoban/level1", 4, 0, agent="random:10", progress=False, workers=2)
+    assert len(calls) == players.WORKER_RETRIES + 1
+
+
 def test_a_modular_episode_plays_the_same_whatever_the_episodes_before():
     """What the skill carries between subgoals (drive direction, yaw rate,
     back-offs) is dropped at each episode start: an episode played after
