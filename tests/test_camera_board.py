@@ -198,3 +198,67 @@ def test_a_frame_the_last_anchor_cannot_explain_is_explained_from_an_earlier_one
     assert estimator._explain(cells, shares, over=False).history() == [mine, true_reply]
     assert [a.history() for a in estimator._anchors] == [[], [mine, true_reply]]
     env.close()
+
+
+def _frame(game, pieces, hidden=()):
+    """(cells, shares) of a synthetic frame: ``pieces`` {point: player}, the
+    ``hidden`` points unseen, every other point read surely."""
+    board = np.full(game.num_points, -1, np.int8)
+    for point, player in pieces.items():
+        board[point] = player
+    shares = np.stack([board == 0, board == 1], axis=1).astype(float)
+    hide = np.zeros(game.num_points, bool)
+    hide[list(hidden)] = True
+    return (np.where(hide, UNSEEN, board).astype(np.int8),
+            np.where(hide[:, None], np.nan, shares))
+
+
+def test_a_game_far_ahead_of_the_last_anchor_is_found_by_the_deeper_search():
+    """Hex: ten moves played while nothing was confirmed (more than the
+    search's usual `MAX_MOVES`): the frame is explained, and confirmed."""
+    from hier_agents.estimators import camera_board
+
+    env, view = _env("mujoboard/hex-7x7", opponent="random")
+    estimator = BoardCameraEstimator()
+    estimator.reset(view.description(), view.reset())
+    game = BoardGame.from_description(view.description())
+    moves = [24, 25, 17, 18, 31, 32, 10, 11, 38, 39]
+    assert len(moves) > camera_board.MAX_MOVES
+    cells, shares = _frame(game, {m: i % 2 for i, m in enumerate(moves)})
+    state = estimator._explain(cells, shares, over=False)
+    np.testing.assert_array_equal(game.players(state), cells)
+    assert state.current_player() == 0 and len(estimator._anchors) == 2
+    env.close()
+
+
+def test_cells_seen_in_different_frames_between_two_moves_confirm_the_estimate():
+    """The hand hides the reply in one frame and the agent's own piece in the
+    next (the board stands still in between): together they confirm the
+    estimate, which becomes the anchor the next search starts from."""
+    env, view = _env("mujoboard/hex-7x7", opponent="random")
+    timestep = view.reset()
+    estimator = BoardCameraEstimator(frame_every=1)
+    estimator.reset(view.description(), timestep)
+    game = BoardGame.from_description(view.description())
+    mine, reply = 24, 25
+    frames = [_frame(game, {mine: 0, reply: 1}, hidden=[reply]),
+              _frame(game, {mine: 0, reply: 1}, hidden=[mine])]
+    real = estimator._view
+
+    class Scripted:
+        """The real view, but each read returns the next scripted frame."""
+
+        def __getattr__(self, name):
+            return getattr(real, name)
+
+        def read(self, *args):
+            cells, shares = frames.pop(0)
+            return cells, cells == UNSEEN, np.zeros(len(cells)), shares
+
+    estimator._view = Scripted()
+    still = np.zeros(view.action_spec().shape)
+    assert estimator.estimate(view.step(still)).moves == (mine, reply)
+    assert [a.history() for a in estimator._anchors] == [[]]      # the reply was hidden
+    estimator.estimate(view.step(still))
+    assert [a.history() for a in estimator._anchors] == [[], [mine, reply]]
+    env.close()

@@ -33,11 +33,17 @@ a little), then keeping the moves already estimated (two orders of the
 same moves can give one board; the skill and the planner read the
 record), then fewest changed cells not read surely, then fewest moves.
 It becomes the anchor when it contradicts no cell read surely and every
-cell it changed was read surely. When the last anchor's continuations
+cell it changed was read surely, in this frame or in a later one before
+the next registered move (the board stands still in between: the opponent
+replies at once and the arm resets). When the last anchor's continuations
 contradict a cell read surely (a move taken for a pass, or for another
-under the arm), the `BACKTRACK` anchors before it are tried. The search keeps `BEAM` states per move and looks
-at most `MAX_MOVES` moves ahead; a frame that the current estimate already
-explains costs no search. When an episode ends with the game (a terminal
+under the arm), the `BACKTRACK` anchors before it are tried; later anchors
+are dropped only when an earlier one's continuation explains the frame.
+The search keeps `BEAM` states per move and looks at most `MAX_MOVES`
+moves ahead; when no anchor's does explain the frame (the game ran on
+while the changed cells stayed hidden), one search from the last anchor
+keeps `DEEP_BEAM` states and looks `DEEP_MOVES` ahead. A frame that the
+current estimate already explains costs no search. When an episode ends with the game (a terminal
 timestep, discount 0), a finished game is preferred: the winning piece may
 still be under the hand.
 
@@ -88,6 +94,11 @@ ARM_JUMP = 0.3
 BEAM = 8
 MAX_MOVES = 8
 BACKTRACK = 3
+#: When no anchor's search explains a frame (every cell read surely): one
+#: more search from the last anchor, keeping `DEEP_BEAM` states per move
+#: and looking `DEEP_MOVES` moves ahead.
+DEEP_BEAM = 16
+DEEP_MOVES = 16
 
 
 class BoardCameraEstimator(Estimator):
@@ -124,6 +135,7 @@ class BoardCameraEstimator(Estimator):
         self._cache = {}
         self._since, self._qpos = self.frame_every, None      # the first estimate reads
         self._touched = None
+        self._vouched = None
         # Each touch zone's centre (x, y) and half-sizes: the points, then the pass areas.
         half = self._view.half
         self._zones = [(np.asarray(p[:2], float), np.array([half, half]))
@@ -239,10 +251,15 @@ class BoardCameraEstimator(Estimator):
             self._belief = self._explain(cells, np.where(hidden[:, None], np.nan, fractions),
                                          over)
             self._touched = None
+            self._vouched = seen & (game.players(self._belief) == cells)
         elif self._belief.history() != self._anchor.history():
+            # The board stands still between two registered moves (the arm
+            # resets at each, and the opponent replies at once): cells read
+            # surely in any frame since the estimate was made vouch for it.
+            self._vouched = seen if self._vouched is None else self._vouched | seen
             changed = game.players(self._anchor) != players
-            if not np.any(changed & ~seen):
-                self._anchors.append(self._belief.clone())
+            if not np.any(changed & ~self._vouched):
+                self._confirm(self._belief)
         if self._belief.history() == self._anchor.history() and np.isnan(
                 self._background[:, 0, 0]).any():
             self._learn(self._anchor, self._view.samples(obs[CAMERA]), cells == EMPTY_CELL)
@@ -282,21 +299,38 @@ class BoardCameraEstimator(Estimator):
             tried.append((score, back, state))
             if not score[0] and score[1] == 0:
                 break
+        else:
+            # Nothing near explains the frame: the game ran further ahead
+            # while cells were hidden. A deeper, wider search from the last anchor.
+            state, score = self._search(self._anchor, cells, fractions, over,
+                                        DEEP_MOVES, DEEP_BEAM)
+            tried.append((score, 0, state))
         score, back, state = min(tried, key=lambda t: (t[0], t[1]))
-        if back:
-            del self._anchors[len(self._anchors) - back:]
         if not score[0] and score[1] == 0 and score[5] == 0:
-            self._anchors.append(state.clone())
+            self._confirm(state)
         return state
 
-    def _search(self, anchor, cells, fractions, over: bool = False):
+    def _confirm(self, state) -> None:
+        """``state`` becomes the last anchor; anchors that are not earlier
+        states of its game (an earlier estimate it rewrote) are dropped."""
+        history = state.history()
+        while len(self._anchors) > 1:
+            before = self._anchor.history()
+            if history[:len(before)] == before:
+                break
+            self._anchors.pop()
+        self._anchors.append(state.clone())
+
+    def _search(self, anchor, cells, fractions, over: bool = False,
+                max_moves: int = MAX_MOVES, beam: int = BEAM):
         """(state, score): the best-explaining continuation of ``anchor`` and
         its score (see the module docstring).
         ``fractions`` (n, 2): each visible cell's share of each piece colour
         (NaN under the arm); with ``over`` (the episode ended with the game)
         only a finished game is accepted, if one is found."""
         visible = ~np.isnan(fractions[:, 0])
-        key = (tuple(anchor.history()), cells.tobytes(), self._touched, self._selected,
+        key = (tuple(anchor.history()), max_moves, beam, cells.tobytes(), self._touched,
+               self._selected,
                np.round(np.nan_to_num(fractions, nan=-1.0) * 20).astype(np.int8).tobytes(), over)
         if key in self._cache:
             state, score = self._cache[key]
@@ -340,7 +374,7 @@ class BoardCameraEstimator(Estimator):
         start = anchor.clone()
         best = (score(start), 0, start) if self._settled(start) else None
         frontier = [start]
-        for depth in range(1, MAX_MOVES + 1):
+        for depth in range(1, max_moves + 1):
             children = []
             for state in frontier:
                 if state.is_terminal():
@@ -364,7 +398,7 @@ class BoardCameraEstimator(Estimator):
                     continue
                 boards.add(board)
                 frontier.append(child)
-                if len(frontier) >= BEAM:
+                if len(frontier) >= beam:
                     break
         if best is None:      # nothing settled within reach: keep the estimate, unconfirmed
             result = (self._belief.clone(), (True, len(cells), 0.0, 0, 1, len(cells)))
