@@ -30,7 +30,7 @@ import pyspiel
 
 from abstract_planners.base import Planner, Subgoal
 from abstract_planners.board_random import check_decision_state
-from abstract_planners.gtp import (INSTALL_HINT, GnuGoNotFoundError, GTPClient, GTPError,
+from abstract_planners.gtp import (INSTALL_HINT, GnuGoNotFoundError, GTPClient,
                                    default_gnugo_command)
 from abstract_planners.gtp_process import close_quietly
 from abstract_planners.openspiel_bots import MCTSPlanner, _check_int, _check_real

@@ -43,6 +43,8 @@ from typing import Callable
 import numpy as np
 import pyspiel
 
+from envs._config import check_int
+
 #: board_state planes.
 EMPTY, OWN, OPPONENT, KING = 0, 1, 2, 3
 #: The agent's OpenSpiel player by default (the paper's: it moves first).
@@ -142,13 +144,6 @@ def register_game(name: str, rules: GameRules) -> None:
     GAMES[name] = rules
 
 
-def _check_int(name, value, low, high):
-    if not isinstance(value, numbers.Integral) or isinstance(value, bool) \
-            or not low <= value <= high:
-        raise ValueError(f"{name} must be an integer in {low}..{high}, got {value!r}")
-    return int(value)
-
-
 @dataclass(frozen=True)
 class BoardGame:
     """One registered game at one board size, as the physical task sees it.
@@ -192,7 +187,7 @@ class BoardGame:
         else:
             if rows != cols:
                 raise ValueError(f"{self.name} is played on square boards, got {self.size!r}")
-            _check_int("board_size", rows, rules.min_size, rules.max_size)
+            check_int("board_size", rows, rules.min_size, rules.max_size)
         object.__setattr__(self, "rules", rules)
         object.__setattr__(self, "rows", int(rows))
         object.__setattr__(self, "cols", int(cols))
