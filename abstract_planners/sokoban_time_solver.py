@@ -31,9 +31,10 @@ import time
 from typing import Mapping
 
 from abstract_planners.sokoban import replay
-from abstract_planners.sokoban_solver import (_INF, SokobanSolverPlanner, SolveResult,
-                                              _as_state, _bits, _board_for, _freeze_deadlock,
-                                              _mask, _Matching, _walk_and_push, solve)
+from abstract_planners.sokoban_board import (_INF, _as_state, _bits, _board_for,
+                                             _freeze_deadlock, _mask, _Matching)
+from abstract_planners.sokoban_solver import (SokobanSolverPlanner, SolveResult, _walk_and_push,
+                                              solve)
 from abstract_planners.sokoban_time import DEFAULT_WEIGHTS, estimate_steps, plan_features
 
 __all__ = ["solve_for_time", "TimeSolverPlanner"]
