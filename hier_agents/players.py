@@ -245,7 +245,8 @@ WORKER_RETRIES = 3
 
 class WorkerDied(RuntimeError):
     """A worker process died while playing a shard more than `WORKER_RETRIES`
-    times: the run stops; the episodes already played are kept."""
+    times: the run stops (the episodes already played are in the ``--json``
+    written so far)."""
 
 
 def play_parallel(play: Play, indices, workers, ray_address, on_done) -> int:
