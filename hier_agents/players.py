@@ -298,8 +298,11 @@ def _play_pool(play: Play, pieces: list, workers: int, on_done) -> None:
     context = multiprocessing.get_context("spawn")  # no GL or torch state inherited
     pool = ProcessPoolExecutor(max_workers=min(workers, len(pieces)), mp_context=context,
                                initializer=_worker_init)
+    processes = []
     try:
         pending = {pool.submit(play_shard, play, piece): piece for piece in pieces}
+        # The pool forgets its processes once broken: keep them to say how one died.
+        processes = list((getattr(pool, "_processes", None) or {}).values())
         while pending:
             done, _ = wait(pending, return_when=FIRST_COMPLETED)
             for future in done:
@@ -309,17 +312,26 @@ def _play_pool(play: Play, pieces: list, workers: int, on_done) -> None:
     except BaseException as exc:
         # Ctrl-C, a failed shard or a dead worker: the shards under way are
         # dropped, their workers stopped now rather than when their shard ends.
-        processes = list((getattr(pool, "_processes", None) or {}).values())
-        died = [p.exitcode for p in processes if p.exitcode not in (None, 0)]
+        processes = processes or list((getattr(pool, "_processes", None) or {}).values())
         pool.shutdown(wait=False, cancel_futures=True)
         for process in processes:
             process.terminate()
         for process in processes:
             process.join(5)
         if isinstance(exc, BrokenProcessPool):
-            exc.reason = ", ".join(map(_exit_status, died)) or "exit status unknown"
+            exc.reason = _death(process.exitcode for process in processes)
         raise
     pool.shutdown(wait=True)
+
+
+def _death(exit_codes) -> str:
+    """How a broken pool's workers died, in words: the exit statuses other
+    than 0 and SIGTERM (which the pool, then this module, send to the workers
+    left), or SIGTERM if that is all there is."""
+    import signal
+    codes = [code for code in exit_codes if code not in (None, 0)]
+    own = [code for code in codes if code != -signal.SIGTERM] or codes
+    return ", ".join(map(_exit_status, sorted(set(own)))) or "exit status unknown"
 
 
 def _exit_status(code: int) -> str:

@@ -485,6 +485,16 @@ def test_a_worker_killed_mid_run_is_replaced_and_the_rows_are_those_of_one_worke
     assert "killed by SIGKILL" in capfd.readouterr().err
 
 
+def test_a_broken_pool_names_how_its_worker_died_not_the_sigterm_sent_to_the_rest():
+    from hier_agents.players import _death
+
+    assert _death([-15, -9, None]) == "killed by SIGKILL"
+    assert _death([0, -6, -6]) == "killed by SIGABRT"
+    assert _death([-15, -15]) == "killed by SIGTERM"
+    assert _death([3, None]) == "exit code 3"
+    assert _death([None, 0]) == "exit status unknown"
+
+
 def test_workers_that_keep_dying_stop_the_run_with_a_clear_error(monkeypatch):
     from concurrent.futures.process import BrokenProcessPool
 
