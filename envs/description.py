@@ -247,6 +247,12 @@ class BoardDescription:
       allow_double_pass: False when the task ignores the agent's pass right
         after its own pass until it plays a stone (MuJoGo, the original's
         rule).
+      piece_radius: a piece's radius (m), as seen from above.
+      piece_spread: how far (m, along x and along y) from its point a
+        piece's centre may lie: an opponent's new piece lands within
+        ``piece_noise`` times ``pad_half`` of it; where a touch places the
+        piece (``input`` ``"point"``), the agent's lands where it touched,
+        within ``pad_half``.
     """
 
     game: str
@@ -270,6 +276,8 @@ class BoardDescription:
     agent_player: int | str = 0
     allow_double_pass: bool = True
     front_camera_2: CameraDescription | None = None
+    piece_radius: float = 0.0
+    piece_spread: float = 0.0
 
     def point_position(self, action: int) -> np.ndarray:
         """World (x, y, z) of board point ``action`` on the board's top."""

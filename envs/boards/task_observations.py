@@ -80,7 +80,10 @@ class ObservationsMixin:
             front_camera_2=front_2,
             rows=game.rows, cols=game.cols, input=game.rules.input,
             agent_player=self.agent_player,
-            allow_double_pass=self._allow_double_pass or game.pass_action is None)
+            allow_double_pass=self._allow_double_pass or game.pass_action is None,
+            piece_radius=float(arena.piece_radius),
+            piece_spread=float(max(self._piece_noise, float(game.rules.input == "point"))
+                               * arena.pad_half))
 
     # -- observations -------------------------------------------------------
 

@@ -6,7 +6,19 @@ game's rules (`envs.boards.games.GameRules.colours`), the selection disc's
 from the arena's look (`envs.boards.arena.SELECTION_RGBA`).
 
 * **Cells.** Each point's patch is a disc of `PATCH` half-spacings around
-  the point, projected into the frame with the described camera.
+  the point, projected into the frame with the described camera. Where a
+  piece may lie farther from its point than its own radius
+  (``piece_spread`` > ``piece_radius`` in the description: MuJoXO's small
+  markers, anywhere on their touch pad) it may miss that disc, and part of
+  it may show on the next square: the patch is then the point's whole
+  square (`SQUARE_SAMPLES` per side, on a grid that runs on evenly across
+  the board), each patch of piece colour that hangs together on that grid
+  counts wholly for the square its centre lies on (one much larger than a
+  piece, `MERGED` times, two pieces touching, is left split by square), and `OCCUPIED`,
+  `EMPTY` and the reported fractions are scaled by a piece's share of the
+  square against its share of a disc patch (`REFERENCE_SHARE`); a cell
+  more than `HIDDEN_PIECE` of a piece's share under the arm is then never
+  read empty (the piece could hide there).
 * **The arm.** The arm's own model is posed at the observed joints; each of
   its geoms' convex hulls is projected, and the patch samples within
   `ARM_MARGIN` pixels of one are not read; a cell with less than
@@ -59,6 +71,15 @@ RING = (0.8, 0.9)
 #: a selection; the arm can hide the disc but never shows its colour, so a
 #: partly hidden ring still counts.
 SELECTED = 0.15
+#: The square patch (see the module docstring): samples per side; a piece's
+#: share of a disc patch that `OCCUPIED` and `EMPTY` are set for (a piece of
+#: 0.7 half-spacings); the share of a piece that may hide under the arm in a
+#: cell read empty; how many pieces' worth of samples one patch of piece
+#: colour may have and still count for one square.
+SQUARE_SAMPLES = 11
+REFERENCE_SHARE = (0.7 / PATCH) ** 2
+HIDDEN_PIECE = 0.6
+MERGED = 1.6
 
 UNSEEN = -2     # a cell not read this frame (hidden or unsure)
 EMPTY_CELL = -1
@@ -72,6 +93,11 @@ class BoardView:
       description: the task's `envs.description.BoardDescription`.
       game: its `envs.boards.games.BoardGame`.
       camera: the `envs.description.CameraDescription` of the frames read.
+
+    Attributes:
+      square: whether cells are read over their whole square.
+      occupied, empty: the `OCCUPIED` and `EMPTY` fractions this board reads with.
+      scale: their ratio to `OCCUPIED` and `EMPTY` (1 with disc patches).
     """
 
     def __init__(self, description, game: BoardGame, camera) -> None:
@@ -85,10 +111,32 @@ class BoardView:
         half = 0.5 * float(gaps.min())
         #: Half the distance between neighbouring points (m).
         self.half = half
-        grid = np.linspace(-1, 1, 9)
-        offsets = np.array([(x, y) for x in grid for y in grid if x * x + y * y <= 1.0])
-        world = points[:, None, :] + np.c_[PATCH * half * offsets,
+        self.points_xy = points[:, :2]
+        radius = float(description.piece_radius)
+        self.square = float(description.piece_spread) > radius
+        if self.square:
+            # Sub-square centres: the grid runs on evenly from square to square.
+            grid = (2 * np.arange(SQUARE_SAMPLES) + 1) / SQUARE_SAMPLES - 1
+            offsets = np.array([(x, y) for x in grid for y in grid])
+            share = np.pi * (radius / half) ** 2 / 4.0     # a piece's share of its square
+            self.scale, self.hidden_empty = share / REFERENCE_SHARE, HIDDEN_PIECE * share
+            reach = 1.0
+        else:
+            grid = np.linspace(-1, 1, 9)
+            offsets = np.array([(x, y) for x in grid for y in grid if x * x + y * y <= 1.0])
+            self.scale, self.hidden_empty = 1.0, 1.0
+            reach = PATCH
+        self.occupied, self.empty = OCCUPIED * self.scale, EMPTY * self.scale
+        world = points[:, None, :] + np.c_[reach * half * offsets,
                                           np.full(len(offsets), PATCH_HEIGHT)][None]
+        if self.square:
+            # Each sample's place on the board-wide grid, and a piece's worth of samples.
+            step = 2 * half / SQUARE_SAMPLES
+            xy = world[..., :2] - world[..., :2].reshape(-1, 2).min(axis=0)
+            self.grid_at = np.rint(xy / step).astype(int)          # (n, k, 2)
+            self.grid_shape = tuple(self.grid_at.reshape(-1, 2).max(axis=0) + 1)
+            self.sample_xy = world[..., :2]
+            self.piece_samples = share * len(offsets)
         px = camera.project(world, self.shape)
         h, w = self.shape
         rows = np.clip(np.floor(px[..., 0]).astype(int), 0, h - 1)
@@ -103,7 +151,9 @@ class BoardView:
         self.ring = (np.clip(np.floor(px[..., 0]).astype(int), 0, h - 1) * w
                      + np.clip(np.floor(px[..., 1]).astype(int), 0, w - 1))
         self.centres = camera.project(points + [0, 0, PATCH_HEIGHT], self.shape)
-        radius = np.linalg.norm(px - self.centres[:, None], axis=-1).max(axis=1)
+        radius = np.maximum(
+            np.linalg.norm(px - self.centres[:, None], axis=-1).max(axis=1),
+            np.linalg.norm(self.sample_px - self.centres[:, None], axis=-1).max(axis=1))
         #: Each patch's radius in pixels plus `ARM_MARGIN`: a cell wholly clear of the arm.
         self.radius = radius + ARM_MARGIN
         colours = game.rules.colours
@@ -116,6 +166,24 @@ class BoardView:
         self.selection_rgb = np.array(SELECTION_RGBA[:3], float) * 255.0
         self.silhouette = ArmSilhouette(description.arm, camera, self.shape)
 
+    def clear(self, qpos, cells=None) -> np.ndarray:
+        """(n, k) bool: the patch samples that show the board, not the arm
+        posed at ``qpos``, and may be learnt as the empty board: with disc
+        patches all of each cell wholly clear of the arm (none of it within
+        `radius` pixels of its centre), or of each cell in ``cells`` (n,)
+        bool when given (a cell read empty); with square patches each
+        sample farther than `ARM_MARGIN` pixels from it, of the cells
+        (``cells``, else those with at least `MIN_VISIBLE` of them)."""
+        n, k = self.index.shape
+        if not self.square:
+            whole = (~self.silhouette.hidden(qpos, self.centres, self.radius)
+                     if cells is None else np.asarray(cells, bool))
+            return np.repeat(whole[:, None], k, axis=1)
+        shown = ~self.silhouette.hidden(qpos, self.sample_px.reshape(-1, 2),
+                                        ARM_MARGIN + 0.5).reshape(n, k)
+        keep = shown.mean(axis=1) >= MIN_VISIBLE if cells is None else np.asarray(cells, bool)
+        return shown & keep[:, None]
+
     def samples(self, frame) -> np.ndarray:
         """(n, k, 3) float RGB of each cell's patch samples in ``frame``."""
         img = np.asarray(frame, float).reshape(-1, 3)
@@ -123,6 +191,16 @@ class BoardView:
             raise EstimationError(f"{self.camera.name} frames are {np.asarray(frame).shape[:2]}, "
                                   f"the description says {self.shape}")
         return img[self.index]
+
+    def distances(self, px, background):
+        """(d_bg, d_pieces): the RGB distances of samples ``px`` (..., 3) from
+        ``background`` (same shape) and, stacked on a first axis of 2, from
+        each player's piece over it (its rgba blended with alpha)."""
+        d_bg = np.linalg.norm(px - background, axis=-1)
+        alpha = self.piece_alpha.reshape((2,) + (1,) * px.ndim)
+        expected = (alpha * self.piece_rgb.reshape((2,) + (1,) * (px.ndim - 1) + (3,))
+                    + (1 - alpha) * background[None])
+        return d_bg, np.linalg.norm(px[None] - expected, axis=-1)
 
     def read(self, frame, qpos, background):
         """(cells, hidden, selection, fractions) of one frame.
@@ -137,7 +215,7 @@ class BoardView:
         or `UNSEEN` (hidden or unsure); ``hidden`` (n,) bool: under the arm;
         ``selection`` (n,) float: the fraction of each cell's ring showing
         the selection disc's colour; ``fractions`` (n, 2): the fraction of
-        each patch showing each player's piece.
+        each patch showing each player's piece (divided by `scale`, at most 1).
         """
         px = self.samples(frame)
         img = np.asarray(frame, float).reshape(-1, 3)
@@ -146,10 +224,7 @@ class BoardView:
         # A selected piece stands on the selection disc, seen through it.
         background = np.where((selection >= SELECTED)[:, None, None], self.selection_rgb,
                               background)
-        d_bg = np.linalg.norm(px - background, axis=-1)
-        alpha = self.piece_alpha[:, None, None, None]
-        expected = alpha * self.piece_rgb[:, None, None, :] + (1 - alpha) * background[None]
-        d0, d1 = np.linalg.norm(px[None] - expected, axis=-1)
+        d_bg, (d0, d1) = self.distances(px, background)
         # Samples under the arm (within ARM_MARGIN pixels of its outline) are
         # not read; a cell with less than MIN_VISIBLE of its samples left is hidden.
         n, k = self.index.shape
@@ -159,10 +234,35 @@ class BoardView:
         hidden = shown < MIN_VISIBLE * k
         is0 = (d0 < PIECE_RADIUS) & (d0 < d_bg) & (d0 < d1) & ~covered
         is1 = (d1 < PIECE_RADIUS) & (d1 < d_bg) & (d1 <= d0) & ~covered
-        f0, f1 = (is0.sum(axis=1) / np.maximum(shown, 1), is1.sum(axis=1) / np.maximum(shown, 1))
+        counts = [self._by_centre(is0), self._by_centre(is1)] if self.square else [
+            is0.sum(axis=1), is1.sum(axis=1)]
+        f0, f1 = (c / np.maximum(shown, 1) for c in counts)
         cells = np.full(len(px), UNSEEN, np.int8)
-        cells[(f0 >= OCCUPIED) & (f0 >= f1)] = 0
-        cells[(f1 >= OCCUPIED) & (f1 > f0)] = 1
-        cells[f0 + f1 <= EMPTY] = EMPTY_CELL
+        cells[(f0 >= self.occupied) & (f0 >= f1)] = 0
+        cells[(f1 >= self.occupied) & (f1 > f0)] = 1
+        cells[(f0 + f1 <= self.empty) & (k - shown <= self.hidden_empty * k)] = EMPTY_CELL
         cells[hidden] = UNSEEN
-        return cells, hidden, selection, np.stack([f0, f1], axis=1)
+        fractions = np.stack([f0, f1], axis=1)
+        return cells, hidden, selection, np.minimum(fractions / self.scale, 1.0)
+
+    def _by_centre(self, mask) -> np.ndarray:
+        """(n,) samples of piece colour per cell, square patches: each patch of
+        ``mask`` (n, k) that hangs together on the board-wide grid counts
+        for the cell nearest its centre, unless it has more than `MERGED`
+        pieces' worth of samples (then each cell keeps its own)."""
+        from scipy import ndimage
+
+        grid = np.zeros(self.grid_shape, bool)
+        grid[self.grid_at[..., 0][mask], self.grid_at[..., 1][mask]] = True
+        labels, count = ndimage.label(grid)
+        of = labels[self.grid_at[..., 0], self.grid_at[..., 1]] * mask     # (n, k); 0: none
+        counts = np.zeros(len(mask))
+        for label in range(1, count + 1):
+            members = of == label
+            size = members.sum()
+            if size > MERGED * self.piece_samples:
+                counts += members.sum(axis=1)
+                continue
+            centre = self.sample_xy[members].mean(axis=0)
+            counts[np.argmin(np.linalg.norm(self.points_xy - centre, axis=1))] += size
+        return counts

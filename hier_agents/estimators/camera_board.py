@@ -65,6 +65,8 @@ other camera off, rendered only when read (``lazy_cameras=True``).
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from envs.boards.games import BoardGame
@@ -150,10 +152,10 @@ class BoardCameraEstimator(Estimator):
         obs = timestep.observation
         view = self._view
         samples = view.samples(obs[CAMERA])
-        hidden = view.silhouette.hidden(obs["arm/joints_pos"], view.centres, view.radius)
         self._background = np.full(samples.shape, np.nan)
         # Nothing can stand out when the agent moves first: no move was played.
-        self._learn(self._anchor, samples, ~hidden, check=not self._settled(self._anchor))
+        self._learn(self._anchor, samples, view.clear(obs["arm/joints_pos"]),
+                    check=not self._settled(self._anchor))
 
     def read(self, timestep):
         """(cells, hidden) of ``timestep``'s frame as `estimate` reads it
@@ -166,49 +168,74 @@ class BoardCameraEstimator(Estimator):
                                               self._filled_background())
         return cells, hidden
 
-    def _learn(self, state, samples, visible, check: bool = False) -> None:
-        """Learns the background of the cells ``state`` says are empty,
-        ``visible`` and not learnt yet. With ``check``, a cell is learnt only if at most
-        `BACKGROUND_ODD` of its samples lie farther than `BACKGROUND_SPREAD`
-        from their median over the candidate cells of its row and parity
-        (all of its parity's in a row with fewer than three), when there are
-        at least three: a piece already there is not taken for the board."""
+    def _learn(self, state, samples, keep, check: bool = False) -> None:
+        """Learns the background of the cells ``state`` says are empty, from
+        their samples ``keep`` (n, k) not learnt yet (`BoardView.clear`).
+        With ``check``, a cell is learnt only if at most `BACKGROUND_ODD`
+        (times the view's `BoardView.scale`) of its samples kept lie farther
+        than `BACKGROUND_SPREAD` from their median over the candidate cells
+        of its row and parity (all of its parity's in a row with fewer than
+        three): a piece already there is not taken for the board. With two
+        such cells, only the samples that lie towards a piece's colour
+        count; a lone cell is not learnt here."""
         view = self._view
-        new = visible & (self._game.players(state) < 0) & np.isnan(self._background[:, 0, 0])
+        keep = keep & np.isnan(self._background[..., 0])
+        new = keep.any(axis=1) & (self._game.players(state) < 0)
+        shown = np.where(keep[..., None], samples, np.nan)
         for key in set(zip(view.row[new], view.parity[new])):
             group = np.flatnonzero(new & (view.row == key[0]) & (view.parity == key[1]))
             # Compared with its row's cells of its parity, or in a short row
             # with all of its parity's.
             pool = group if len(group) >= 3 else np.flatnonzero(new & (view.parity == key[1]))
-            if check and len(pool) >= 3:
-                median = np.median(samples[pool], axis=0)
-                odd = (np.linalg.norm(samples[group] - median, axis=-1)
-                       > BACKGROUND_SPREAD).mean(axis=1)
-                group = group[odd <= BACKGROUND_ODD]
-            self._background[group] = samples[group]
+            if check and len(pool) >= 2:
+                with warnings.catch_warnings():       # a sample no cell of the pool shows
+                    warnings.simplefilter("ignore", RuntimeWarning)
+                    median = np.nanmedian(shown[pool], axis=0)
+                odd = np.linalg.norm(samples[group] - median, axis=-1) > BACKGROUND_SPREAD
+                if len(pool) == 2:
+                    # The median is halfway between the two cells: the odd
+                    # samples of the one holding a piece lie towards its colour.
+                    d_bg, d_pieces = view.distances(samples[group],
+                                                    np.broadcast_to(median, samples[group].shape))
+                    odd &= d_pieces.min(axis=0) < d_bg
+                odd = (odd & keep[group]).sum(axis=1) / keep[group].sum(axis=1)
+                group = group[odd <= BACKGROUND_ODD * view.scale]
+            elif check:
+                continue          # a lone cell cannot be checked: learnt once confirmed empty
+            self._background[group] = np.where(keep[group][..., None], samples[group],
+                                               self._background[group])
 
     def _filled_background(self) -> np.ndarray:
-        """The background, an unlearnt cell's borrowed sample by sample from
-        the nearest learnt cell of its parity in its row, else of its
-        parity, else any (the samples lie at the same offsets from each
-        point, so a wooden board's lines fall on the same samples)."""
+        """The background, each sample not learnt borrowed from the same
+        sample of the nearest cell that has it learnt: of its parity in its
+        row, else of its parity, else any (the samples lie at the same
+        offsets from each point, so a wooden board's lines fall on the same
+        samples); else its cell's median, else black."""
         bg = self._background
-        known = ~np.isnan(bg[:, 0, 0])
+        known = ~np.isnan(bg[..., 0])
         if known.all():
             return bg
         out = bg.copy()
         view = self._view
-        for cell in np.flatnonzero(~known):
-            same = known & (view.parity == view.parity[cell])
-            for pool in (same & (view.row == view.row[cell]), same, known):
-                if pool.any():
-                    pool = np.flatnonzero(pool)
-                    near = pool[np.argmin(np.linalg.norm(view.centres[pool]
-                                                         - view.centres[cell], axis=1))]
-                    out[cell] = bg[near]
+        some = known.any(axis=1)
+        for cell in np.flatnonzero(~known.all(axis=1)):
+            missing = ~known[cell]
+            same = some & (view.parity == view.parity[cell])
+            same[cell] = False
+            donors = []
+            for pool in (same & (view.row == view.row[cell]), same, some):
+                pool = [c for c in np.flatnonzero(pool) if c != cell and c not in donors]
+                distance = np.linalg.norm(view.centres[pool] - view.centres[cell], axis=1)
+                donors += [pool[i] for i in np.argsort(distance, kind="stable")]
+            for donor in donors:
+                fill = missing & known[donor]
+                out[cell][fill] = bg[donor][fill]
+                missing &= ~fill
+                if not missing.any():
                     break
             else:
-                out[cell] = 0.0
+                out[cell][missing] = (np.median(bg[cell][known[cell]], axis=0)
+                                      if known[cell].any() else 0.0)
         return out
 
     def _settle(self, state) -> None:
@@ -261,8 +288,9 @@ class BoardCameraEstimator(Estimator):
             if not np.any(changed & ~self._vouched):
                 self._confirm(self._belief)
         if self._belief.history() == self._anchor.history() and np.isnan(
-                self._background[:, 0, 0]).any():
-            self._learn(self._anchor, self._view.samples(obs[CAMERA]), cells == EMPTY_CELL)
+                self._background[..., 0]).any():
+            self._learn(self._anchor, self._view.samples(obs[CAMERA]),
+                        self._view.clear(qpos, cells == EMPTY_CELL))
         self._selected = self._selection(selection, hidden)
         return self._scene(qpos, obs)
 

@@ -346,9 +346,7 @@ ESTIMATORS: dict[str, ComponentTable] = {
     "mujoban": ComponentTable("estimator", "mujoban", {
         "camera": _camera, "oracle": _privileged(OracleEstimator),
         "entity-layer": _privileged(EntityLayerEstimator)}),
-    # (MuJoXO's small markers, anywhere on their square, are not read reliably
-    # from the camera: no camera estimator is offered there.)
-    "mujoxo": ComponentTable("estimator", "mujoxo", {"board": _board}),
+    "mujoxo": ComponentTable("estimator", "mujoxo", {"board": _board, "camera": _board_camera}),
     "mujogo": ComponentTable("estimator", "mujogo", {"board": _board, "camera": _board_camera}),
     "mujoboard": ComponentTable("estimator", "mujoboard", {"board": _board,
                                                            "camera": _board_camera}),
