@@ -17,9 +17,11 @@ pieces against the empty board, the selection disc). What it learns:
 * **The empty board.** Each patch sample's colour on the empty board is
   learnt from the first frame (the cells empty in the game's initial
   position; when the opponent has moved first, less any that stand out
-  from their row: a piece it played) and from later frames (cells a confirmed state says are
-  empty); an unlearnt cell borrows the nearest learnt cell's samples of
-  the same checkerboard parity, in its row if it can.
+  from their row: a piece it played) and from later frames (cells a
+  confirmed state says are empty), where the arm leaves it in view
+  (`BoardView.clear`); a sample not learnt borrows the same sample of
+  the nearest cell that has it, of the same checkerboard parity, in its
+  row if it can.
 
 How it keeps the game (`estimate`): the OpenSpiel state of the last
 *anchor* (a state every visible cell confirmed, with no hidden cell
