@@ -605,3 +605,27 @@ def test_ctrl_c_stops_the_workers_and_keeps_the_episodes_played(tmp_path):
     summary = __import__("json").loads(out.read_text())
     assert summary["interrupted"] and 0 < summary["episodes"] < 400
     assert [r["episode"] for r in summary["rows"]] == sorted(r["episode"] for r in summary["rows"])
+
+
+def test_the_shipped_comparison_is_what_its_committed_job_records_give(tmp_path, monkeypatch):
+    """`results/compare/mujoban/` holds every job record of
+    `experiments/mujoban.toml`: a report from them alone (nothing run)
+    gives the committed comparison.json and comparison.txt, all but the
+    provenance of the run that wrote them."""
+    import json
+    import shutil
+
+    from hier_agents.compare.__main__ import main
+
+    shipped = ROOT / "results" / "compare" / "mujoban"
+    cache = tmp_path / "mujoban"
+    shutil.copytree(shipped / "jobs", cache / "jobs")
+    monkeypatch.chdir(ROOT)                  # the spec named as the README names it
+    spec = Path("experiments/mujoban.toml")
+    assert jobs_mod.plan(load(spec)) and all(
+        (cache / "jobs" / f"{job.key}.json").is_file() for job in jobs_mod.plan(load(spec)))
+    assert main([str(spec), "--report-only", "--cache", str(cache), "--quiet"]) == 0
+    made, committed = (json.loads((d / "comparison.json").read_text()) for d in (cache, shipped))
+    made.pop("provenance"), committed.pop("provenance")
+    assert made == committed
+    assert (cache / "comparison.txt").read_text() == (shipped / "comparison.txt").read_text()
