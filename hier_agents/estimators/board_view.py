@@ -112,13 +112,13 @@ class BoardView:
         #: Half the distance between neighbouring points (m).
         self.half = half
         self.points_xy = points[:, :2]
-        radius = float(description.piece_radius)
-        self.square = float(description.piece_spread) > radius
+        piece_radius = float(description.piece_radius)
+        self.square = float(description.piece_spread) > piece_radius
         if self.square:
             # Sub-square centres: the grid runs on evenly from square to square.
             grid = (2 * np.arange(SQUARE_SAMPLES) + 1) / SQUARE_SAMPLES - 1
             offsets = np.array([(x, y) for x in grid for y in grid])
-            share = np.pi * (radius / half) ** 2 / 4.0     # a piece's share of its square
+            share = np.pi * (piece_radius / half) ** 2 / 4.0     # a piece's share of its square
             self.scale, self.hidden_empty = share / REFERENCE_SHARE, HIDDEN_PIECE * share
             reach = 1.0
         else:
