@@ -135,8 +135,8 @@ class GnuGoPlanner(Planner):
         OpenSpiel scores the board as it stands (Tromp-Taylor). False uses
         plain ``genmove``.
 
-    The engine starts on the first `plan` (a missing ``gnugo`` is reported
-    by the constructor: `GnuGoNotFoundError`). Each `plan(state)` syncs the
+    The engine starts on the first `plan` after construction or `reset` (a
+    missing ``gnugo`` is reported by the constructor: `GnuGoNotFoundError`). Each `plan(state)` syncs the
     engine to ``state.history()``: when the moves already on the engine are a
     prefix of it only the new ones are played, otherwise the board is cleared
     and the whole history replayed (Black first, colours alternating, passes
@@ -204,10 +204,14 @@ class GnuGoPlanner(Planner):
         return self._client
 
     def reset(self, seed: int | None = None) -> None:
+        """A new game: the engine is stopped, and the next `plan` starts a
+        fresh one (with ``seed`` when given). GNU Go keeps what it read in
+        earlier games across ``clear_board``, so a kept engine's moves, and
+        with them a seeded episode's, depended on the games played before
+        it in the process (about 20 ms a game)."""
         if seed is not None:
             self._seed = int(seed) % (2 ** 31)
-            if self._client is not None:
-                self._client.set_random_seed(self._seed)
+        self.close()
 
     def _sync(self, history: list[int]) -> None:
         client = self.client

@@ -182,6 +182,23 @@ def test_gnugo_plays_legal_moves_against_random_and_wins():
 
 
 @needs_gnugo
+def test_gnugo_reset_starts_a_fresh_engine_so_a_game_does_not_depend_on_those_before():
+    """GNU Go keeps what it read across ``clear_board``: a MuJoGo episode
+    played after another lost where played alone it won. `reset` stops the
+    engine, and the next plan starts a fresh one with the seed."""
+    game = go_game(5, 5.5)
+    with GnuGoPlanner(5, board_size=5, seed=1) as gnugo:
+        state = game.new_initial_state()
+        gnugo.plan(state)
+        first = gnugo.client.pid
+        gnugo.reset(seed=7)
+        assert gnugo._client is None
+        subgoal = gnugo.plan(state)
+        assert gnugo.client.pid != first and gnugo._seed == 7
+        assert subgoal.action in state.legal_actions()
+
+
+@needs_gnugo
 def test_gnugo_self_play_ends_with_two_passes():
     game = go_game(5, 5.5)
     with GnuGoPlanner(3, board_size=5) as gnugo:
