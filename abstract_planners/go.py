@@ -136,11 +136,11 @@ class GnuGoPlanner(Planner):
         plain ``genmove``.
 
     The engine starts on the first `plan` after construction or `reset` (a
-    missing ``gnugo`` is reported by the constructor: `GnuGoNotFoundError`). Each `plan(state)` syncs the
-    engine to ``state.history()``: when the moves already on the engine are a
-    prefix of it only the new ones are played, otherwise the board is cleared
-    and the whole history replayed (Black first, colours alternating, passes
-    included). Then GNU Go generates the move of the player to move.
+    missing ``gnugo`` is reported by the constructor: `GnuGoNotFoundError`).
+    Each `plan(state)` syncs the engine to ``state.history()``: when the
+    moves already on the engine are a prefix of it only the new ones are
+    played, otherwise the board is cleared and the whole history replayed
+    (Black first, colours alternating, passes included). Then GNU Go generates the move of the player to move.
 
     Choices:
 

@@ -78,6 +78,7 @@ def test_mujoxo_markers_anywhere_on_their_pad_are_read_from_the_first_frame():
     already holds the opponent's marker, which must not be learnt as the
     empty board, even when the arm hides all but one other cell of its
     colour (seeds 5, 29, 59, 71 and 94 here)."""
+    assert not BoardView(*_view_args("mujoboard/othello-8x8")).square
     seeds = sorted(set(range(0, 100, 4)) | {5, 29, 59, 71, 94})
     wrong, read, markers = [], 0, 0
     for seed in seeds:
@@ -87,8 +88,7 @@ def test_mujoxo_markers_anywhere_on_their_pad_are_read_from_the_first_frame():
         timestep = view.reset()
         estimator = BoardCameraEstimator()
         estimator.reset(view.description(), timestep)
-        assert estimator._view.square and not BoardView(
-            *_view_args("mujoboard/othello-8x8")).square
+        assert estimator._view.square
         cells, _ = estimator.read(timestep)
         truth = env.task.game.players(env.task.state)
         seen = cells != UNSEEN

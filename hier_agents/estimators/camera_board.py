@@ -223,7 +223,6 @@ class BoardCameraEstimator(Estimator):
         for cell in np.flatnonzero(~known.all(axis=1)):
             missing = ~known[cell]
             same = some & (view.parity == view.parity[cell])
-            same[cell] = False
             donors = []
             for pool in (same & (view.row == view.row[cell]), same, some):
                 pool = [c for c in np.flatnonzero(pool) if c != cell and c not in donors]
