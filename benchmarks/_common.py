@@ -1,7 +1,7 @@
 """Helpers shared by the benchmark scripts (imported as ``_common``: each
 script's own folder is on ``sys.path`` when it runs).
 
-Every benchmark follows the command-line conventions of `envs.cli`:
+Every benchmark follows the command-line conventions of `physics_planning.cli`:
 
     PROG = prog(__file__)                    # "python benchmarks/NAME.py"
     def _main(argv):
@@ -22,10 +22,11 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from envs import cli  # noqa: E402
+from envs import cli as env_cli  # noqa: E402
+from physics_planning import cli  # noqa: E402
 from hier_agents.provenance import provenance  # noqa: E402
 
-__all__ = ["cli", "make_parser", "prog", "write_json", "run_in_tree", "baseline_worktree",
+__all__ = ["cli", "env_cli", "make_parser", "prog", "write_json", "run_in_tree", "baseline_worktree",
            "remove_worktree"]
 
 
@@ -35,7 +36,7 @@ def prog(file: str) -> str:
 
 
 def make_parser(file: str, doc: str) -> cli.Parser:
-    """The benchmark's `envs.cli.Parser`: usage ``python benchmarks/NAME.py``,
+    """The benchmark's `physics_planning.cli.Parser`: usage ``python benchmarks/NAME.py``,
     the docstring's first paragraph as description and the rest as epilog."""
     first, _, rest = doc.strip().partition("\n\n")
     return cli.Parser(prog(file), description=first, epilog=rest or None)
@@ -47,7 +48,7 @@ def write_json(path: Path, data, indent: int = 2) -> None:
     A dict gets a ``"provenance"`` key (command, commit, date, machine: see
     `hier_agents.provenance`); a list of rows is written as
     ``{"provenance": ..., "rows": [...]}``. The file is replaced in one step
-    (`envs.cli.write_json`). Check the path up front with `envs.cli.output_file`.
+    (`physics_planning.cli.write_json`). Check the path up front with `physics_planning.cli.output_file`.
     """
     record = provenance()
     data = {**data, "provenance": record} if isinstance(data, dict) else {

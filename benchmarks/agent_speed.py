@@ -34,7 +34,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from _common import (baseline_worktree, cli, make_parser, prog, remove_worktree,  # noqa: E402
+from _common import (env_cli, baseline_worktree, cli, make_parser, prog, remove_worktree,  # noqa: E402
                      run_in_tree, write_json)
 
 PROG = prog(__file__)
@@ -131,7 +131,7 @@ def _main(argv=None) -> int:
                         help="also measure this git commit's code, alternating")
     parser.add_argument("--json", type=Path, help="write the results here")
     args = parser.parse_args(argv)
-    cli.environment(args.env)
+    env_cli.environment(args.env)
     cli.output_file(args.json, "--json")
     with tempfile.TemporaryDirectory() as tmp_name:
         tmp = Path(tmp_name)

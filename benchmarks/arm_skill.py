@@ -54,7 +54,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from _common import cli, make_parser, prog, write_json  # noqa: E402
+from _common import env_cli, cli, make_parser, prog, write_json  # noqa: E402
 
 import numpy as np  # noqa: E402
 from tqdm import tqdm  # noqa: E402
@@ -284,7 +284,7 @@ def _main(argv=None) -> int:
     args = parser.parse_args(argv)
     boards = [n for n in envs.names() if n.startswith(("mujoxo/", "mujogo/"))]
     for name in args.envs:
-        cli.environment(name, boards)
+        env_cli.environment(name, boards)
     cli.output_file(args.json, "--json")
     rows = [run_env(name, args.episodes, args.seed, args.t_abs) for name in args.envs]
     print(format_table(rows))

@@ -55,7 +55,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from _common import cli, make_parser, prog, write_json  # noqa: E402
+from _common import env_cli, cli, make_parser, prog, write_json  # noqa: E402
 
 import numpy as np  # noqa: E402
 from tqdm import tqdm  # noqa: E402
@@ -154,7 +154,7 @@ def measure(name: str, episodes: int, seed: int, t_abs: int, estimator: str = "o
 
 def check_source(name: str) -> str:
     """``name`` if it is a MuJoBan environment or ``boxoban/<file>[-pegs]``
-    with ``<file>.txt`` in `BOXOBAN_DIR`; else `envs.cli.UsageError`."""
+    with ``<file>.txt`` in `BOXOBAN_DIR`; else `physics_planning.cli.UsageError`."""
     if name.startswith("boxoban/"):
         stem = name[len("boxoban/"):].removesuffix("-pegs")
         files = sorted(f"boxoban/{p.stem}" for p in BOXOBAN_DIR.glob("*.txt"))
@@ -164,7 +164,7 @@ def check_source(name: str) -> str:
                                  f"{', '.join(p.split('/')[1] for p in files)}")
         return name
     mujoban = [n for n in envs.names() if n.startswith("mujoban/")]
-    return cli.environment(name, mujoban + ["boxoban/<file>[-pegs]"])
+    return env_cli.environment(name, mujoban + ["boxoban/<file>[-pegs]"])
 
 
 def _main(argv=None) -> int:

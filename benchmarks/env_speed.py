@@ -38,7 +38,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from _common import cli, make_parser, prog, write_json  # noqa: E402
+from _common import env_cli, cli, make_parser, prog, write_json  # noqa: E402
 
 import envs  # noqa: E402
 import mujoco  # noqa: E402
@@ -167,11 +167,11 @@ def _main(argv=None) -> int:
         cli.choice("camera setting", setting, all_settings)
     env_options = {}
     for name in args.envs:
-        cli.environment(name)
-        env_options = cli.env_options(name, args.env_option,
+        env_cli.environment(name)
+        env_options = env_cli.env_options(name, args.env_option,
                                       exclude=lambda key: key.endswith("_camera"))
         if args.physics_timestep is not None:
-            cli.env_options(name, [f"physics_timestep={args.physics_timestep!r}"],
+            env_cli.env_options(name, [f"physics_timestep={args.physics_timestep!r}"],
                             flag="--physics-timestep")
     cli.output_file(args.json, "--json")
 

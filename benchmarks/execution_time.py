@@ -37,7 +37,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from _common import cli, make_parser, prog, write_json  # noqa: E402
+from _common import env_cli, cli, make_parser, prog, write_json  # noqa: E402
 
 import numpy as np  # noqa: E402
 
@@ -135,7 +135,7 @@ def _main(argv=None) -> int:
     parser.add_argument("--json", type=Path, help="write the summary and rows here")
     args = parser.parse_args(argv)
     name = "mujoban/level5" if args.no_pegs else "mujoban/level5-pegs"
-    cli.levels_file(name, args.levels)
+    env_cli.levels_file(name, args.levels)
     check("estimator", "mujoban", args.estimator)
     check("planner", "mujoban", args.planner)
     privileged = is_privileged("mujoban", args.estimator)

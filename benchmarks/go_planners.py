@@ -53,7 +53,7 @@ def parse_spec(spec: str) -> tuple[str, tuple[int, ...]]:
     """(name, integer arguments) of a planner spec (module docstring).
 
     Raises:
-      envs.cli.UsageError: an unknown planner, too many arguments, or an
+      physics_planning.cli.UsageError: an unknown planner, too many arguments, or an
         argument out of range (GNU Go level 1..10, simulations and rollouts >= 1).
     """
     name, *texts = spec.strip().lower().split(":")

@@ -36,7 +36,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from _common import cli, make_parser, prog, write_json  # noqa: E402
+from _common import env_cli, cli, make_parser, prog, write_json  # noqa: E402
 
 import numpy as np  # noqa: E402
 
@@ -145,7 +145,7 @@ def _main(argv=None) -> int:
     parser.add_argument("--seed", type=cli.non_negative_int, default=0)
     parser.add_argument("--json", type=Path, help="write the row here")
     args = parser.parse_args(argv)
-    cli.environment(args.env)
+    env_cli.environment(args.env)
     cli.choice("condition", args.condition, CONDITIONS)
     cli.choice("backend", args.backend, ("local", "ray"))
     cli.output_file(args.json, "--json")

@@ -37,7 +37,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from _common import cli, make_parser, prog, write_json  # noqa: E402
+from _common import env_cli, cli, make_parser, prog, write_json  # noqa: E402
 
 import numpy as np  # noqa: E402
 from tqdm import tqdm  # noqa: E402
@@ -255,7 +255,7 @@ def _main(argv=None) -> int:
     parser.add_argument("--picture", type=Path, help="write the side-by-side picture here")
     parser.add_argument("--json", type=Path, help="write the results here")
     args = parser.parse_args(argv)
-    cli.levels_file("mujoban/level5", args.file, flag="--file")
+    env_cli.levels_file("mujoban/level5", args.file, flag="--file")
     cli.output_file(args.picture, "--picture")
     cli.output_file(args.json, "--json")
     _import_original()

@@ -26,7 +26,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from _common import cli, make_parser, prog, write_json  # noqa: E402
+from _common import env_cli, cli, make_parser, prog, write_json  # noqa: E402
 
 PROG = prog(__file__)
 ROOT = Path(__file__).resolve().parents[1]
@@ -46,8 +46,8 @@ def _main(argv=None) -> int:
     parser.add_argument("--seed", type=cli.non_negative_int, default=0)
     parser.add_argument("--json", type=Path, help="write the results here")
     args = parser.parse_args(argv)
-    cli.environment(args.env)
-    cli.levels_file(args.env, args.levels)
+    env_cli.environment(args.env)
+    env_cli.levels_file(args.env, args.levels)
     cli.output_file(args.json, "--json")
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(
         p for p in (str(ROOT), os.environ.get("PYTHONPATH")) if p)}

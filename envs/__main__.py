@@ -10,7 +10,7 @@ steps, solved, steps per second). The random policy holds each uniformly drawn
 action for 10 control steps; it is a baseline for the environment, not an
 agent (see `hier_agents` for agents). Bad input (an unknown name, a negative
 seed, a bad ``--env-option``, an output path that cannot be written) ends the
-command with one line on stderr and exit status 2 (`envs.cli`).
+command with one line on stderr and exit status 2 (`physics_planning.cli`).
 """
 
 from __future__ import annotations
@@ -22,7 +22,8 @@ import numpy as np
 from tqdm import tqdm
 
 import envs
-from envs import cli
+from envs import cli as env_cli
+from physics_planning import cli
 
 PROG = "python -m envs"
 
@@ -81,8 +82,8 @@ def _main(argv=None) -> int:
         for name in envs.names():
             print(f"{name:<28} {envs.describe(name)}")
         return 0
-    name = cli.environment(args.env)
-    options = cli.env_options(name, args.env_option)
+    name = env_cli.environment(args.env)
+    options = env_cli.env_options(name, args.env_option)
     out = cli.output_file(args.json, "--json")
     rows = rollout(name, args.episodes, args.seed, not args.no_cameras, options)
     print(f"\n{name}, random policy, seed {args.seed}")

@@ -109,7 +109,7 @@ class GymnasiumEnv(gymnasium.Env):
     def __init__(self, env_name: str | None = None, *, env: Environment | None = None,
                  obs: str = "sensors", render_mode: str | None = None,
                  render_camera: str | None = None, **overrides):
-        from envs.cli import choice
+        from physics_planning.cli import choice
         choice("obs", obs, OBSERVATIONS)
         if render_mode not in (None, *self.metadata["render_modes"]):
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, "

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from typing import Any, Callable
 
 from envs.core import Environment
+from physics_planning.cli import UsageError, close_hint
 
 
 @dataclass(frozen=True)
@@ -93,7 +94,6 @@ def check(name: str, seed: int | None = None, **kwargs) -> None:
 
 def unknown_keywords_message(name: str, unknown, valid, kind: str) -> str:
     """``"NAME: unknown KIND(s) 'x' (did you mean 'y'?); valid KINDs: [...]"``."""
-    from envs.cli import close_hint  # envs.cli imports this module
     words = ", ".join(f"{k!r}{close_hint(k, valid)}" for k in unknown)
     return f"{name}: unknown {kind}{'s' if len(unknown) > 1 else ''} {words}; valid {kind}s: {valid}"
 
@@ -119,8 +119,9 @@ def load(name: str, seed: int | None = None, **kwargs) -> Environment:
     return entry.factory(seed=seed, **entry.kwargs, **kwargs)
 
 
-class UnknownEnvironmentError(KeyError, ValueError):
-    """`load` was given a name that is not registered."""
+class UnknownEnvironmentError(UsageError, KeyError):
+    """`load` was given a name that is not registered (a `UsageError`, so a
+    command reports it in one line; also a KeyError)."""
 
     def __str__(self) -> str:  # KeyError would show the message's repr
         return str(self.args[0]) if self.args else ""

@@ -41,7 +41,7 @@ whatever happened, so no GNU Go process outlives a run.
 Bad input (an unknown name, a negative seed, a missing or malformed
 ``--levels`` file, an output path that cannot be written, ...) ends the
 command before anything is played with one line on stderr (what was wrong,
-what is allowed, the closest name) and exit status 2 (`envs.cli`). Output
+what is allowed, the closest name) and exit status 2 (`physics_planning.cli`). Output
 folders are created up front; ``--json`` is rewritten after every episode
 (``"finished": false`` until the run ends; checkpoint and random agents write
 it at the end), the ``--video`` after the first.
@@ -63,7 +63,7 @@ import sys
 
 from tqdm import tqdm
 
-from envs import cli
+from physics_planning import cli
 from hier_agents.modular.components import estimator_name, family, is_privileged
 from hier_agents.modular.families import adapter
 from hier_agents.modular.agent import OptionStats
@@ -122,7 +122,7 @@ def run(env_name: str, episodes: int, seed: int = 0, *, planner: str | None = No
       ValueError: an environment without a modular agent, a bad component
         name, ``levels``, ``env_options`` or ``video`` with the random agent,
         ``video`` with ``ray_address``, ``workers`` < 1, ``first_episode`` < 0;
-        `envs.cli.UsageError` (a ValueError) for a checkpoint that does not
+        `physics_planning.cli.UsageError` (a ValueError) for a checkpoint that does not
         load or fit the environment (`play_checkpoint`).
       FileNotFoundError: a checkpoint that does not exist.
     """
@@ -252,7 +252,7 @@ def main(argv=None) -> int:
     """``python -m hier_agents.run``: plays, prints the table, writes
     ``--json`` (after every episode) and ``--video``; returns the exit status
     (0; 130 when interrupted by Ctrl-C). Bad input: one line on stderr and
-    `SystemExit` with status 2 before anything is played (`envs.cli.run_main`)."""
+    `SystemExit` with status 2 before anything is played (`physics_planning.cli.run_main`)."""
     return cli.run_main(PROG, _main, argv)
 
 

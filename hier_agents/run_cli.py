@@ -1,7 +1,7 @@
 """The command line of `hier_agents.run` (``python -m hier_agents.run``): its
 argument parser (`build_parser`), ``--list`` (`print_components`) and the
 checks that turn bad arguments into one-line usage errors before anything is
-played (`check_args`). Conventions: `envs.cli`; component names:
+played (`check_args`). Conventions: `physics_planning.cli`; component names:
 `hier_agents.modular.components.resolve`.
 """
 
@@ -11,8 +11,9 @@ import argparse
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from envs import cli
-from envs.cli import UsageError
+from envs import cli as env_cli
+from physics_planning import cli
+from physics_planning.cli import UsageError
 from hier_agents.modular import components
 from hier_agents.modular.components import ESTIMATORS, PLANNERS, family
 from hier_agents.modular.families import adapter
@@ -30,7 +31,7 @@ _AGENTS = "modular, checkpoint:PATH or random[:HOLD]"
 
 
 def build_parser(description: str, epilog: str | None = None) -> argparse.ArgumentParser:
-    """The ``python -m hier_agents.run`` argument parser (`envs.cli.Parser`)."""
+    """The ``python -m hier_agents.run`` argument parser (`physics_planning.cli.Parser`)."""
     parser = cli.Parser(PROG, description=description, epilog=epilog)
     parser.add_argument("env", nargs="?", default=None,
                         help=f"environment name, see python -m envs --list (default: "
@@ -128,7 +129,7 @@ def check_args(args) -> Checked:
     outside MuJoBan, a bad ``--env-option``, an output path that cannot be
     written, an unknown ``--agent``, or a flag that does not apply to the
     agent. Creates the output folders."""
-    env_name = cli.environment(args.env or DEFAULT_ENV)
+    env_name = env_cli.environment(args.env or DEFAULT_ENV)
     episodes = args.episodes if args.episodes is not None else (
         DEFAULT_EPISODES if args.env is None else NAMED_ENV_EPISODES)
     fam = family(env_name)
@@ -167,7 +168,7 @@ def check_args(args) -> Checked:
     if args.levels is not None:
         if not adapter(fam).level_files:
             raise UsageError(f"--levels only applies to mujoban environments, not {env_name}")
-        levels = cli.levels_file(env_name, args.levels)
+        levels = env_cli.levels_file(env_name, args.levels)
     for item in args.env_option:
         key = item.partition("=")[0]
         if key == "levels" or key.endswith("_camera"):
@@ -177,7 +178,7 @@ def check_args(args) -> Checked:
     if args.ray_address is not None and args.video is not None:
         raise UsageError("--video is written by the process that plays the first episode: "
                          "not with --ray-address")
-    options = cli.env_options(env_name, args.env_option,
+    options = env_cli.env_options(env_name, args.env_option,
                               exclude=lambda key: key.endswith("_camera") or key == "levels")
     return Checked(env_name, episodes, options, levels,
                    cli.output_file(args.json, "--json"), cli.output_file(args.video, "--video"))

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from envs.cli import plural
+from physics_planning.cli import plural
 from hier_agents.modular.agent import OptionStats
 from hier_agents.modular.components import PLANNERS, SKILLS
 from hier_agents.modular.families import adapter

@@ -54,7 +54,7 @@ import dataclasses
 import json
 import sys
 
-from envs.cli import Parser, choice, non_negative_int, positive_float, positive_int, run_main
+from physics_planning.cli import Parser, choice, non_negative_int, positive_float, positive_int, run_main
 
 PROG = "python -m hier_agents.train"
 #: ``--observations`` values.
@@ -67,7 +67,7 @@ def build_parser() -> Parser:
     """The command's parser; its defaults are `TrainConfig`'s."""
     from hier_agents.baselines.impala.agent_env import CONDITIONS
     from hier_agents.baselines.impala.learner import PAPER_BATCH, TrainConfig
-    from envs.cli import non_negative_float
+    from physics_planning.cli import non_negative_float
 
     default = {f.name: f.default for f in dataclasses.fields(TrainConfig)
                if f.default is not dataclasses.MISSING}
@@ -175,7 +175,7 @@ def _main(argv) -> int:
 def main(argv=None) -> int:
     """``python -m hier_agents.train``: trains, prints the final counters as
     JSON; exit status 0, 2 with one line on stderr for a bad input, 130 on a
-    second Ctrl-C (`envs.cli.run_main`)."""
+    second Ctrl-C (`physics_planning.cli.run_main`)."""
     return run_main(PROG, _main, argv)
 
 

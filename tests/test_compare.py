@@ -20,7 +20,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import envs
-from envs.cli import UsageError
+from physics_planning.cli import UsageError
 from hier_agents.compare import jobs as jobs_mod
 from hier_agents.compare import report
 from hier_agents.compare.backends import run_jobs

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import torch
 
-from envs.cli import UsageError
+from physics_planning.cli import UsageError
 from hier_agents.learning import ppo, rundir
 from hier_agents.learning.rundir import RunDir
 from toy_rl import Gaussian, Target

@@ -9,7 +9,7 @@ import json
 import pytest
 import torch
 
-from envs.cli import UsageError
+from physics_planning.cli import UsageError
 from hier_agents import train as train_cli
 from hier_agents.baselines.impala import learner
 from hier_agents.run import run

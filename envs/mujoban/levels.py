@@ -54,6 +54,8 @@ from typing import IO, Iterable
 
 import numpy as np
 
+from physics_planning.cli import UsageError
+
 # The character grammar of level text; its names stay importable from here.
 from envs.mujoban.levels_text import (_CANONICAL, _VALID_TEXT, BOX,  # noqa: F401
                                       BOX_ON_TARGET, FLOOR, FLOOR_ALIASES, PLAYER,
@@ -81,8 +83,9 @@ Position = tuple[int, int]
 ENTITY_CHANNELS = ("wall", "target", "player", "box")
 
 
-class LevelError(ValueError):
-    """A level (or level file) that cannot be used, with where the problem is.
+class LevelError(UsageError):
+    """A level (or level file) that cannot be used, with where the problem is
+    (a `UsageError`, so a command reports it in one line; also a ValueError).
 
     Attributes:
       reason: what is wrong, without location.

@@ -7,7 +7,7 @@ import sys
 import time
 from pathlib import Path
 
-from envs import cli
+from physics_planning import cli
 
 PROG = "python -m hier_agents.compare"
 
@@ -118,7 +118,7 @@ def _main(argv=None) -> int:
 def main(argv=None) -> int:
     """Runs the experiment and writes its outputs; exit status 0, 1 when jobs
     failed (the others' results are kept and reported), 2 with one line on
-    stderr for bad input (`envs.cli.run_main`)."""
+    stderr for bad input (`physics_planning.cli.run_main`)."""
     return cli.run_main(PROG, _main, argv)
 
 

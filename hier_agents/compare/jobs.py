@@ -29,7 +29,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from envs import cli
+from physics_planning import cli
 
 #: Bumped when a change of the code changes what a job with the same inputs returns.
 CACHE_VERSION = 1

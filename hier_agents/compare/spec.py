@@ -36,7 +36,7 @@ draw). ``envs``, ``seeds``, ``episodes`` may be overridden per agent. Seed
 evaluation seed: episode ``e`` of seed ``s`` is seeded from ``(s, e)``
 (`envs.episode_seed`), so all agents meet the same levels at a seed.
 
-Every error is a `envs.cli.UsageError` naming the file, the agent and the key.
+Every error is a `physics_planning.cli.UsageError` naming the file, the agent and the key.
 """
 
 from __future__ import annotations
@@ -45,8 +45,8 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from envs import cli
-from envs.cli import UsageError
+from physics_planning import cli
+from physics_planning.cli import UsageError
 
 #: Keys of a spec's top level and of an agent table.
 TOP_KEYS = ("name", "description", "cache", "envs", "seeds", "episodes", "shard_episodes",

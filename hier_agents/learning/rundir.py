@@ -18,7 +18,7 @@ A run directory holds:
 Whether a run starts or continues is the trainer's ``resume`` mode: ``None``
 continues a run found there and starts one otherwise, ``True`` requires one
 to continue, ``False`` requires a directory without a checkpoint (nothing is
-overwritten). Every refusal is a `envs.cli.UsageError` (one line on a
+overwritten). Every refusal is a `physics_planning.cli.UsageError` (one line on a
 command's stderr), raised before anything is written.
 
 `RunDir` also draws a progress bar on stderr (tqdm when installed) and, inside
@@ -43,7 +43,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from envs.cli import UsageError, atomic_write
+from physics_planning.cli import UsageError, atomic_write
 
 CONFIG = "config.json"
 CHECKPOINT = "checkpoint.pt"

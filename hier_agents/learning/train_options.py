@@ -106,7 +106,7 @@ from torch import nn
 from abstract_planners.learned_options import (OptionPolicyNet, policy_input,
                                                save_option_policy)
 from abstract_planners.sokoban import MOVES
-from envs.cli import (Parser, UsageError, choice, non_negative_float, non_negative_int, plural,
+from physics_planning.cli import (Parser, UsageError, choice, non_negative_float, non_negative_int, plural,
                       positive_float, positive_int, run_main)
 from hier_agents.learning import ppo
 from hier_agents.learning.option_shaping import (ABSTRACT_DURATION,  # noqa: F401 (re-exported)
@@ -414,7 +414,7 @@ def _main(argv) -> int:
 def main(argv=None) -> int:
     """``python -m hier_agents.learning.train_options``: trains, evaluates,
     writes ``LOGDIR/summary.json``; exit status 0, 130 when interrupted, 2
-    with one line on stderr for a bad input (`envs.cli.run_main`)."""
+    with one line on stderr for a bad input (`physics_planning.cli.run_main`)."""
     return run_main(PROG, _main, argv)
 
 

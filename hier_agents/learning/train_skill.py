@@ -58,7 +58,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from envs.cli import (Parser, UsageError, choice, existing_file, fraction, non_negative_float,
+from physics_planning.cli import (Parser, UsageError, choice, existing_file, fraction, non_negative_float,
                       non_negative_int, output_file, plural, positive_int, run_main)
 from hier_agents.learning import ppo
 from hier_agents.learning.cloning import clone, warm_start_frames
@@ -450,7 +450,7 @@ def _main(argv) -> int:
 def main(argv=None) -> int:
     """``python -m hier_agents.learning.train_skill``: trains (or evaluates);
     exit status 0, 2 with one line on stderr for a bad input
-    (`envs.cli.run_main`)."""
+    (`physics_planning.cli.run_main`)."""
     return run_main(PROG, _main, argv)
 
 

@@ -46,7 +46,7 @@ import importlib
 from dataclasses import dataclass
 from typing import Callable, NamedTuple
 
-from envs.cli import UsageError, close_hint
+from physics_planning.cli import UsageError, close_hint
 from hier_agents.estimators import BoardEstimator, EntityLayerEstimator, OracleEstimator
 from hier_agents.modular.agent import ModularAgent
 from hier_agents.modular.families import family

@@ -24,7 +24,7 @@ import time
 
 import numpy as np
 
-from envs.cli import UsageError, plural
+from physics_planning.cli import UsageError, plural
 
 
 def parse_agent(spec: str) -> str:

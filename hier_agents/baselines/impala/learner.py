@@ -48,7 +48,7 @@ from pathlib import Path
 
 import numpy as np
 
-from envs.cli import UsageError, choice, plural
+from physics_planning.cli import UsageError, choice, plural
 from hier_agents.baselines.impala.actors import ActorConfig, LocalActors, RayActors, stack_states
 from hier_agents.learning.rundir import CHECKPOINT, KEPT, SCALARS, RunDir
 from hier_agents.modular.options import T_ABS
