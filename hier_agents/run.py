@@ -12,7 +12,7 @@
     python -m hier_agents.run mujoban/level1 --agent random        # uniform random actions
     python -m hier_agents.run mujoban/level1 --agent random:10     # ... each held 10 steps
     python -m hier_agents.run mujoban/level5 --levels FILE --episodes 200 --workers 2
-    python -m hier_agents.run --list                               # the parts by family
+    python -m hier_agents.run --list                               # agent kinds, parts by family
 
 The modular agent sits behind the observation boundary: it is given the
 task's public description (``env.description()``) and timesteps. The
@@ -46,6 +46,11 @@ folders are created up front; ``--json`` is rewritten after every episode
 (``"finished": false`` until the run ends; checkpoint and random agents write
 it at the end), the ``--video`` after the first.
 
+Every agent kind (``--agent NAME[:ARG]``: ``modular``, ``checkpoint:PATH``,
+``random[:HOLD]`` and any kind registered with `hier_agents.agents.register`)
+is played by the one episode runner (`hier_agents.agents.runner`) and scored
+by its family adapter.
+
 MuJoBan rows report the solved fraction; board games win/draw/loss rates. All
 rates carry 95% Wilson intervals. JSON keys: env, episodes, estimator,
 privileged, success_rate, win_rate, draw_rate, loss_rate (board games),
@@ -63,14 +68,15 @@ import sys
 
 from tqdm import tqdm
 
-from physics_planning import cli
-from hier_agents.modular.components import estimator_name, family, is_privileged
-from hier_agents.modular.families import adapter
+from hier_agents.agents import resolve
+from hier_agents.agents.runner import Play, profile_summary
 from hier_agents.modular.agent import OptionStats
-from hier_agents.players import Play, Progress, play_here, play_parallel, profile_summary
+from hier_agents.modular.families import adapter, family
+from hier_agents.players import Progress, play_here, play_parallel
 from hier_agents.run_cli import (DEFAULT_ENV, DEFAULT_EPISODES, PROG,  # noqa: F401 (re-exported)
                                  build_parser, check_args, print_components)
 from hier_agents.run_report import format_table, postfix, summarize  # noqa: F401
+from physics_planning import cli
 
 
 def run(env_name: str, episodes: int, seed: int = 0, *, planner: str | None = None,
@@ -78,7 +84,8 @@ def run(env_name: str, episodes: int, seed: int = 0, *, planner: str | None = No
         video: str | None = None, progress: bool = True, agent: str = "modular",
         stochastic: bool = False, env_options: dict | None = None,
         on_progress: Progress | None = None, first_episode: int = 0, workers: int = 1,
-        ray_address: str | None = None, profile: bool = False) -> dict:
+        ray_address: str | None = None, profile: bool = False,
+        options: dict | None = None) -> dict:
     """Plays episodes ``first_episode`` .. ``first_episode + episodes - 1``;
     returns the JSON-able summary.
 
@@ -88,16 +95,18 @@ def run(env_name: str, episodes: int, seed: int = 0, *, planner: str | None = No
     episodes over processes gives the same rows.
 
     Args:
-      agent: ``"modular"`` (estimator + planner + skill, named as
+      agent: ``NAME[:ARG]`` of an agent kind (`hier_agents.agents.resolve`):
+        ``"modular"`` (estimator + planner + skill, named as
         `hier_agents.modular.components.resolve` reads them),
         ``"checkpoint:PATH"`` (a trained end-to-end agent, `hier_agents.train`;
-        its policy's mean, or samples with ``stochastic``) or
-        ``"random[:HOLD]"`` (uniformly random actions).
+        its policy's mean, or samples with ``stochastic``), ``"random[:HOLD]"``
+        (uniformly random actions), or a registered kind.
+      planner, skill, estimator, stochastic: the options of the kinds that
+        take them (modular; checkpoint); ``options``: any kind's options.
       levels: MuJoBan: a level file; episode ``e`` plays its ``e``-th level
-        (modulo its length; modular and checkpoint agents).
+        (modulo its length).
       env_options: extra `envs.load` overrides of the played environment
-        (e.g. ``{"physics_timestep": 0.005}``; modular and checkpoint agents);
-        the summary records them.
+        (e.g. ``{"physics_timestep": 0.005}``); the summary records them.
       video: an MP4 of the first episode, written when it ends (not with
         ``ray_address``).
       on_progress: called with the summary so far (``"finished": False``)
@@ -119,104 +128,111 @@ def run(env_name: str, episodes: int, seed: int = 0, *, planner: str | None = No
       module docstring), rows in episode order, ``"finished": True``.
 
     Raises:
-      ValueError: an environment without a modular agent, a bad component
-        name, ``levels``, ``env_options`` or ``video`` with the random agent,
-        ``video`` with ``ray_address``, ``workers`` < 1, ``first_episode`` < 0;
-        `physics_planning.cli.UsageError` (a ValueError) for a checkpoint that does not
-        load or fit the environment (`play_checkpoint`).
+      ValueError: an environment without a modular agent, a bad agent or
+        component name (`physics_planning.cli.UsageError`), an option the
+        agent kind does not take, ``levels``, ``env_options`` or ``video``
+        for a kind they do not apply to, ``video`` with ``ray_address``,
+        ``workers`` < 1, ``first_episode`` < 0, a checkpoint that does not
+        load or fit the environment.
       FileNotFoundError: a checkpoint that does not exist.
     """
+    given = {"planner": planner, "skill": skill, "estimator": estimator,
+             "stochastic": stochastic or None, **(options or {})}
+    play = _play(env_name, seed, agent, {k: v for k, v in given.items() if v is not None},
+                 levels, env_options, video, first_episode, profile, workers, ray_address)
+    indices = list(range(first_episode, first_episode + episodes))
+    return _Run(play, indices, progress, on_progress).go(workers, ray_address)
+
+
+def _play(env_name, seed, agent, options, levels, env_options, video, first_episode, profile,
+          workers, ray_address) -> Play:
+    """The checked `Play` of `run`'s arguments (its ValueErrors)."""
     fam = family(env_name)
     if workers < 1 or first_episode < 0:
         raise ValueError(f"workers must be >= 1 and first_episode >= 0, got {workers} and "
                          f"{first_episode}")
-    if agent != "modular" and not (agent == "checkpoint" or agent.startswith("checkpoint:")):
-        from hier_agents.baselines.impala.evaluate import parse_random
-        hold = parse_random(agent)
-        if video or levels is not None or env_options:
-            raise ValueError(f"--video, --levels and --env-option do not apply to "
-                             f"--agent random:{hold}")
-    elif agent != "modular":
-        from hier_agents.baselines.impala.evaluate import parse_agent
-        path = parse_agent(agent)
-        if workers > 1 or ray_address is not None:  # refused here, not in every worker
-            from hier_agents.baselines.impala.learner import load_checkpoint
-            load_checkpoint(path)
+    kind, arg = resolve(agent)
+    unknown = sorted(set(options) - set(kind.options))
+    if unknown:
+        raise ValueError(f"--agent {agent} takes no option {', '.join(unknown)} (it takes: "
+                         f"{', '.join(kind.options) or 'none'})")
+    if not kind.env_flags and (video or levels is not None or env_options):
+        raise ValueError(f"--video, --levels and --env-option do not apply to --agent {agent}")
+    if workers > 1 or ray_address is not None:  # refused here, not in every worker
+        kind.check(env_name, arg, options)
     if levels is not None and not adapter(fam).level_files:
         raise ValueError("--levels only applies to mujoban environments")
     if video and ray_address:
         raise ValueError("--video is written by the process that plays the first episode: "
                          "not with --ray-address")
-    play = Play(env_name, int(seed), agent, planner, skill, estimator, levels, bool(stochastic),
-                dict(env_options or {}), video, first_episode, bool(profile))
-    indices = list(range(first_episode, first_episode + episodes))
-    played: list[tuple[dict, dict]] = []  # (row, subgoal counters)
-    meta: dict = {}
-    interrupted = False
-    restarts = [0]
-
-    def summary_now(finished: bool) -> dict:
-        return _summary(play, fam, sorted(played, key=lambda p: p[0]["episode"]), meta,
-                        len(indices), interrupted, finished, restarts[0])
-
-    bars = []  # the progress bar, shown once the agent is built (a bad one: no bar)
-
-    def start_bar():
-        if not bars:
-            bars.append(tqdm(total=len(indices), unit="episode", desc=env_name,
-                             file=sys.stderr, disable=not progress))
-
-    def on_done(results, info):
-        start_bar()
-        meta.update(info)
-        played.extend(results)
-        bars[0].update(len(results))
-        bars[0].set_postfix(postfix([r for r, _ in played], fam))
-        if on_progress is not None:
-            on_progress(summary_now(False))
-
-    def built(info):
-        start_bar()
-        meta.update(info)
-        if on_progress is not None:
-            on_progress(summary_now(False))
-
-    try:
-        if workers == 1 and ray_address is None:
-            play_here(play, indices, on_done, built)
-        else:
-            start_bar()
-            restarts[0] = play_parallel(play, indices, workers, ray_address, on_done)
-    except KeyboardInterrupt:
-        # Ctrl-C: the episodes played so far make the table (those under way are dropped).
-        interrupted = True
-    finally:
-        for bar in bars:
-            bar.close()
-    return summary_now(True)
+    return Play(env_name, int(seed), agent, dict(options), levels, dict(env_options or {}),
+                video, first_episode, bool(profile))
 
 
-def _summary(play: Play, fam, played, meta, requested, interrupted, finished,
-             worker_restarts: int = 0) -> dict:
-    rows = [row for row, _ in played]
-    totals = OptionStats()
-    for _, counters in played:
-        totals.add(OptionStats(**counters))
-    common = dict(env_options=play.env_options, levels=play.levels,
-                  episodes_requested=requested, interrupted=interrupted, finished=finished,
-                  worker_restarts=worker_restarts)
-    if play.profile:
-        common["profile"] = profile_summary(rows)
-    if play.agent == "modular":
-        out = summarize(play.env_name, fam, rows, totals, play.seed, play.planner, play.skill)
-        out.update(training_frames=int(meta.get("training_frames", 0)),
-                   estimator=estimator_name(fam, play.estimator),
-                   privileged=is_privileged(fam, play.estimator), **common)
+class _Run:
+    """One `run`: the episodes played so far, the progress bar, the summary."""
+
+    def __init__(self, play: Play, indices: list[int], progress: bool, on_progress):
+        self.play, self.indices = play, indices
+        self.progress, self.on_progress = progress, on_progress
+        self.played: list[tuple[dict, dict]] = []  # (row, subgoal counters)
+        self.meta: dict = {}
+        self.interrupted, self.restarts = False, 0
+        self.bar = None  # shown once the agent is built (a bad one: no bar)
+
+    def go(self, workers: int, ray_address) -> dict:
+        try:
+            if workers == 1 and ray_address is None:
+                play_here(self.play, self.indices, self.on_done, self.built)
+            else:
+                self._start_bar()
+                self.restarts = play_parallel(self.play, self.indices, workers, ray_address,
+                                              self.on_done)
+        except KeyboardInterrupt:
+            # Ctrl-C: the episodes played so far make the table (those under way are dropped).
+            self.interrupted = True
+        finally:
+            if self.bar is not None:
+                self.bar.close()
+        return self.summary(True)
+
+    def _start_bar(self) -> None:
+        if self.bar is None:
+            self.bar = tqdm(total=len(self.indices), unit="episode", desc=self.play.env_name,
+                            file=sys.stderr, disable=not self.progress)
+
+    def built(self, info: dict) -> None:
+        self._start_bar()
+        self.meta.update(info)
+        if self.on_progress is not None:
+            self.on_progress(self.summary(False))
+
+    def on_done(self, results, info: dict) -> None:
+        self._start_bar()
+        self.meta.update(info)
+        self.played.extend(results)
+        self.bar.update(len(results))
+        self.bar.set_postfix(postfix([r for r, _ in self.played], family(self.play.env_name)))
+        if self.on_progress is not None:
+            self.on_progress(self.summary(False))
+
+    def summary(self, finished: bool) -> dict:
+        play = self.play
+        played = sorted(self.played, key=lambda p: p[0]["episode"])
+        rows = [row for row, _ in played]
+        totals = OptionStats()
+        for _, counters in played:
+            totals.add(OptionStats(**counters))
+        out = summarize(play.env_name, family(play.env_name), rows, totals, play.seed)
+        # Who played: "-" until the kind's description arrives (a worker reports it).
+        out.update(agent=play.agent, planner="-", skill="-")
+        out.update(self.meta)
+        out.update(env_options=play.env_options, levels=play.levels,
+                   episodes_requested=len(self.indices), interrupted=self.interrupted,
+                   finished=finished, worker_restarts=self.restarts)
+        if play.profile:
+            out["profile"] = profile_summary(rows)
         return out
-    out = summarize(play.env_name, fam, rows, totals, play.seed, "-", play.agent)
-    out.update(agent=play.agent, **common)
-    out.update(meta)
-    return out
 
 
 def _main(argv=None) -> int:
@@ -234,10 +250,9 @@ def _main(argv=None) -> int:
 
         def save(summary: dict) -> None:
             cli.write_json(checked.json, {**summary, "provenance": record})
-    summary = run(checked.env, checked.episodes, args.seed, planner=args.planner,
-                  skill=args.skill, estimator=args.estimator, levels=checked.levels,
+    summary = run(checked.env, checked.episodes, args.seed, levels=checked.levels,
                   video=None if checked.video is None else str(checked.video),
-                  agent=args.agent, stochastic=args.stochastic,
+                  agent=args.agent, options=checked.options,
                   env_options=checked.env_options, on_progress=save,
                   first_episode=args.first_episode, workers=args.workers,
                   ray_address=args.ray_address, profile=args.profile)
@@ -252,7 +267,8 @@ def main(argv=None) -> int:
     """``python -m hier_agents.run``: plays, prints the table, writes
     ``--json`` (after every episode) and ``--video``; returns the exit status
     (0; 130 when interrupted by Ctrl-C). Bad input: one line on stderr and
-    `SystemExit` with status 2 before anything is played (`physics_planning.cli.run_main`)."""
+    `SystemExit` with status 2 before anything is played
+    (`physics_planning.cli.run_main`)."""
     return cli.run_main(PROG, _main, argv)
 
 

@@ -27,8 +27,6 @@ DEFAULT_EPISODES = 5
 #: Episodes when an environment is named but ``--episodes`` is not.
 NAMED_ENV_EPISODES = 10
 
-_AGENTS = "modular, checkpoint:PATH or random[:HOLD]"
-
 
 def build_parser(description: str, epilog: str | None = None) -> argparse.ArgumentParser:
     """The ``python -m hier_agents.run`` argument parser (`physics_planning.cli.Parser`)."""
@@ -41,10 +39,11 @@ def build_parser(description: str, epilog: str | None = None) -> argparse.Argume
                              f"environment, {NAMED_ENV_EPISODES} with a named one)")
     parser.add_argument("--seed", type=cli.non_negative_int, default=0,
                         help="seed of the environment and the agent")
-    parser.add_argument("--agent", default="modular",
-                        help="modular (estimator + planner + skill), checkpoint:PATH (a "
-                             "hier_agents.train run directory or checkpoint file), random or "
-                             "random:HOLD (uniform random actions, each held HOLD control steps)")
+    parser.add_argument("--agent", default="modular", metavar="NAME[:ARG]",
+                        help="the agent kind: modular (estimator + planner + skill), "
+                             "checkpoint:PATH (a hier_agents.train run directory or checkpoint "
+                             "file), random or random:HOLD (uniform random actions, each held "
+                             "HOLD control steps), or a registered kind (see --list)")
     parser.add_argument("--stochastic", action="store_true",
                         help="checkpoint agents: sample actions from the policy instead of "
                              "taking its mean")
@@ -82,14 +81,20 @@ def build_parser(description: str, epilog: str | None = None) -> argparse.Argume
                         help="report the share of time spent in physics, rendering, the "
                              "estimator, the planner and the skill (table and JSON)")
     parser.add_argument("--list", action="store_true",
-                        help="list each family's planners, skills and estimators and exit")
+                        help="list the agent kinds and each family's planners, skills and "
+                             "estimators and exit")
     return parser
 
 
 def print_components() -> None:
-    """``--list``: per game family, its planners, skills and estimators in
-    the form the flags take them (``NAME``, ``NAME:ARG``; the first is the
-    default; privileged estimators marked)."""
+    """``--list``: the agent kinds, then per game family its planners,
+    skills and estimators in the form the flags take them (``NAME``,
+    ``NAME:ARG``; the first is the default; privileged estimators marked)."""
+    from hier_agents.agents import KINDS, forms
+    forms()  # registers the shipped kinds
+    print("agents:")
+    for kind in KINDS.values():
+        print(f"  {' | '.join(kind.forms()):<28} {kind.help}")
     for fam in PLANNERS:
         estimators = [f"{name} (privileged)" if getattr(factory, "privileged", False) else name
                       for name, factory in ESTIMATORS[fam].items()]
@@ -108,6 +113,8 @@ class Checked:
     Attributes:
       env: the environment's name.
       episodes: episodes to play (>= 1).
+      options: the agent kind's options given (``planner``, ``skill``,
+        ``estimator``, ``stochastic``).
       env_options: `envs.load` overrides from ``--env-option`` (checked).
       levels: ``--levels`` (checked: it exists and parses) or None.
       json, video: output paths (folders created) or None.
@@ -115,55 +122,63 @@ class Checked:
 
     env: str
     episodes: int
+    options: dict = field(default_factory=dict)
     env_options: dict = field(default_factory=dict)
     levels: str | None = None
     json: Path | None = None
     video: Path | None = None
 
 
-def check_args(args) -> Checked:
-    """Checks parsed ``args`` before anything is played; raises `UsageError`
-    (one line: what is wrong, what is allowed, the closest name) for an
-    unknown environment, planner, skill or estimator, a bad ``NAME:ARG`` or a
-    checkpoint that does not load, ``--levels`` that is missing, malformed or
-    outside MuJoBan, a bad ``--env-option``, an output path that cannot be
-    written, an unknown ``--agent``, or a flag that does not apply to the
-    agent. Creates the output folders."""
-    env_name = env_cli.environment(args.env or DEFAULT_ENV)
-    episodes = args.episodes if args.episodes is not None else (
-        DEFAULT_EPISODES if args.env is None else NAMED_ENV_EPISODES)
-    fam = family(env_name)
-    agent = args.agent
-    random_agent = agent == "random" or agent.startswith("random:")
-    checkpoint_agent = agent.startswith("checkpoint:")
-    if agent != "modular" and not random_agent and not checkpoint_agent:
-        hint = cli.close_hint(agent, ("modular", "random", "checkpoint:"))
-        raise UsageError(f"unknown --agent {agent!r}{hint}; valid: {_AGENTS}")
-    if checkpoint_agent:
-        path = Path(agent[len("checkpoint:"):])
-        if not path.exists():
-            raise UsageError(f"--agent {agent}: no checkpoint or run directory at "
-                             f"{str(path) or '(empty path)'!r}")
-    if random_agent:
-        from hier_agents.baselines.impala.evaluate import parse_random
-        parse_random(agent)  # UsageError for a bad HOLD
-    if args.stochastic and not checkpoint_agent:
-        raise UsageError("--stochastic applies to --agent checkpoint:PATH only")
-    if agent != "modular":
-        for flag, value in (("--planner", args.planner), ("--skill", args.skill),
-                            ("--estimator", args.estimator)):
-            if value is not None:
-                raise UsageError(f"{flag} applies to the modular agent, not to --agent {agent}")
-    if random_agent:
+#: The flags of agent kinds' options (`hier_agents.agents.AgentKind.options`).
+_OPTION_FLAGS = {"planner": "--planner", "skill": "--skill", "estimator": "--estimator",
+                 "stochastic": "--stochastic"}
+
+
+def _agent_options(args) -> dict:
+    """The agent kind's options given on the command line, checked against
+    the kind (`UsageError` for a flag it does not take or a bad value)."""
+    from hier_agents.agents import resolve
+
+    env_name = cli_env(args)
+    kind, arg = resolve(args.agent)
+    given = {key: getattr(args, key) for key in _OPTION_FLAGS
+             if getattr(args, key) not in (None, False)}
+    for key in given:
+        if key not in kind.options:
+            raise UsageError(f"{_OPTION_FLAGS[key]} applies to the agents that take it "
+                             f"({', '.join(_takers(key))}), not to --agent {args.agent}")
+    if not kind.env_flags:
         for flag, value in (("--levels", args.levels), ("--env-option", args.env_option or None),
                             ("--video", args.video)):
             if value is not None:
-                raise UsageError(f"{flag} applies to the modular and checkpoint agents, not to "
-                                 f"--agent {agent}")
-    for kind, spec in (("planner", args.planner), ("skill", args.skill),
-                       ("estimator", args.estimator)):
-        if spec is not None:
-            components.check(kind, fam, spec)
+                raise UsageError(f"{flag} does not apply to --agent {args.agent}")
+    kind.check(env_name, arg, given)
+    return given
+
+
+def _takers(key: str) -> list[str]:
+    from hier_agents.agents import KINDS
+    return [name for name, kind in KINDS.items() if key in kind.options]
+
+
+def cli_env(args) -> str:
+    """The checked environment name of ``args`` (the default when none is given)."""
+    return env_cli.environment(args.env or DEFAULT_ENV)
+
+
+def check_args(args) -> Checked:
+    """Checks parsed ``args`` before anything is played; raises `UsageError`
+    (one line: what is wrong, what is allowed, the closest name) for an
+    unknown environment, agent, planner, skill or estimator, a bad
+    ``NAME:ARG`` or a checkpoint that does not load, ``--levels`` that is
+    missing, malformed or outside MuJoBan, a bad ``--env-option``, an output
+    path that cannot be written, or a flag that does not apply to the agent.
+    Creates the output folders."""
+    env_name = cli_env(args)
+    episodes = args.episodes if args.episodes is not None else (
+        DEFAULT_EPISODES if args.env is None else NAMED_ENV_EPISODES)
+    fam = family(env_name)
+    options = _agent_options(args)
     levels = None
     if args.levels is not None:
         if not adapter(fam).level_files:
@@ -173,12 +188,12 @@ def check_args(args) -> Checked:
         key = item.partition("=")[0]
         if key == "levels" or key.endswith("_camera"):
             why = ("give a level file with --levels FILE" if key == "levels"
-                   else "the cameras are the estimator's (or the checkpoint's)")
+                   else "the cameras are the agent's (its estimator's or checkpoint's)")
             raise UsageError(f"--env-option {item!r}: {why}")
     if args.ray_address is not None and args.video is not None:
         raise UsageError("--video is written by the process that plays the first episode: "
                          "not with --ray-address")
-    options = env_cli.env_options(env_name, args.env_option,
-                              exclude=lambda key: key.endswith("_camera") or key == "levels")
-    return Checked(env_name, episodes, options, levels,
+    env_options = env_cli.env_options(
+        env_name, args.env_option, exclude=lambda key: key.endswith("_camera") or key == "levels")
+    return Checked(env_name, episodes, options, env_options, levels,
                    cli.output_file(args.json, "--json"), cli.output_file(args.video, "--video"))

@@ -10,7 +10,6 @@ import numpy as np
 
 from physics_planning.cli import plural
 from hier_agents.modular.agent import OptionStats
-from hier_agents.modular.components import PLANNERS, SKILLS
 from hier_agents.modular.families import adapter
 from hier_agents.stats import wilson_interval
 
@@ -24,15 +23,14 @@ def postfix(rows, fam) -> dict:
     return {"wins": f"{sum(r['outcome'] == 'win' for r in rows)}/{len(rows)}"}
 
 
-def summarize(env_name, fam, rows, totals: OptionStats, seed, planner, skill) -> dict:
-    """The JSON-able summary of episode ``rows`` (dicts as `hier_agents.run`
-    plays them) of family ``fam``: rates with 95% Wilson intervals, means,
-    subgoal counters (``totals``), failure reasons, per-episode rows. All
-    rates and means are None when no episode was played."""
+def summarize(env_name, fam, rows, totals: OptionStats, seed) -> dict:
+    """The JSON-able summary of episode ``rows`` (dicts as the episode runner
+    plays them, `hier_agents.agents.runner`) of family ``fam``: rates with
+    95% Wilson intervals, means, subgoal counters (``totals``), failure
+    reasons, per-episode rows. All rates and means are None when no episode
+    was played. Who played is the caller's to add."""
     n = len(rows)
-    out = {"env": env_name, "episodes": n, "seed": seed, "agent": "modular",
-           "planner": planner or next(iter(PLANNERS[fam])),
-           "skill": skill or next(iter(SKILLS[fam]))}
+    out = {"env": env_name, "episodes": n, "seed": seed}
     if n == 0:  # e.g. interrupted before the first episode ended
         for key in (("success_rate",) if not adapter(fam).games else
                     ("win_rate", "draw_rate", "loss_rate", "success_rate")):
@@ -86,26 +84,8 @@ def _pct(rate, interval) -> str:
 
 def format_table(summary: dict) -> str:
     """The printed results table of a `hier_agents.run.run` summary."""
-    if summary.get("agent", "modular") == "modular":
-        who = (f"estimator {summary.get('estimator', '?')}"
-               f"{' (PRIVILEGED: reads the simulator)' if summary.get('privileged') else ''}, "
-               f"planner {summary['planner']}, skill {summary['skill']}")
-        if summary.get("training_frames"):
-            who += (f" (learned parts trained on "
-                    f"{plural(summary['training_frames'], 'frame', spec=',')})")
-    elif "condition" not in summary:  # interrupted before a worker reported
-        who = summary["agent"]
-    elif summary["agent"].startswith("random"):
-        who = summary["condition"]
-    else:
-        who = (f"{summary['agent']} ({summary['condition']}, trained "
-               f"{plural(summary['training_frames'], 'frame', spec=',')} on "
-               f"{summary['trained_env']}")
-        if summary.get("observations"):
-            who += f"; reads {', '.join(summary['observations'])}"
-        who += ")"
-        if summary.get("privileged"):
-            who += " (PRIVILEGED: reads the simulator)"
+    from hier_agents.agents import kind_of
+    who = kind_of(summary.get("agent", "modular")).describe(summary)
     lines = [f"{summary['env']}: {who}, {plural(summary['episodes'], 'episode')}, "
              f"seed {summary['seed']}"]
     if summary.get("levels"):

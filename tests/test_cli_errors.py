@@ -102,7 +102,7 @@ CASES = [
     ("run", ["mujoban/level1", "--json", FOLDER], "--json"),
     ("run", ["mujoban/level1", "--video", FOLDER], "--video"),
     ("run", ["mujoban/level1", "--json", f"{GARBAGE}/out.json"], "cannot create its folder"),
-    ("run", ["mujoban/level1", "--agent", "robot"], "unknown --agent 'robot'"),
+    ("run", ["mujoban/level1", "--agent", "robot"], "unknown agent 'robot'"),
     ("run", ["mujoban/level1", "--workers", "0"], "--workers"),
     ("run", ["mujoban/level1", "--first-episode", "-1"], "--first-episode"),
     ("run", ["mujoban/level1", "--ray-address", "auto", "--video", "{folder}/v.mp4"],
@@ -117,10 +117,10 @@ CASES = [
     ("run", ["mujoban/level1", "--agent", f"checkpoint:{MISSING}"], "no checkpoint"),
     ("run", ["mujoban/level1", "--agent", f"checkpoint:{GARBAGE}"], "checkpoint"),
     ("run", ["mujoban/level1", "--agent", "random", "--planner", "random"],
-     "applies to the modular agent"),
+     "--planner applies to the agents that take it (modular)"),
     ("run", ["mujoban/level1", "--agent", "random", "--levels", LEVELS],
-     "applies to the modular and checkpoint agents"),
-    ("run", ["mujoban/level1", "--stochastic"], "checkpoint:PATH only"),
+     "--levels does not apply to --agent random"),
+    ("run", ["mujoban/level1", "--stochastic"], "--stochastic applies to the agents that take it (checkpoint)"),
     ("run", ["mujoban/level1", "--sed", "1"], "did you mean '--seed'"),
     # python -m envs
     ("envs", ["mujoban/levl1"], "did you mean 'mujoban/level1'"),
@@ -362,14 +362,14 @@ def test_outputs_go_into_new_folders_and_the_json_is_written_after_every_episode
     out = tmp_path / "new" / "deeper" / "run.json"
     video = tmp_path / "other" / "first.mp4"
     seen = []
-    from hier_agents import players
-    play = players._play_episode
+    from hier_agents.agents import runner
+    play = runner.play_episode
 
-    def watched(env, view, agent, description, fam, episode, *rest):
+    def watched(env, view, agent, description, episode, *rest):
         seen.append((episode, json.loads(out.read_text())))  # the file before this episode
-        return play(env, view, agent, description, fam, episode, *rest)
+        return play(env, view, agent, description, episode, *rest)
 
-    monkeypatch.setattr(players, "_play_episode", watched)
+    monkeypatch.setattr(runner, "play_episode", watched)
     assert run_lib.main(["mujoban/level1", "--episodes", "2", "--estimator", "oracle",
                          "--env-option", "time_limit=1", "--json", str(out),
                          "--video", str(video)]) == 0
@@ -387,15 +387,15 @@ def test_outputs_go_into_new_folders_and_the_json_is_written_after_every_episode
 def test_an_interrupted_run_keeps_the_episodes_it_played(tmp_path, monkeypatch, capsys):
     from hier_agents import run as run_lib
     out = tmp_path / "run.json"
-    from hier_agents import players
-    play = players._play_episode
+    from hier_agents.agents import runner
+    play = runner.play_episode
 
-    def interrupted(env, view, agent, description, fam, episode, *rest):
+    def interrupted(env, view, agent, description, episode, *rest):
         if episode == 1:
             raise KeyboardInterrupt
-        return play(env, view, agent, description, fam, episode, *rest)
+        return play(env, view, agent, description, episode, *rest)
 
-    monkeypatch.setattr(players, "_play_episode", interrupted)
+    monkeypatch.setattr(runner, "play_episode", interrupted)
     assert run_lib.main(["mujoban/level1", "--episodes", "3", "--estimator", "oracle",
                          "--env-option", "time_limit=1", "--json", str(out)]) == 130
     summary = json.loads(out.read_text())

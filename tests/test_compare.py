@@ -519,10 +519,10 @@ def test_a_modular_episode_plays_the_same_whatever_the_episodes_before():
     back-offs) is dropped at each episode start: an episode played after
     another in one player equals the episode played first. (Medium level
     34 after level 33, camera estimator, once ran out of time this way.)"""
-    from hier_agents.players import ModularPlayer, Play
+    from hier_agents.agents import Play, Player
 
     play = Play("mujoban/level5-pegs", levels=str(BOXOBAN.parent / "medium-valid-000.txt"))
-    after, alone = ModularPlayer(play), ModularPlayer(play)
+    after, alone = Player(play), Player(play)
     try:
         after.play(33)
         assert strip([after.play(34)[0]]) == strip([alone.play(34)[0]])
@@ -576,10 +576,11 @@ def test_the_modular_agent_on_level_files_gives_the_same_rows_on_two_workers():
 
 
 def test_a_parallel_run_interrupted_before_any_worker_reported_still_prints_its_table():
-    from hier_agents.run import Play, _summary, format_table
+    from hier_agents.run import Play, _Run, format_table
 
-    play = Play("mujoban/level1", 0, agent="random:10")
-    summary = _summary(play, "mujoban", [], {}, 40, True, True)
+    run_ = _Run(Play("mujoban/level1", 0, agent="random:10"), list(range(40)), False, None)
+    run_.interrupted = True
+    summary = run_.summary(True)
     text = format_table(summary)
     assert "random:10" in text and "0 of 40" in text
 

@@ -123,12 +123,12 @@ def _shipped(kind: str, name: str) -> Path:
 
 def plan(spec) -> list[Job]:
     """Every job of a spec (`hier_agents.compare.spec.Spec`), train jobs first."""
+    from hier_agents.agents import kind_of
+
     trains, evals = [], []
-    shard = spec.shard_episodes
     cpus = os.cpu_count() or 1
     for agent in spec.agents:
         for env in agent.envs:
-            fingerprint = learned_files(env, agent.modular) if agent.kind == "modular" else {}
             for seed in agent.seeds:
                 point = {"agent": agent.label, "env": env, "seed": seed}
                 if agent.kind == "train":
@@ -140,18 +140,22 @@ def plan(spec) -> list[Job]:
                     targets = [({"kind": "checkpoint", "budget": b,
                                  "stochastic": agent.stochastic}, (train.key,),
                                 {**point, "budget": b}) for b in agent.budgets]
-                elif agent.kind == "modular":
-                    targets = [({"kind": "modular", **agent.modular,
-                                 "learned_files": fingerprint}, (), point)]
                 else:
-                    targets = [({"kind": "random", "hold": agent.hold}, (), point)]
+                    kind = kind_of(agent.agent)
+                    arg = kind.parse(agent.agent.partition(":")[2]) if ":" in agent.agent \
+                        else kind.default()
+                    targets = [(kind.job_inputs(env, arg, agent.options), (), point)]
                 for target, deps, where in targets:
-                    for first in range(0, agent.episodes, shard):
-                        inputs = {"env": env, "agent": target, "seed": seed,
-                                  "first_episode": first,
-                                  "episodes": min(shard, agent.episodes - first)}
-                        evals.append(Job("eval", inputs, deps=deps, point=where))
+                    evals.extend(_eval_jobs(env, target, seed, agent.episodes,
+                                            spec.shard_episodes, deps, where))
     return trains + evals
+
+
+def _eval_jobs(env, target, seed, episodes, shard, deps, point) -> list[Job]:
+    """The evaluation jobs of one point: ``episodes`` in shards of ``shard``."""
+    return [Job("eval", {"env": env, "agent": target, "seed": seed, "first_episode": first,
+                         "episodes": min(shard, episodes - first)}, deps=deps, point=point)
+            for first in range(0, episodes, shard)]
 
 
 # -- execution ---------------------------------------------------------------------------
@@ -218,21 +222,22 @@ def execute(job: Job, cache: Path) -> dict:
             raise RuntimeError(f"training ended at {counters.get('frames')} frames without "
                                f"checkpoints at {missing}")
         return {"counters": counters, "argv": argv}
+    from hier_agents.agents import kind_of
     from hier_agents.run import run
 
     agent = inputs["agent"]
-    kwargs = {}
-    if agent["kind"] == "modular":
-        kwargs = {k: agent[k] for k in ("planner", "skill", "estimator") if k in agent}
-    elif agent["kind"] == "random":
-        kwargs = {"agent": f"random:{agent['hold']}"}
-    else:
+    if agent["kind"] == "checkpoint" and job.deps:  # a train job's checkpoint at a budget
         path = checkpoint_of(cache, job.deps[0], agent["budget"])
         if not path.is_file():
             raise FileNotFoundError(f"the train job's checkpoint {path} is missing")
-        kwargs = {"agent": f"checkpoint:{path}", "stochastic": agent.get("stochastic", False)}
+        name, options = f"checkpoint:{path}", {"stochastic": agent.get("stochastic", False)}
+    else:
+        kind = kind_of(agent["kind"])
+        arg, options = kind.from_job_inputs(agent)
+        name = kind.form(arg)
     summary = run(inputs["env"], inputs["episodes"], inputs["seed"], progress=False,
-                  first_episode=inputs["first_episode"], **kwargs)
+                  first_episode=inputs["first_episode"], agent=name,
+                  options={k: v for k, v in options.items() if v not in (None, False)})
     rows = summary.pop("rows")
     summary.pop("provenance", None)
     return {"rows": rows, "summary": summary}

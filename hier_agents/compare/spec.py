@@ -24,14 +24,21 @@ A spec (all keys but ``name`` and ``agent`` optional)::
     label = "random, held 10"
     random = 10
 
-An agent has exactly one of ``modular`` (a table of ``planner``, ``skill``,
-``estimator``: `hier_agents.modular.components.resolve` names), ``train``
+    [[agent]]
+    label = "my agent"
+    agent = "my-kind:3"                   # any registered agent kind, NAME[:ARG]
+    options = { depth = 2 }               # the kind's options
+
+An agent has exactly one of ``agent`` (``NAME[:ARG]`` of an agent kind,
+`hier_agents.agents.resolve`, with its ``options``), ``modular`` (a table of
+``planner``, ``skill``, ``estimator``: `hier_agents.modular.components.resolve`
+names; the same as ``agent = "modular"`` with those options), ``train``
 (flags of ``python -m hier_agents.train`` with ``_`` for ``-``, e.g.
 ``condition``, ``observations``, ``image_size``, ``state``, ``preset``,
 ``actors``, ``envs_per_actor``, ``batch_size``, ``learning_rate``; not
 ``frames``, ``seed``, ``logdir``, which the plan sets) with ``budgets``
 (frame counts, each evaluated), or ``random`` (the hold, control steps per
-draw). ``envs``, ``seeds``, ``episodes`` may be overridden per agent. Seed
+draw; the same as ``agent = "random:HOLD"``). ``envs``, ``seeds``, ``episodes`` may be overridden per agent. Seed
 ``s`` is an end-to-end run's training seed and, for every agent, the
 evaluation seed: episode ``e`` of seed ``s`` is seeded from ``(s, e)``
 (`envs.episode_seed`), so all agents meet the same levels at a seed.
@@ -51,8 +58,10 @@ from physics_planning.cli import UsageError
 #: Keys of a spec's top level and of an agent table.
 TOP_KEYS = ("name", "description", "cache", "envs", "seeds", "episodes", "shard_episodes",
             "agent")
-AGENT_KEYS = ("label", "modular", "train", "budgets", "random", "envs", "seeds", "episodes",
-              "stochastic")
+AGENT_KEYS = ("label", "agent", "options", "modular", "train", "budgets", "random", "envs",
+              "seeds", "episodes", "stochastic")
+#: The keys that say what an agent is (exactly one per agent).
+KIND_KEYS = ("agent", "modular", "train", "random")
 MODULAR_KEYS = ("planner", "skill", "estimator")
 #: ``train`` keys the plan sets itself.
 PLANNED_TRAIN_KEYS = ("frames", "seed", "logdir", "save_at", "no_progress", "backend",
@@ -61,18 +70,26 @@ PLANNED_TRAIN_KEYS = ("frames", "seed", "logdir", "save_at", "no_progress", "bac
 
 @dataclass(frozen=True)
 class Agent:
-    """One agent (series) of a spec; ``kind`` is modular, train or random."""
+    """One agent (series) of a spec. ``kind`` is ``"train"`` (an end-to-end
+    agent trained by the plan, ``train`` and ``budgets``) or the agent kind
+    (`hier_agents.agents`) of ``agent`` (``NAME[:ARG]``) with its
+    ``options``."""
 
     label: str
     kind: str
     envs: tuple
     seeds: tuple
     episodes: int
-    modular: dict = field(default_factory=dict)
+    agent: str = ""
+    options: dict = field(default_factory=dict)
     train: dict = field(default_factory=dict)
     budgets: tuple = ()
-    hold: int = 0
     stochastic: bool = False
+
+    @property
+    def modular(self) -> dict:
+        """A modular agent's parts (its options)."""
+        return dict(self.options) if self.kind == "modular" else {}
 
 
 @dataclass(frozen=True)
@@ -186,11 +203,9 @@ def load(path: str | Path) -> Spec:
 
     Raises:
       UsageError: the file is missing or not TOML, a key is unknown, a value
-        is out of range, a component, environment or train flag is invalid,
-        or two agents share a label.
+        is out of range, an agent, component, environment or train flag is
+        invalid, or two agents share a label.
     """
-    from hier_agents.modular.components import check, family
-
     path = Path(path)
     try:
         raw = tomllib.loads(path.read_text())
@@ -203,74 +218,101 @@ def load(path: str | Path) -> Spec:
     name = raw.get("name")
     if not isinstance(name, str) or not name or "/" in name:
         raise UsageError(f"{where}: name must be a non-empty string without '/', got {name!r}")
-    envs = _envs(raw["envs"], where) if "envs" in raw else None
-    seeds = _ints(raw.get("seeds", [0]), "seeds", where, 0)
-    episodes = _int(raw.get("episodes", 100), "episodes", where, 1)
+    defaults = {"envs": _envs(raw["envs"], where) if "envs" in raw else None,
+                "seeds": _ints(raw.get("seeds", [0]), "seeds", where, 0),
+                "episodes": _int(raw.get("episodes", 100), "episodes", where, 1)}
     shard = _int(raw.get("shard_episodes", 50), "shard_episodes", where, 1)
     tables = raw.get("agent")
     if not isinstance(tables, list) or not tables:
         raise UsageError(f"{where}: give at least one [[agent]] table")
     agents, labels = [], set()
     for i, table in enumerate(tables):
-        if not isinstance(table, dict):
-            raise UsageError(f"{where}: agent {i + 1} is not a table")
-        label = table.get("label")
-        if not isinstance(label, str) or not label.strip():
-            raise UsageError(f"{where}: agent {i + 1} needs a label (a short name)")
-        if label in labels:
-            raise UsageError(f"{where}: two agents are labelled {label!r}")
-        labels.add(label)
-        at = _where(path, label)
-        _unknown(table, AGENT_KEYS, at)
-        kinds = [k for k in ("modular", "train", "random") if k in table]
-        if len(kinds) != 1:
-            raise UsageError(f"{at}: give exactly one of modular, train, random; got "
-                             f"{', '.join(kinds) or 'none'}")
-        kind = kinds[0]
-        agent_envs = _envs(table["envs"], at) if "envs" in table else envs
-        if agent_envs is None:
-            raise UsageError(f"{at}: no envs (give envs at the top or in the agent)")
-        common = dict(label=label, kind=kind, envs=agent_envs,
-                      seeds=_ints(table["seeds"], "seeds", at, 0) if "seeds" in table else seeds,
-                      episodes=(_int(table["episodes"], "episodes", at, 1)
-                                if "episodes" in table else episodes))
-        if "budgets" in table and kind != "train":
-            raise UsageError(f"{at}: budgets apply to train agents only")
-        if "stochastic" in table and kind != "train":
-            raise UsageError(f"{at}: stochastic applies to train agents only")
-        if kind == "modular":
-            parts = table["modular"]
-            if not isinstance(parts, dict):
-                raise UsageError(f"{at}: modular must be a table of planner/skill/estimator")
-            _unknown(parts, MODULAR_KEYS, f"{at}, modular")
-            for env in agent_envs:
-                for key, value in parts.items():
-                    try:
-                        check(key, family(env), value)
-                    except (UsageError, ValueError, FileNotFoundError) as exc:
-                        raise UsageError(f"{at}: {env}: {exc}") from None
-            agents.append(Agent(modular=dict(parts), **common))
-        elif kind == "random":
-            agents.append(Agent(hold=_int(table["random"], "random (the hold)", at, 1),
-                                **common))
-        else:
-            train = table["train"]
-            if not isinstance(train, dict):
-                raise UsageError(f"{at}: train must be a table of hier_agents.train flags")
-            if "budgets" not in table:
-                raise UsageError(f"{at}: a train agent needs budgets (frame counts to "
-                                 f"evaluate at)")
-            budgets = tuple(sorted(_ints(table["budgets"], "budgets", at, 1)))
-            for env in agent_envs:
-                _check_train(env, train, budgets, at)
-            stochastic = table.get("stochastic", False)
-            if not isinstance(stochastic, bool):
-                raise UsageError(f"{at}: stochastic must be true or false")
-            agents.append(Agent(train=dict(train), budgets=budgets, stochastic=stochastic,
-                                **common))
+        agent = _agent(path, i, table, defaults)
+        if agent.label in labels:
+            raise UsageError(f"{where}: two agents are labelled {agent.label!r}")
+        labels.add(agent.label)
+        agents.append(agent)
     cache = raw.get("cache")
     if cache is not None and not isinstance(cache, str):
         raise UsageError(f"{where}: cache must be a path (a string)")
     cache_path = (path.parent / cache) if cache else Path("runs") / "compare" / name
     return Spec(name=name, description=str(raw.get("description", "")), path=path,
                 cache=cache_path, shard_episodes=shard, agents=tuple(agents), raw=raw)
+
+
+def _agent(path: Path, i: int, table, defaults: dict) -> Agent:
+    """The `Agent` of the ``i``-th ``[[agent]]`` table (``defaults``: the
+    spec's envs, seeds and episodes)."""
+    where = _where(path)
+    if not isinstance(table, dict):
+        raise UsageError(f"{where}: agent {i + 1} is not a table")
+    label = table.get("label")
+    if not isinstance(label, str) or not label.strip():
+        raise UsageError(f"{where}: agent {i + 1} needs a label (a short name)")
+    at = _where(path, label)
+    _unknown(table, AGENT_KEYS, at)
+    kinds = [k for k in KIND_KEYS if k in table]
+    if len(kinds) != 1:
+        raise UsageError(f"{at}: give exactly one of {', '.join(KIND_KEYS)}; got "
+                         f"{', '.join(kinds) or 'none'}")
+    envs = _envs(table["envs"], at) if "envs" in table else defaults["envs"]
+    if envs is None:
+        raise UsageError(f"{at}: no envs (give envs at the top or in the agent)")
+    common = dict(label=label, envs=envs,
+                  seeds=_ints(table["seeds"], "seeds", at, 0) if "seeds" in table
+                  else defaults["seeds"],
+                  episodes=(_int(table["episodes"], "episodes", at, 1) if "episodes" in table
+                            else defaults["episodes"]))
+    for key in ("budgets", "stochastic"):
+        if key in table and kinds[0] != "train":
+            raise UsageError(f"{at}: {key} applies to train agents only")
+    if kinds[0] == "train":
+        return _train_agent(table, at, common)
+    if "options" in table and kinds[0] != "agent":
+        raise UsageError(f"{at}: options go with agent = \"NAME[:ARG]\"")
+    if kinds[0] == "modular":
+        if not isinstance(table["modular"], dict):
+            raise UsageError(f"{at}: modular must be a table of planner/skill/estimator")
+        _unknown(table["modular"], MODULAR_KEYS, f"{at}, modular")
+        name, options = "modular", dict(table["modular"])
+    elif kinds[0] == "random":
+        name, options = f"random:{_int(table['random'], 'random (the hold)', at, 1)}", {}
+    else:
+        name, options = table["agent"], table.get("options", {})
+        if not isinstance(name, str) or not isinstance(options, dict):
+            raise UsageError(f"{at}: agent must be a string NAME[:ARG] and options a table")
+    return _named_agent(name, dict(options), at, common)
+
+
+def _named_agent(name: str, options: dict, at: str, common: dict) -> Agent:
+    """An agent of a registered kind, checked on every environment of the series."""
+    from hier_agents.agents import resolve
+
+    try:
+        kind, arg = resolve(name)
+    except UsageError as exc:
+        raise UsageError(f"{at}: {exc}") from None
+    _unknown(options, kind.options, f"{at}, options")
+    for env in common["envs"]:
+        try:
+            kind.check(env, arg, options)
+        except (UsageError, ValueError, FileNotFoundError) as exc:
+            raise UsageError(f"{at}: {env}: {exc}") from None
+    return Agent(kind=kind.name, agent=name, options=options, **common)
+
+
+def _train_agent(table: dict, at: str, common: dict) -> Agent:
+    """An end-to-end agent the plan trains (``train`` and ``budgets``)."""
+    train = table["train"]
+    if not isinstance(train, dict):
+        raise UsageError(f"{at}: train must be a table of hier_agents.train flags")
+    if "budgets" not in table:
+        raise UsageError(f"{at}: a train agent needs budgets (frame counts to evaluate at)")
+    budgets = tuple(sorted(_ints(table["budgets"], "budgets", at, 1)))
+    for env in common["envs"]:
+        _check_train(env, train, budgets, at)
+    stochastic = table.get("stochastic", False)
+    if not isinstance(stochastic, bool):
+        raise UsageError(f"{at}: stochastic must be true or false")
+    return Agent(kind="train", train=dict(train), budgets=budgets, stochastic=stochastic,
+                 **common)

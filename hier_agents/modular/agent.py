@@ -147,6 +147,18 @@ class ModularAgent:
         """True when the estimator reads more than a robot observes."""
         return bool(getattr(self.estimator, "privileged", False))
 
+    #: The scene holds an estimate of the abstract state (the harness may judge it).
+    estimates = True
+
+    @property
+    def training_frames(self) -> int:
+        """Environment frames spent training the learned parts: the sum of the
+        parts' ``training_frames`` (a learned skill's, a learned planner's; 0
+        for scripted parts). Frames, not wall time: what `hier_agents.compare`
+        puts beside the end-to-end agents' frames."""
+        parts = (self.planner, self.skill, self.estimator)
+        return int(sum(int(getattr(part, "training_frames", 0) or 0) for part in parts))
+
     def reset(self, description, timestep, seed: int | None = None) -> None:
         """Starts an episode from the task's public ``description`` (see
         `envs.description`, ``env.description()``) and its first ``timestep``."""

@@ -21,10 +21,28 @@ option-env actions         the four moves ``MOVES``    OpenSpiel's distinct
                                                        actions
 option-env observation     ``(4, H, W)`` planes:       OpenSpiel's observation
                            walls, pads, boxes, player  tensor for the mover
-scored by                  solved or not               win / draw / loss (games)
+scored by (`score`)        solved or not               win / draw / loss (games)
+harness judges the agent's never                       every step: its board and
+estimate                                               mover against the referee's
 level files, learned       yes (``level_files``)       no
 option-policy planners
+end-to-end inputs          proprioception of the       the arm's proprioception;
+                           walker; abstract state:     abstract state: the board
+                           the entity layer, 4 planes  planes; planner targets:
+                           of the grid; planner        the board after the move
+                           targets: the entity layer   (6 planes)
+                           after the move (8 planes)
+                           and a one-hot move
+auxiliary target reached   the simulator's rounded     the agent's next registered
+(`subgoal_reached`)        cells hold the target's     move is the target's (another
+                           player and boxes            move ends the sub-episode)
+discounts (env, abs)       0.99, 0.9                   0.99, 0.98
 =========================  ==========================  ==========================
+
+The episode runner (`hier_agents.agents.runner`) scores every agent's
+episodes through `FamilyAdapter.score`; the end-to-end agents'
+(`hier_agents.baselines.impala.inputs`) inputs and auxiliary task read the
+family's part of this table from its adapter.
 
 `family(env_name)` names an environment's family; `adapter(family)` returns
 its adapter. Every OpenSpiel game played by touch (`envs.boards.games`)
@@ -40,6 +58,8 @@ from abstract_planners.base import Subgoal
 
 __all__ = ["FAMILIES", "family", "adapter", "FamilyAdapter", "SokobanAdapter",
            "BoardAdapter", "encode_sokoban"]
+
+_PLAYER, _BOX = 2, 3  # full_entity_layer channels (envs.mujoban.task)
 
 
 class FamilyAdapter:
@@ -92,6 +112,70 @@ class FamilyAdapter:
 
     def observation(self, state, space) -> np.ndarray:
         """The option environment's observation of ``state``."""
+        raise NotImplementedError
+
+    # -- scoring an episode (the episode runner) --------------------------------
+
+    def score(self, task, timestep, reason: str | None) -> dict:
+        """The verdict keys of an episode's row, from the referee (``task``):
+        ``timestep`` is the episode's last one (None when it never started);
+        ``reason`` why the agent stopped early (None: it played to the end).
+        MuJoBan: ``solved``; board games: ``outcome``, ``final_reward`` and
+        ``opponent_resigned`` (when true); both add ``failure_reason`` for an
+        episode that is not a success."""
+        raise NotImplementedError
+
+    def success(self, task) -> bool:
+        """Whether the referee's episode so far is a success (a solved level,
+        a won game)."""
+        raise NotImplementedError
+
+    def estimate_right(self, task, scene) -> bool:
+        """The harness's per-step judgement of an estimating agent's ``scene``
+        against the referee (``task``), for the families that judge one
+        (``games``)."""
+        raise NotImplementedError
+
+    # -- the end-to-end agents' inputs and auxiliary task ---------------------
+
+    #: The paper's (gamma_env, gamma_abs).
+    discounts: tuple[float, float] = (0.99, 0.9)
+    #: Proprioceptive observations concatenated into ``"proprio"``, in order.
+    proprio_keys: tuple[str, ...] = ()
+    #: The observation holding the current abstract state (``state=True``).
+    state_key = ""
+    #: The estimator of the auxiliary task's abstract state (ground truth).
+    truth_estimator = ""
+    #: The expert-planner condition's planner (None: the family's default).
+    expert_planner: str | None = None
+    #: The paper's batch size (unrolls per update).
+    paper_batch = 64
+
+    def planner_inputs(self, task) -> tuple[tuple[int, int, int], int]:
+        """(shape of the ``"planner"`` planes, size of the ``"planner_action"``
+        one-hot, 0 when there is none) of the planner conditions."""
+        raise NotImplementedError
+
+    def fill_planner_inputs(self, planes: np.ndarray, onehot: np.ndarray, observation,
+                            subgoal, task) -> None:
+        """Writes the current abstract state (from ``observation``) and the
+        target (``subgoal``, None: none, the target planes repeat the current
+        ones) into ``planes`` and ``onehot`` in place."""
+        raise NotImplementedError
+
+    def at_rest(self, state) -> bool:
+        """Whether no target can be planned from ``state`` (solved, game over)."""
+        raise NotImplementedError
+
+    def subepisode_mark(self, task):
+        """What a sub-episode of the auxiliary task remembers at its start."""
+        raise NotImplementedError
+
+    def subgoal_reached(self, task, subgoal, mark) -> tuple[bool, bool]:
+        """(target reached, sub-episode over for another reason) after a
+        step, judged on the referee's ground truth (``task``) since ``mark``
+        (`subepisode_mark`); ``subgoal`` None: no target (over once the
+        abstract state changes)."""
         raise NotImplementedError
 
 
@@ -157,6 +241,61 @@ class SokobanAdapter(FamilyAdapter):
     def observation(self, state, space) -> np.ndarray:
         return encode_sokoban(state, space.shape[1:])
 
+    def score(self, task, timestep, reason: str | None) -> dict:
+        # (after a failed reset the task still shows the last episode's end)
+        row = {"solved": timestep is not None and bool(getattr(task, "solved", False))}
+        if not row["solved"]:
+            row["failure_reason"] = reason or "time limit"
+        return row
+
+    def success(self, task) -> bool:
+        return bool(task.solved)
+
+    discounts = (0.99, 0.9)
+    proprio_keys = ("walker/joints_pos", "walker/joints_vel", "walker/joints_torque",
+                    "walker/orientation", "walker/sensors_touch",
+                    "walker/sensors_accelerometer", "walker/sensors_gyro",
+                    "walker/sensors_velocimeter")
+    state_key = "full_entity_layer"
+    truth_estimator = "entity-layer"
+    # The paper's expert: the exact Sokoban solver (not the library's
+    # default, the execution-time planner).
+    expert_planner = "sokoban-solver"
+    paper_batch = 128
+
+    def planner_inputs(self, task) -> tuple[tuple[int, int, int], int]:
+        from abstract_planners.sokoban import MOVES
+        height, width = task.grid_shape
+        return (8, int(height), int(width)), len(MOVES)
+
+    def fill_planner_inputs(self, planes, onehot, observation, subgoal, task) -> None:
+        from abstract_planners.sokoban import MOVES
+        half = planes.shape[0] // 2
+        planes[:half] = observation["full_entity_layer"].transpose(2, 0, 1)
+        planes[half:] = planes[:half]
+        onehot[:] = 0.0
+        if subgoal is not None:
+            target = subgoal.state
+            planes[half + _PLAYER] = 0.0
+            planes[half + _BOX] = 0.0
+            planes[half + _PLAYER][target.player] = 1.0
+            for cell in target.boxes:
+                planes[half + _BOX][cell] = 1.0
+            onehot[MOVES.index(subgoal.action)] = 1.0
+
+    def at_rest(self, state) -> bool:
+        return bool(state.is_solved())
+
+    def subepisode_mark(self, task):
+        return task.abstract_cells
+
+    def subgoal_reached(self, task, subgoal, mark) -> tuple[bool, bool]:
+        cells, player = task.abstract_cells
+        if subgoal is None:  # no target: try again once the abstract state changes
+            return False, (cells, player) != mark
+        target = subgoal.state
+        return (player == target.player and frozenset(cells) == target.boxes), False
+
 
 class BoardAdapter(FamilyAdapter):
     """Board games (MuJoXO, MuJoGo, MuJoBoard): OpenSpiel states; options
@@ -219,6 +358,68 @@ class BoardAdapter(FamilyAdapter):
         once the game is over)."""
         player = max(state.current_player(), 0) if not state.is_terminal() else 0
         return np.asarray(state.observation_tensor(player), np.float32).reshape(space.shape)
+
+    def score(self, task, timestep, reason: str | None) -> dict:
+        outcome = task.outcome if timestep is not None else None
+        # The task's outcome counts an opponent's resignation as a win; a
+        # game still running counts as lost.
+        row = {"outcome": outcome or "loss",
+               "final_reward": float(timestep.reward or 0.0) if timestep is not None else 0.0}
+        if timestep is not None and getattr(task, "resigned", False):
+            row["opponent_resigned"] = True
+        if row["outcome"] != "win" and (reason or outcome is None):
+            row["failure_reason"] = reason or "time limit"
+        return row
+
+    def success(self, task) -> bool:
+        return task.outcome == "win"  # a resignation by the opponent included
+
+    def estimate_right(self, task, scene) -> bool:
+        """Whether the agent's ``scene`` has the referee's board (every
+        point's owner) and player to move."""
+        if scene is None or getattr(scene, "state", None) is None:
+            return False
+        game, truth, state = task.game, task.state, scene.state
+        return (state.current_player() == truth.current_player()
+                and np.array_equal(game.players(state), game.players(truth)))
+
+    discounts = (0.99, 0.98)
+    proprio_keys = ("arm/joints_pos", "arm/joints_vel", "arm/joints_torque",
+                    "arm/pinch_site_pos", "arm/pinch_site_rmat")
+    state_key = "board_state"
+    truth_estimator = "board"
+    paper_batch = 64
+
+    def planner_inputs(self, task) -> tuple[tuple[int, int, int], int]:
+        size = int(task.game.size)
+        return (6, size, size), 0
+
+    def fill_planner_inputs(self, planes, onehot, observation, subgoal, task) -> None:
+        planes[:3] = observation["board_state"].transpose(2, 0, 1)
+        if subgoal is None:
+            planes[3:] = planes[:3]
+        else:
+            planes[3:] = task.game.board_planes(subgoal.state).transpose(2, 0, 1)
+
+    def at_rest(self, state) -> bool:
+        return bool(state.is_terminal())
+
+    def subepisode_mark(self, task):
+        return task.moves_registered, len(task.moves)
+
+    def subgoal_reached(self, task, subgoal, mark) -> tuple[bool, bool]:
+        """Reached when the agent's next registered move is the target's
+        action (the estimated state after the step already holds the
+        opponent's reply, so the task's move record is compared); any other
+        move ends the sub-episode (moves are irreversible)."""
+        registered, played = mark
+        if task.moves_registered == registered:
+            return False, False
+        if subgoal is None:
+            return False, True
+        moves = task.moves
+        reached = len(moves) > played and moves[played] == int(subgoal.action)
+        return reached, not reached
 
 
 def _own_eye(game, players, mover: int, point: int) -> bool:

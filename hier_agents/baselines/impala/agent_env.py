@@ -13,7 +13,7 @@ Conditions (Mirza et al. 2020, "Experimental conditions"):
 
 * ``"vanilla"``: cameras and proprioception only; no planner, no auxiliary
   reward (``reward_abs`` and ``discount_abs`` are always 0).
-* ``"expert-planner"``: the expert planner of `EXPERT_PLANNER` (MuJoBan: the
+* ``"expert-planner"``: the family adapter's ``expert_planner`` (MuJoBan: the
   exact Sokoban solver ``"sokoban-solver"``, as in the paper), otherwise the
   family's default planner of `hier_agents.modular.components.PLANNERS` (minimax, GNU
   Go level 10), proposes targets for the auxiliary task.
@@ -27,7 +27,7 @@ Observations (``obs``, a dict of fresh numpy arrays):
   ``sensors_touch`` (1), ``sensors_accelerometer``, ``sensors_gyro``,
   ``sensors_velocimeter`` (3 each): 25 values; board games ``arm/joints_pos``,
   ``joints_vel``, ``joints_torque`` (9 each), ``arm/pinch_site_pos`` (3),
-  ``arm/pinch_site_rmat`` (9): 39 values (`PROPRIO_KEYS`).
+  ``arm/pinch_site_rmat`` (9): 39 values (the family adapter's ``proprio_keys``).
 * one uint8 ``(3, H, W)`` image per enabled camera, under the environment's
   observation name: MuJoBan ``top_camera`` and ``walker/egocentric_camera``,
   board games ``front_camera`` (``cameras=True``: ``image_size`` squared, the
@@ -107,30 +107,28 @@ from __future__ import annotations
 
 import numpy as np
 
-from abstract_planners.base import Subgoal
 from envs.core import episode_seed
-# The inputs and outputs, and the auxiliary task, live in modules of their
-# own; every name stays importable from here.
-from hier_agents.baselines.impala.agent_env_spec import (  # noqa: F401
-    _BOARD_PROPRIO, _BOX, _MUJOBAN_PROPRIO, _PLAYER, CONDITIONS, DISCOUNTS, EXPERT_PLANNER,
-    PLANNER_ACTIONS, PROPRIO_KEYS, InputSpec, StepResult, _gamma, _load_env, main_camera_only)
-from hier_agents.baselines.impala.agent_env_subepisodes import SubEpisodeMixin
-from hier_agents.modular.families import family
+from hier_agents.baselines.impala.agent_env_spec import (CONDITIONS, PLANNER_ACTIONS, InputSpec,
+                                                         StepResult, _gamma, _load_env,
+                                                         main_camera_only)
+from hier_agents.baselines.impala.inputs import ActionMap, AgentInputs, make_auxiliary
+from hier_agents.modular.families import adapter, family
 from hier_agents.modular.options import T_ABS
 
-__all__ = ["AgentEnv", "CONDITIONS", "DISCOUNTS", "InputSpec", "PLANNER_ACTIONS",
-           "PROPRIO_KEYS", "StepResult", "main_camera_only"]
+__all__ = ["AgentEnv", "CONDITIONS", "InputSpec", "PLANNER_ACTIONS", "StepResult",
+           "main_camera_only"]
 
 
-class AgentEnv(SubEpisodeMixin):
+class AgentEnv:
     """An `envs` environment for an end-to-end agent (see the module docstring).
 
-    The auxiliary task's sub-episodes and the observations come from
-    `SubEpisodeMixin` (`agent_env_subepisodes`); `InputSpec`, `StepResult` and
-    the constants from `agent_env_spec`.
+    The inputs and the auxiliary task's sub-episodes come from `AgentInputs`
+    (`hier_agents.baselines.impala.inputs`), which the checkpoint agent
+    shares; `InputSpec`, `StepResult` and the constants from `agent_env_spec`.
 
     Args:
-      env_name: an `envs.names()` name (``mujoban/*``, ``mujoxo/*``, ``mujogo/*``).
+      env_name: an `envs.names()` name of a game family (``mujoban/*``,
+        ``mujoxo/*``, ``mujogo/*``, ``mujoboard/*``).
       condition: one of `CONDITIONS`.
       seed: seed of the environment and, per episode, of the planner.
       cameras: observe the paper's cameras (True) or render nothing (False).
@@ -140,12 +138,13 @@ class AgentEnv(SubEpisodeMixin):
       image_size: side of the square camera images.
       t_abs: control steps of an auxiliary sub-episode (the paper's 50).
       abs_reward: auxiliary reward for reaching a target.
-      gamma_env, gamma_abs: discounts; None takes the family's `DISCOUNTS`.
+      gamma_env, gamma_abs: discounts; None takes the family adapter's
+        ``discounts`` (the paper's).
       **overrides: passed to ``envs.load`` (``envs.overrides(env_name)``).
 
     Attributes:
-      env: the underlying ``envs`` environment. family: ``"mujoban"``,
-      ``"mujoxo"`` or ``"mujogo"``. input_spec: `InputSpec`. gamma_env,
+      env: the underlying ``envs`` environment. family: its family name.
+      input_spec: `InputSpec`. inputs: the `AgentInputs`. gamma_env,
       gamma_abs. planner, estimator: the auxiliary task's parts (None for
       vanilla). subgoal: the current target (`Subgoal`) or None.
       abstract_state: the abstract state the current sub-episode started
@@ -160,58 +159,41 @@ class AgentEnv(SubEpisodeMixin):
         if condition not in CONDITIONS:
             raise ValueError(f"unknown condition {condition!r}; valid conditions: "
                              f"{', '.join(CONDITIONS)}")
-        fam = self.family = family(env_name)
+        self.family = family(env_name)
         if int(t_abs) < 1:
             raise ValueError(f"t_abs must be a positive number of control steps, got {t_abs!r}")
         if int(image_size) < 1:
             raise ValueError(f"image_size must be a positive number of pixels, got {image_size!r}")
         self.env_name, self.condition = env_name, condition
         self.seed = None if seed is None else int(seed)
-        self.t_abs, self.abs_reward = int(t_abs), float(abs_reward)
-        self.gamma_env = _gamma(gamma_env, DISCOUNTS[fam][0], "gamma_env")
-        self.gamma_abs = _gamma(gamma_abs, DISCOUNTS[fam][1], "gamma_abs")
-
+        discounts = adapter(env_name).discounts
+        self.gamma_env = _gamma(gamma_env, discounts[0], "gamma_env")
+        self.gamma_abs = _gamma(gamma_abs, discounts[1], "gamma_abs")
+        self._closed = False
+        self.inputs = None
         self.env = _load_env(env_name, self.seed, image_size, cameras, overrides)
-        task = self.env.task
-
         try:
-            obs_spec = self.env.observation_spec()
-            self._cameras = tuple(task.camera_configs)
-            images = tuple((name, (3, int(obs_spec[name].shape[0]), int(obs_spec[name].shape[1])))
-                           for name in self._cameras)
-            self._proprio_keys = PROPRIO_KEYS[fam]
-            proprio_dim = sum(int(np.prod(obs_spec[k].shape)) for k in self._proprio_keys)
-            action_spec = self.env.action_spec()
-            low = np.asarray(action_spec.minimum, np.float64) * np.ones(action_spec.shape)
-            high = np.asarray(action_spec.maximum, np.float64) * np.ones(action_spec.shape)
-            self._centre = ((high + low) / 2.0).ravel().tolist()
-            self._half = ((high - low) / 2.0).ravel().tolist()
-            self._action_shape = tuple(action_spec.shape)
-
-            planner_shape, planner_action_dim = self._setup_planning(condition, task)
-            self._state_key = None
-            state_shape = None
-            if state:
-                self._state_key = "full_entity_layer" if fam == "mujoban" else "board_state"
-                h, w, c = (int(v) for v in obs_spec[self._state_key].shape)
-                state_shape = (c, h, w)
+            description = self.env.description()
+            planner, estimator = make_auxiliary(condition, description, self.seed, self.env)
+            self.inputs = AgentInputs(description, self.env.observation_spec(),
+                                      self.env.action_spec(), condition, state=state,
+                                      task=self.env.task, planner=planner, estimator=estimator,
+                                      t_abs=t_abs, abs_reward=abs_reward,
+                                      gamma_abs=self.gamma_abs)
+            self._actions = ActionMap(self.env.action_spec())
         except BaseException:
             self.close()
             raise
-        self.input_spec = InputSpec(images=images, proprio_dim=proprio_dim,
-                                    planner_shape=planner_shape,
-                                    planner_action_dim=planner_action_dim,
-                                    action_dim=int(np.prod(self._action_shape)),
-                                    state_shape=state_shape)
-        self._mujoban = fam == "mujoban"
+        self.input_spec = self.inputs.spec
         self._episode = -1
         self._needs_reset = True
         self.timestep = None
-        self.subgoal: Subgoal | None = None
-        self.abstract_state = None
-        self._closed = False
 
-    # -- API --------------------------------------------------------------------------------
+    # The auxiliary task's parts and state, as `AgentInputs` holds them.
+    planner = property(lambda self: self.inputs.planner)
+    estimator = property(lambda self: self.inputs.estimator)
+    subgoal = property(lambda self: self.inputs.subgoal)
+    abstract_state = property(lambda self: self.inputs.abstract_state)
 
     def reset(self, episode: int | None = None) -> dict[str, np.ndarray]:
         """Starts a new episode; returns its first observation. With
@@ -224,65 +206,45 @@ class AgentEnv(SubEpisodeMixin):
         self._episode += 1
         self._return, self._steps = 0.0, 0
         self._needs_reset = False
-        if self._planning:
-            self._issued = self._reached = self._unplanned = 0
-            seed = None
-            if self.seed is not None:
-                seed = episode_seed(self.seed, self._episode)
-            self.planner.reset(seed)
-            self.estimator.reset(self.env.description(), timestep)
-            self._start_subepisode(timestep)
-        return self._observe(timestep.observation)
+        seed = None if self.seed is None else episode_seed(self.seed, self._episode)
+        self.inputs.reset(timestep, seed)
+        return self.inputs.observe(timestep.observation)
 
     def step(self, action) -> StepResult:
         """One control step with ``action`` in [-1, 1]^A (clipped, then mapped)."""
         if self._needs_reset:
             raise RuntimeError("call reset() first: no episode is running "
                                "(before the first reset, or after the last step)")
-        a = np.asarray(action)
-        if a.shape != self._action_shape:
-            raise ValueError(f"action must have shape {self._action_shape}, got {a.shape}")
-        # Plain Python on a few floats beats numpy's per-call overhead; NaN
-        # passes through (the environment rejects non-finite actions).
-        timestep = self.timestep = self.env.step(np.array(
-            [c + h * min(max(x, -1.0), 1.0)
-             for x, c, h in zip(a.ravel().tolist(), self._centre, self._half)]))
+        timestep = self.timestep = self.env.step(self._actions(action))
         reward = float(timestep.reward)
         self._return += reward
         self._steps += 1
         last = timestep.last()
         discount_env = 0.0 if last else self.gamma_env * float(timestep.discount)
-
-        reward_abs = discount_abs = 0.0
-        if self._planning:
-            self._sub_steps += 1
-            reached, over = self._check()
-            if reached:
-                self._reached += 1
-                reward_abs = self.abs_reward
-            ended = reached or over or self._sub_steps >= self.t_abs
-            if last:
-                pass  # discount_abs stays 0; reset() starts the next sub-episode
-            elif ended:  # the next sub-episode starts with this step's observation
-                self._start_subepisode(timestep)
-            else:
-                discount_abs = self.gamma_abs
-
+        reward_abs, discount_abs = self.inputs.after_step(timestep)
         info = {}
         if last:
             self._needs_reset = True
             info = self._episode_info()
-        return StepResult(self._observe(timestep.observation), reward, discount_env,
+        return StepResult(self.inputs.observe(timestep.observation), reward, discount_env,
                           reward_abs, discount_abs, last, info)
+
+    def _episode_info(self) -> dict:
+        task = self.env.task
+        terminated = bool(task.should_terminate_episode(self.env.physics))
+        info = {"episode_return": self._return, "episode_steps": self._steps,
+                "success": self.inputs.adapter.success(task),
+                "truncated": not terminated and self.env.step_count >= task.time_limit_steps}
+        info.update(self.inputs.episode_info())
+        return info
 
     def close(self) -> None:
         """Frees the environment and the planner (GNU Go subprocesses). Idempotent."""
-        if getattr(self, "_closed", False):
+        if self._closed:
             return
         self._closed = True
-        planner = getattr(self, "planner", None)
-        if planner is not None:
-            planner.close()
+        if self.inputs is not None:
+            self.inputs.close()
         env = getattr(self, "env", None)
         if env is not None:
             env.close()

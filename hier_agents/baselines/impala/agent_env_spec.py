@@ -1,6 +1,7 @@
 """Inputs and outputs of `hier_agents.baselines.impala.agent_env.AgentEnv`:
-the experimental conditions, default discounts, proprioceptive keys and
-planner-action order, the network's `InputSpec`, the per-step `StepResult`,
+the experimental conditions and planner-action order (what differs per
+family, discounts and proprioceptive keys among it, is the family adapter's:
+`hier_agents.modular.families`), the network's `InputSpec`, the per-step `StepResult`,
 and how the underlying environment is loaded (see `agent_env`'s module
 docstring for the semantics). Everything public here is re-exported by
 `agent_env`, where it is imported from.
@@ -17,25 +18,9 @@ import envs
 from abstract_planners.sokoban import MOVES
 
 CONDITIONS = ("vanilla", "random-planner", "expert-planner")
-#: The expert-planner condition's planner per family (others: the family's default).
-EXPERT_PLANNER = {"mujoban": "sokoban-solver"}
-
-#: Default (gamma_env, gamma_abs) per family (the paper's table).
-DISCOUNTS = {"mujoban": (0.99, 0.9), "mujoxo": (0.99, 0.98), "mujogo": (0.99, 0.98)}
 
 #: Order of the MuJoBan ``planner_action`` one-hot.
 PLANNER_ACTIONS = MOVES
-
-_MUJOBAN_PROPRIO = ("walker/joints_pos", "walker/joints_vel", "walker/joints_torque",
-                    "walker/orientation", "walker/sensors_touch",
-                    "walker/sensors_accelerometer", "walker/sensors_gyro",
-                    "walker/sensors_velocimeter")
-_BOARD_PROPRIO = ("arm/joints_pos", "arm/joints_vel", "arm/joints_torque",
-                  "arm/pinch_site_pos", "arm/pinch_site_rmat")
-#: Proprioceptive observations concatenated into ``"proprio"``, per family, in order.
-PROPRIO_KEYS = {"mujoban": _MUJOBAN_PROPRIO, "mujoxo": _BOARD_PROPRIO, "mujogo": _BOARD_PROPRIO}
-
-_PLAYER, _BOX = 2, 3  # full_entity_layer channels (envs.mujoban.task)
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,19 @@
+"""Agents as named parts: one contract, kinds registered once, one episode runner.
+
+    from hier_agents.agents import Play, make_player, register, resolve
+    kind, arg = resolve("random:10")                  # NAME[:ARG], as --agent takes it
+    player = make_player(Play("mujoban/level1", agent="random:10"))
+    row, counters = player.play(0)                    # episode 0 of seed 0
+
+`base` holds the contract (`Agent`), the kinds' base class (`AgentKind`,
+`AgentSetup`) and the registry (`register`, `resolve`, `forms`); `kinds`
+the shipped kinds (``modular``, ``checkpoint:PATH``, ``random[:HOLD]``);
+`runner` the one episode runner (`Play`, `Player`, `play_episode`).
+"""
+
+from hier_agents.agents.base import (KINDS, Agent, AgentKind, AgentSetup, forms, kind_of,
+                                     register, resolve)
+from hier_agents.agents.runner import Play, Player, make_player, play_episode
+
+__all__ = ["KINDS", "Agent", "AgentKind", "AgentSetup", "Play", "Player", "forms", "kind_of",
+           "make_player", "play_episode", "register", "resolve"]

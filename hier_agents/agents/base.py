@@ -1,0 +1,210 @@
+"""The agent contract and the agent kinds' registry.
+
+Every agent, whatever its kind, keeps one contract (`Agent`): it is reset
+with the task's public description and the episode's first timestep, acts on
+timesteps, is shown the episode's last timestep, and is closed; it says
+whether it is privileged and how many environment frames trained it. The one
+episode runner (`hier_agents.agents.runner`) plays any of them.
+
+An **agent kind** (`AgentKind`) names a way of building agents, as a
+planner, skill or estimator name does a component: ``NAME`` or ``NAME:ARG``
+(`resolve`), the same grammar in ``python -m hier_agents.run --agent``, in
+comparison specs (``agent = "NAME:ARG"``) and in code. The kinds shipped are
+``modular``, ``checkpoint:PATH`` and ``random[:HOLD]``
+(`hier_agents.agents.kinds`); `register` adds another without touching the
+runner, ``hier_agents.run`` or ``hier_agents.compare``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable, Protocol
+
+import numpy as np
+
+from physics_planning.cli import UsageError, close_hint
+
+__all__ = ["Agent", "AgentKind", "AgentSetup", "KINDS", "register", "resolve", "kind_of",
+           "forms", "ACCESS"]
+
+
+class Agent(Protocol):
+    """What the episode runner asks of an agent.
+
+    Attributes:
+      privileged: True when it reads more than a robot observes (the simulator).
+      training_frames: environment frames spent training it (0: none).
+      estimates: True when ``scene`` holds its estimate of the abstract state,
+        which the harness judges against the referee (board games).
+      scene: its last estimate (None: none yet, or it keeps none).
+      gave_up: why it gave up on the episode (the runner ends the episode
+        there, a failure with that reason), or None.
+      episode_stats: the episode's subgoal counters
+        (`hier_agents.modular.agent.OptionStats`; zeros for agents without
+        subgoals).
+    """
+
+    privileged: bool
+    training_frames: int
+    estimates: bool
+    scene: object
+    gave_up: str | None
+    episode_stats: object
+
+    def reset(self, description, timestep, seed: int | None = None) -> None:
+        """Starts an episode: the task's public ``description``, its first
+        ``timestep`` and the episode's seed."""
+
+    def act(self, timestep) -> np.ndarray:
+        """The action for ``env.step`` after ``timestep``."""
+
+    def end_episode(self, timestep) -> None:
+        """Shows the agent the episode's last ``timestep`` (no action follows)."""
+
+    def close(self) -> None:
+        """Frees what the agent holds (GNU Go processes, ...). Idempotent."""
+
+
+#: How much of an environment an agent sees: ``"simulator"`` (the whole
+#: environment: privileged), ``"record"`` (the observations but the
+#: simulator's ground truth: a board game's record is kept) or
+#: ``"observations"`` (what a robot has: every privileged observation
+#: removed, `hier_agents.boundary.BoundaryEnv`).
+ACCESS = ("simulator", "record", "observations")
+
+
+@dataclass
+class AgentSetup:
+    """An agent kind's plan for one environment, made before anything is built.
+
+    Attributes:
+      env_overrides: `envs.load` overrides the agent needs (its cameras).
+      access: one of `ACCESS`.
+      summary: the run summary's keys describing the agent (``agent``,
+        ``planner``, ``skill``, ``privileged``, ...).
+      build: ``build(view, seed, simulator)`` -> `Agent`: ``view`` is the
+        environment as the agent may see it (its specs and ``description()``;
+        `hier_agents.boundary.BoundaryEnv` unless privileged), ``simulator``
+        the environment itself for ``access == "simulator"``, else None.
+    """
+
+    env_overrides: dict
+    access: str
+    summary: dict
+    build: Callable[..., Agent]
+    #: Environment overrides that must not change (a checkpoint's inputs):
+    #: `hier_agents.run` refuses ``env_options`` naming them.
+    fixed: frozenset = field(default_factory=frozenset)
+
+
+class AgentKind:
+    """A kind of agent, named ``NAME`` or ``NAME:ARG`` (module docstring).
+
+    Subclasses set ``name``, ``help`` and, when they take an argument,
+    ``metavar``, ``arg_required`` and `parse`; ``options`` names the keyword
+    options they take (``python -m hier_agents.run`` flags of the same name,
+    keys of a comparison spec's agent table), ``env_flags`` whether
+    ``--levels``, ``--env-option`` and ``--video`` apply.
+    """
+
+    name = ""
+    help = ""
+    metavar: str | None = None
+    arg_required = False
+    options: tuple[str, ...] = ()
+    env_flags = True
+
+    def parse(self, text: str):
+        """The argument of ``NAME:text`` (UsageError when it is not allowed)."""
+        raise UsageError(f"the agent kind {self.name!r} takes no argument, got {text!r}")
+
+    def default(self):
+        """The argument of a bare ``NAME``."""
+        return None
+
+    def check(self, env_name: str, arg, options: dict) -> None:
+        """Refuses what cannot be played, before anything is built (a missing
+        checkpoint, a bad component name): `UsageError`."""
+
+    def setup(self, env_name: str, arg, options: dict) -> AgentSetup:
+        """The `AgentSetup` of this kind for ``env_name``."""
+        raise NotImplementedError
+
+    def describe(self, summary: dict) -> str:
+        """Who played, for the results table (from the run summary)."""
+        return str(summary.get("agent", self.name))
+
+    def job_inputs(self, env_name: str, arg, options: dict) -> dict:
+        """What decides an evaluation job's result on ``env_name`` (`hier_agents.compare`
+        hashes it into the job's key), JSON-able: ``{"kind": NAME, ...}``."""
+        return {"kind": self.name, **({"arg": self.form(arg)} if arg is not None else {}),
+                **options}
+
+    def from_job_inputs(self, inputs: dict) -> tuple[object, dict]:
+        """(arg, options) of `job_inputs`'s dict."""
+        arg = inputs.get("arg")
+        options = {k: v for k, v in inputs.items() if k not in ("kind", "arg")}
+        return (None if arg is None else self.parse(str(arg).partition(":")[2])), options
+
+    def form(self, arg) -> str:
+        """The ``NAME[:ARG]`` text of ``arg``."""
+        return self.name if arg is None else f"{self.name}:{arg}"
+
+    def forms(self) -> list[str]:
+        """The accepted forms, for listings (``NAME``, ``NAME:METAVAR``)."""
+        bare = [] if self.arg_required else [self.name]
+        return bare + ([f"{self.name}:{self.metavar}"] if self.metavar else [])
+
+
+#: name -> kind, in registration order (``modular`` first: the default).
+KINDS: dict[str, AgentKind] = {}
+
+
+def register(kind: AgentKind) -> AgentKind:
+    """Makes ``kind`` playable by name everywhere; returns it. ValueError when
+    the name is taken or not a plain word."""
+    if not kind.name or ":" in kind.name or kind.name in KINDS:
+        raise ValueError(f"cannot register the agent kind {kind.name!r}: empty, with ':' or "
+                         f"taken (registered: {', '.join(KINDS)})")
+    KINDS[kind.name] = kind
+    return kind
+
+
+def _kinds() -> dict[str, AgentKind]:
+    from hier_agents.agents import kinds  # noqa: F401 (registers the shipped kinds)
+    return KINDS
+
+
+def forms() -> list[str]:
+    """Every accepted ``--agent`` form, in registration order."""
+    return [form for kind in _kinds().values() for form in kind.forms()]
+
+
+def resolve(spec: str) -> tuple[AgentKind, object]:
+    """(kind, parsed argument) of ``NAME`` or ``NAME:ARG``.
+
+    Raises:
+      UsageError: an unknown kind (naming the closest and the valid forms), a
+        missing, unexpected or malformed argument.
+    """
+    kinds = _kinds()
+    name, sep, text = str(spec).partition(":")
+    kind = kinds.get(name)
+    if kind is None:
+        raise UsageError(f"unknown agent {spec!r}{close_hint(name, kinds)}; valid: "
+                         f"{', '.join(forms())}")
+    if not sep:
+        if kind.arg_required:
+            raise UsageError(f"the agent {name!r} needs an argument: {name}:{kind.metavar}")
+        return kind, kind.default()
+    return kind, kind.parse(text)
+
+
+def kind_of(spec: str) -> AgentKind:
+    """The kind named by ``spec``'s ``NAME`` (UsageError when unknown)."""
+    kinds = _kinds()
+    name = str(spec).partition(":")[0]
+    if name not in kinds:
+        raise UsageError(f"unknown agent {spec!r}{close_hint(name, kinds)}; valid: "
+                         f"{', '.join(forms())}")
+    return kinds[name]
