@@ -12,7 +12,11 @@ planner, skill or estimator name does a component: ``NAME`` or ``NAME:ARG``
 comparison specs (``agent = "NAME:ARG"``) and in code. The kinds shipped are
 ``modular``, ``checkpoint:PATH`` and ``random[:HOLD]``
 (`hier_agents.agents.kinds`); `register` adds another without touching the
-runner, ``hier_agents.run`` or ``hier_agents.compare``.
+runner, ``hier_agents.run`` or ``hier_agents.compare``. A package outside
+this one registers its kinds in every process (worker processes, comparison
+jobs) by declaring an entry point in the group `ENTRY_POINTS`
+(``physics_planning.agents``) naming a module that calls `register`, or an
+`AgentKind` instance, which is registered when it loads.
 """
 
 from __future__ import annotations
@@ -24,8 +28,8 @@ import numpy as np
 
 from physics_planning.cli import UsageError, close_hint
 
-__all__ = ["Agent", "AgentKind", "AgentSetup", "KINDS", "register", "resolve", "kind_of",
-           "forms", "ACCESS"]
+__all__ = ["Agent", "AgentKind", "AgentSetup", "ACCESS", "ENTRY_POINTS", "KINDS", "forms",
+           "kind_of", "register", "resolve"]
 
 
 class Agent(Protocol):
@@ -170,8 +174,23 @@ def register(kind: AgentKind) -> AgentKind:
     return kind
 
 
+#: The entry-point group of agent kinds defined outside this package.
+ENTRY_POINTS = "physics_planning.agents"
+_loaded = False
+
+
 def _kinds() -> dict[str, AgentKind]:
+    """The registry, with the shipped kinds and those of installed packages'
+    `ENTRY_POINTS` loaded (once per process)."""
+    global _loaded
     from hier_agents.agents import kinds  # noqa: F401 (registers the shipped kinds)
+    if not _loaded:
+        _loaded = True
+        from importlib.metadata import entry_points
+        for point in entry_points(group=ENTRY_POINTS):
+            loaded = point.load()
+            if isinstance(loaded, AgentKind) and loaded.name not in KINDS:
+                register(loaded)
     return KINDS
 
 
