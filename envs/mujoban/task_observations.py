@@ -67,7 +67,8 @@ class ObservationsMixin:
         self._steer_qpos = int(bind(walker_model.find("joint", "steer")).qposadr)
         actuators = self._walker.actuators
         self._act_ids = np.array([bind(a).element_id for a in actuators])
-        act_joints = [walker_model.find("joint", a.joint.name if hasattr(a.joint, "name") else a.joint)
+        act_joints = [walker_model.find("joint",
+                                        a.joint.name if hasattr(a.joint, "name") else a.joint)
                       for a in actuators]
         # Slices where the addresses are consecutive: a view and a copy are
         # cheaper than fancy indexing, and observe() runs every step.
@@ -108,7 +109,8 @@ class ObservationsMixin:
         for name, sl in self._sensor_slices.items():
             spec[name] = specs.Array((sl.stop - sl.start,), np.float64, name)
         spec["full_entity_layer"] = specs.Array((height, width, 4), bool, "full_entity_layer")
-        spec["pixel_layer"] = specs.BoundedArray((height, width, 3), np.uint8, 0, 255, "pixel_layer")
+        spec["pixel_layer"] = specs.BoundedArray((height, width, 3), np.uint8, 0, 255,
+                                                 "pixel_layer")
         return spec
 
     def observe(self, physics):
