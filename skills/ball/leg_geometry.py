@@ -61,9 +61,7 @@ def make_leg(description, config: BallConfig, cells, push, box_xy, blocked, *, k
     leg = Leg()
     leg.args = (cells, push, blocked, keep)
     leg.push = None
-    chain = 0
     if push is not None:
-        chain = push[3]
         leg.push, leg.cell_lat = _push_line(frame, pts, push, box_xy)
     merged = merge_collinear(pts, leg.push[1] if leg.push is not None else (1.0, 0.0))
     # The straight run before meeting the box: the last segment minus the
