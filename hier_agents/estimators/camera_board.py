@@ -421,7 +421,7 @@ class BoardCameraEstimator(Estimator):
             if best is not None and confirmed(best[0]) and not best[0][4]:
                 break
             frontier, boards = [], set()
-            for s, child in children:
+            for _, child in children:
                 board = (game.players(child).tobytes(), child.current_player())
                 if board in boards or child.is_terminal():
                     continue
