@@ -11,6 +11,8 @@ the layer conventions: `ENTITY_CHANNELS`, `PIXEL_COLOURS` and
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from dm_control.locomotion.walkers import legacy_base
 from dm_env import specs
@@ -46,6 +48,17 @@ def _as_slice(index: np.ndarray):
 
 class ObservationsMixin:
     """Walker binding, observations and state accessors of `Mujoban`."""
+
+    # Set by `Mujoban` (its parts, compiled-model indices and episode state).
+    _arena: arena_lib.MujobanArena
+    _walker: legacy_base.Walker
+    _data: Any              # mujoco.MjData (mujoco has no type stubs)
+    _qpos: np.ndarray
+    _box_qpos: np.ndarray
+    _num_boxes: int
+    _rounding: tuple[float, float, float, int, int]
+    _static_layer: np.ndarray
+    _covered: tuple[bool, ...]
 
     def _add_walker_touch_sensor(self) -> None:
         model = self._walker.mjcf_model
