@@ -31,6 +31,13 @@ class Leg:
     """
 
     __slots__ = ("pts", "seg", "limits", "push", "total", "args", "cell_lat")
+    pts: list
+    seg: list
+    limits: list
+    push: tuple | None
+    total: float
+    args: tuple
+    cell_lat: float
 
 
 def rebuild(description, config: BallConfig, leg: Leg, box_xy, start) -> Leg:
