@@ -80,7 +80,8 @@ def action_to_vertex(action: int, board_size: int) -> str:
       ValueError: ``action`` outside 0..board_size**2.
     """
     n = _check_size(board_size)
-    if isinstance(action, bool) or not isinstance(action, numbers.Integral) or not 0 <= action <= n * n:
+    if (isinstance(action, bool) or not isinstance(action, numbers.Integral)
+            or not 0 <= action <= n * n):
         raise ValueError(f"action must be an integer in the range 0..{n * n} for board_size {n}, "
                          f"got {action!r}")
     action = int(action)
@@ -140,7 +141,8 @@ class GnuGoPlanner(Planner):
     Each `plan(state)` syncs the engine to ``state.history()``: when the
     moves already on the engine are a prefix of it only the new ones are
     played, otherwise the board is cleared and the whole history replayed
-    (Black first, colours alternating, passes included). Then GNU Go generates the move of the player to move.
+    (Black first, colours alternating, passes included). Then GNU Go generates
+    the move of the player to move.
 
     Choices:
 

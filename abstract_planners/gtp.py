@@ -95,7 +95,8 @@ class GTPClient:
         try:
             timeout = float(timeout)
         except (TypeError, ValueError):
-            raise ValueError(f"timeout must be a positive number of seconds, got {timeout!r}") from None
+            raise ValueError(f"timeout must be a positive number of seconds, "
+                             f"got {timeout!r}") from None
         if not timeout > 0:
             raise ValueError(f"timeout must be a positive number of seconds, got {timeout!r}")
         if command is None:
@@ -186,7 +187,8 @@ class GTPClient:
         """
         proc, lines = self._proc, self._lines
         if proc is None or proc.poll() is not None:
-            raise EngineDied(f"process exited with code {None if proc is None else proc.returncode}")
+            code = None if proc is None else proc.returncode
+            raise EngineDied(f"process exited with code {code}")
         match = _ID_COMMAND.match(command)
         if match:
             cmd_id, body = int(match.group(1)), match.group(2)
@@ -204,7 +206,8 @@ class GTPClient:
         while True:
             remaining = deadline - time.monotonic()
             try:
-                line = lines.get(timeout=max(remaining, 0.0)) if remaining > 0 else lines.get_nowait()
+                line = (lines.get(timeout=max(remaining, 0.0)) if remaining > 0
+                        else lines.get_nowait())
             except queue.Empty:
                 self._kill()
                 raise GTPError(
@@ -274,7 +277,8 @@ class GTPClient:
             containing a line break.
         """
         if self._closed:
-            raise GTPError(f"{self.name} GTP client is closed; cannot send {command!r}", command=command)
+            raise GTPError(f"{self.name} GTP client is closed; cannot send {command!r}",
+                           command=command)
         if not isinstance(command, str):
             raise TypeError(f"command must be a str, got {type(command).__name__}")
         command = command.strip()
@@ -313,11 +317,13 @@ class GTPClient:
         self.send("clear_board")
 
     def play(self, color: str, vertex: str) -> None:
-        """``play color vertex``; color ``b``/``w``/``black``/``white``, vertex e.g. ``D4`` or ``pass``."""
+        """``play color vertex``; color ``b``/``w``/``black``/``white``, vertex
+        e.g. ``D4`` or ``pass``."""
         self.send(f"play {_color(color)} {vertex}")
 
     def genmove(self, color: str, *, cleanup: bool = False) -> str:
-        """Lets the engine move for ``color``; returns the vertex (``"D4"``, ``"pass"``, ``"resign"``).
+        """Lets the engine move for ``color``; returns the vertex (``"D4"``,
+        ``"pass"``, ``"resign"``).
 
         The move is played on the engine's board (and recorded). With
         ``cleanup=True`` uses ``kgs-genmove_cleanup`` (GNU Go: do not pass

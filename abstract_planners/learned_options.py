@@ -176,8 +176,8 @@ def load_option_policy(path, device: str = "cpu") -> tuple[OptionPolicyNet, dict
                                     f"with python -m hier_agents.learning.train_options)")
     if not path.is_file():
         raise FileNotFoundError(f"no option-policy checkpoint at {path} (train one with "
-                                f"python -m hier_agents.learning.train_options, or use --planner learned "
-                                f"for the shipped one)")
+                                f"python -m hier_agents.learning.train_options, or use "
+                                f"--planner learned for the shipped one)")
     try:
         data = torch.load(path, map_location=device, weights_only=True)
     except Exception as exc:  # noqa: BLE001 - any unreadable file gets the same message

@@ -91,7 +91,8 @@ class MCTSPlanner(Planner):
     def _bot(self, game) -> pyspiel.MCTSBot:
         key = str(game)
         if key not in self._bots:
-            bot_seed, rollout_seed = (int(x) for x in self._seed_rng.integers(0, 2 ** 31 - 1, size=2))
+            bot_seed, rollout_seed = (int(x) for x in
+                                      self._seed_rng.integers(0, 2 ** 31 - 1, size=2))
             evaluator = pyspiel.RandomRolloutEvaluator(self.rollouts, rollout_seed)
             bot = pyspiel.MCTSBot(game, evaluator, self.uct_c, self.simulations,
                                   self.max_memory_mb, self.solve, bot_seed, False)
@@ -128,7 +129,8 @@ class MCTSPlanner(Planner):
         self._chosen.clear()
 
     def __repr__(self) -> str:
-        return f"MCTSPlanner(simulations={self.simulations}, rollouts={self.rollouts}, uct_c={self.uct_c:g})"
+        return (f"MCTSPlanner(simulations={self.simulations}, rollouts={self.rollouts}, "
+                f"uct_c={self.uct_c:g})")
 
 
 class AlphaBetaPlanner(Planner):

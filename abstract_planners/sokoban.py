@@ -81,6 +81,13 @@ class SokobanState:
     """
 
     __slots__ = ("walls", "targets", "boxes", "player", "height", "width", "_hash")
+    walls: frozenset[Position]
+    targets: frozenset[Position]
+    boxes: frozenset[Position]
+    player: Position
+    height: int
+    width: int
+    _hash: int | None
 
     def __init__(self, walls: Iterable[Position], targets: Iterable[Position],
                  boxes: Iterable[Position], player: Position, height: int,

@@ -26,8 +26,8 @@ from envs import cli as env_cli  # noqa: E402
 from physics_planning import cli  # noqa: E402
 from hier_agents.provenance import provenance  # noqa: E402
 
-__all__ = ["cli", "env_cli", "make_parser", "prog", "write_json", "run_in_tree", "baseline_worktree",
-           "remove_worktree"]
+__all__ = ["cli", "env_cli", "make_parser", "prog", "write_json", "run_in_tree",
+           "baseline_worktree", "remove_worktree"]
 
 
 def prog(file: str) -> str:
@@ -48,7 +48,8 @@ def write_json(path: Path, data, indent: int = 2) -> None:
     A dict gets a ``"provenance"`` key (command, commit, date, machine: see
     `hier_agents.provenance`); a list of rows is written as
     ``{"provenance": ..., "rows": [...]}``. The file is replaced in one step
-    (`physics_planning.cli.write_json`). Check the path up front with `physics_planning.cli.output_file`.
+    (`physics_planning.cli.write_json`). Check the path up front with
+    `physics_planning.cli.output_file`.
     """
     record = provenance()
     data = {**data, "provenance": record} if isinstance(data, dict) else {

@@ -7,8 +7,9 @@ Reads every ``hier_agents.run --json`` file under ``DIR`` and
 push solver, ``--planner sokoban-solver``, instead of MuJoBan's default, the
 execution-time planner) and ``DIR/oracle`` (privileged rows) and
 prints a Markdown table: one row per file, observation-only rows first,
-each naming its estimator and whether it read the simulator. Nothing is measured here; every number comes
-from a file that records its command, commit and date.
+each naming its estimator and whether it read the simulator. Nothing is
+measured here; every number comes from a file that records its command,
+commit and date.
 """
 
 from __future__ import annotations

@@ -67,7 +67,6 @@ from hier_agents.estimators import BoardEstimator, EstimationError  # noqa: E402
 from hier_agents.modular.options import T_ABS, Outcome, run_option  # noqa: E402
 from hier_agents.stats import wilson_interval  # noqa: E402
 from skills.arm import ArmTouchSkill  # noqa: E402
-from skills.base import Status  # noqa: E402
 
 PROG = prog(__file__)
 DEFAULT_ENVS = ["mujoxo/mixture", "mujogo/7x7"]

@@ -106,8 +106,8 @@ def learner_frames_per_s(args) -> dict:
                              actors=args.actors, envs_per_actor=args.envs_per_actor,
                              backend=args.backend, logdir=logdir,
                              batch_size=args.batch_size, cameras=args.cameras,
-                             state=args.state, seed=args.seed, log_every_s=2.0, checkpoint_every_s=1e9,
-                             progress=False)
+                             state=args.state, seed=args.seed, log_every_s=2.0,
+                             checkpoint_every_s=1e9, progress=False)
         start = time.perf_counter()
         counters = train(config)
         total_s = time.perf_counter() - start

@@ -20,7 +20,8 @@ colours and light), and it sees only the observations (the original's
 ``full_entity_layer`` and ``pixel_layer`` are removed, as behind our
 `hier_agents.boundary`).
 
-    PYTHONPATH=/tmp/peer python benchmarks/original_env.py --levels 20 --json results/original_env.json
+    PYTHONPATH=/tmp/peer python benchmarks/original_env.py --levels 20 \
+        --json results/original_env.json
     PYTHONPATH=/tmp/peer python benchmarks/original_env.py --picture results/looks_side_by_side.png
 
 ``--picture`` renders the same Boxoban level and texture draw in the

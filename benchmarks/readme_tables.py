@@ -259,8 +259,9 @@ def learned_ball(results: Path) -> list[str]:
                if ref else "- | - |"))
     opt = _load(results / "learned_ball" / "option_success_camera.json")
     for name, r in opt["rows"].items():
+        success = _ci(r['success'], (r['wilson_low'], r['wilson_high']))
         lines.append(f"| held-out options, {', '.join(r['sources'])} scenes, {r['estimator']} "
-                     f"estimator, {name} | {_ci(r['success'], (r['wilson_low'], r['wilson_high']))} "
+                     f"estimator, {name} | {success} "
                      f"({r['successes']}/{r['episodes']}) | {r['mean_steps_success']:.0f} | - "
                      f"| - | - |")
     return lines

@@ -20,7 +20,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["CameraDescription", "MujobanLooks", "MujobanDescription", "ArmDescription", "BoardDescription"]
+__all__ = ["CameraDescription", "MujobanLooks", "MujobanDescription", "ArmDescription",
+           "BoardDescription"]
 
 
 @dataclass(frozen=True)

@@ -39,7 +39,8 @@ from dm_env import specs
 from gymnasium import spaces
 
 from envs.core import Environment
-from envs.registry import gymnasium_id, load, names, overrides as env_overrides, unknown_keywords_message
+from envs.registry import (gymnasium_id, load, names, overrides as env_overrides,
+                           unknown_keywords_message)
 
 #: The ``obs=`` choices of `GymnasiumEnv`, with what each holds.
 OBSERVATIONS = {

@@ -95,7 +95,8 @@ def check(name: str, seed: int | None = None, **kwargs) -> None:
 def unknown_keywords_message(name: str, unknown, valid, kind: str) -> str:
     """``"NAME: unknown KIND(s) 'x' (did you mean 'y'?); valid KINDs: [...]"``."""
     words = ", ".join(f"{k!r}{close_hint(k, valid)}" for k in unknown)
-    return f"{name}: unknown {kind}{'s' if len(unknown) > 1 else ''} {words}; valid {kind}s: {valid}"
+    plural = "s" if len(unknown) > 1 else ""
+    return f"{name}: unknown {kind}{plural} {words}; valid {kind}s: {valid}"
 
 
 def load(name: str, seed: int | None = None, **kwargs) -> Environment:

@@ -54,7 +54,8 @@ class CameraConfig:
         for name in ("height", "width"):
             value = getattr(self, name)
             if not isinstance(value, (int, np.integer)) or value < 1:
-                raise ValueError(f"camera {self.camera!r}: {name} must be a positive int, got {value!r}")
+                raise ValueError(f"camera {self.camera!r}: {name} must be a positive int, "
+                                 f"got {value!r}")
 
 
 @dataclass(frozen=True)

@@ -199,7 +199,8 @@ def output_file(path: str | os.PathLike | None, flag: str) -> Path | None:
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise UsageError(f"{flag} {str(path)!r}: cannot create its folder ({exc.strerror})")
+        raise UsageError(f"{flag} {str(path)!r}: cannot create its folder "
+                         f"({exc.strerror})") from exc
     if not os.access(path.parent, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
         raise UsageError(f"{flag} {str(path)!r}: not writable")
     return path

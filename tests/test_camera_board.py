@@ -146,7 +146,7 @@ def test_touched_moves_and_replies_are_found_among_the_continuations(name):
         zones = task.game.touches(task.state, action)
         if len(zones) == 2:
             touch_point(env, task.point_position(zones[0]),
-                        until=lambda: task._selected == zones[0])
+                        until=lambda zone=zones[0]: task._selected == zone)
             timestep = touch_point(env, task.point_position(zones[0]) + (0, 0, 0.1), steps=20)
             assert estimator.estimate(timestep).selected == zones[0], f"turn {turn}"
         before = len(task.moves)

@@ -67,7 +67,8 @@ def test_coordinates_round_trip_and_match_the_openspiel_printout(n):
         assert "I" not in vertex
         assert vertex_to_action(vertex, n) == action
         assert vertex_to_action(vertex.lower(), n) == action
-        assert game.new_initial_state().action_to_string(0, action).split()[1].upper() == vertex.upper()
+        text = game.new_initial_state().action_to_string(0, action)
+        assert text.split()[1].upper() == vertex.upper()
         if action < n * n and (n <= 9 or action % 7 == 0 or action in (n - 1, n * n - n)):
             state = game.new_initial_state()
             state.apply_action(action)

@@ -10,8 +10,8 @@ import torch
 from torch import nn
 
 from hier_agents.baselines.impala.agent_env import InputSpec
-from hier_agents.baselines.impala.network import (ImpalaNet, NetOutput, PlannerEncoder, gaussian_entropy,
-                                        gaussian_log_prob)
+from hier_agents.baselines.impala.network import (ImpalaNet, NetOutput, PlannerEncoder,
+                                                  gaussian_entropy, gaussian_log_prob)
 
 CAM = (3, 96, 96)
 SPECS = {

@@ -29,7 +29,8 @@ def test_rendered_box_pad_and_covered_pad_colours_match_the_originals():
     env = envs.load("mujoban/level1", seed=0, top_camera=(199, 199), egocentric_camera=None,
                     levels=str(BOXOBAN_DIR / "unfiltered-valid-000.txt"))
     frame = env.reset().observation["top_camera"]
-    side = 13  # a box's top is 0.8 cells (14.5 px), 13-14 px of its own colour with 4x multisampling
+    # A box's top is 0.8 cells (14.5 px), 13-14 px of its own colour with 4x multisampling.
+    side = 13
     assert _count(frame, ORIGINAL_RGB["box"]) >= 4 * side * side
     assert _count(frame, ORIGINAL_RGB["pad"]) >= 4 * 0.8 * 18 * 18
     assert _count(frame, ORIGINAL_RGB["backdrop"]) > 1000

@@ -143,7 +143,8 @@ def test_full_entity_layer_matches_real_boxoban_levels_at_reset(filename):
     for level in levels:
         obs = env.reset().observation
         np.testing.assert_array_equal(obs["full_entity_layer"], level.entity_layers())
-        np.testing.assert_array_equal(obs["pixel_layer"], entity_layer_to_pixels(level.entity_layers()))
+        np.testing.assert_array_equal(obs["pixel_layer"],
+                                      entity_layer_to_pixels(level.entity_layers()))
         assert env.task.level == level
 
 

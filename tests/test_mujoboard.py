@@ -161,7 +161,7 @@ def test_each_game_plays_an_opening_by_touch_as_openspiel_does(name):
         before = len(task.moves)
         zones = task.game.touches(task.state, action)
         if len(zones) == 2:
-            _touch(env, zones[0], until=lambda: task._selected == zones[0])
+            _touch(env, zones[0], until=lambda zone=zones[0]: task._selected == zone)
         timestep = _touch(env, zones[-1])
         assert task.moves[before] == action, f"turn {turn}"
         assert_board_matches_openspiel(env, timestep)

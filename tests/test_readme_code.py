@@ -162,7 +162,7 @@ def test_shrink_rewrites_budgets_and_outputs(tmp_path):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("line,body", PYTHON_BLOCKS, ids=[f"line{l}" for l, _ in PYTHON_BLOCKS])
+@pytest.mark.parametrize("line,body", PYTHON_BLOCKS, ids=[f"line{n}" for n, _ in PYTHON_BLOCKS])
 def test_python_block_runs(line, body, tmp_path):
     result = subprocess.run([sys.executable, "-c", body], cwd=ROOT, env=child_env(),
                             capture_output=True, text=True, timeout=600)
@@ -170,7 +170,7 @@ def test_python_block_runs(line, body, tmp_path):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("line,body", BASH_BLOCKS, ids=[f"line{l}" for l, _ in BASH_BLOCKS])
+@pytest.mark.parametrize("line,body", BASH_BLOCKS, ids=[f"line{n}" for n, _ in BASH_BLOCKS])
 def test_bash_block_runs(line, body, tmp_path):
     for command in commands(body):
         small = shrink(command, tmp_path)

@@ -35,7 +35,8 @@ if sys.argv[1] == "envs":
 libc = ctypes.CDLL("libc.so.6")
 class M(ctypes.Structure):
     _fields_ = [(n, ctypes.c_size_t) for n in
-                "arena ordblks smblks hblks hblkhd usmblks fsmblks uordblks fordblks keepcost".split()]
+                ("arena ordblks smblks hblks hblkhd usmblks fsmblks uordblks fordblks "
+                 "keepcost").split()]
 libc.mallinfo2.restype = M
 libc.malloc.restype = ctypes.c_void_p
 libc.free.argtypes = [ctypes.c_void_p]

@@ -7,7 +7,8 @@ import pytest
 import torch
 
 from hier_agents.baselines.impala.agent_env import InputSpec
-from hier_agents.baselines.impala.network import ImpalaNet, NetOutput, gaussian_entropy, gaussian_log_prob
+from hier_agents.baselines.impala.network import (ImpalaNet, NetOutput, gaussian_entropy,
+                                                  gaussian_log_prob)
 from hier_agents.baselines.impala.vtrace import impala_loss, vtrace
 
 

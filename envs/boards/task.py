@@ -152,7 +152,8 @@ class BoardTask(GameRecordMixin, ArmPoseMixin, ObservationsMixin, PhysicsTask):
         self._timeout_is_loss = bool(timeout_is_loss)
         self._piece_noise = float(piece_noise)
         self._allow_double_pass = bool(allow_double_pass)
-        self.render_size = tuple(int(v) for v in render_size)
+        render_height, render_width = render_size
+        self.render_size = (int(render_height), int(render_width))
         sizes = [tuple(s) for s in (front_camera, front_camera_2, render_size) if s]
         offscreen = (max(s[0] for s in sizes), max(s[1] for s in sizes))
         self.agent_player = agent_player

@@ -42,6 +42,21 @@ def _quat_mul(a, b):
 class ArmPoseMixin:
     """Random arm poses (the arm reset) and IK of `BoardTask`."""
 
+    # Set by `BoardTask` (compiled-model indices).
+    _model: mujoco.MjModel
+    _data: mujoco.MjData
+    _joint_qpos: np.ndarray
+    _arm_wrap: np.ndarray
+    _finger_range: np.ndarray
+    _is_arm: np.ndarray
+    _is_hand: np.ndarray
+    _pinch_name: str
+    _tcp_name: str
+    ik_failures: int
+    # The IK problems, built on first use (None until then).
+    _ik: tuple | None
+    _tcp_ik: tuple | None
+
     def _place_arm(self, rng) -> None:
         """The original's arm reset: the grip site at a random point of the
         TCP box, pointing down with a random yaw; fingers and velocities kept."""

@@ -9,6 +9,8 @@ values, and world positions of board points, pass areas and the pinch site.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from dm_control.entities.manipulators import kinova
 from dm_env import specs
@@ -18,6 +20,11 @@ from envs.boards import arena as arena_lib
 
 class ObservationsMixin:
     """Description, observations and positions of `BoardTask`."""
+
+    # Set by `BoardTask`.
+    _arena: arena_lib.BoardArena
+    _data: Any              # mujoco.MjData (mujoco has no type stubs)
+    _pinch_site: int
 
     def description(self):
         """The public `envs.description.BoardDescription` of this task (built

@@ -13,11 +13,16 @@ board), and the game's accessors.
 from __future__ import annotations
 
 import re
+from typing import TYPE_CHECKING, Any, Callable
 
 import mujoco
 import numpy as np
 
 from envs.boards import arena as arena_lib
+
+if TYPE_CHECKING:
+    from abstract_planners.base import Planner
+    from envs.boards.games import BoardGame
 
 #: Piece jitter as a fraction of the sensor's half-size (the original's;
 #: other games take Go's).
@@ -29,6 +34,39 @@ HALF_MOVE_TIMEOUT = 10.0
 
 class GameRecordMixin:
     """Touch registration, moves and the game record of `BoardTask`."""
+
+    # Set by `BoardTask` (its parts, settings and compiled-model indices).
+    game: BoardGame
+    opponent: Planner
+    _arena: arena_lib.BoardArena
+    _hand: Any
+    _registering: str
+    _arm_reset: bool
+    _piece_noise: float
+    _agent: int
+    _model: mujoco.MjModel
+    _data: mujoco.MjData
+    _arange: np.ndarray
+    _pos_idx: np.ndarray
+    _finger_idx: np.ndarray | None
+    _num_squares: int
+    _has_pass: bool
+    _piece_ids: np.ndarray
+    _selection_id: int | None
+    _point_xy: np.ndarray
+    _steps: int
+    _stale: int
+    # Kept here (see the module docstring).
+    state: Any          # the OpenSpiel state (pyspiel has no type stubs)
+    moves_registered: int
+    _moves: list[int]
+    _history: np.ndarray
+    _players: np.ndarray
+    _kings: np.ndarray
+    _game_over: bool
+    # The arm reset, `envs.boards.task_arm.ArmPoseMixin._place_arm` (an annotation only, so
+    # that the method is still found on ArmPoseMixin).
+    _place_arm: Callable[[np.random.Generator], None]
 
     def _add_sensors(self, nsample: int) -> None:
         """Touch and contact sensors that keep every substep's reading."""

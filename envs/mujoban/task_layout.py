@@ -10,6 +10,8 @@ target pads, the static entity layer) at every reset.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
 
 from envs.mujoban import arena as arena_lib
@@ -21,6 +23,24 @@ _PARKED_Z = -20.0
 
 class LayoutMixin:
     """Loads a level into `Mujoban`'s arena."""
+
+    # Set by `Mujoban` (its arena and compiled-model indices).
+    _arena: arena_lib.MujobanArena
+    _model: Any             # mujoco.MjModel (mujoco has no type stubs)
+    _boxes: list
+    _wall_ids: np.ndarray
+    _slab_ids: np.ndarray
+    _slab_mats: np.ndarray
+    _box_qpos_list: list[tuple[int, ...]]
+    _pad_ids: np.ndarray
+    level: Level | None     # the level loaded (None before the first episode)
+
+    if TYPE_CHECKING:       # `Mujoban`'s properties
+        @property
+        def grid_shape(self) -> tuple[int, int]: ...
+
+        @property
+        def cell_size(self) -> float: ...
 
     def _set_level(self, level: Level) -> None:
         height, width = self.grid_shape

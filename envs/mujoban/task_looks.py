@@ -9,6 +9,8 @@ box geom ids) and the episode state (``_covered``, ``_box_reference``).
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from envs.mujoban import arena as arena_lib
@@ -27,6 +29,21 @@ EAR_RGBA = ((0.7, 0.0, 0.0, 1.0), (0.0, 0.0, 0.7, 1.0))
 
 class LooksMixin:
     """Description, appearance (textures) and pad colours of `Mujoban`."""
+
+    # Set by `Mujoban` (its arena, compiled-model indices and episode state).
+    _arena: arena_lib.MujobanArena
+    _model: Any             # mujoco.MjModel (mujoco has no type stubs)
+    _wall_mats: np.ndarray
+    _wall_tex_ids: list[int]
+    _floor_mat: int
+    _floor_tex_ids: list[int]
+    _box_geom_ids: np.ndarray
+    _pad_ids: np.ndarray
+    _num_boxes: int
+    _pad_tolerance: float
+    _box_reference: list
+    _covered: tuple[bool, ...]
+    _target_xy: list[tuple[float, float]]
 
     def description(self):
         """The public `envs.description.MujobanDescription` of this task."""

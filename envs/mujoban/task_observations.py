@@ -11,6 +11,8 @@ the layer conventions: `ENTITY_CHANNELS`, `PIXEL_COLOURS` and
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from dm_control.locomotion.walkers import legacy_base
 from dm_env import specs
@@ -47,6 +49,17 @@ def _as_slice(index: np.ndarray):
 class ObservationsMixin:
     """Walker binding, observations and state accessors of `Mujoban`."""
 
+    # Set by `Mujoban` (its parts, compiled-model indices and episode state).
+    _arena: arena_lib.MujobanArena
+    _walker: legacy_base.Walker
+    _data: Any              # mujoco.MjData (mujoco has no type stubs)
+    _qpos: np.ndarray
+    _box_qpos: np.ndarray
+    _num_boxes: int
+    _rounding: tuple[float, float, float, int, int]
+    _static_layer: np.ndarray
+    _covered: tuple[bool, ...]
+
     def _add_walker_touch_sensor(self) -> None:
         model = self._walker.mjcf_model
         shell_body = model.find("geom", "shell").parent
@@ -67,7 +80,8 @@ class ObservationsMixin:
         self._steer_qpos = int(bind(walker_model.find("joint", "steer")).qposadr)
         actuators = self._walker.actuators
         self._act_ids = np.array([bind(a).element_id for a in actuators])
-        act_joints = [walker_model.find("joint", a.joint.name if hasattr(a.joint, "name") else a.joint)
+        act_joints = [walker_model.find("joint",
+                                        a.joint.name if hasattr(a.joint, "name") else a.joint)
                       for a in actuators]
         # Slices where the addresses are consecutive: a view and a copy are
         # cheaper than fancy indexing, and observe() runs every step.
@@ -108,7 +122,8 @@ class ObservationsMixin:
         for name, sl in self._sensor_slices.items():
             spec[name] = specs.Array((sl.stop - sl.start,), np.float64, name)
         spec["full_entity_layer"] = specs.Array((height, width, 4), bool, "full_entity_layer")
-        spec["pixel_layer"] = specs.BoundedArray((height, width, 3), np.uint8, 0, 255, "pixel_layer")
+        spec["pixel_layer"] = specs.BoundedArray((height, width, 3), np.uint8, 0, 255,
+                                                 "pixel_layer")
         return spec
 
     def observe(self, physics):

@@ -105,6 +105,13 @@ DEEP_BEAM = 16
 DEEP_MOVES = 16
 
 
+def _confirmed(score) -> bool:
+    """Whether a `BoardCameraEstimator._search` score explains the frame: not
+    unfinished at the game's end, and no cell read surely contradicted or
+    changed."""
+    return not score[0] and score[1] == 0 and score[5] == 0
+
+
 class BoardCameraEstimator(Estimator):
     """The game from the camera: `BoardView` reads each frame, legal
     continuations of the last confirmed state explain it. See the module
@@ -357,7 +364,6 @@ class BoardCameraEstimator(Estimator):
         ``fractions`` (n, 2): each visible cell's share of each piece colour
         (NaN under the arm); with ``over`` (the episode ended with the game)
         only a finished game is accepted, if one is found."""
-        visible = ~np.isnan(fractions[:, 0])
         key = (tuple(anchor.history()), max_moves, beam, cells.tobytes(), self._touched,
                self._selected,
                np.round(np.nan_to_num(fractions, nan=-1.0) * 20).astype(np.int8).tobytes(), over)
@@ -365,11 +371,42 @@ class BoardCameraEstimator(Estimator):
             state, score = self._cache[key]
             return state.clone(), score
         self.searches += 1
+        score = self._scorer(anchor, cells, fractions, over)
+        start = anchor.clone()
+        best = (score(start), 0, start) if self._settled(start) else None
+        frontier = [start]
+        for depth in range(1, max_moves + 1):
+            children = self._expand(frontier, score)
+            if not children:
+                break
+            for s, child in children:
+                if self._settled(child) and (best is None or (s, depth) < (best[0], best[1])):
+                    best = (s, depth, child)
+            if best is not None and _confirmed(best[0]) and not best[0][4]:
+                break
+            frontier = self._beam(children, beam)
+        if best is None:      # nothing settled within reach: keep the estimate, unconfirmed
+            result = (self._belief.clone(), (True, len(cells), 0.0, 0, 1, len(cells)))
+        else:
+            result = (best[2], best[0])
+        if len(self._cache) > 256:
+            self._cache.clear()
+        self._cache[key] = (result[0].clone(), result[1])
+        return result
+
+    def _scorer(self, anchor, cells, fractions, over: bool):
+        """The score `_search` ranks a continuation ``state`` of ``anchor`` by,
+        lower is better: (not finished though the game is over, cells read
+        surely and contradicted, how far the visible cells' colour shares are
+        from the state's pieces, rewriting moves of the current estimate (two
+        orders of the same moves can give one board), not starting with the
+        move the touch before an arm reset played, changed cells not read
+        surely)."""
         game = self._game
+        visible = ~np.isnan(fractions[:, 0])
         seen = cells != UNSEEN
         base = game.players(anchor)
         shares = fractions[visible]
-
         played = None             # the action the touch before an arm reset played
         if self._touched is not None and anchor.current_player() == self._agent:
             zone = min(self._touched, game.num_zones - 1)
@@ -379,12 +416,6 @@ class BoardCameraEstimator(Estimator):
         believed = list(self._belief.history())
 
         def score(state):
-            """(not finished though the game is over, cells read surely and
-            contradicted, how far the visible cells' colour shares are from
-            the state's pieces, rewriting moves of the current estimate (two
-            orders of the same moves can give one board), not starting with
-            the move the touch before an arm reset played, changed cells not
-            read surely)."""
             players = game.players(state)
             wrong = int(np.count_nonzero(players[seen] != cells[seen]))
             pieces = np.stack([players[visible] == 0, players[visible] == 1], axis=1)
@@ -397,43 +428,33 @@ class BoardCameraEstimator(Estimator):
             rewrite = history[:common] != believed[:common]
             return (over and not state.is_terminal()), wrong, soft, int(rewrite), int(miss), blind
 
-        def confirmed(s):
-            return not s[0] and s[1] == 0 and s[5] == 0
+        return score
 
-        start = anchor.clone()
-        best = (score(start), 0, start) if self._settled(start) else None
-        frontier = [start]
-        for depth in range(1, max_moves + 1):
-            children = []
-            for state in frontier:
-                if state.is_terminal():
-                    continue
-                for action in state.legal_actions():
-                    child = state.child(action)
-                    self._settle(child)
-                    children.append((score(child), child))
-            if not children:
+    def _expand(self, frontier, score) -> list:
+        """Every legal move's child of the unfinished states of ``frontier``,
+        settled, as (score, child) pairs, best score first (stable)."""
+        children = []
+        for state in frontier:
+            if state.is_terminal():
+                continue
+            for action in state.legal_actions():
+                child = state.child(action)
+                self._settle(child)
+                children.append((score(child), child))
+        children.sort(key=lambda item: item[0])
+        return children
+
+    def _beam(self, children, beam: int) -> list:
+        """The next frontier: the first ``beam`` unfinished ``children`` (best
+        first), one per board and player to move."""
+        game = self._game
+        frontier, boards = [], set()
+        for _, child in children:
+            board = (game.players(child).tobytes(), child.current_player())
+            if board in boards or child.is_terminal():
+                continue
+            boards.add(board)
+            frontier.append(child)
+            if len(frontier) >= beam:
                 break
-            children.sort(key=lambda item: item[0])
-            for s, child in children:
-                if self._settled(child) and (best is None or (s, depth) < (best[0], best[1])):
-                    best = (s, depth, child)
-            if best is not None and confirmed(best[0]) and not best[0][4]:
-                break
-            frontier, boards = [], set()
-            for s, child in children:
-                board = (game.players(child).tobytes(), child.current_player())
-                if board in boards or child.is_terminal():
-                    continue
-                boards.add(board)
-                frontier.append(child)
-                if len(frontier) >= beam:
-                    break
-        if best is None:      # nothing settled within reach: keep the estimate, unconfirmed
-            result = (self._belief.clone(), (True, len(cells), 0.0, 0, 1, len(cells)))
-        else:
-            result = (best[2], best[0])
-        if len(self._cache) > 256:
-            self._cache.clear()
-        self._cache[key] = (result[0].clone(), result[1])
-        return result
+        return frontier

@@ -137,8 +137,8 @@ def box_centre(pts, side, px, walker_g, hidden=None, limits=None):
     (`hidden_edges`) says which edges may be hidden (they give only their
     one-sided bound); where it flags neither (or is None), a blob more than
     1.2 pixels shorter than the box along an axis is taken to be cut on the
-    side nearer the walker (an ear or the ball hides the near side). ``limits`` (`wall_limits`) narrows the
-    interval where walls stop the box.
+    side nearer the walker (an ear or the ball hides the near side).
+    ``limits`` (`wall_limits`) narrows the interval where walls stop the box.
     """
     centre = np.empty(2)
     for axis in range(2):

@@ -15,7 +15,7 @@ import numpy as np
 
 from abstract_planners.sokoban import SokobanState
 from hier_agents.estimators.base import EstimationError, Estimator
-from hier_agents.estimators.grid import cells_of, rounded_state
+from hier_agents.estimators.grid import cells_of
 from skills.scene import BallScene
 
 __all__ = ["OracleEstimator", "EntityLayerEstimator"]

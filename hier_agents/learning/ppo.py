@@ -38,7 +38,8 @@ import numpy as np
 import torch
 from torch import nn
 
-from physics_planning.cli import UsageError, fraction, non_negative_float, positive_float, positive_int
+from physics_planning.cli import (UsageError, fraction, non_negative_float, positive_float,
+                                  positive_int)
 
 SAME_STEP = gym.vector.AutoresetMode.SAME_STEP
 

@@ -63,9 +63,9 @@ options.pt``; figures in ``results/option_policy/``) is approach "D":
 400,384 abstract warm-start steps, then 4,096 OptionEnv option steps (86,264
 control frames, camera estimator, learned ball skill), 15.9 CPU minutes::
 
-    python -m hier_agents.learning.train_options mujoban/level1,mujoban/level2 --abstract-steps 400000 \
-        --option-steps 4000 --cpu-minutes 55 --envs 2 --seed 1 --skill learned-ball --eval-episodes 0 \
-        --logdir runs/options_D
+    python -m hier_agents.learning.train_options mujoban/level1,mujoban/level2 \
+        --abstract-steps 400000 --option-steps 4000 --cpu-minutes 55 --envs 2 --seed 1 \
+        --skill learned-ball --eval-episodes 0 --logdir runs/options_D
 
 It is the learned policy alone (no ``prune_dead_pushes``); approach "B"
 (150,528 abstract steps, 6,912 OptionEnv steps, ``results/option_policy/
@@ -106,8 +106,8 @@ from torch import nn
 from abstract_planners.learned_options import (OptionPolicyNet, policy_input,
                                                save_option_policy)
 from abstract_planners.sokoban import MOVES
-from physics_planning.cli import (Parser, UsageError, choice, non_negative_float, non_negative_int, plural,
-                      positive_float, positive_int, run_main)
+from physics_planning.cli import (Parser, UsageError, choice, non_negative_float, non_negative_int,
+                                  plural, positive_float, positive_int, run_main)
 from hier_agents.learning import ppo
 from hier_agents.learning.option_shaping import (ABSTRACT_DURATION,  # noqa: F401 (re-exported)
                                                   TIME_LIMIT_STEPS, AbstractOptionEnv, Shaped,

@@ -58,8 +58,9 @@ import numpy as np
 import torch
 from torch import nn
 
-from physics_planning.cli import (Parser, UsageError, choice, existing_file, fraction, non_negative_float,
-                      non_negative_int, output_file, plural, positive_int, run_main)
+from physics_planning.cli import (Parser, UsageError, choice, existing_file, fraction,
+                                  non_negative_float, non_negative_int, output_file, plural,
+                                  positive_int, run_main)
 from hier_agents.learning import ppo
 from hier_agents.learning.cloning import clone, warm_start_frames
 from hier_agents.learning.rundir import RunDir, seed_everything

@@ -31,6 +31,13 @@ class Leg:
     """
 
     __slots__ = ("pts", "seg", "limits", "push", "total", "args", "cell_lat")
+    pts: list
+    seg: list
+    limits: list
+    push: tuple | None
+    total: float
+    args: tuple
+    cell_lat: float
 
 
 def rebuild(description, config: BallConfig, leg: Leg, box_xy, start) -> Leg:
@@ -61,9 +68,7 @@ def make_leg(description, config: BallConfig, cells, push, box_xy, blocked, *, k
     leg = Leg()
     leg.args = (cells, push, blocked, keep)
     leg.push = None
-    chain = 0
     if push is not None:
-        chain = push[3]
         leg.push, leg.cell_lat = _push_line(frame, pts, push, box_xy)
     merged = merge_collinear(pts, leg.push[1] if leg.push is not None else (1.0, 0.0))
     # The straight run before meeting the box: the last segment minus the

@@ -36,6 +36,13 @@ class Trajectory:
 
     __slots__ = ("legs", "goal_boxes", "goal_player", "expected", "box_start",
                  "needs_settle", "pushed_boxes")
+    legs: list[Leg]
+    goal_boxes: frozenset
+    goal_player: tuple
+    expected: frozenset
+    box_start: list[tuple[float, float]]
+    needs_settle: bool
+    pushed_boxes: set
 
 
 def plan(description, config: BallConfig, subgoal, scene) -> Trajectory:

@@ -58,7 +58,8 @@ The skill trainer makes one from the ``ball`` spec
 (`hier_agents.learning.skills.ball`; ``results/learned_ball/`` records how the
 shipped one was trained and measured)::
 
-    python -m hier_agents.learning.train_skill ball --frames 80000 --bc-frames 20000 --dagger-frames 20000 --envs 2 --seed 0 --logdir runs/ball
+    python -m hier_agents.learning.train_skill ball --frames 80000 --bc-frames 20000 \
+        --dagger-frames 20000 --envs 2 --seed 0 --logdir runs/ball
     cp runs/ball/ball_policy.pt skills/learned/ball_policy.pt
 """
 

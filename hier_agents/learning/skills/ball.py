@@ -148,9 +148,8 @@ class BallSceneSource:
             if scene is None or level.timestep.last() or scene.state.is_solved():
                 return scene is not None and not level.timestep.last()
             subgoal = level.planner.next_push(scene.state)
-            result = run_option(level.counted, level.estimator, self._scripted, subgoal,
-                                level.timestep, adapter=FAMILIES["mujoban"],
-                                scene=scene)
+            run_option(level.counted, level.estimator, self._scripted, subgoal,
+                       level.timestep, adapter=FAMILIES["mujoban"], scene=scene)
             if level.timestep.last():
                 return False
         return True
