@@ -58,8 +58,9 @@ mean_return, mean_steps, subgoal_success_rate, episode_failures (reason ->
 count), wall_s, control_steps_per_s, plus planner, skill, seed, env_options,
 levels, episodes_requested, interrupted, finished, worker_restarts (how many
 times dead worker processes were replaced, `players.play_parallel`),
-provenance and per-episode rows; checkpoint agents add their condition, training frames, ``observations``
-(the input keys the policy reads) and ``privileged``.
+provenance and per-episode rows; checkpoint agents add their condition,
+training frames, ``observations`` (the input keys the policy reads) and
+``privileged``.
 """
 
 from __future__ import annotations
@@ -178,7 +179,7 @@ class _Run:
         self.played: list[tuple[dict, dict]] = []  # (row, subgoal counters)
         self.meta: dict = {}
         self.interrupted, self.restarts = False, 0
-        self.bar = None  # shown once the agent is built (a bad one: no bar)
+        self.bar: tqdm | None = None  # shown once the agent is built (a bad one: no bar)
 
     def go(self, workers: int, ray_address) -> dict:
         try:
@@ -196,10 +197,11 @@ class _Run:
                 self.bar.close()
         return self.summary(True)
 
-    def _start_bar(self) -> None:
+    def _start_bar(self) -> tqdm:
         if self.bar is None:
             self.bar = tqdm(total=len(self.indices), unit="episode", desc=self.play.env_name,
                             file=sys.stderr, disable=not self.progress)
+        return self.bar
 
     def built(self, info: dict) -> None:
         self._start_bar()
@@ -208,11 +210,11 @@ class _Run:
             self.on_progress(self.summary(False))
 
     def on_done(self, results, info: dict) -> None:
-        self._start_bar()
+        bar = self._start_bar()
         self.meta.update(info)
         self.played.extend(results)
-        self.bar.update(len(results))
-        self.bar.set_postfix(postfix([r for r, _ in self.played], family(self.play.env_name)))
+        bar.update(len(results))
+        bar.set_postfix(postfix([r for r, _ in self.played], family(self.play.env_name)))
         if self.on_progress is not None:
             self.on_progress(self.summary(False))
 
@@ -246,10 +248,10 @@ def _main(argv=None) -> int:
     save = None
     if checked.json is not None:
         from hier_agents.provenance import provenance
-        record = provenance()
+        record, out = provenance(), checked.json
 
         def save(summary: dict) -> None:
-            cli.write_json(checked.json, {**summary, "provenance": record})
+            cli.write_json(out, {**summary, "provenance": record})
     summary = run(checked.env, checked.episodes, args.seed, levels=checked.levels,
                   video=None if checked.video is None else str(checked.video),
                   agent=args.agent, options=checked.options,

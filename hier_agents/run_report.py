@@ -63,7 +63,7 @@ def summarize(env_name, fam, rows, totals: OptionStats, seed) -> dict:
                        "unfinished": totals.unfinished,
                        "failures": totals.failures,
                        "estimation_failures": totals.estimation_failures}
-    reasons = {}
+    reasons: dict[str, int] = {}
     for row in rows:
         if "failure_reason" in row:
             kind = row["failure_reason"].split(":", 1)[0]

@@ -120,7 +120,8 @@ CASES = [
      "--planner applies to the agents that take it (modular)"),
     ("run", ["mujoban/level1", "--agent", "random", "--levels", LEVELS],
      "--levels does not apply to --agent random"),
-    ("run", ["mujoban/level1", "--stochastic"], "--stochastic applies to the agents that take it (checkpoint)"),
+    ("run", ["mujoban/level1", "--stochastic"],
+     "--stochastic applies to the agents that take it (checkpoint)"),
     ("run", ["mujoban/level1", "--sed", "1"], "did you mean '--seed'"),
     # python -m envs
     ("envs", ["mujoban/levl1"], "did you mean 'mujoban/level1'"),

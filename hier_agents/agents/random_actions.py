@@ -38,7 +38,7 @@ class RandomAgent:
         self.episode_stats = OptionStats()
         self._rng = np.random.default_rng(_ACTIONS)
         self._steps = 0
-        self._action = None
+        self._action = np.zeros(action_spec.shape)
 
     def reset(self, description, timestep, seed: int | None = None) -> None:
         self._rng = np.random.default_rng([seed, _ACTIONS] if seed is not None else None)

@@ -80,9 +80,8 @@ class Player:
             # boundary (no simulator, no ground-truth layers; a board game's
             # record only for the agents that read it); the harness keeps
             # `env` to judge.
-            if setup.access == "simulator":
-                self.view = self.env
-            else:
+            self.view: BoundaryEnv | envs.Environment = self.env
+            if setup.access != "simulator":
                 strip = (PRIVILEGED_OBSERVATIONS if setup.access == "record"
                          else self.env.privileged_observations)
                 self.view = BoundaryEnv(self.env, strip=strip)
@@ -165,7 +164,7 @@ def play_each(player, play: Play, indices, each) -> None:
     """``each((row, counters))`` for every episode of ``indices`` in order;
     the video episode's frames are written when it ends."""
     for episode in indices:
-        frames = [] if play.video and episode == play.video_episode else None
+        frames: list | None = [] if play.video and episode == play.video_episode else None
         result = player.play(episode, frames)
         if frames:
             _write_video(play.video, frames, player.env.control_timestep)

@@ -101,8 +101,8 @@ def learned_files(env: str, parts: dict) -> dict:
         resolved = resolve(key, family(env), value)
         if not resolved.name.startswith("learned"):
             continue
-        path = resolved.arg if resolved.arg is not None else _shipped(key, resolved.name)
-        path = Path(path)
+        path = Path(str(resolved.arg)) if resolved.arg is not None \
+            else _shipped(key, resolved.name)
         if path.is_dir():
             found = sorted(path.glob("*_policy.pt")) or sorted(path.glob("*.pt"))
             path = found[0] if found else path
@@ -123,9 +123,10 @@ def _shipped(kind: str, name: str) -> Path:
 
 def plan(spec) -> list[Job]:
     """Every job of a spec (`hier_agents.compare.spec.Spec`), train jobs first."""
-    from hier_agents.agents import kind_of
+    from hier_agents.agents import resolve
 
     trains, evals = [], []
+    targets: list[tuple[dict, tuple, dict]]
     cpus = os.cpu_count() or 1
     for agent in spec.agents:
         for env in agent.envs:
@@ -141,9 +142,7 @@ def plan(spec) -> list[Job]:
                                  "stochastic": agent.stochastic}, (train.key,),
                                 {**point, "budget": b}) for b in agent.budgets]
                 else:
-                    kind = kind_of(agent.agent)
-                    arg = kind.parse(agent.agent.partition(":")[2]) if ":" in agent.agent \
-                        else kind.default()
+                    kind, arg = resolve(agent.agent)
                     targets = [(kind.job_inputs(env, arg, agent.options), (), point)]
                 for target, deps, where in targets:
                     evals.extend(_eval_jobs(env, target, seed, agent.episodes,

@@ -104,7 +104,7 @@ def series_cost(spec, jobs, records) -> list[dict]:
     ``cpu_partial_jobs``: jobs retried whose CPU covers only their last
     attempt (a lower bound; see the module docstring), also split by kind
     (``cpu_partial_train_jobs``, ``cpu_partial_eval_jobs``)."""
-    out = {}
+    out: dict[tuple, dict] = {}
     for job in jobs:
         record = records.get(job.key)
         if record is None:

@@ -38,7 +38,8 @@ names; the same as ``agent = "modular"`` with those options), ``train``
 ``actors``, ``envs_per_actor``, ``batch_size``, ``learning_rate``; not
 ``frames``, ``seed``, ``logdir``, which the plan sets) with ``budgets``
 (frame counts, each evaluated), or ``random`` (the hold, control steps per
-draw; the same as ``agent = "random:HOLD"``). ``envs``, ``seeds``, ``episodes`` may be overridden per agent. Seed
+draw; the same as ``agent = "random:HOLD"``). ``envs``, ``seeds``,
+``episodes`` may be overridden per agent. Seed
 ``s`` is an end-to-end run's training seed and, for every agent, the
 evaluation seed: episode ``e`` of seed ``s`` is seeded from ``(s, e)``
 (`envs.episode_seed`), so all agents meet the same levels at a seed.
@@ -107,7 +108,7 @@ class Spec:
     @property
     def envs(self) -> list[str]:
         """Every environment of the spec, in first-mention order."""
-        out = []
+        out: list[str] = []
         for agent in self.agents:
             out.extend(e for e in agent.envs if e not in out)
         return out

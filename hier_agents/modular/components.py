@@ -220,7 +220,7 @@ def _lazy_estimator(module: str, name: str):
 
     def factory(description, seed, simulator=None):
         return cls()()
-    factory.env_overrides = lambda: cls().env_overrides
+    factory.env_overrides = lambda: cls().env_overrides  # type: ignore[attr-defined]
     return factory
 
 
@@ -232,7 +232,7 @@ def _board(description, seed, simulator=None):
     return BoardEstimator()
 
 
-_board.reads_record = True
+_board.reads_record = True  # type: ignore[attr-defined]
 
 
 def _privileged(cls):
@@ -450,6 +450,7 @@ def make_agent(env_name: str, description, *, planner: str | None = None,
     fam = family(env_name)
     parts = {kind: resolve(kind, fam, spec).factory
              for kind, spec in (("estimator", estimator), ("planner", planner), ("skill", skill))}
-    return ModularAgent(parts["estimator"](description, seed, simulator),
-                        parts["planner"](description, seed),
-                        parts["skill"](description, seed), t_abs=t_abs)
+    estimator_, planner_, skill_ = (parts["estimator"](description, seed, simulator),
+                                    parts["planner"](description, seed),
+                                    parts["skill"](description, seed))
+    return ModularAgent(estimator_, planner_, skill_, t_abs=t_abs)  # type: ignore[arg-type]

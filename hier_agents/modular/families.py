@@ -243,10 +243,9 @@ class SokobanAdapter(FamilyAdapter):
 
     def score(self, task, timestep, reason: str | None) -> dict:
         # (after a failed reset the task still shows the last episode's end)
-        row = {"solved": timestep is not None and bool(getattr(task, "solved", False))}
-        if not row["solved"]:
-            row["failure_reason"] = reason or "time limit"
-        return row
+        solved = timestep is not None and bool(getattr(task, "solved", False))
+        return {"solved": True} if solved else {"solved": False,
+                                                 "failure_reason": reason or "time limit"}
 
     def success(self, task) -> bool:
         return bool(task.solved)

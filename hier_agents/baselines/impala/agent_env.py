@@ -63,7 +63,8 @@ Rewards and discounts (`StepResult`):
   belongs to a new episode and there is nothing to bootstrap from.
 * The auxiliary task runs in sub-episodes. At a sub-episode's start the
   ground-truth estimator (``entity-layer`` for MuJoBan, privileged as in the
-  paper; ``board`` for the board games) estimates the abstract state and the planner proposes ONE transition
+  paper; ``board`` for the board games) estimates the abstract state and the
+  planner proposes ONE transition
   (``planner.plan(state)``: one Sokoban move, one board move); the current
   state and the target stay fixed for the sub-episode (the paper's appendix).
   The sub-episode ends
@@ -170,8 +171,8 @@ class AgentEnv:
         self.gamma_env = _gamma(gamma_env, discounts[0], "gamma_env")
         self.gamma_abs = _gamma(gamma_abs, discounts[1], "gamma_abs")
         self._closed = False
-        self.inputs = None
         self.env = _load_env(env_name, self.seed, image_size, cameras, overrides)
+        planner = None
         try:
             description = self.env.description()
             planner, estimator = make_auxiliary(condition, description, self.seed, self.env)
@@ -182,7 +183,9 @@ class AgentEnv:
                                       gamma_abs=self.gamma_abs)
             self._actions = ActionMap(self.env.action_spec())
         except BaseException:
-            self.close()
+            if planner is not None:
+                planner.close()
+            self.env.close()
             raise
         self.input_spec = self.inputs.spec
         self._episode = -1
@@ -243,11 +246,8 @@ class AgentEnv:
         if self._closed:
             return
         self._closed = True
-        if self.inputs is not None:
-            self.inputs.close()
-        env = getattr(self, "env", None)
-        if env is not None:
-            env.close()
+        self.inputs.close()
+        self.env.close()
 
     def __enter__(self):
         return self
