@@ -54,7 +54,12 @@ class WorkerDied(RuntimeError):
 
 
 class CallFailed(RuntimeError):
-    """A call raised in its worker (the message holds the worker's traceback)."""
+    """A call raised in its worker: ``call`` (its `Call`) and ``details``
+    (the worker's traceback, also in the message)."""
+
+    def __init__(self, message: str, call=None, details: str = ""):
+        super().__init__(message)
+        self.call, self.details = call, details
 
 
 def exit_status(code: int | None) -> str:
@@ -95,7 +100,8 @@ class Deaths:
         for key in keys:
             self.counts[key] = self.counts.get(key, 0) + 1
         worst = max((self.counts[k] for k in keys), default=0)
-        what = ", ".join(labels) or "nothing under way"
+        what = ", ".join(label if labels.count(label) == 1 else f"{label} (x{labels.count(label)})"
+                         for label in dict.fromkeys(labels)) or "nothing under way"
         if worst > self.retries:
             raise WorkerDied(f"a worker process died {worst} times running {what} ({how}); "
                              "giving up")
@@ -265,7 +271,7 @@ class Pool:
                 call_id, ok, payload = done
                 call = self._calls.pop(call_id)
                 if not ok:
-                    raise CallFailed(f"{call.label} failed:\n{payload}")
+                    raise CallFailed(f"{call.label} failed:\n{payload}", call, payload)
                 call.result = payload
                 return call
             if deadline is not None and time.monotonic() > deadline:
