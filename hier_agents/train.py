@@ -54,19 +54,16 @@ import dataclasses
 import json
 import sys
 
-from physics_planning.cli import Parser, choice, non_negative_int, positive_float, positive_int, run_main
+from physics_planning.cli import Parser, non_negative_int, positive_float, positive_int, run_main
+from hier_agents.baselines.impala.config import OBSERVATIONS, PRESETS  # noqa: F401 - re-exported
 
 PROG = "python -m hier_agents.train"
-#: ``--observations`` values.
-OBSERVATIONS = ("cameras", "main-camera", "proprio")
-#: ``--preset`` values: flag defaults they replace (explicit flags still win).
-PRESETS = {"cpu": {"observations": "main-camera", "image_size": 48, "envs_per_actor": 8}}
 
 
 def build_parser() -> Parser:
     """The command's parser; its defaults are `TrainConfig`'s."""
     from hier_agents.baselines.impala.agent_env import CONDITIONS
-    from hier_agents.baselines.impala.learner import PAPER_BATCH, TrainConfig
+    from hier_agents.baselines.impala.config import PAPER_BATCH, TrainConfig
     from physics_planning.cli import non_negative_float
 
     default = {f.name: f.default for f in dataclasses.fields(TrainConfig)
@@ -128,39 +125,23 @@ def build_parser() -> Parser:
 
 
 def parse_args(argv=None) -> argparse.Namespace:
-    """Parses ``argv`` (``--preset`` first: it sets defaults the other flags
-    override) and checks the names (`UsageError` with the closest valid one)."""
+    """Parses ``argv``: the flags given, the others None (their defaults,
+    and the ``--preset``'s, are `TrainConfig.from_options`'s to apply)."""
     parser = build_parser()
-    preset = parser.parse_known_args(argv)[0].preset
-    if preset is not None:
-        parser.set_defaults(**PRESETS[choice("preset", preset, PRESETS)])
-    args = parser.parse_args(argv)
-    choice("--observations value", args.observations, OBSERVATIONS)
-    return args
+    parser.parse_args(argv)  # --help shows, and errors name, the documented defaults
+    parser.set_defaults(**{action.dest: None for action in parser._actions
+                           if action.dest not in ("help", "env")})
+    return parser.parse_args(argv)
 
 
 def config_from_args(args):
-    """The `TrainConfig` of parsed arguments, checked (`TrainConfig.validate`;
-    `UsageError`), before anything is built but the main-camera look-up."""
-    from hier_agents.baselines.impala.learner import TrainConfig
+    """The `TrainConfig` of parsed arguments (`TrainConfig.from_options`:
+    checked, `UsageError`), before anything is built but the main-camera
+    look-up."""
+    from hier_agents.baselines.impala.config import TrainConfig
 
-    config = TrainConfig(env=args.env, condition=args.condition, steps=args.frames,
-                         actors=args.actors, envs_per_actor=args.envs_per_actor,
-                         backend=args.backend, ray_address=args.ray_address,
-                         logdir=args.logdir, unroll_length=args.unroll_length,
-                         batch_size=args.batch_size, learning_rate=args.learning_rate,
-                         entropy_cost=args.entropy_cost, abs_reward=args.abs_reward,
-                         cameras=args.observations != "proprio", image_size=args.image_size,
-                         state=args.state, seed=args.seed,
-                         checkpoint_every_s=args.checkpoint_every, log_every_s=args.log_every,
-                         keep_checkpoints=args.keep_checkpoints,
-                         save_at=tuple(sorted(set(args.save_at))),
-                         progress=not args.no_progress)
-    config.validate()
-    if args.observations == "main-camera":
-        from hier_agents.baselines.impala.agent_env import main_camera_only
-        config.env_overrides.update(main_camera_only(args.env))
-    return config
+    options = {key: value for key, value in vars(args).items() if key != "env"}
+    return TrainConfig.from_options(args.env, options)
 
 
 def _main(argv) -> int:

@@ -485,33 +485,37 @@ def test_a_worker_killed_mid_run_is_replaced_and_the_rows_are_those_of_one_worke
     assert "killed by SIGKILL" in capfd.readouterr().err
 
 
-def test_a_broken_pool_names_how_its_worker_died_not_the_sigterm_sent_to_the_rest():
-    from hier_agents.players import _death
+def test_a_dead_pool_names_how_its_worker_died_not_the_sigterm_sent_to_the_rest():
+    from hier_agents.executor import death
 
-    assert _death([-15, -9, None]) == "killed by SIGKILL"
-    assert _death([0, -6, -6]) == "killed by SIGABRT"
-    assert _death([-15, -15]) == "killed by SIGTERM"
-    assert _death([3, None]) == "exit code 3"
-    assert _death([None, 0]) == "exit status unknown"
+    assert death([-15, -9, None]) == "killed by SIGKILL"
+    assert death([0, -6, -6]) == "killed by SIGABRT"
+    assert death([-15, -15]) == "killed by SIGTERM"
+    assert death([3, None]) == "exit code 3"
+    assert death([None, 0]) == "exit status unknown"
 
 
-def test_workers_that_keep_dying_stop_the_run_with_a_clear_error(monkeypatch):
-    from concurrent.futures.process import BrokenProcessPool
-
+def test_workers_that_keep_dying_stop_the_run_with_a_clear_error(monkeypatch, capfd):
     from hier_agents import players
 
-    calls = []
-
-    def dies(play, pieces, workers, on_done):
-        calls.append(len(pieces))
-        exc = BrokenProcessPool("gone")
-        exc.reason = "killed by SIGABRT"
-        raise exc
-
-    monkeypatch.setattr(players, "_play_pool", dies)
+    monkeypatch.setattr(players, "ShardWorker", _AbortingWorker)
     with pytest.raises(players.WorkerDied, match="SIGABRT"):
         run("mujoban/level1", 4, 0, agent="random:10", progress=False, workers=2)
-    assert len(calls) == players.WORKER_RETRIES + 1
+    lines = capfd.readouterr().err.splitlines()
+    retries = [line for line in lines if "a worker process died (killed by SIGABRT)" in line]
+    assert retries and all(" again in a new process (retry " in line for line in retries)
+    assert f"(retry {players.WORKER_RETRIES} of {players.WORKER_RETRIES})" in retries[-1]
+    assert not any(f"retry {players.WORKER_RETRIES + 1}" in line for line in lines)
+
+
+class _AbortingWorker:
+    """A shard worker whose process aborts at its first shard."""
+
+    def __init__(self, play, index=0):
+        pass
+
+    def play(self, indices):
+        os.abort()
 
 
 def test_a_modular_episode_plays_the_same_whatever_the_episodes_before():

@@ -7,13 +7,19 @@ CPUs are free (evaluations that can run before trainings, so results arrive
 as the experiment runs), stores each result as it arrives, retries a failed job
 (``retries`` times), and prints a line per start and end with the count
 done. Every job runs in its own process (``python -m
-hier_agents.compare.jobs``), which dies with its parent.
+hier_agents.compare.jobs``), which dies with its parent: jobs differ in the
+CPUs they take and share nothing, so each gets a fresh process rather than a
+kept `hier_agents.executor.Pool` worker. A job whose process dies (a signal,
+a lost Ray worker or node) is run again under the executor's one retry policy
+(`hier_agents.executor.Deaths`: the same stderr line, at most
+`WORKER_RETRIES` times, then the job fails with `WorkerDied`'s message);
+``retries`` is for jobs that fail (exit status 1: an error in the job).
 
 * ``local``: up to ``cpus`` CPUs of this machine (default: all), a job taking
   its ``cpus`` (a train job its actors, an evaluation one).
 * ``ray``: each job is a Ray task with ``num_cpus`` its CPUs, on the cluster
-  at ``ray_address`` (``auto``: the one ``ray start`` made). A task whose
-  worker or node dies is retried by Ray (``max_retries``); the cache folder
+  at ``ray_address`` (``auto``: the one ``ray start`` made; an address with
+  nothing behind it is a one-line `UsageError`). The cache folder
   must be one every node sees (a shared filesystem) when training jobs run
   on other machines than their evaluations.
 """
@@ -31,20 +37,13 @@ import time
 from pathlib import Path
 
 from hier_agents.compare.jobs import Job, artifacts_present, load_record, store_record
+from hier_agents.executor import Deaths, WorkerDied, die_with_parent, exit_status
 
 _ROOT = Path(__file__).resolve().parents[2]
 
 
 class JobFailed(RuntimeError):
     """A job failed after its retries."""
-
-
-def _die_with_parent() -> None:  # pragma: no cover - runs in the child before exec
-    try:
-        import ctypes
-        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
-    except OSError:
-        pass
 
 
 def job_process(job: Job, cache: Path, log: Path) -> tuple[int, float]:
@@ -63,7 +62,7 @@ def job_process(job: Job, cache: Path, log: Path) -> tuple[int, float]:
         with open(log, "a") as out:
             proc = subprocess.Popen([sys.executable, "-m", "hier_agents.compare.jobs",
                                      spec_file, str(cache)], stdout=out, stderr=out, env=env,
-                                    preexec_fn=_die_with_parent)
+                                    preexec_fn=die_with_parent)
             _, status, usage = os.wait4(proc.pid, 0)
             proc.returncode = os.waitstatus_to_exitcode(status)
     finally:
@@ -161,12 +160,24 @@ def _skip_blocked(pending, blocked, finished) -> None:
         finished(job, None, "a job it needs failed")
 
 
+def _died(deaths: Deaths, job: Job, how: str, where: str, finished) -> bool:
+    """The executor's retry policy for a job whose process died: True if it
+    runs again, else the job is `finished` as failed (`WorkerDied`)."""
+    try:
+        deaths.died([job.key], [job.describe()], how, where)
+        return True
+    except WorkerDied as exc:
+        finished(job, None, str(exc))
+        return False
+
+
 def _run_local(todo, cache, slots, retries, ready, blocked, finished, starts, progress):
     pending = list(todo)
     running: dict[str, threading.Thread] = {}
     results: dict[str, tuple[int, float]] = {}
     lock = threading.Condition()
     attempts: dict[str, int] = {}
+    deaths = Deaths()
     used = 0
 
     def work(job):
@@ -186,6 +197,10 @@ def _run_local(todo, cache, slots, retries, ready, blocked, finished, starts, pr
                 record = load_record(cache, key) if status == 0 else None
                 if record is not None:
                     finished(job, record)
+                elif status < 0:  # its process died: the executor's policy
+                    if _died(deaths, job, exit_status(status), "process", finished):
+                        attempts[key] -= 1
+                        pending.insert(0, job)
                 elif attempts[key] <= retries:
                     progress(f"retrying {job.describe()} (exit status {status}; log "
                              f"{cache / 'logs' / (key + '.log')})")
@@ -220,6 +235,9 @@ def _run_ray(todo, cache, cpus, address, retries, ready, blocked, finished, star
     pending = list(todo)
     running = {}
     attempts: dict[str, int] = {}
+    deaths = Deaths()
+    lost = (ray.exceptions.RayActorError, ray.exceptions.WorkerCrashedError,
+            ray.exceptions.NodeDiedError, ray.exceptions.ObjectLostError)
     while pending or running:
         _skip_blocked(pending, blocked, finished)
         for job in [j for j in pending if ready(j)]:
@@ -227,7 +245,7 @@ def _run_ray(todo, cache, cpus, address, retries, ready, blocked, finished, star
             attempts[job.key] = attempts.get(job.key, 0) + 1
             starts.setdefault(job.key, time.perf_counter())
             progress(f"start  {job.describe()}")
-            ref = task.options(num_cpus=job.cpus, max_retries=3,
+            ref = task.options(num_cpus=job.cpus, max_retries=0,
                                retry_exceptions=False).remote(job.to_json(), str(cache))
             running[ref] = job
         if not running:
@@ -239,6 +257,12 @@ def _run_ray(todo, cache, cpus, address, retries, ready, blocked, finished, star
             job = running.pop(ref)
             try:
                 record = ray.get(ref)
+            except lost as exc:  # its worker or node died: the executor's policy
+                how = f"{type(exc).__name__}: {str(exc).strip().splitlines()[0][:120]}"
+                if _died(deaths, job, how, "Ray task", finished):
+                    attempts[job.key] -= 1
+                    pending.insert(0, job)
+                continue
             except Exception as exc:  # noqa: BLE001 - a failed task, reported below
                 if attempts[job.key] <= retries:
                     progress(f"retrying {job.describe()} ({type(exc).__name__})")

@@ -204,22 +204,26 @@ def execute(job: Job, cache: Path) -> dict:
     cache = Path(cache)
     inputs = job.inputs
     if job.kind == "train":
-        from hier_agents import train as trainer
+        from hier_agents.baselines.impala.config import TrainConfig
+        from hier_agents.baselines.impala.learner import train
         from hier_agents.compare.spec import train_argv
 
         logdir = train_dir(cache, job.key)
-        argv = train_argv(inputs["env"], inputs["train"], frames=inputs["frames"],
-                          seed=inputs["seed"], logdir=str(logdir),
-                          save_at=inputs["save_at"]) + ["--no-progress", "--log-every", "30",
-                                                           "--checkpoint-every", "120"]
-        config = trainer.config_from_args(trainer.parse_args(argv))
-        from hier_agents.baselines.impala.learner import train
+        planned = {"frames": inputs["frames"], "seed": inputs["seed"], "logdir": str(logdir),
+                   "save_at": list(inputs["save_at"]), "no_progress": True, "log_every": 30.0,
+                   "checkpoint_every": 120.0}
+        config = TrainConfig.from_options(inputs["env"], {**inputs["train"], **planned})
         counters = train(config)
         counters.pop("last_stats", None)
         missing = [b for b in inputs["save_at"] if not checkpoint_of(cache, job.key, b).is_file()]
         if missing:
             raise RuntimeError(f"training ended at {counters.get('frames')} frames without "
                                f"checkpoints at {missing}")
+        # The command that trains the same run, for a reader of the record.
+        argv = train_argv(inputs["env"], inputs["train"], frames=inputs["frames"],
+                          seed=inputs["seed"], logdir=str(logdir),
+                          save_at=inputs["save_at"]) + ["--no-progress", "--log-every", "30",
+                                                           "--checkpoint-every", "120"]
         return {"counters": counters, "argv": argv}
     from hier_agents.agents import kind_of
     from hier_agents.run import run

@@ -180,21 +180,22 @@ def train_argv(env: str, train: dict, *, frames: int | None = None, seed: int | 
 
 
 def _check_train(env: str, train: dict, budgets: tuple, where: str) -> None:
-    from hier_agents import train as trainer
+    """Checks a ``train`` table as the plan will use it (`TrainConfig.from_options`
+    with the largest budget, seed 0 and every budget kept)."""
+    from hier_agents.baselines.impala.config import OPTIONS, TrainConfig
 
     for key in train:
         if key in PLANNED_TRAIN_KEYS:
             raise UsageError(f"{where}: train.{key} is set by the plan (budgets, seeds, the "
                              f"cache), not by the spec")
-        if not isinstance(train[key], (bool, int, float, str)):
-            raise UsageError(f"{where}: train.{key} must be a number, a string or a boolean")
+        if key not in OPTIONS:
+            valid = sorted(set(OPTIONS) - set(PLANNED_TRAIN_KEYS))
+            raise UsageError(f"{where}: the train table is not valid python -m "
+                             f"hier_agents.train flags: unknown key {key!r}"
+                             f"{cli.close_hint(key, valid)}; valid: {', '.join(valid)}")
     try:
-        args = trainer.parse_args(train_argv(env, train, frames=max(budgets), seed=0,
-                                             save_at=budgets))
-        trainer.config_from_args(args)
-    except SystemExit:  # argparse: an unknown flag or a bad value
-        raise UsageError(f"{where}: the train table is not valid python -m hier_agents.train "
-                         f"flags: {sorted(train)}") from None
+        TrainConfig.from_options(env, {**train, "frames": max(budgets), "seed": 0,
+                                       "save_at": list(budgets)})
     except UsageError as exc:
         raise UsageError(f"{where}: {exc}") from None
 

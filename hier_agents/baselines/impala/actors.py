@@ -20,51 +20,36 @@ and returns one `Unroll` per environment:
 * ``stream``: ``(actor_id, env_index)``; a stream's unrolls arrive in order;
 * ``episodes``: stats of the episodes that ended during the unroll.
 
-Backends: `LocalActors` runs each actor in its own process (``spawn``),
-reading the learner's weights from shared memory whenever the learner
-publishes a new version; `RayActors` runs the same `Actor` class as Ray
-actors and sends weights through Ray's object store. Both offer ``get()``,
-which blocks until some actor's unrolls are ready (or returns None as soon
-as its ``should_stop`` callback says so: the learner was interrupted), and
-``close()``. Actor processes ignore SIGINT: Ctrl-C in a terminal reaches the
-whole process group, and the learner, not each actor, decides how to stop
-(finish the update, save a checkpoint, then stop the actors).
+Backends, both an `hier_agents.executor.Pool` of ``num_actors`` workers that
+each hold one `Actor` and keep two unroll calls in flight (so an actor starts
+its next unroll while the learner steps): `LocalActors` runs them in spawned
+processes, which read the learner's weights from shared memory whenever the
+learner publishes a new version; `RayActors` runs them as Ray actors and
+sends weights through Ray's object store. Both offer ``publish(net)``,
+``get()``, which blocks until some actor's unrolls are ready (or returns None
+as soon as its ``should_stop`` callback says so: the learner was
+interrupted), and ``close()``. An actor whose process dies is replaced and its
+unrolls run again (the executor's one retry policy: a line on stderr, then
+`WorkerDied`); one that raises stops the learner with its traceback. Actor
+processes ignore SIGINT: Ctrl-C in a terminal reaches the whole process group,
+and the learner, not each actor, decides how to stop (finish the update, save
+a checkpoint, then stop the actors).
 """
 
 from __future__ import annotations
 
-import dataclasses
-import os
-import queue
-import signal
 import time
-import traceback
+from functools import partial
 from typing import Callable
 
 import numpy as np
 
-from hier_agents.modular.options import T_ABS
-
-
-@dataclasses.dataclass
-class ActorConfig:
-    """What an actor needs to build its environments and its network."""
-
-    env: str
-    condition: str
-    unroll_length: int = 100
-    envs_per_actor: int = 4
-    cameras: bool = False
-    image_size: int = 96
-    state: bool = False
-    t_abs: int = T_ABS
-    abs_reward: float = 1.0
-    seed: int = 0
-    env_overrides: dict = dataclasses.field(default_factory=dict)
+from hier_agents.baselines.impala.config import TrainConfig
+from hier_agents.executor import CallFailed, Pool
 
 
 _BINARY_KEYS = frozenset({"planner", "planner_action", "state"})
-_POLL_S = 0.5  # how often a waiting learner checks for a stop request or a dead actor
+IN_FLIGHT = 2  # unroll calls queued per actor: it starts the next while the learner steps
 
 
 def _state_rows(state, index: int) -> list[np.ndarray]:
@@ -89,9 +74,10 @@ def stack_states(rows: list[list[np.ndarray]], like) -> tuple:
 
 
 class Actor:
-    """Steps ``envs_per_actor`` environments with the current policy."""
+    """Steps ``envs_per_actor`` environments with the current policy; its
+    environments are seeded from ``config.seed`` and ``actor_id``."""
 
-    def __init__(self, config: ActorConfig, actor_id: int):
+    def __init__(self, config: TrainConfig, actor_id: int):
         import torch
 
         from hier_agents.baselines.impala.agent_env import AgentEnv
@@ -183,61 +169,93 @@ class Actor:
             env.close()
 
 
-# -- local processes ------------------------------------------------------------------------
+# -- the two backends -----------------------------------------------------------------------
 
 
-def _local_worker(config: ActorConfig, actor_id: int, shared_net, version, out_queue,
-                  stop_event) -> None:
-    """Process body: copy the shared weights when they change, unroll, queue;
-    stops when ``stop_event`` is set or the learner's process is gone (killed
-    without closing its actors, e.g. out of memory)."""
-    # Ctrl-C signals the whole process group; the learner stops us through stop_event.
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    os.environ.setdefault("MUJOCO_GL", "egl")
-    learner = os.getppid()
-    actor = None
-    try:
-        actor = Actor(config, actor_id)
-        seen = -1
-        while not stop_event.is_set() and os.getppid() == learner:
-            weights = None
-            if version.value != seen:
-                seen = version.value
-                weights = {k: v.clone() for k, v in shared_net.state_dict().items()}
-            unrolls = actor.unroll(weights)
-            for u in unrolls:
-                u["policy_version"] = seen
-            while not stop_event.is_set() and os.getppid() == learner:
-                try:
-                    out_queue.put(("unrolls", actor_id, unrolls), timeout=0.5)
-                    break
-                except queue.Full:
-                    continue
-    except Exception:  # report, do not die silently
-        out_queue.put(("error", actor_id, traceback.format_exc()))
-    finally:
-        if actor is not None:
-            actor.close()
+class _Actors:
+    """What both backends share: a `Pool` of actors, ``IN_FLIGHT`` unroll
+    calls each, ``get`` and ``close``."""
+
+    pool: Pool
+
+    def _start(self, num_actors: int) -> None:
+        for actor_id in range(num_actors):
+            for _ in range(IN_FLIGHT):
+                self._submit(actor_id)
+
+    def _submit(self, actor_id: int) -> None:
+        self.pool.submit("unroll", *self._unroll_args(), worker=actor_id,
+                         label=f"actor {actor_id}'s unroll")
+
+    def _unroll_args(self) -> tuple:
+        return ()
+
+    @property
+    def restarts(self) -> int:
+        """Actors replaced after their process died."""
+        return self.pool.restarts
+
+    def get(self, timeout: float = 600.0,
+            should_stop: Callable[[], bool] | None = None) -> list[dict] | None:
+        """The next actor's unrolls (that actor's next unroll is queued), or
+        None once ``should_stop()`` is true.
+
+        Raises:
+          RuntimeError: an actor raised (``actor N failed:`` and its
+            traceback), or no unroll came within ``timeout`` seconds.
+          WorkerDied: an actor's process died more than `WORKER_RETRIES`
+            times running one unroll.
+        """
+        try:
+            call = self.pool.next(timeout, should_stop)
+        except CallFailed as exc:
+            raise RuntimeError(f"actor {exc.call.worker} failed:\n{exc.details}") from None
+        except TimeoutError:
+            raise RuntimeError(f"no unroll from any actor within {timeout:.0f} s") from None
+        if call is None:
+            return None
+        self._submit(call.worker)
+        return call.result
+
+    def close(self) -> None:
+        self.pool.close()
 
 
-class LocalActors:
+class _SharedWeightsActor:
+    """A local actor's worker: an `Actor` that copies the shared net's
+    weights before an unroll when their version changed."""
+
+    def __init__(self, config: TrainConfig, shared_net, version, actor_id: int):
+        self.actor, self.shared, self.version, self.seen = Actor(config, actor_id), \
+            shared_net, version, -1
+
+    def unroll(self) -> list[dict]:
+        weights = None
+        if self.version.value != self.seen:
+            self.seen = self.version.value
+            weights = {k: v.clone() for k, v in self.shared.state_dict().items()}
+        unrolls = self.actor.unroll(weights)
+        for u in unrolls:
+            u["policy_version"] = self.seen
+        return unrolls
+
+    def close(self) -> None:
+        self.actor.close()
+
+
+class LocalActors(_Actors):
     """``num_actors`` actor processes fed from a shared-memory copy of the net."""
 
-    def __init__(self, config: ActorConfig, num_actors: int, net, *, max_queued: int = 4):
+    def __init__(self, config: TrainConfig, num_actors: int, net):
         import torch.multiprocessing as mp
 
-        ctx = mp.get_context("spawn")
+        ctx = mp.get_context("spawn")  # torch's: the shared net travels as shared memory
         self._shared = net
         self._shared.share_memory()
         self._version = ctx.Value("l", 0)
-        self._queue = ctx.Queue(maxsize=max(1, max_queued))
-        self._stop = ctx.Event()
-        self._procs = [ctx.Process(target=_local_worker, daemon=True,
-                                   args=(config, i, self._shared, self._version, self._queue,
-                                         self._stop), name=f"impala-actor-{i}")
-                       for i in range(num_actors)]
-        for p in self._procs:
-            p.start()
+        factory = partial(_SharedWeightsActor, config, self._shared, self._version)
+        self.pool = Pool(factory, num_actors, name="impala-actor", context=ctx)
+        self._start(num_actors)
 
     def publish(self, net) -> None:
         """Makes ``net``'s weights the actors' policy (in place, shared memory)."""
@@ -246,131 +264,44 @@ class LocalActors:
         with self._version.get_lock():
             self._version.value += 1
 
-    def get(self, timeout: float = 600.0,
-            should_stop: Callable[[], bool] | None = None) -> list[dict] | None:
-        """The next actor's unrolls, or None once ``should_stop()`` is true.
 
-        Raises RuntimeError with the actor's traceback if one failed, at once
-        if an actor process died without a word (killed, out of memory), and
-        after ``timeout`` seconds without any unroll.
-        """
-        deadline = time.monotonic() + timeout
-        while True:
-            if should_stop is not None and should_stop():
-                return None
-            self._check_alive()
-            try:
-                kind, actor_id, payload = self._queue.get(timeout=_POLL_S)
-                break
-            except queue.Empty:
-                pass
-            if time.monotonic() > deadline:
-                raise RuntimeError(f"no unroll from any actor within {timeout:.0f} s "
-                                   f"(actors alive: {[p.is_alive() for p in self._procs]})")
-        if kind == "error":
-            raise RuntimeError(f"actor {actor_id} failed:\n{payload}")
-        return payload
-
-    def _check_alive(self) -> None:
-        """Raises if an actor process has exited (the learner would starve or skew)."""
-        dead = [(i, p.exitcode) for i, p in enumerate(self._procs) if not p.is_alive()]
-        if not dead:
-            return
-        # A failing actor queues its traceback before it exits: report that first.
-        for _ in range(4 * len(self._procs) + 8):  # what the queue holds, not a live stream
-            try:
-                kind, actor_id, payload = self._queue.get(timeout=_POLL_S)
-            except queue.Empty:
-                break
-            if kind == "error":
-                raise RuntimeError(f"actor {actor_id} failed:\n{payload}")
-        raise RuntimeError("actor process(es) exited without reporting an error "
-                           "(actor id, exit code): " + repr(dead))
-
-    def close(self) -> None:
-        self._stop.set()
-        # Drain so blocked puts return, then join.
-        for _ in range(64):
-            try:
-                self._queue.get_nowait()
-            except (queue.Empty, OSError, ValueError):
-                break
-        for p in self._procs:
-            p.join(timeout=10)
-            if p.is_alive():
-                p.terminate()
-                p.join(timeout=5)
-
-
-# -- Ray ----------------------------------------------------------------------------------
-
-
-class RayActors:
+class RayActors(_Actors):
     """The same `Actor` class, run as Ray actors (one CPU each).
 
     Uses a running Ray cluster when ``address`` is given (``"auto"`` for the
     one ``ray start`` made), else starts a local one. Weights go through the
     object store once per `publish`.
+
+    Raises:
+      UsageError: no Ray cluster answers at ``address``.
     """
 
-    def __init__(self, config: ActorConfig, num_actors: int, net, *, address: str | None = None):
-        try:
-            import ray
-        except ImportError as exc:  # pragma: no cover - ray is a dependency
-            raise RuntimeError("--backend ray needs the `ray` package: pip install ray") from exc
-        from hier_agents.cluster import connect, remote
+    def __init__(self, config: TrainConfig, num_actors: int, net, *, address: str | None = None):
+        self._weights_ref, self._version = None, 0
+        self.pool = Pool(partial(_RayActor, config), num_actors, address=address or "local",
+                         name="impala-actor")
+        import ray
 
         self._ray = ray
-        connect(address, num_cpus=None if address else max(num_actors, 1) + 1,
-                log_to_driver=True)
-        remote_cls = remote(_RayActor, num_cpus=1)
-        self._actors = [remote_cls.remote(config, i) for i in range(num_actors)]
-        self._weights_ref = None
-        self._version = 0
         self.publish(net)
-        # The weights ref travels inside a list so Ray does not fetch it for
-        # actors whose weights are already current.
-        self._pending = {a.unroll.remote([self._weights_ref], self._version): a
-                         for a in self._actors}
+        self._start(self.pool.size)
 
     def publish(self, net) -> None:
         weights = {k: v.detach().cpu().clone() for k, v in net.state_dict().items()}
         self._weights_ref = self._ray.put(weights)
         self._version += 1
 
-    def get(self, timeout: float = 600.0,
-            should_stop: Callable[[], bool] | None = None) -> list[dict] | None:
-        """As `LocalActors.get`; an actor's exception is re-raised with its traceback."""
-        ray = self._ray
-        deadline = time.monotonic() + timeout
-        while True:
-            if should_stop is not None and should_stop():
-                return None
-            ready, _ = ray.wait(list(self._pending), num_returns=1, timeout=_POLL_S)
-            if ready:
-                break
-            if time.monotonic() > deadline:
-                raise RuntimeError(f"no unroll from any Ray actor within {timeout:.0f} s")
-        ref = ready[0]
-        actor = self._pending.pop(ref)
-        unrolls = ray.get(ref)  # re-raises the actor's exception with its traceback
-        self._pending[actor.unroll.remote([self._weights_ref], self._version)] = actor
-        return unrolls
-
-    def close(self) -> None:
-        ray = self._ray
-        for a in self._actors:
-            try:
-                ray.kill(a)
-            except Exception:
-                pass
-        self._pending.clear()
+    def _unroll_args(self) -> tuple:
+        # The weights ref travels inside a list so Ray does not fetch it for
+        # actors whose weights are already current.
+        return [self._weights_ref], self._version
 
 
 class _RayActor:
-    """Ray wrapper: the actor's last weights version, so unchanged weights are not reloaded."""
+    """A Ray actor's worker: the actor's last weights version, so unchanged
+    weights are not reloaded."""
 
-    def __init__(self, config: ActorConfig, actor_id: int):
+    def __init__(self, config: TrainConfig, actor_id: int):
         self._actor = Actor(config, actor_id)
         self._version = -1
 
@@ -383,3 +314,6 @@ class _RayActor:
         for u in unrolls:
             u["policy_version"] = version
         return unrolls
+
+    def close(self) -> None:
+        self._actor.close()

@@ -48,93 +48,14 @@ from pathlib import Path
 
 import numpy as np
 
-from physics_planning.cli import UsageError, choice, plural
-from hier_agents.baselines.impala.actors import ActorConfig, LocalActors, RayActors, stack_states
+from physics_planning.cli import UsageError, plural
+from hier_agents.baselines.impala.actors import LocalActors, RayActors, stack_states
+from hier_agents.baselines.impala.config import PAPER_BATCH, TrainConfig  # noqa: F401
 from hier_agents.learning.rundir import CHECKPOINT, KEPT, SCALARS, RunDir
-from hier_agents.modular.options import T_ABS
 
-#: Paper's batch sizes (unrolls per update): board games 64, MuJoBan 128.
-PAPER_BATCH = {"mujoban": 128, "mujoxo": 64, "mujogo": 64}
 KEPT_CHECKPOINTS = KEPT  # folder of `keep_checkpoints` copies, frames-N.pt
 #: The trainer recorded in its run directories (`RunDir`'s ``trainer``).
 TRAINER = "python -m hier_agents.train"
-
-
-@dataclasses.dataclass
-class TrainConfig:
-    """Everything a training run depends on (saved in ``config.json`` and its checkpoint).
-
-    Observations: proprioception always; ``cameras`` the paper's camera views
-    (``image_size`` squared; ``env_overrides`` may turn views off, e.g.
-    `main_camera_only`); ``state`` the current abstract state (privileged);
-    the planner conditions add the planner's planes (see `AgentEnv`).
-    ``steps`` is the frame budget (module docstring).
-    """
-
-    env: str
-    condition: str = "vanilla"
-    steps: int = 1_000_000
-    actors: int = 2
-    envs_per_actor: int = 32  # 2 x 32 beat 2 x 16 and 1 x 32 in benchmarks/learner_speed.py
-    backend: str = "local"
-    ray_address: str | None = None
-    logdir: str = "runs/impala"
-    unroll_length: int = 100
-    batch_size: int | None = None  # None: the paper's (64 board games, 128 MuJoBan)
-    learning_rate: float = 3e-4
-    rmsprop_alpha: float = 0.99
-    rmsprop_eps: float = 1e-5
-    rmsprop_momentum: float = 0.0
-    grad_clip: float = 40.0
-    baseline_cost: float = 0.5
-    entropy_cost: float = 1e-3
-    cameras: bool = True
-    image_size: int = 96
-    state: bool = False  # observe the current abstract state (AgentEnv(state=True))
-    t_abs: int = T_ABS
-    abs_reward: float = 1.0
-    seed: int = 0
-    checkpoint_every_s: float = 300.0
-    keep_checkpoints: bool = False
-    save_at: tuple = ()  # frame counts at which a kept checkpoint frames-N.pt is saved
-    log_every_s: float = 10.0
-    progress: bool = True
-    env_overrides: dict = dataclasses.field(default_factory=dict)
-
-    def validate(self) -> None:
-        """Checks the configuration without building anything.
-
-        Raises:
-          UsageError: an unknown environment, condition or backend (with the
-            closest valid name), a count below 1, a seed below 0, or a budget
-            (``steps``) below one unroll.
-        """
-        import envs
-        from hier_agents.baselines.impala.agent_env import CONDITIONS
-
-        choice("environment", self.env, envs.names())
-        choice("condition", self.condition, CONDITIONS)
-        choice("backend", self.backend, ("local", "ray"))
-        for name in ("steps", "actors", "envs_per_actor", "unroll_length", "image_size",
-                     "t_abs"):
-            if int(getattr(self, name)) < 1:
-                raise UsageError(f"{name} must be >= 1, got {getattr(self, name)!r}")
-        if self.batch_size is not None and self.batch_size < 1:
-            raise UsageError(f"batch_size must be >= 1, got {self.batch_size!r}")
-        if int(self.seed) < 0:
-            raise UsageError(f"seed must be >= 0, got {self.seed!r}")
-        for budget in self.save_at:
-            if int(budget) < 1 or int(budget) > self.steps or int(budget) % self.unroll_length:
-                raise UsageError(f"save_at {budget!r}: each must be a multiple of the unroll "
-                                 f"length ({self.unroll_length}) within the budget "
-                                 f"({self.steps} frames)")
-        if self.steps < self.unroll_length:
-            raise UsageError(f"a budget of {plural(self.steps, 'frame')} is less than one unroll "
-                             f"of {plural(self.unroll_length, 'frame')}: give --frames >= "
-                             f"{self.unroll_length} or a shorter --unroll-length")
-
-    def resolved_batch(self, family: str) -> int:
-        return int(self.batch_size or PAPER_BATCH[family])
 
 
 # -- batching ---------------------------------------------------------------------------------
@@ -316,11 +237,11 @@ def _build(config: TrainConfig, run: RunDir):
 def _gather(actors, pending: list, batch_size: int, counters: dict, recent: deque,
             run: RunDir, actor_cpu: dict) -> None:
     """Takes unrolls (and their finished episodes) until ``batch_size`` are
-    pending or a stop; ``actor_cpu`` keeps each actor's latest CPU seconds."""
+    pending or a stop; ``actor_cpu`` keeps each actor's CPU seconds (`_note_cpu`)."""
     while len(pending) < batch_size and not run.stop_requested:
         unrolls = actors.get(should_stop=lambda: run.stop_requested)
         for u in unrolls or ():
-            actor_cpu[u["stream"][0]] = float(u.pop("cpu_s", 0.0))
+            _note_cpu(actor_cpu, u["stream"][0], float(u.pop("cpu_s", 0.0)))
             for ep in u.pop("episodes"):
                 counters["episodes"] += 1
                 recent.append({"return": float(ep.get("episode_return", 0.0)),
@@ -328,6 +249,14 @@ def _gather(actors, pending: list, batch_size: int, counters: dict, recent: dequ
                                "steps": int(ep.get("episode_steps", 0)),
                                "subgoals": int(ep.get("subgoals_reached", 0))})
             pending.append(u)
+
+
+def _note_cpu(actor_cpu: dict, actor: int, seconds: float) -> None:
+    """Notes an actor's process CPU seconds so far; ``actor_cpu[actor]`` is
+    (seconds of its earlier, dead processes, seconds of the current one): a
+    replaced actor's process counts from 0 again."""
+    before, last = actor_cpu.get(actor, (0.0, 0.0))
+    actor_cpu[actor] = (before + last if seconds < last else before, seconds)
 
 
 def _scalars(stats: dict, counters: dict, recent: deque, fps: float, lags: list) -> dict:
@@ -372,95 +301,125 @@ def train(config: TrainConfig) -> dict:
         run.close()
 
 
-def _loop(config, run: RunDir, net, optimizer, spec, counters, recent, batch_size) -> dict:
-    """Actors, learner steps, logs and checkpoints until the frame budget or a stop."""
-    actor_config = ActorConfig(env=config.env, condition=config.condition,
-                               unroll_length=config.unroll_length,
-                               envs_per_actor=config.envs_per_actor, cameras=config.cameras,
-                               image_size=config.image_size, state=config.state,
-                               t_abs=config.t_abs, abs_reward=config.abs_reward,
-                               seed=config.seed * 1000 + counters["updates"],
-                               env_overrides=dict(config.env_overrides))
+def _start_actors(config: TrainConfig, net, counters: dict):
+    """The actors of ``config.backend``, acting with ``net``'s weights; their
+    config is `TrainConfig.actor_config` (a seed of their own per resumption)."""
+    actor_config = config.actor_config(counters["updates"])
     if config.backend == "ray":
-        actors = RayActors(actor_config, config.actors, net, address=config.ray_address)
-    else:
-        actors = LocalActors(actor_config, config.actors, net)
-        actors.publish(net)
-    published = 1  # weights versions published to the actors in this process
+        return RayActors(actor_config, config.actors, net, address=config.ray_address)
+    actors = LocalActors(actor_config, config.actors, net)
+    actors.publish(net)
+    return actors
 
-    save_at = sorted({int(b) for b in config.save_at})
 
-    def save(keep: bool = config.keep_checkpoints):
-        run.save({"format": 1, "model": net.state_dict(), "optimizer": optimizer.state_dict(),
-                  "counters": dict(counters, recent_episodes=list(recent)),
-                  "input_spec": dataclasses.asdict(spec)},
-                 keep=f"frames-{int(counters['frames'])}" if keep else None)
+class _Training:
+    """One `_loop`'s state: the pending unrolls, the value cores' states, the
+    clocks (``wall_s``, ``cpu_s``: earlier processes' from the checkpoint,
+    this one's, and each actor's, reported with its unrolls), when it last
+    logged and saved."""
 
+    def __init__(self, config: TrainConfig, run: RunDir, net, optimizer, spec, counters,
+                 recent):
+        self.config, self.run, self.net, self.optimizer = config, run, net, optimizer
+        self.spec, self.counters, self.recent = spec, counters, recent
+        self.save_at = sorted({int(b) for b in config.save_at})
+        self.start = self.last_ckpt = self.last_log = time.perf_counter()
+        self.wall0, self.frames_at_log = counters["wall_s"], counters["frames"]
+        self.cpu0, self.process0, self.actor_cpu = counters.get("cpu_s", 0.0), \
+            time.process_time(), {}
+        self.pending: list[dict] = []
+        self.value_states: dict = {}  # stream -> value-core (h, c) after its last unroll
+        self.stats: dict = {}
+        self.lags: list[int] = []
+        self.published = 1  # weights versions published to the actors in this process
+
+    def take(self, batch_size: int) -> int:
+        """Unrolls the next update takes: a batch, or only those the budget,
+        or the next ``save_at`` point, still needs."""
+        frames = self.counters["frames"]
+        target = min([b for b in self.save_at if b > frames] + [self.config.steps])
+        return min(batch_size, math.ceil((target - frames) / self.config.unroll_length))
+
+    def update(self, take: int) -> int:
+        """One learner step on the first ``take`` pending unrolls; returns the frames."""
+        batch_unrolls, self.pending = self.pending[:take], self.pending[take:]
+        # Updates between the weights an unroll was acted with and now.
+        self.lags.extend(self.published - int(u.get("policy_version", 0))
+                         for u in batch_unrolls)
+        batch = make_batch(batch_unrolls, self.net, self.value_states)
+        self.stats = learner_step(self.net, self.optimizer, batch, self.config,
+                                  self.value_states)
+        self.published += 1
+        self.counters["updates"] += 1
+        new_frames = self.config.unroll_length * len(batch_unrolls)
+        self.counters["frames"] += new_frames
+        self.clock()
+        return new_frames
+
+    def clock(self) -> None:
+        """Brings ``wall_s`` and ``cpu_s`` up to now."""
+        counters = self.counters
+        counters["wall_s"] = self.wall0 + (time.perf_counter() - self.start)
+        counters["cpu_s"] = (self.cpu0 + (time.process_time() - self.process0)
+                             + sum(a + b for a, b in self.actor_cpu.values()))
+
+    def log_and_save(self) -> None:
+        """A scalars row every ``log_every_s`` and at the end; a kept
+        checkpoint at a ``save_at`` point, else one every ``checkpoint_every_s``."""
+        now, counters, config = time.perf_counter(), self.counters, self.config
+        if now - self.last_log >= config.log_every_s or counters["frames"] >= config.steps:
+            fps = (counters["frames"] - self.frames_at_log) / max(now - self.last_log, 1e-9)
+            self.run.log(counters["frames"], _scalars(self.stats, counters, self.recent, fps,
+                                                      self.lags))
+            self.last_log, self.frames_at_log, self.lags = now, counters["frames"], []
+        if counters["frames"] in self.save_at and counters["frames"] < config.steps:
+            self.save(keep=True)
+            self.last_ckpt = now
+        elif now - self.last_ckpt >= config.checkpoint_every_s:
+            self.save(keep=config.keep_checkpoints)
+            self.last_ckpt = now
+
+    def save(self, keep: bool) -> None:
+        """Saves the checkpoint (``keep``: also as ``frames-N.pt``)."""
+        counters = self.counters
+        self.run.save({"format": 1, "model": self.net.state_dict(),
+                       "optimizer": self.optimizer.state_dict(),
+                       "counters": dict(counters, recent_episodes=list(self.recent)),
+                       "input_spec": dataclasses.asdict(self.spec)},
+                      keep=f"frames-{int(counters['frames'])}" if keep else None)
+
+
+def _loop(config, run: RunDir, net, optimizer, spec, counters, recent, batch_size) -> dict:
+    """Actors, learner steps, logs and checkpoints until the frame budget or a
+    stop; the checkpoint is saved however the loop ends."""
+    actors = _start_actors(config, net, counters)
+    state = _Training(config, run, net, optimizer, spec, counters, recent)
     bar = run.progress(config.steps, counters["frames"], desc=f"{config.env} {config.condition}",
                        unit="frame", disable=not config.progress)
-    start = last_ckpt = last_log = time.perf_counter()
-    wall0, frames_at_log = counters["wall_s"], counters["frames"]
-    # CPU seconds: earlier processes' (the checkpoint's), this one's since
-    # here, and each of this run's actors' (reported with their unrolls).
-    cpu0, process0, actor_cpu = counters.get("cpu_s", 0.0), time.process_time(), {}
-
-    def count_cpu():
-        counters["cpu_s"] = cpu0 + (time.process_time() - process0) + sum(actor_cpu.values())
-
-    pending: list[dict] = []
-    value_states: dict = {}  # stream -> value-core (h, c) after its last unroll
-    stats: dict = {}
-    lags: list[int] = []
     with run.interruptible():
         try:
             while counters["frames"] < config.steps and not run.stop_requested:
-                # An update takes only the unrolls the budget, or the next
-                # save_at point, still needs.
-                target = min([b for b in save_at if b > counters["frames"]] + [config.steps])
-                take = min(batch_size, math.ceil((target - counters["frames"])
-                                                 / config.unroll_length))
-                _gather(actors, pending, take, counters, recent, run, actor_cpu)
+                take = state.take(batch_size)
+                _gather(actors, state.pending, take, counters, recent, run, state.actor_cpu)
                 if run.stop_requested:  # the partial batch is dropped
                     break
-                batch_unrolls, pending = pending[:take], pending[take:]
-                # Updates between the weights an unroll was acted with and now.
-                lags.extend(published - int(u.get("policy_version", 0)) for u in batch_unrolls)
-                batch = make_batch(batch_unrolls, net, value_states)
-                stats = learner_step(net, optimizer, batch, config, value_states)
+                bar.update(state.update(take))
                 actors.publish(net)
-                published += 1
-                counters["updates"] += 1
-                new_frames = config.unroll_length * len(batch_unrolls)
-                counters["frames"] += new_frames
-                bar.update(new_frames)
-                now = time.perf_counter()
-                counters["wall_s"] = wall0 + (now - start)
-                count_cpu()
                 if recent:
                     bar.set_postfix(success=f"{np.mean([e['success'] for e in recent]):.2f}",
                                     ret=f"{np.mean([e['return'] for e in recent]):.2f}",
                                     refresh=False)
-                if now - last_log >= config.log_every_s or counters["frames"] >= config.steps:
-                    fps = (counters["frames"] - frames_at_log) / max(now - last_log, 1e-9)
-                    run.log(counters["frames"], _scalars(stats, counters, recent, fps, lags))
-                    last_log, frames_at_log, lags = now, counters["frames"], []
-                if counters["frames"] in save_at and counters["frames"] < config.steps:
-                    save(keep=True)
-                    last_ckpt = now
-                elif now - last_ckpt >= config.checkpoint_every_s:
-                    save()
-                    last_ckpt = now
+                state.log_and_save()
         finally:
             bar.close()
             actors.close()
-            counters["wall_s"] = wall0 + (time.perf_counter() - start)
-            count_cpu()
-            save(keep=config.keep_checkpoints or counters["frames"] in save_at)
+            state.clock()
+            state.save(keep=config.keep_checkpoints or counters["frames"] in state.save_at)
     if run.stop_requested:
         print(f"interrupted: checkpoint saved at {plural(counters['frames'], 'frame')}; run "
               f"the same command to resume", file=sys.stderr)
     if recent:
         counters["success_rate_last_100"] = float(np.mean([e["success"] for e in recent]))
         counters["return_last_100"] = float(np.mean([e["return"] for e in recent]))
-    counters["last_stats"] = stats
+    counters["last_stats"] = state.stats
     return counters
