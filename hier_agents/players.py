@@ -22,7 +22,6 @@ __all__ = ["Play", "Progress", "WORKER_RETRIES", "WorkerDied", "play_here", "pla
            "play_shard", "shards"]
 
 Progress = Callable[[dict], None]
-_play_each = play_each
 
 
 def play_here(play: Play, indices, on_done, built=None) -> None:
@@ -49,7 +48,7 @@ def play_shard(play: Play, indices: list[int]) -> tuple[list, dict]:
         _close_players()  # one environment per process at a time
         player = _PLAYERS[repr(play)] = make_player(play)
     out = []
-    _play_each(player, play, indices, out.append)
+    play_each(player, play, indices, out.append)
     return out, player.info
 
 

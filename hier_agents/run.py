@@ -69,6 +69,8 @@ import sys
 
 from tqdm import tqdm
 
+import envs
+
 from hier_agents.agents import resolve
 from hier_agents.agents.runner import Play, profile_summary
 from hier_agents.modular.agent import OptionStats
@@ -78,6 +80,7 @@ from hier_agents.run_cli import (DEFAULT_ENV, DEFAULT_EPISODES, PROG,  # noqa: F
                                  build_parser, check_args, print_components)
 from hier_agents.run_report import format_table, postfix, summarize  # noqa: F401
 from physics_planning import cli
+from physics_planning.cli import UsageError
 
 
 def run(env_name: str, episodes: int, seed: int = 0, *, planner: str | None = None,
@@ -166,6 +169,11 @@ def _play(env_name, seed, agent, options, levels, env_options, video, first_epis
     if video and ray_address:
         raise ValueError("--video is written by the process that plays the first episode: "
                          "not with --ray-address")
+    try:
+        envs.check(env_name, seed=seed, **(env_options or {}),
+                   **({"levels": levels} if levels is not None else {}))
+    except (TypeError, ValueError) as exc:
+        raise UsageError(f"{env_name}: {exc}") from None
     return Play(env_name, int(seed), agent, dict(options), levels, dict(env_options or {}),
                 video, first_episode, bool(profile))
 

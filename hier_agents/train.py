@@ -63,7 +63,8 @@ PROG = "python -m hier_agents.train"
 def build_parser() -> Parser:
     """The command's parser; its defaults are `TrainConfig`'s."""
     from hier_agents.baselines.impala.agent_env import CONDITIONS
-    from hier_agents.baselines.impala.config import PAPER_BATCH, TrainConfig
+    from hier_agents.baselines.impala.config import TrainConfig
+    from hier_agents.modular.families import FAMILIES
     from physics_planning.cli import non_negative_float
 
     default = {f.name: f.default for f in dataclasses.fields(TrainConfig)
@@ -101,7 +102,7 @@ def build_parser() -> Parser:
         help="control steps per unroll")
     add("--batch-size", type=positive_int, default=None,
         help="unrolls per update (default: the paper's, "
-             + ", ".join(f"{n} {fam}" for fam, n in PAPER_BATCH.items()) + ")")
+             + ", ".join(f"{a.paper_batch} {fam}" for fam, a in FAMILIES.items()) + ")")
     add("--learning-rate", type=positive_float, default=default["learning_rate"],
         help="RMSProp learning rate")
     add("--entropy-cost", type=non_negative_float, default=default["entropy_cost"],

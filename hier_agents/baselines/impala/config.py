@@ -18,8 +18,6 @@ import dataclasses
 from physics_planning.cli import UsageError, choice, plural
 from hier_agents.modular.options import T_ABS
 
-#: Paper's batch sizes (unrolls per update): board games 64, MuJoBan 128.
-PAPER_BATCH = {"mujoban": 128, "mujoxo": 64, "mujogo": 64}
 #: ``observations`` values.
 OBSERVATIONS = ("cameras", "main-camera", "proprio")
 #: ``preset`` values: option defaults they replace (explicit options still win).
@@ -147,9 +145,11 @@ class TrainConfig:
                              f"of {plural(self.unroll_length, 'frame')}: give --frames >= "
                              f"{self.unroll_length} or a shorter --unroll-length")
 
-    def resolved_batch(self, family: str) -> int:
-        """Unrolls per update: ``batch_size``, or the paper's for ``family``."""
-        return int(self.batch_size or PAPER_BATCH[family])
+    def resolved_batch(self) -> int:
+        """Unrolls per update: ``batch_size``, or the paper's for the
+        environment's family (its adapter's ``paper_batch``)."""
+        from hier_agents.modular.families import adapter
+        return int(self.batch_size or adapter(self.env).paper_batch)
 
     def actor_config(self, updates: int) -> TrainConfig:
         """The config the actors get after ``updates`` updates: this one with

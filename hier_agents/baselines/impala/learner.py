@@ -50,7 +50,7 @@ import numpy as np
 
 from physics_planning.cli import UsageError, plural
 from hier_agents.baselines.impala.actors import LocalActors, RayActors, stack_states
-from hier_agents.baselines.impala.config import PAPER_BATCH, TrainConfig  # noqa: F401
+from hier_agents.baselines.impala.config import TrainConfig  # noqa: F401
 from hier_agents.learning.rundir import CHECKPOINT, KEPT, SCALARS, RunDir
 
 KEPT_CHECKPOINTS = KEPT  # folder of `keep_checkpoints` copies, frames-N.pt
@@ -281,10 +281,8 @@ def train(config: TrainConfig) -> dict:
     """
     import torch
 
-    from hier_agents.modular.components import family as env_family
-
     config.validate()
-    batch_size = config.resolved_batch(env_family(config.env))
+    batch_size = config.resolved_batch()
     run = RunDir(config.logdir, dataclasses.asdict(config), resume=None, fixed=FIXED,
                  trainer=TRAINER)
     torch.manual_seed(config.seed)
