@@ -23,7 +23,10 @@ abort in native code, the out-of-memory killer, a lost Ray node) is replaced
 by a new one built by the same factory, and the calls it had under way run
 again on it, with one line on stderr::
 
-    hier_agents: a worker process died (killed by SIGKILL); running shard 3 of 12 again in a new process (retry 1 of 3)
+    hier_agents: a worker process died (killed by SIGKILL); running shard 3 of 12
+    again in a new process (retry 1 of 3)
+
+(one line on stderr; broken here to fit).
 
 A call that dies more than `WORKER_RETRIES` times raises `WorkerDied`. A
 call whose worker code raises is not retried: `next` raises `CallFailed`
@@ -392,7 +395,7 @@ class Pool:
             except (OSError, ValueError):
                 pass
         deadline = time.monotonic() + 5
-        for process, conn in self._local:
+        for process, _ in self._local:
             process.join(max(0.0, deadline - time.monotonic()))
             if process.is_alive():
                 process.terminate()

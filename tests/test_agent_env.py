@@ -8,8 +8,8 @@ import pytest
 
 from abstract_planners.base import Subgoal
 from abstract_planners.sokoban import DIRECTIONS
-from hier_agents.baselines.impala.agent_env import (CONDITIONS, PLANNER_ACTIONS, AgentEnv, InputSpec,
-                                          StepResult)
+from hier_agents.baselines.impala.agent_env import (CONDITIONS, PLANNER_ACTIONS, AgentEnv,
+                                                    InputSpec, StepResult)
 from skills.arm import ArmTouchSkill
 from skills.ball import BallSkill
 
@@ -94,7 +94,7 @@ def test_actions_are_clipped_and_mapped_onto_the_bounds():
             seen = []
             inner = env.env.step
 
-            def spy(action, inner=inner):
+            def spy(action, inner=inner, seen=seen):
                 seen.append(np.array(action, copy=True))
                 return inner(action)
 
@@ -164,7 +164,7 @@ def test_mujoban_expert_target_reached_by_the_ball_skill_pays_the_auxiliary_rewa
             scene = env.estimator.estimate(env.timestep)
             assert scene.state == state
             skill.reset(env.env.description(), subgoal, scene)
-            for step in range(1, 201):
+            for step in range(1, 201):  # noqa: B007 - read after the loop
                 result = env.step(skill.act(env.timestep, env.estimator.estimate(env.timestep)))
                 if result.discount_abs == 0.0:
                     break

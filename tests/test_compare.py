@@ -22,6 +22,7 @@ from hypothesis import strategies as st
 import envs
 from physics_planning.cli import UsageError
 from hier_agents.compare import jobs as jobs_mod
+from hier_agents.modular import components
 from hier_agents.compare import report
 from hier_agents.compare.backends import run_jobs
 from hier_agents.compare.spec import load
@@ -178,8 +179,8 @@ def test_job_keys_are_stable_and_change_with_any_input(inputs, data):
 
 
 def test_job_keys_do_not_depend_on_the_process():
-    code = ("from hier_agents.compare.jobs import job_key; "
-            "print(job_key('eval', {'env': 'mujoban/level1', 'seed': 3, 'agent': {'b': 1, 'a': 2}}))")
+    code = ("from hier_agents.compare.jobs import job_key; print(job_key('eval', "
+            "{'env': 'mujoban/level1', 'seed': 3, 'agent': {'b': 1, 'a': 2}}))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          cwd=ROOT, check=True, env={**os.environ, "PYTHONHASHSEED": "123"})
     assert out.stdout.strip() == jobs_mod.job_key(
@@ -189,13 +190,13 @@ def test_job_keys_do_not_depend_on_the_process():
 def test_learned_parts_are_keyed_by_their_checkpoint_contents(tmp_path):
     from skills.learned.ball import POLICY_PATH
 
-    shipped = jobs_mod.learned_files("mujoban/level1", {"skill": "learned-ball"})
-    assert shipped == {"skill": jobs_mod.file_hash(POLICY_PATH)}
+    shipped = components.learned_files("mujoban/level1", {"skill": "learned-ball"})
+    assert shipped == {"skill": components.file_hash(POLICY_PATH)}
     copy_path = tmp_path / "ball_policy.pt"
     copy_path.write_bytes(POLICY_PATH.read_bytes())
-    assert jobs_mod.learned_files("mujoban/level1", {"skill": f"learned-ball:{copy_path}"}) \
+    assert components.learned_files("mujoban/level1", {"skill": f"learned-ball:{copy_path}"}) \
         == shipped
-    assert jobs_mod.learned_files("mujoban/level1", {"skill": "ball"}) == {}
+    assert components.learned_files("mujoban/level1", {"skill": "ball"}) == {}
 
 
 # -- the cache ------------------------------------------------------------------------------

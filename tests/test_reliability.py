@@ -101,7 +101,7 @@ def test_gymnasium_env_closes_its_engine_when_the_block_raises(no_finalisers):
         with gymnasium.make("mujogo/7x7", front_camera=None,
                             gnugo_command=fake_engine()) as env:
             env.reset(seed=0)
-            env.unwrapped.dm_env.task.opponent.planner.client  # starts the engine
+            env.unwrapped.dm_env.task.opponent.planner.client  # noqa: B018 - starts the engine
             assert children() - no_finalisers
             raise RuntimeError("inside the block")
     assert_no_new_children(no_finalisers)
@@ -112,7 +112,7 @@ def test_failed_construction_closes_the_task(no_finalisers, monkeypatch):
 
     def build_then_fail(self, task, *args):
         original(self, task, *args)
-        task.opponent.planner.client  # an engine is running now
+        task.opponent.planner.client  # noqa: B018 - an engine is running now
         raise RuntimeError("construction failed")
 
     monkeypatch.setattr(core_lib.Environment, "_build", build_then_fail)
@@ -147,7 +147,7 @@ def test_base_roles_have_a_harmless_close():
     from hier_agents.estimators.base import Estimator
     from skills.base import Skill
     for cls in (Planner, Estimator, Skill):
-        assert callable(getattr(cls, "close"))
+        assert callable(cls.close)
     GnuGoPlanner(command=fake_engine()).close()
 
 
@@ -170,7 +170,7 @@ def test_a_run_that_raises_at_any_stage_leaves_no_child_process(
 
         def patched(self, task, *args):
             original(self, task, *args)
-            task.opponent.planner.client
+            task.opponent.planner.client  # noqa: B018 - the property starts the engine
             _raise(exc_type, stage)
         monkeypatch.setattr(core_lib.Environment, "_build", patched)
     elif stage == "reset":
@@ -178,7 +178,7 @@ def test_a_run_that_raises_at_any_stage_leaves_no_child_process(
 
         def patched(self, physics, random_state):
             original(self, physics, random_state)
-            self.opponent.planner.client
+            self.opponent.planner.client  # noqa: B018 - the property starts the engine
             calls["n"] += 1
             if calls["n"] == 2:
                 _raise(exc_type, stage)
@@ -187,7 +187,7 @@ def test_a_run_that_raises_at_any_stage_leaves_no_child_process(
         original = GnuGoPlanner.plan
 
         def patched(self, state):
-            self.client
+            self.client  # noqa: B018 - the property starts the engine
             calls["n"] += 1
             if calls["n"] == 2:
                 _raise(exc_type, stage)

@@ -11,7 +11,8 @@ import torch
 
 from hier_agents import run as run_lib
 from hier_agents import train as train_cli
-from hier_agents.baselines.impala.learner import TrainConfig, load_checkpoint, net_from_checkpoint, train
+from hier_agents.baselines.impala.learner import (TrainConfig, load_checkpoint,
+                                                  net_from_checkpoint, train)
 
 TINY = dict(env="mujoban/level1", unroll_length=5, batch_size=2, actors=1, envs_per_actor=2,
             cameras=False, checkpoint_every_s=1e9, log_every_s=0.0, progress=False)
@@ -93,7 +94,8 @@ def test_a_state_input_run_trains_resumes_only_as_state_and_plays(tmp_path):
     logdir = tmp_path / "run"
     train(TrainConfig(condition="vanilla", steps=10, logdir=str(logdir), state=True, **TINY))
     ckpt = load_checkpoint(logdir / "checkpoint.pt")
-    assert ckpt["config"]["state"] is True and tuple(ckpt["input_spec"]["state_shape"]) == (4, 10, 10)
+    assert ckpt["config"]["state"] is True
+    assert tuple(ckpt["input_spec"]["state_shape"]) == (4, 10, 10)
     net, spec = net_from_checkpoint(ckpt)
     assert spec.state_shape == (4, 10, 10) and net.state_encoder is not None
     with pytest.raises(ValueError, match="state"):

@@ -5,14 +5,15 @@
     player = make_player(Play("mujoban/level1", agent="random:10"))
     row, counters = player.play(0)                    # episode 0 of seed 0
 
-`base` holds the contract (`Agent`), the kinds' base class (`AgentKind`,
-`AgentSetup`) and the registry (`register`, `resolve`, `forms`); `kinds`
+`base` holds the contract (`Agent`) and the kinds' base class
+(`AgentKind`, `AgentSetup`); `registry` the kinds by name (`register`,
+`resolve`, `forms`); `kinds`
 the shipped kinds (``modular``, ``checkpoint:PATH``, ``random[:HOLD]``);
 `runner` the one episode runner (`Play`, `Player`, `play_episode`).
 """
 
-from hier_agents.agents.base import (KINDS, Agent, AgentKind, AgentSetup, forms, kind_of,
-                                     register, resolve)
+from hier_agents.agents.base import Agent, AgentKind, AgentSetup
+from hier_agents.agents.registry import KINDS, forms, kind_of, register, resolve
 from hier_agents.agents.runner import Play, Player, make_player, play_episode
 
 __all__ = ["KINDS", "Agent", "AgentKind", "AgentSetup", "Play", "Player", "forms", "kind_of",

@@ -1,4 +1,4 @@
-"""The agent contract and the agent kinds' registry.
+"""The agent contract and the agent kinds' base class.
 
 Every agent, whatever its kind, keeps one contract (`Agent`): it is reset
 with the task's public description and the episode's first timestep, acts on
@@ -8,15 +8,13 @@ episode runner (`hier_agents.agents.runner`) plays any of them.
 
 An **agent kind** (`AgentKind`) names a way of building agents, as a
 planner, skill or estimator name does a component: ``NAME`` or ``NAME:ARG``
-(`resolve`), the same grammar in ``python -m hier_agents.run --agent``, in
-comparison specs (``agent = "NAME:ARG"``) and in code. The kinds shipped are
-``modular``, ``checkpoint:PATH`` and ``random[:HOLD]``
-(`hier_agents.agents.kinds`); `register` adds another without touching the
-runner, ``hier_agents.run`` or ``hier_agents.compare``. A package outside
-this one registers its kinds in every process (worker processes, comparison
-jobs) by declaring an entry point in the group `ENTRY_POINTS`
-(``physics_planning.agents``) naming a module that calls `register`, or an
-`AgentKind` instance, which is registered when it loads.
+(`hier_agents.agents.registry.resolve`), the same grammar in ``python -m
+hier_agents.run --agent``, in comparison specs (``agent = "NAME:ARG"``) and
+in code. The kinds shipped are ``modular``, ``checkpoint:PATH`` and
+``random[:HOLD]``
+(`hier_agents.agents.kinds`); `hier_agents.agents.registry.register` adds
+another without touching the runner, ``hier_agents.run`` or
+``hier_agents.compare``.
 """
 
 from __future__ import annotations
@@ -26,10 +24,9 @@ from typing import Callable, Protocol
 
 import numpy as np
 
-from physics_planning.cli import UsageError, close_hint
+from physics_planning.cli import UsageError
 
-__all__ = ["Agent", "AgentKind", "AgentSetup", "ACCESS", "ENTRY_POINTS", "KINDS", "forms",
-           "kind_of", "register", "resolve"]
+__all__ = ["Agent", "AgentKind", "AgentSetup", "ACCESS"]
 
 
 class Agent(Protocol):
@@ -158,72 +155,3 @@ class AgentKind:
         """The accepted forms, for listings (``NAME``, ``NAME:METAVAR``)."""
         bare = [] if self.arg_required else [self.name]
         return bare + ([f"{self.name}:{self.metavar}"] if self.metavar else [])
-
-
-#: name -> kind, in registration order (``modular`` first: the default).
-KINDS: dict[str, AgentKind] = {}
-
-
-def register(kind: AgentKind) -> AgentKind:
-    """Makes ``kind`` playable by name everywhere; returns it. ValueError when
-    the name is taken or not a plain word."""
-    if not kind.name or ":" in kind.name or kind.name in KINDS:
-        raise ValueError(f"cannot register the agent kind {kind.name!r}: empty, with ':' or "
-                         f"taken (registered: {', '.join(KINDS)})")
-    KINDS[kind.name] = kind
-    return kind
-
-
-#: The entry-point group of agent kinds defined outside this package.
-ENTRY_POINTS = "physics_planning.agents"
-_loaded = False
-
-
-def _kinds() -> dict[str, AgentKind]:
-    """The registry, with the shipped kinds and those of installed packages'
-    `ENTRY_POINTS` loaded (once per process)."""
-    global _loaded
-    from hier_agents.agents import kinds  # noqa: F401 (registers the shipped kinds)
-    if not _loaded:
-        _loaded = True
-        from importlib.metadata import entry_points
-        for point in entry_points(group=ENTRY_POINTS):
-            loaded = point.load()
-            if isinstance(loaded, AgentKind) and loaded.name not in KINDS:
-                register(loaded)
-    return KINDS
-
-
-def forms() -> list[str]:
-    """Every accepted ``--agent`` form, in registration order."""
-    return [form for kind in _kinds().values() for form in kind.forms()]
-
-
-def resolve(spec: str) -> tuple[AgentKind, object]:
-    """(kind, parsed argument) of ``NAME`` or ``NAME:ARG``.
-
-    Raises:
-      UsageError: an unknown kind (naming the closest and the valid forms), a
-        missing, unexpected or malformed argument.
-    """
-    kinds = _kinds()
-    name, sep, text = str(spec).partition(":")
-    kind = kinds.get(name)
-    if kind is None:
-        raise UsageError(f"unknown agent {spec!r}{close_hint(name, kinds)}; valid: "
-                         f"{', '.join(forms())}")
-    if not sep:
-        if kind.arg_required:
-            raise UsageError(f"the agent {name!r} needs an argument: {name}:{kind.metavar}")
-        return kind, kind.default()
-    return kind, kind.parse(text)
-
-
-def kind_of(spec: str) -> AgentKind:
-    """The kind named by ``spec``'s ``NAME`` (UsageError when unknown)."""
-    kinds = _kinds()
-    name = str(spec).partition(":")[0]
-    if name not in kinds:
-        raise UsageError(f"unknown agent {spec!r}{close_hint(name, kinds)}; valid: "
-                         f"{', '.join(forms())}")
-    return kinds[name]

@@ -11,18 +11,17 @@
 * ``random[:HOLD]``: uniformly random actions, a new draw every HOLD
   control steps (default 1): the floor every trained agent must clear.
 
-Each registers itself in `hier_agents.agents.base.KINDS` when this module is
-imported (`hier_agents.agents.base.resolve` does so).
+`hier_agents.agents.registry` registers them (`SHIPPED`) on first use.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from hier_agents.agents.base import AgentKind, AgentSetup, register
+from hier_agents.agents.base import AgentKind, AgentSetup
 from physics_planning.cli import UsageError, plural
 
-__all__ = ["ModularKind", "CheckpointKind", "RandomKind"]
+__all__ = ["ModularKind", "CheckpointKind", "RandomKind", "SHIPPED"]
 
 
 class ModularKind(AgentKind):
@@ -71,9 +70,9 @@ class ModularKind(AgentKind):
     def job_inputs(self, env_name: str, arg, options: dict) -> dict:
         """``{"kind": "modular", the parts given, "learned_files": content
         hashes of the learned parts' checkpoints}``
-        (`hier_agents.compare.jobs.learned_files`): a retrained part is a new
-        job."""
-        from hier_agents.compare.jobs import learned_files
+        (`hier_agents.modular.components.learned_files`): a retrained part is
+        a new job."""
+        from hier_agents.modular.components import learned_files
         return {"kind": "modular", **options, "learned_files": learned_files(env_name, options)}
 
     def from_job_inputs(self, inputs: dict) -> tuple[object, dict]:
@@ -163,6 +162,6 @@ class RandomKind(AgentKind):
         return int(inputs["hold"]), {}
 
 
-register(ModularKind())
-register(CheckpointKind())
-register(RandomKind())
+#: The kinds shipped, in the order ``--list`` shows them (``modular`` first:
+#: the default); `hier_agents.agents.registry` registers them on first use.
+SHIPPED = (ModularKind(), CheckpointKind(), RandomKind())

@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 
 import envs
 from envs.profile import PROFILE, SECTIONS
-from hier_agents.agents.base import resolve
+from hier_agents.agents.registry import resolve
 from hier_agents.boundary import PRIVILEGED_OBSERVATIONS, BoundaryEnv
 from hier_agents.modular.agent import OptionStats
 from hier_agents.modular.families import adapter_for

@@ -81,46 +81,6 @@ def job_key(kind: str, inputs: dict, deps=()) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:20]
 
 
-def file_hash(path: str | Path) -> str:
-    """SHA-256 (16 hex digits) of a file's bytes."""
-    digest = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()[:16]
-
-
-def learned_files(env: str, parts: dict) -> dict:
-    """The checkpoint files a modular agent's learned parts load, by part
-    (``{"skill": "<hash>"}``): the shipped default for a bare ``learned*``
-    name, the named file or run directory's policy for ``NAME:PATH``."""
-    from hier_agents.modular.components import family, resolve
-
-    out = {}
-    for key, value in sorted(parts.items()):
-        resolved = resolve(key, family(env), value)
-        if not resolved.name.startswith("learned"):
-            continue
-        path = Path(str(resolved.arg)) if resolved.arg is not None \
-            else _shipped(key, resolved.name)
-        if path.is_dir():
-            found = sorted(path.glob("*_policy.pt")) or sorted(path.glob("*.pt"))
-            path = found[0] if found else path
-        out[key] = file_hash(path) if path.is_file() else f"missing:{path}"
-    return out
-
-
-def _shipped(kind: str, name: str) -> Path:
-    if kind == "planner":
-        from abstract_planners.learned_options import SHIPPED
-        return SHIPPED
-    if name == "learned-arm":
-        from skills.learned.arm import POLICY_PATH
-        return POLICY_PATH
-    from skills.learned.ball import POLICY_PATH
-    return POLICY_PATH
-
-
 def plan(spec) -> list[Job]:
     """Every job of a spec (`hier_agents.compare.spec.Spec`), train jobs first."""
     from hier_agents.agents import resolve

@@ -42,8 +42,10 @@ raises `ValueError` (`family`).
 
 from __future__ import annotations
 
+import hashlib
 import importlib
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Callable, NamedTuple
 
 from physics_planning.cli import UsageError, close_hint
@@ -53,8 +55,8 @@ from hier_agents.modular.families import family
 from hier_agents.modular.options import T_ABS
 
 __all__ = ["PLANNERS", "SKILLS", "ESTIMATORS", "ComponentTable", "Parameter", "Resolved",
-           "UsageError", "check", "env_overrides", "estimator_name", "family", "forms",
-           "is_privileged", "make_agent", "reads_record", "resolve"]
+           "UsageError", "check", "env_overrides", "estimator_name", "family", "file_hash",
+           "forms", "is_privileged", "learned_files", "make_agent", "reads_record", "resolve"]
 
 Factory = Callable[..., object]
 
@@ -454,3 +456,41 @@ def make_agent(env_name: str, description, *, planner: str | None = None,
                                     parts["planner"](description, seed),
                                     parts["skill"](description, seed))
     return ModularAgent(estimator_, planner_, skill_, t_abs=t_abs)  # type: ignore[arg-type]
+
+
+def file_hash(path: str | Path) -> str:
+    """SHA-256 (16 hex digits) of a file's bytes."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()[:16]
+
+
+def learned_files(env: str, parts: dict) -> dict:
+    """The checkpoint files a modular agent's learned parts load, by part
+    (``{"skill": "<hash>"}``): the shipped default for a bare ``learned*``
+    name, the named file or run directory's policy for ``NAME:PATH``."""
+    out = {}
+    for key, value in sorted(parts.items()):
+        resolved = resolve(key, family(env), value)
+        if not resolved.name.startswith("learned"):
+            continue
+        path = Path(str(resolved.arg)) if resolved.arg is not None \
+            else _shipped(key, resolved.name)
+        if path.is_dir():
+            found = sorted(path.glob("*_policy.pt")) or sorted(path.glob("*.pt"))
+            path = found[0] if found else path
+        out[key] = file_hash(path) if path.is_file() else f"missing:{path}"
+    return out
+
+
+def _shipped(kind: str, name: str) -> Path:
+    if kind == "planner":
+        from abstract_planners.learned_options import SHIPPED
+        return SHIPPED
+    if name == "learned-arm":
+        from skills.learned.arm import POLICY_PATH
+        return POLICY_PATH
+    from skills.learned.ball import POLICY_PATH
+    return POLICY_PATH

@@ -51,7 +51,7 @@ import numpy as np
 from physics_planning.cli import UsageError, plural
 from hier_agents.baselines.impala.actors import LocalActors, RayActors, stack_states
 from hier_agents.baselines.impala.config import TrainConfig  # noqa: F401
-from hier_agents.learning.rundir import CHECKPOINT, KEPT, SCALARS, RunDir
+from hier_agents.learning.rundir import CHECKPOINT, KEPT, RunDir
 
 KEPT_CHECKPOINTS = KEPT  # folder of `keep_checkpoints` copies, frames-N.pt
 #: The trainer recorded in its run directories (`RunDir`'s ``trainer``).
