@@ -248,6 +248,7 @@ class GnuGoPlanner(Planner):
             action = passed
         else:
             action = vertex_to_action(vertex, self.board_size)
+            assert self._moves is not None      # `_sync` above set it
             self._moves.append(action)
             if action not in state.legal_actions():
                 warnings.warn(

@@ -195,6 +195,8 @@ class GTPClient:
         else:
             cmd_id, body = self._next_id, command
             self._next_id += 1
+        # Both set by `start_process`, which opens the engine with stdin=PIPE.
+        assert lines is not None and proc.stdin is not None
         try:
             proc.stdin.write(f"{cmd_id} {body}\n".encode())
             proc.stdin.flush()
@@ -229,6 +231,7 @@ class GTPClient:
                 reply_lines.append(line)
             else:
                 head = _ID_REPLY.match(reply_lines[0])
+                assert head is not None     # the line starts with "=" or "?": it matches
                 status, reply_id = head.group(1), head.group(2)
                 text = "\n".join([head.group(3)] + reply_lines[1:]).strip("\n")
                 if reply_id and int(reply_id) != cmd_id:
@@ -359,6 +362,7 @@ class GTPClient:
         self._closed = True
         proc = self._proc
         if proc is not None and proc.poll() is None:
+            assert proc.stdin is not None   # `start_process` opens it with stdin=PIPE
             try:
                 proc.stdin.write(b"quit\n")
                 proc.stdin.flush()

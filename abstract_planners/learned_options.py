@@ -108,6 +108,7 @@ def _conv_body(radius: int, hidden: int) -> nn.Sequential:
     for layer in body:  # ReLU-preserving scale (PyTorch's default init shrinks activations)
         if isinstance(layer, (nn.Conv2d, nn.Linear)):
             nn.init.orthogonal_(layer.weight, 2 ** 0.5)
+            assert layer.bias is not None       # built with a bias (the default)
             nn.init.zeros_(layer.bias)
     return body
 
@@ -122,11 +123,13 @@ class OptionPolicyNet(nn.Module):
         self.radius, self.hidden, self.actions = int(radius), int(hidden), int(actions)
         self.actor = _conv_body(self.radius, self.hidden)
         self.policy = nn.Linear(hidden, actions)
-        self.critic = nn.Sequential(_conv_body(self.radius, self.hidden), nn.Linear(hidden, 1))
+        critic_body = _conv_body(self.radius, self.hidden)     # built first, as before
+        value_head = nn.Linear(hidden, 1)
+        self.critic = nn.Sequential(critic_body, value_head)
         nn.init.orthogonal_(self.policy.weight, 0.01)
         nn.init.zeros_(self.policy.bias)
-        nn.init.orthogonal_(self.critic[-1].weight, 1.0)
-        nn.init.zeros_(self.critic[-1].bias)
+        nn.init.orthogonal_(value_head.weight, 1.0)
+        nn.init.zeros_(value_head.bias)
 
     def config(self) -> dict:
         return {"radius": self.radius, "hidden": self.hidden, "actions": self.actions}

@@ -112,7 +112,7 @@ class MCTSPlanner(Planner):
         ms = (time.perf_counter() - start) * 1e3
         action = int(best.action)
         visits = int(best.explore_count)
-        info = {
+        info: dict[str, object] = {
             "simulations": self.simulations,
             "visits": visits,
             "value": float(best.total_reward) / visits if visits else 0.0,

@@ -225,7 +225,7 @@ def _walk(board: _Board, start: int, goal: int, boxes: int) -> list[str]:
     if start == goal:
         return []
     free = board.floor & ~boxes
-    parent = {start: None}
+    parent: dict[int, tuple[int, int] | None] = {start: None}
     queue = deque([start])
     while queue:
         x = queue.popleft()
@@ -236,8 +236,8 @@ def _walk(board: _Board, start: int, goal: int, boxes: int) -> list[str]:
             parent[y] = (x, d)
             if y == goal:
                 letters = []
-                while parent[y] is not None:
-                    y, d = parent[y]
+                while (step := parent[y]) is not None:
+                    y, d = step
                     letters.append(MOVES[d])
                 letters.reverse()
                 return letters

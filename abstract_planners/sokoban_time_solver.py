@@ -144,6 +144,7 @@ def solve_for_time(state, *, weights: Mapping[str, float] = DEFAULT_WEIGHTS,
     if h0 >= _INF:
         return result(False, "unsolvable")
     # Open entries: (priority, counter, g, boxes, player, last (box, dir), parent key, push).
+    heap: list[tuple[float, int, float, int, int, tuple[int, int], int, tuple[int, int] | None]]
     heap = [(weight * h0, 0, 0.0, boxes0, player0, (-1, -1), -1, None)]
     best: dict[int, float] = {(boxes0 << shift) | player0: 0.0}
     parents: dict[int, tuple] = {}

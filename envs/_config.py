@@ -76,7 +76,8 @@ def check_pair(name: str, value, low: int, high: int) -> tuple[int, int]:
         raise TypeError(f"{name} must be a (height, width) pair of integers, got {_show(value)}")
     if len(value) != 2:
         raise ValueError(f"{name} must be a (height, width) pair of integers, got {_show(value)}")
-    return tuple(check_int(name, side, low, high) for side in value)
+    first, second = (check_int(name, side, low, high) for side in value)
+    return first, second
 
 
 def check_camera(name: str, value) -> None:

@@ -82,10 +82,12 @@ def applied() -> bool:
     return _applied
 
 
+_MALLINFO2_FIELDS = ("arena", "ordblks", "smblks", "hblks", "hblkhd", "usmblks", "fsmblks",
+                     "uordblks", "fordblks", "keepcost")
+
+
 class _Mallinfo2(ctypes.Structure):
-    _fields_ = [(n, ctypes.c_size_t) for n in ("arena", "ordblks", "smblks", "hblks", "hblkhd",
-                                               "usmblks", "fsmblks", "uordblks", "fordblks",
-                                               "keepcost")]
+    _fields_ = [(n, ctypes.c_size_t) for n in _MALLINFO2_FIELDS]
 
 
 def mallinfo() -> dict[str, int] | None:
@@ -98,7 +100,7 @@ def mallinfo() -> dict[str, int] | None:
         return None
     info.restype = _Mallinfo2
     m = info()
-    return {name: getattr(m, name) for name, _ in _Mallinfo2._fields_}
+    return {name: getattr(m, name) for name in _MALLINFO2_FIELDS}
 
 
 def trim() -> None:

@@ -147,7 +147,8 @@ class Environment(dm_env.Environment):
             raise TypeError(f"task must be a PhysicsTask, got {type(task).__name__}")
         self._task = task
         self._closed = False
-        self._cameras = None
+        # Set by `_build`; None only while building (the constructor raises if that fails).
+        self._cameras: Cameras | None = None
         try:
             self._build(task, seed, raise_on_physics_error, lazy_cameras)
         except BaseException:
@@ -165,9 +166,9 @@ class Environment(dm_env.Environment):
         self._model, self._data = self._physics.model.ptr, self._physics.data.ptr
         self._warning_counts = self._data.warning.number  # a live view
         task.after_compile(self._physics, self._rng)
-        self._cameras = Cameras(self._physics.model.ptr)
+        cameras = self._cameras = Cameras(self._physics.model.ptr)
         self._camera_ids = {
-            name: (self._cameras.camera_id(cfg.camera), cfg.height, cfg.width)
+            name: (cameras.camera_id(cfg.camera), cfg.height, cfg.width)
             for name, cfg in task.camera_configs.items()
         }
         if not isinstance(lazy_cameras, bool):
@@ -175,7 +176,7 @@ class Environment(dm_env.Environment):
         self._lazy = lazy_cameras and bool(self._camera_ids)
         if not self._lazy:
             for _, height, width in self._camera_ids.values():
-                self._cameras.prepare(height, width)  # GL context now, not in reset
+                cameras.prepare(height, width)  # GL context now, not in reset
         self._step_count = 0
         self._reset_next_step = True
         self._action_spec = task.action_spec(self._physics)
@@ -328,6 +329,7 @@ class Environment(dm_env.Environment):
             never show them.
         """
         default_h, default_w = self._task.render_size
+        assert self._cameras is not None    # set by the constructor
         return self._cameras.render(
             self._physics.data.ptr, camera or self._task.main_camera,
             default_h if height is None else height, default_w if width is None else width,
@@ -375,9 +377,10 @@ class Environment(dm_env.Environment):
         if self._lazy:
             return LazyObservation(obs, self, self._stamp)
         if self._camera_ids:
-            data = self._data
+            data, cameras = self._data, self._cameras
+            assert cameras is not None          # set by the constructor
             for name, (cam_id, height, width) in self._camera_ids.items():
-                obs[name] = self._cameras.render(data, cam_id, height, width)
+                obs[name] = cameras.render(data, cam_id, height, width)
         return obs
 
     def _render_camera(self, name: str, stamp: int) -> np.ndarray:
@@ -387,6 +390,7 @@ class Environment(dm_env.Environment):
                 f"stepped on; with lazy_cameras=True read camera frames before the next "
                 f"step (or build the environment with lazy_cameras=False)")
         cam_id, height, width = self._camera_ids[name]
+        assert self._cameras is not None    # set by the constructor
         return self._cameras.render(self._data, cam_id, height, width)
 
 

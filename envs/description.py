@@ -68,6 +68,13 @@ class CameraDescription:
         y = y / np.linalg.norm(y)
         return np.stack([x, y, np.cross(x, y)], axis=1)
 
+    def _frame_shape(self, shape) -> tuple[int, int]:
+        """``shape`` (height, width), or by default this camera's."""
+        size = shape or self.shape
+        if size is None:
+            raise TypeError(f"camera {self.name!r} is off: give the frame shape")
+        return size
+
     def focal(self, height: int) -> float:
         """Focal length in pixels for frames ``height`` pixels tall."""
         return 0.5 * height / math.tan(math.radians(self.fovy) / 2)
@@ -76,7 +83,7 @@ class CameraDescription:
         """Pixel coordinates (row, col), floats, of world points (..., 3) in
         frames of ``shape`` (default: this camera's). Pixel centres are at
         integer + 0.5."""
-        height, width = shape or self.shape
+        height, width = self._frame_shape(shape)
         pts = np.asarray(points, float)
         local = (pts - np.asarray(self.position, float)) @ self.rotation()
         f = self.focal(height)
@@ -88,7 +95,7 @@ class CameraDescription:
     def unproject(self, pixels, z: float = 0.0, shape=None) -> np.ndarray:
         """World points (..., 3) on the plane ``z`` seen at pixel coordinates
         (..., 2) = (row, col)."""
-        height, width = shape or self.shape
+        height, width = self._frame_shape(shape)
         px = np.asarray(pixels, float)
         f = self.focal(height)
         rays = np.stack([(px[..., 1] - 0.5 * width) / f, (0.5 * height - px[..., 0]) / f,

@@ -60,11 +60,11 @@ PRIVILEGED_PREFIX = "privileged/"
 _OWN_KEYWORDS = ("obs", "render_mode", "render_camera")
 
 
-def spec_to_space(spec: specs.Array) -> spaces.Space:
+def spec_to_space(spec: specs.Array) -> spaces.Box:
     """A gymnasium Box equivalent to a dm_env array spec."""
     dtype = np.dtype(spec.dtype)
     if dtype == np.bool_:
-        return spaces.Box(0, 1, spec.shape, dtype=np.bool_)
+        return spaces.Box(0, 1, spec.shape, dtype=np.bool_)  # type: ignore[arg-type]  # bool Boxes work; the stubs omit them
     if isinstance(spec, specs.BoundedArray):
         low = np.broadcast_to(spec.minimum, spec.shape).astype(dtype)
         high = np.broadcast_to(spec.maximum, spec.shape).astype(dtype)
@@ -146,6 +146,9 @@ class GymnasiumEnv(gymnasium.Env):
         cameras = [k for k in env.task.camera_configs if k in spec]
         proprio = [k for k in spec if k not in privileged and k not in cameras]
         self.state_layout: dict[str, slice] = {}
+        # What `_observation` returns: a dict (name -> key), one key's array, or
+        # the keys' arrays concatenated.
+        self._keys: dict[str, str] | str | tuple[str, ...]
         if self._obs == "sensors":
             self._keys = {k: k for k in spec if k not in privileged}
         elif self._obs == "full":

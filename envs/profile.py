@@ -63,7 +63,7 @@ class _Section:
 class Profile:
     """Exclusive seconds per section name (``totals``) while ``enabled``."""
 
-    def __init__(self):
+    def __init__(self) -> None:
         self.enabled = False
         self.totals: dict[str, float] = {}
         self._stack: list[float] = []

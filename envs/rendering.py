@@ -23,6 +23,7 @@ import atexit
 import os
 import weakref
 from dataclasses import dataclass
+from typing import Any
 
 from envs import _gl  # noqa: F401  (sets MUJOCO_GL before mujoco renders)
 
@@ -159,7 +160,7 @@ class _Quality:
         if np.any(model.light_type != mujoco.mjtLightType.mjLIGHT_DIRECTIONAL):
             values.pop("numquads", None)
         self._values = {k: min(v, getattr(self._quality, k)) for k, v in values.items()}
-        self._saved = {}
+        self._saved: dict[str, Any] = {}        # the quality values replaced, to restore
 
     def __enter__(self):
         for key, value in self._values.items():

@@ -14,8 +14,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from abstract_planners.sokoban import SokobanState
 
 __all__ = ["BallScene", "ArmScene", "heading_from_orientation", "world_velocity"]
 
@@ -35,7 +39,7 @@ class BallScene:
       box_cells: each box's nearest cell (row, col), in ``box_xy`` order.
     """
 
-    state: object
+    state: SokobanState
     walker_xy: np.ndarray
     walker_velocity: np.ndarray
     heading: float

@@ -42,7 +42,8 @@ def _check_epsilon(epsilon) -> float:
 
 
 def _check_level(level) -> int:
-    if not isinstance(level, numbers.Integral) or isinstance(level, bool) or not 1 <= level <= 10:
+    if (not isinstance(level, numbers.Integral) or isinstance(level, bool)
+            or not 1 <= int(level) <= 10):
         raise ValueError(f"level (GNU Go strength) must be an integer in 1..10, got {level!r}")
     return int(level)
 

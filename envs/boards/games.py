@@ -38,7 +38,7 @@ import functools
 import math
 import numbers
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Callable, cast
 
 import numpy as np
 import pyspiel
@@ -247,7 +247,9 @@ class BoardGame:
         """(num_points,) bool: the point holds a promoted piece."""
         if not self.rules.king_planes:
             return np.zeros(self.num_points, bool)
-        return (self._tensor(state)[list(self.rules.king_planes)] > 0.5).any(axis=0)
+        # numpy's stubs type ``any(axis=0)`` as a bool or an array; it is an array here.
+        return cast(np.ndarray,
+                    (self._tensor(state)[list(self.rules.king_planes)] > 0.5).any(axis=0))
 
     def owners(self, state, agent: int = AGENT) -> np.ndarray:
         """(num_points,) int8: -1 empty, 0 the agent's piece, 1 the opponent's."""
@@ -274,6 +276,7 @@ class BoardGame:
             return 1.0
         if value < 0:
             return 0.0
+        assert self.draw_reward is not None     # `__post_init__` sets the rules' by default
         return self.draw_reward
 
     # -- touches ------------------------------------------------------------
@@ -300,7 +303,8 @@ class BoardGame:
         """
         mover = state.current_player()
         before = self.players(state) == mover
-        out, seen = {}, {}
+        out: dict[int, tuple[int, int]] = {}
+        seen: dict[tuple[int, int], int] = {}       # (from, to) -> the action moving so
         for action in state.legal_actions():
             after = self.players(state.child(action)) == mover
             lost = np.flatnonzero(before & ~after)

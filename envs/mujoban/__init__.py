@@ -153,7 +153,7 @@ def _check_file_fits(source: sources.FileLevels, grid_shape: tuple[int, int]) ->
         else:
             line, column = (first + grid_shape[0] if first else None), 1
         try:
-            index = int(level.name)
+            index = int(level.name) if level.name is not None else position
         except (TypeError, ValueError):
             index = position
         raise LevelError(

@@ -287,4 +287,4 @@ def wall_rectangles(walls: np.ndarray) -> list[tuple[int, int, int, int]]:
                 rect[2] = r + 1
             next_open[run] = rect
         open_runs = next_open
-    return [tuple(rect) for rect in rects]
+    return [(r0, c0, r1, c1) for r0, c0, r1, c1 in rects]

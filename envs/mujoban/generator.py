@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import numbers
 from dataclasses import dataclass
-from typing import Sequence
+from typing import Literal, Sequence, overload
 
 import numpy as np
 
@@ -116,6 +116,24 @@ def max_boxes(size: int) -> int:
     targets, player and room to pull boxes all need floor.
     """
     return (size - 2) ** 2 // 4
+
+
+@overload
+def generate_level(level_or_size: int, num_boxes: int | None = None, *,
+                   seed: int | None = None, rng: np.random.Generator | None = None,
+                   return_solution: Literal[False] = False) -> Level: ...
+
+
+@overload
+def generate_level(level_or_size: int, num_boxes: int | None = None, *,
+                   seed: int | None = None, rng: np.random.Generator | None = None,
+                   return_solution: Literal[True]) -> tuple[Level, list[str]]: ...
+
+
+@overload
+def generate_level(level_or_size: int, num_boxes: int | None = None, *,
+                   seed: int | None = None, rng: np.random.Generator | None = None,
+                   return_solution: bool = False) -> Level | tuple[Level, list[str]]: ...
 
 
 def generate_level(level_or_size: int, num_boxes: int | None = None, *,

@@ -84,7 +84,8 @@ def _blocks(text: str) -> Iterator[tuple[str | None, int, list[str]]]:
     only) nor ``;`` headers. A header names the level that follows it.
     """
     name: str | None = None
-    start, rows = 0, []
+    start = 0
+    rows: list[str] = []
     lines = text.split("\n")
     for number, line in enumerate(lines + [""], start=1):
         line = line[:-1] if line.endswith("\r") else line

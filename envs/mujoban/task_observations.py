@@ -38,12 +38,12 @@ PIXEL_COLOURS = {
 
 def _as_slice(index: np.ndarray):
     """``index`` as an equivalent slice when it is a run of step +1 or -1."""
-    index = [int(i) for i in index]
-    if len(index) >= 2 and all(b - a == index[1] - index[0] for a, b in zip(index, index[1:])) \
-            and abs(index[1] - index[0]) == 1:
-        stop = index[-1] + (index[1] - index[0])
-        return slice(index[0], None if stop < 0 else stop, index[1] - index[0])
-    return np.asarray(index)
+    ints = [int(i) for i in index]
+    if len(ints) >= 2 and all(b - a == ints[1] - ints[0] for a, b in zip(ints, ints[1:])) \
+            and abs(ints[1] - ints[0]) == 1:
+        stop = ints[-1] + (ints[1] - ints[0])
+        return slice(ints[0], None if stop < 0 else stop, ints[1] - ints[0])
+    return np.asarray(ints)
 
 
 class ObservationsMixin:

@@ -11,6 +11,8 @@ arm's own model, `envs.description.ArmDescription`). Observation-only.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from envs.boards.games import BoardGame
@@ -30,8 +32,9 @@ class BoardEstimator(Estimator):
     name = "board"
 
     def __init__(self) -> None:
-        self._games = {}
-        self._game = None
+        # (game, its loaded OpenSpiel game) by game, and the current episode's.
+        self._games: dict[BoardGame, tuple[BoardGame, Any]] = {}
+        self._game: tuple[BoardGame, Any] | None = None
 
     def reset(self, description, timestep) -> None:
         game = BoardGame.from_description(description)

@@ -104,6 +104,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from envs.description import MujobanDescription
 from hier_agents.estimators.base import EstimationError, Estimator
 from hier_agents.estimators.camera_boxes import find_boxes
 from hier_agents.estimators.camera_ears import (EAR_HEIGHT, EAR_OFFSET, EAR_RADIUS,  # noqa: F401
@@ -161,10 +162,19 @@ class CameraEstimator(Estimator):
         self.frame_every = frame_every
         self.near_every = min(near_every, frame_every)
         self.walker_every = walker_every
-        self._desc = None
+        self._desc: MujobanDescription | None = None
         #: Frames looked at and steps predicted since construction (for benchmarks).
         self.frames_read = 0
         self.steps_predicted = 0
+
+    #: The frame shape (rows, cols) of the geometry (set with ``_desc``).
+    _shape: tuple[int, ...]
+
+    @property
+    def _description(self) -> MujobanDescription:
+        """The description of the last `reset` (the methods using it run after one)."""
+        assert self._desc is not None, "used before reset"
+        return self._desc
 
     # -- geometry ---------------------------------------------------------
 
@@ -208,16 +218,16 @@ class CameraEstimator(Estimator):
         frame = np.asarray(timestep.observation[self._camera_key])
         self._setup_geometry(description, frame.shape[:2])
         height, width = description.grid_shape
-        masks = _masks(frame, self._desc.looks)
+        masks = _masks(frame, self._description.looks)
         self._walls, self._targets = self._read_static(frame, masks)
         wall_grid = np.zeros((height, width), bool)
         for r, c in self._walls:
             wall_grid[r, c] = True
         self._wall_grid = wall_grid
         self._precompute_masks()
-        self._num_boxes = None
-        self._box_xy = None
-        self._player = None
+        self._num_boxes: int | None = None
+        self._box_xy: np.ndarray | None = None
+        self._player: tuple[int, int] | None = None
         boxes = self._detect_boxes(frame, masks, self._walker_guess(masks, timestep))
         if len(boxes) != len(self._targets):
             raise EstimationError(f"reset: {len(boxes)} boxes seen but {len(self._targets)} "
@@ -228,16 +238,17 @@ class CameraEstimator(Estimator):
         self._box_xy = np.asarray(boxes, float)[order].reshape(-1, 2)
         self._dt = float(description.control_timestep)
         self._since = 0          # steps since the last frame read
-        self._walker_xy = None   # the last estimate (frame or prediction)
-        self._velocity = None
+        # The last estimate (frame or prediction), with its velocity.
+        self._walker_xy: np.ndarray | None = None
+        self._velocity: np.ndarray | None = None
         self._box_v = np.zeros_like(self._box_xy)
-        self._frame_boxes = None  # boxes at the last frame read
+        self._frame_boxes: np.ndarray | None = None  # boxes at the last frame read
         self._walker_reads = 0    # frames read since the walker was last located
 
     def _read_static(self, frame, masks):
         """(walls, targets): frozensets of (row, col) cells read from the
         reset frame (`hier_agents.estimators.camera_grid`)."""
-        shape = self._desc.grid_shape
+        shape = self._description.grid_shape
         # Pads (z = 0). A box's top in its on-a-pad colour shows a pad under
         # it too (with multisampling the covered pad's ring is ~1 pixel wide).
         targets = read_targets(masks["pad"] | masks["box_on_pad"],
@@ -250,7 +261,7 @@ class CameraEstimator(Estimator):
     def _precompute_masks(self) -> None:
         """Pixel masks of the wall footprint: the cells whose walls hide the
         ears (z 0.34..0.86 m) and a safety band around walls for boxes."""
-        height, width = self._desc.grid_shape
+        height, width = self._description.grid_shape
         g0 = self._grid[0.0]
         outside = ((g0[..., 0] < -0.5) | (g0[..., 0] > height - 0.5)
                    | (g0[..., 1] < -0.5) | (g0[..., 1] > width - 0.5))
@@ -282,11 +293,11 @@ class CameraEstimator(Estimator):
                              self._grid_to_world)
 
     def _grid_to_world(self, g) -> np.ndarray:
-        return grid_to_world(self._desc, g)
+        return grid_to_world(self._description, g)
 
     def _detect_boxes(self, frame, masks, walker_xy) -> list:
         """World (x, y) of every box seen."""
-        desc = self._desc
+        desc = self._description
         px = self._m_per_px[self._box_z] / desc.cell_size          # cells per pixel
         # box side (cells) as seen: pixels fully covered by the box's top
         side = 2 * desc.box_half / desc.cell_size - 2 * self._inset * px
@@ -311,6 +322,7 @@ class CameraEstimator(Estimator):
         if self._walker_xy is None:
             walker = None
         else:  # the velocimeter, integrated (trapezoid)
+            assert self._velocity is not None   # set with every walker estimate
             walker = self._walker_xy + 0.5 * (self._velocity + velocity) * dt
         box_v = self._predict_box_velocity(walker, velocity)
         boxes = self._box_xy + box_v * dt
@@ -361,7 +373,7 @@ class CameraEstimator(Estimator):
                           / speed[moving])[:, None]
         if walker is None:
             return box_v
-        desc = self._desc
+        desc = self._description
         contact = desc.box_half + desc.ball_radius
         gap = self._box_xy - walker
         for i, (dx, dy) in enumerate(gap):
@@ -379,7 +391,7 @@ class CameraEstimator(Estimator):
         if frame.shape[:2] != self._shape:
             raise EstimationError(f"frame shape {frame.shape[:2]} differs from reset's "
                                   f"{self._shape}")
-        masks = _masks(frame, self._desc.looks)
+        masks = _masks(frame, self._description.looks)
         try:
             if walker is None:
                 walker = self._find_walker(masks, timestep)

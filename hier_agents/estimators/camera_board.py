@@ -68,6 +68,7 @@ other camera off, rendered only when read (``lazy_cameras=True``).
 from __future__ import annotations
 
 import warnings
+from typing import Any
 
 import numpy as np
 
@@ -118,6 +119,12 @@ class BoardCameraEstimator(Estimator):
     docstring."""
 
     name = "camera"
+    # Per episode, set by `reset`: the arm posture of the last estimate (None
+    # before the first), the zone a touch hit before the arm jumped back, the
+    # cells read surely since the estimate was made.
+    _qpos: np.ndarray | None
+    _touched: int | None
+    _vouched: np.ndarray | None
     #: Its camera (see the module docstring).
     env_overrides = {"front_camera": None, CAMERA: FRAME_SHAPE, "lazy_cameras": True}
 
@@ -125,8 +132,8 @@ class BoardCameraEstimator(Estimator):
         if not isinstance(frame_every, int) or isinstance(frame_every, bool) or frame_every < 1:
             raise ValueError(f"frame_every must be an integer >= 1, got {frame_every!r}")
         self.frame_every = frame_every
-        self._views = {}
-        self._view = None
+        self._views: dict[tuple[BoardGame, object], BoardView] = {}
+        self._view: BoardView | None = None
         self.searches = 0
 
     def reset(self, description, timestep) -> None:
@@ -135,7 +142,7 @@ class BoardCameraEstimator(Estimator):
         key = (game, camera)
         if key not in self._views:
             self._views[key] = BoardView(description, game, camera)
-        self._view = self._views[key]
+        view = self._view = self._views[key]
         self._game, self._spiel = game, game.load()
         self._agent = scalar(timestep.observation, "agent_player", 0)
         initial = self._spiel.new_initial_state()
@@ -143,12 +150,13 @@ class BoardCameraEstimator(Estimator):
         self._anchors = [initial]
         self._belief = initial.clone()
         self._selected = -1
-        self._cache = {}
+        # `_search`'s results: (state, score) by the search's inputs.
+        self._cache: dict[tuple[object, ...], tuple[Any, tuple[Any, ...]]] = {}
         self._since, self._qpos = self.frame_every, None      # the first estimate reads
         self._touched = None
         self._vouched = None
         # Each touch zone's centre (x, y) and half-sizes: the points, then the pass areas.
-        half = self._view.half
+        half = view.half
         self._zones = [(np.asarray(p[:2], float), np.array([half, half]))
                        for p in description.point_positions]
         if description.pass_action is not None:
@@ -159,7 +167,6 @@ class BoardCameraEstimator(Estimator):
         # colour is far from their parity's median: a piece the opponent has
         # already put there) and later from cells a confirmed state says are empty.
         obs = timestep.observation
-        view = self._view
         samples = view.samples(obs[CAMERA])
         self._background = np.full(samples.shape, np.nan)
         # Nothing can stand out when the agent moves first: no move was played.
@@ -188,6 +195,7 @@ class BoardCameraEstimator(Estimator):
         such cells, only the samples that lie towards a piece's colour
         count; a lone cell is not learnt here."""
         view = self._view
+        assert view is not None, "called after reset"
         keep = keep & np.isnan(self._background[..., 0])
         new = keep.any(axis=1) & (self._game.players(state) < 0)
         shown = np.where(keep[..., None], samples, np.nan)
@@ -226,6 +234,7 @@ class BoardCameraEstimator(Estimator):
             return bg
         out = bg.copy()
         view = self._view
+        assert view is not None, "called after reset"
         some = known.any(axis=1)
         for cell in np.flatnonzero(~known.all(axis=1)):
             missing = ~known[cell]

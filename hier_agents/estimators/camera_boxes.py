@@ -77,6 +77,7 @@ def hidden_edges(sl, hiding, grid) -> np.ndarray:
         if r is not None:
             hidden = not 0 <= r < h or hiding[r, c0:c1].mean() >= HIDDEN_SHARE
         else:
+            assert c is not None                # each side gives its row or its column
             hidden = not 0 <= c < w or hiding[r0:r1, c].mean() >= HIDDEN_SHARE
         if hidden:
             step = grid[min(max(rc + dr, 0), h - 1), min(max(cc + dc, 0), w - 1)] - grid[rc, cc]

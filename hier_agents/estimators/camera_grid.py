@@ -107,9 +107,9 @@ def foreign_fraction(frame, index, ring, grid_shape) -> np.ndarray:
         seen[code[starts[k]:starts[k + 1]]] = 1
     seen = ndimage.maximum_filter(seen.reshape(64, 64, 64), size=5).ravel().astype(bool)
     out = np.zeros(height * width)
-    for k in range(height * width):
-        if starts[k + 1] > starts[k]:
-            out[k] = 1.0 - seen[code[starts[k]:starts[k + 1]]].mean()
+    for cell in range(height * width):
+        if starts[cell + 1] > starts[cell]:
+            out[cell] = 1.0 - seen[code[starts[cell]:starts[cell + 1]]].mean()
     return out.reshape(height, width)
 
 

@@ -35,7 +35,8 @@ class OracleEstimator(Estimator):
 
     def __init__(self, simulator_env) -> None:
         self._env = simulator_env
-        self._static = None
+        # (walls, targets, grid shape): read by `reset`.
+        self._static: tuple[frozenset, frozenset, tuple[int, ...]] | None = None
 
     def reset(self, description, timestep) -> None:
         task = self._env.task
@@ -44,6 +45,7 @@ class OracleEstimator(Estimator):
 
     def estimate(self, timestep) -> BallScene:
         task = self._env.task
+        assert self._static is not None, "estimate called before reset"
         walls, targets, (height, width) = self._static
         box_cells, player = task.abstract_cells
         state = SokobanState(walls=walls, targets=targets, boxes=frozenset(box_cells),

@@ -42,7 +42,9 @@ def collect(spec, frames: int, seed: int, *, actor=None, noise: float = 0.2,
     try:
         obs, info = env.reset(seed=seed)
         noisy = rng.random() < noise_prob
-        zero = np.zeros(env.action_space.shape, np.float32)
+        shape = env.action_space.shape
+        assert shape is not None                # a Box: gymnasium types Space shapes Optional
+        zero = np.zeros(shape, np.float32)
         for _ in range(int(frames)):
             label = info.get("expert_action")  # None where the teacher cannot plan
             if label is not None:

@@ -78,7 +78,8 @@ def make_vector(phase: str, names, state, args):
     pids = [p.pid for p in vec.processes]
     try:  # the forkserver that forks the workers (imports once) counts too
         from multiprocessing import forkserver
-        pids.append(forkserver._forkserver._forkserver_pid)
+        # A private attribute, which typeshed's stubs leave out.
+        pids.append(forkserver._forkserver._forkserver_pid)  # type: ignore[attr-defined]
     except Exception:  # noqa: BLE001 - private API: best effort
         pass
     return vec, phase_names, [p for p in pids if p]
@@ -89,7 +90,8 @@ class CpuClock:
     ``base`` (earlier phases and runs)."""
 
     def __init__(self, base: float) -> None:
-        self.base, self.main0, self.workers = float(base), time.process_time(), []
+        self.base, self.main0 = float(base), time.process_time()
+        self.workers: list[WorkerClock] = []
 
     def now(self) -> float:
         return self.base + time.process_time() - self.main0 + sum(

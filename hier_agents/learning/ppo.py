@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-from typing import Callable, Protocol
+from typing import Callable, Protocol, overload
 
 import gymnasium as gym
 import numpy as np
@@ -238,7 +238,9 @@ class RolloutCollector:
                              f"has {mode!r} (use ppo.make_vector_env)")
         self.envs, self.policy, self.steps, self.obs_fn = envs, policy, int(steps), obs_fn
         self.n = envs.num_envs
-        self._obs = self._mask = None
+        # The network's input and action mask after the last step (set by `reset`).
+        self._obs: torch.Tensor | None = None
+        self._mask: torch.Tensor | None = None
 
     def reset(self, seed: int | None = None) -> None:
         """Resets every env (``seed``: env k gets ``seed + k``) and the episode tallies."""
@@ -255,6 +257,7 @@ class RolloutCollector:
         """``steps`` steps of every env (calls `reset` first if it never ran)."""
         if self._obs is None:
             self.reset()
+        assert self._obs is not None            # set by `reset`
         buf: dict[str, list] = {k: [] for k in ("obs", "masks", "actions", "logp", "values",
                                                  "rewards", "durations", "dones", "bootstrap")}
         episodes, info = [], {}
@@ -286,8 +289,10 @@ class RolloutCollector:
             self._obs, self._mask = self.obs_fn(obs), self._mask_of(info)
         with torch.no_grad():
             next_value = self.policy.value(self._obs).reshape(self.n)
-        stack = {k: (None if v[0] is None else torch.stack(v)) for k, v in buf.items()}
-        return Rollout(**stack, next_value=next_value, episodes=episodes, last_info=info)
+        masks = buf.pop("masks")                # None without action masks; the rest tensors
+        stack = {k: torch.stack(v) for k, v in buf.items()}
+        return Rollout(**stack, masks=None if masks[0] is None else torch.stack(masks),
+                       next_value=next_value, episodes=episodes, last_info=info)
 
     def _bootstrap(self, info: dict, terminated, truncated) -> torch.Tensor:
         """V(final observation) of the envs truncated at this step, 0 elsewhere."""
@@ -327,6 +332,18 @@ def advantages(rollout: Rollout, gamma: float, lam: float) -> tuple[torch.Tensor
     discounts = torch.pow(torch.as_tensor(gamma, dtype=torch.float32), rollout.durations)
     return gae(rollout.rewards, rollout.values, discounts, rollout.dones, rollout.next_value,
                lam, rollout.bootstrap)
+
+
+@overload
+def _flat(x: torch.Tensor, steps_envs: int) -> torch.Tensor: ...
+
+
+@overload
+def _flat(x: None, steps_envs: int) -> None: ...
+
+
+@overload
+def _flat(x: torch.Tensor | None, steps_envs: int) -> torch.Tensor | None: ...
 
 
 def _flat(x: torch.Tensor | None, steps_envs: int) -> torch.Tensor | None:

@@ -66,7 +66,9 @@ def atomic_write_text(text: str, path: str | Path) -> None:
 def rng_state() -> dict:
     """torch, numpy (global) and python ``random`` states, as tensors and
     python primitives (loadable with ``weights_only=True``)."""
-    _, keys, pos, has_gauss, cached = np.random.get_state()
+    legacy = np.random.get_state()
+    assert isinstance(legacy, tuple)            # the global generator is a legacy MT19937
+    _, keys, pos, has_gauss, cached = legacy
     version, internal, gauss = random.getstate()
     return {"torch": torch.get_rng_state(),
             "numpy": {"keys": torch.as_tensor(keys.astype(np.int64)), "pos": int(pos),

@@ -77,7 +77,7 @@ PROG = "python -m hier_agents.learning.train_skill"
 
 def mlp(sizes, out_std: float) -> nn.Sequential:
     """tanh MLP with orthogonal initialisation (last layer scaled by ``out_std``)."""
-    layers = []
+    layers: list[nn.Module] = []
     for j, (a, b) in enumerate(zip(sizes[:-1], sizes[1:])):
         linear = nn.Linear(a, b)
         last = j == len(sizes) - 2
@@ -127,11 +127,12 @@ def evaluate(spec, policy, episodes: int, *, seed: int = HELDOUT_SEED,
     ``episodes`` held-out options of ``spec``: counts, rate, 95% Wilson
     interval, mean steps of the reached ones, failures by reason kind."""
     env = SkillEnv(spec, estimator=estimator, t_abs=t_abs, heldout=True, seed=seed)
-    successes, steps, reasons = 0, [], {}
-    it = range(episodes)
+    successes, steps = 0, []
+    reasons: dict[str, int] = {}                # failures by reason kind
+    bar = None
     if progress:
         from hier_agents.learning.rundir import progress_bar
-        it = progress_bar(episodes, desc="eval", unit="option")
+        bar = progress_bar(episodes, desc="eval", unit="option")
     obs, info = env.reset(seed=seed)
     for _ in range(episodes):
         done = False
@@ -147,11 +148,11 @@ def evaluate(spec, policy, episodes: int, *, seed: int = HELDOUT_SEED,
         else:
             kind = (info["reason"] or info["status"]).split(":", 1)[0]
             reasons[kind] = reasons.get(kind, 0) + 1
-        if progress:
-            it.update(1)
+        if bar is not None:
+            bar.update(1)
         obs, info = env.reset()
-    if progress:
-        it.close()
+    if bar is not None:
+        bar.close()
     privileged = env.privileged
     env.close()
     low, high = wilson_interval(successes, episodes)
@@ -342,7 +343,7 @@ def train(args, command: str = PROG) -> dict:
         _ppo(spec, agent, optimizer, state, run, args, save)
         save()
         summary = _summary(spec, agent, state, args, policy_path)
-        run.log(state["frames"], {"eval_option_success":
+        run.log(int(state["frames"]), {"eval_option_success":
                                   summary["eval"]["learned (deterministic)"]["success"]})
     (Path(args.logdir) / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     print(f"summary: {Path(args.logdir) / 'summary.json'}")

@@ -191,6 +191,7 @@ class ModularAgent:
             action = runner.act(timestep, scene)
             if action is not None:
                 return action
+            assert runner.result is not None    # `act` returned None: the option ended
             self._count(runner.result)
         if scene is None:
             return self.skill.hold()
@@ -203,6 +204,7 @@ class ModularAgent:
             action = runner.act(timestep, scene)
             if action is not None:
                 return action
+            assert runner.result is not None    # `act` returned None: the option ended
             self._count(runner.result)
         return self.skill.hold()
 
@@ -223,9 +225,12 @@ class ModularAgent:
         except EstimationError:
             scene = None
         if runner.act(timestep, scene) is None:
+            assert runner.result is not None    # `act` returned None: the option ended
             self._count(runner.result)
         else:
-            self._count(runner.interrupt("episode ended", timestep, scene))
+            result = runner.interrupt("episode ended", timestep, scene)
+            assert result is not None           # an option was running: it has a result now
+            self._count(result)
 
     def _count(self, result: OptionResult) -> None:
         if self._counted:

@@ -147,29 +147,38 @@ class OptionRunner:
         skill = self.skill
         if scene is None:
             if timestep.last():
-                return self._end(Outcome.INTERRUPTED, "episode ended", timestep, scene)
+                self._end(Outcome.INTERRUPTED, "episode ended", timestep, scene)
+                return None
             if self._duration >= self.t_abs:
-                return self._end(Outcome.CUT_OFF, None, timestep, scene)
+                self._end(Outcome.CUT_OFF, None, timestep, scene)
+                return None
             return self._issue(skill.hold())
         with PROFILE.section("skill"):
             action = skill.act(timestep, scene)
         if skill.status is Status.SUCCESS:
-            return self._end(Outcome.REACHED, None, timestep, scene)
+            self._end(Outcome.REACHED, None, timestep, scene)
+            return None
         if skill.status is Status.FAILURE:
-            return self._end(Outcome.FAILED, skill.failure_reason or "unknown", timestep, scene)
+            self._end(Outcome.FAILED, skill.failure_reason or "unknown", timestep, scene)
+            return None
         if timestep.last():
             if self.adapter is not None and self.adapter.done_at_end(self.subgoal, scene):
-                return self._end(Outcome.REACHED, None, timestep, scene)
-            return self._end(Outcome.INTERRUPTED, "episode ended", timestep, scene)
+                self._end(Outcome.REACHED, None, timestep, scene)
+                return None
+            self._end(Outcome.INTERRUPTED, "episode ended", timestep, scene)
+            return None
         if self._duration >= self.t_abs:
-            return self._end(Outcome.CUT_OFF, None, timestep, scene)
+            self._end(Outcome.CUT_OFF, None, timestep, scene)
+            return None
         if (self._expected is not None and self._duration % self.check_every == 0
                 and self.adapter.deviates(self._expected, scene)):
-            return self._end(Outcome.FAILED, "deviation", timestep, scene)
+            self._end(Outcome.FAILED, "deviation", timestep, scene)
+            return None
         return self._issue(action)
 
-    def interrupt(self, reason: str, timestep=None, scene=None) -> OptionResult:
-        """Ends the running option as **interrupted** with ``reason``."""
+    def interrupt(self, reason: str, timestep=None, scene=None) -> OptionResult | None:
+        """Ends the running option as **interrupted** with ``reason``;
+        returns `result` (None when no option ran since `clear`)."""
         if self._running:
             if self._awaiting and timestep is not None:
                 self._record(timestep)
@@ -223,6 +232,7 @@ def run_option(env, estimator, skill, subgoal, timestep, *, adapter=None, t_abs:
             scene = None
         if on_step is not None and scene is not None:
             on_step(timestep, scene)
+    assert runner.result is not None        # `act` returned None: the option ended
     return runner.result
 
 

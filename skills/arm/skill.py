@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 import time
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -13,10 +14,13 @@ from skills.arm.config import ArmTouchConfig
 from skills.arm.geometry import DOWN
 from skills.arm.model import ArmModel
 from skills.arm.motion import lift_command, line_command
-from skills.arm.postures import PosturePlanner, joint_acceleration
+from skills.arm.postures import PosturePlanner, TouchPlan, joint_acceleration
 from skills.arm.targets import touch_target, touch_zones
 from skills.arm.touch import TouchIK
 from skills.base import Skill, Status
+
+if TYPE_CHECKING:
+    from abstract_planners.base import Subgoal
 
 #: Joints of the Jaco and its hand (the action's size before any reset).
 _NUM_ACTIONS = 9
@@ -56,6 +60,13 @@ class ArmTouchSkill(Skill):
     """
 
     name = "arm-touch"
+    # The touch's state, set by `_aim` (which `reset` calls): the plan (None
+    # before planning or when unreachable), the landing kind, the tool's last
+    # position and the pad's top (None when the zone is not a point).
+    _plan: TouchPlan | None
+    _landing_kind: str | None
+    _last_tool: np.ndarray | None
+    _pad_top: np.ndarray | None
 
     def __init__(self, config: ArmTouchConfig | None = None, **overrides):
         super().__init__()
@@ -65,7 +76,7 @@ class ArmTouchSkill(Skill):
         self._arm: ArmModel | None = None
         self._planner: PosturePlanner | None = None
         self._touch_ik: TouchIK | None = None
-        self.subgoal = None
+        self.subgoal: Subgoal | None = None
         self.target: np.ndarray | None = None
         self.phase = "done"
         self.phase_steps: dict[str, int] = {}
@@ -114,6 +125,7 @@ class ArmTouchSkill(Skill):
         state and sets its target. Returns the arm's posture, or None after
         failing (the zone is not a point of the board)."""
         arm, cfg = self._arm, self.config
+        assert arm is not None                  # `reset` sets it (`_model`) first
         self._presses = 0
         self._pressing = 0
         self._lifting = False
@@ -141,6 +153,7 @@ class ArmTouchSkill(Skill):
         self._plan = self._make_plan(q)
         self.plan_ms += (time.perf_counter() - start) * 1e3
         if self._plan is None:
+            assert self._pad_top is not None    # `_aim` set it: it returned a posture
             self._fail(f"unreachable: no arm posture puts the fingertips on "
                        f"{np.round(self._pad_top, 3).tolist()}")
 
@@ -226,7 +239,9 @@ class ArmTouchSkill(Skill):
 
     # -- plan, travel, descend ------------------------------------------------
 
-    def _make_plan(self, q: np.ndarray):
+    def _make_plan(self, q: np.ndarray) -> TouchPlan | None:
+        # Planning follows a successful `_aim`: the planner (`_model`) and the target are set.
+        assert self._planner is not None and self._target is not None
         plan = self._planner.plan(q, self._target, self._extra_height)
         if plan is not None:
             self.planned_time = plan.duration
@@ -236,6 +251,7 @@ class ArmTouchSkill(Skill):
         return plan
 
     def _line_command(self, q: np.ndarray, goal: np.ndarray, brake: bool):
+        assert self._arm is not None            # `act` checked it
         return line_command(self._arm, q, self._qvel, goal, self._accel, self._dt, brake)
 
     def _travel(self, q: np.ndarray, tool: np.ndarray, spread: float):
@@ -246,6 +262,9 @@ class ArmTouchSkill(Skill):
         pad with ``safety`` to spare (so the closing fingers are waited for).
         """
         cfg = self.config
+        # Running after a successful `_aim` and plan (`act` checked the arm).
+        assert (self._arm is not None and self._pad_top is not None
+                and self._plan is not None)
         dxy = float(np.linalg.norm(tool[:2] - self._pad_top[:2]))
         height = tool[2] - self._pad_top[2]
         off_target = dxy > self._tolerance
@@ -292,6 +311,7 @@ class ArmTouchSkill(Skill):
         self._plan = plan
         self._set_phase("travel", why)
         self._recovering = True
+        assert self._arm is not None            # `act` checked it
         return lift_command(self._arm, tool, self.config.speed)
 
     def _landing(self, q: np.ndarray, margin: float | None = None) -> str | None:
@@ -302,6 +322,7 @@ class ArmTouchSkill(Skill):
         footprint with ``band`` does; else None."""
         cfg = self.config
         margin = cfg.safety if margin is None else margin
+        assert self._arm is not None and self._pad_top is not None     # as in `_travel`
         for kind, band in (("fast", cfg.fast_band), ("slow", cfg.band)):
             offset = self._arm.footprint_offset(q, self._pad_top, cfg.finger_reach, band)
             if offset + margin <= self._tolerance:
@@ -311,6 +332,9 @@ class ArmTouchSkill(Skill):
     def _descend(self, q: np.ndarray, tool: np.ndarray, spread: float):
         """Down to the touch posture; None when the touch phase should take over."""
         cfg = self.config
+        # Running after a successful `_aim` and plan (`act` checked the arm).
+        assert (self._arm is not None and self._pad_top is not None
+                and self._plan is not None)
         height = tool[2] - self._pad_top[2]
         if 0.0 < height < 2.5 * cfg.guard and self._landing(q, margin=0.0) is None:
             # A fingertip would land off the pad: climb and plan again.
@@ -336,6 +360,7 @@ class ArmTouchSkill(Skill):
         velocity = self._tool_velocity(tool, spread)
         if self.status is not Status.RUNNING:
             return self.hold()
+        assert self._touch_ik is not None       # set with the arm (`_model`)
         try:
             return self._touch_ik.command(tool, velocity, self._touch_direction, self._dt)
         except Exception as error:  # noqa: BLE001 - mink raises several kinds
@@ -345,6 +370,8 @@ class ArmTouchSkill(Skill):
     def _tool_velocity(self, tool: np.ndarray, spread: float) -> np.ndarray:
         """The tool's desired velocity (m/s) in the touch phase."""
         cfg = self.config
+        # Running after a successful `_aim`, which set both.
+        assert self.target is not None and self._pad_top is not None
         goal, top = self.target, self._pad_top[2]
         horizontal = goal[:2] - tool[:2]
         dxy = float(np.linalg.norm(horizontal))
@@ -406,11 +433,13 @@ class ArmTouchSkill(Skill):
 
     def _check_outcome(self, timestep, scene) -> None:
         """The outcome rule (`touch_outcome`) applied to this timestep."""
+        assert self.subgoal is not None         # set by `reset`
         status, reason = touch_outcome(scene.moves, self._moves_before, self.subgoal.action,
                                        timestep is not None and timestep.last())
         if status is Status.SUCCESS:
             self.status = Status.SUCCESS
         elif status is Status.FAILURE:
+            assert reason is not None           # `touch_outcome` gives a FAILURE its reason
             self._fail(reason)
 
     def __repr__(self) -> str:

@@ -67,17 +67,19 @@ def make_leg(description, config: BallConfig, cells, push, box_xy, blocked, *, k
                       smooth=config.smooth)
     leg = Leg()
     leg.args = (cells, push, blocked, keep)
-    leg.push = None
+    line = None                 # the leg's push: set when ``push`` is given
     if push is not None:
-        leg.push, leg.cell_lat = _push_line(frame, pts, push, box_xy)
-    merged = merge_collinear(pts, leg.push[1] if leg.push is not None else (1.0, 0.0))
+        line, leg.cell_lat = _push_line(frame, pts, push, box_xy)
+    leg.push = line
+    merged = merge_collinear(pts, line[1] if line is not None else (1.0, 0.0))
     # The straight run before meeting the box: the last segment minus the
     # push, which is as long as the box's actual distance to its target (a
     # leg rebuilt mid-push starts with the box between cells).
-    contact_run = push_run = None
-    if push is not None:
-        _, (ux, uy), (tx, ty), _, _ = leg.push
-        bx, by = box_xy[leg.push[0]]
+    contact_run: float | None = None
+    push_run = 0.0              # read only for a push, which sets it
+    if line is not None:
+        _, (ux, uy), (tx, ty), _, _ = line
+        bx, by = box_xy[line[0]]
         push_run = max(0.0, (tx - bx) * ux + (ty - by) * uy)
         lx, ly = merged[-2]
         contact_run = math.hypot(merged[-1][0] - lx, merged[-1][1] - ly) - push_run
@@ -95,13 +97,13 @@ def make_leg(description, config: BallConfig, cells, push, box_xy, blocked, *, k
     starts.append(s)
     leg.total = s
     limits = [(starts[i], v) for i, v in marks]
-    if push is not None:
+    if line is not None:
         # Meeting the box: the last segment's length minus the push itself.
         _, _, _, _, length, s_last = seg[-1]
         # No meeting speed for a ball already touching the box (a leg
         # rebuilt mid-push): braking there would let the box slide on alone.
-        bx, by = box_xy[leg.push[0]]
-        ux, uy = leg.push[1]
+        bx, by = box_xy[line[0]]
+        ux, uy = line[1]
         touching = start is not None and \
             (bx - start[0]) * ux + (by - start[1]) * uy - CONTACT < 0.05
         if not touching:
@@ -114,7 +116,7 @@ def make_leg(description, config: BallConfig, cells, push, box_xy, blocked, *, k
     return leg
 
 
-def _push_line(frame: GridFrame, pts, push, box_xy):
+def _push_line(frame: GridFrame, pts, push, box_xy) -> tuple[tuple, float]:
     """Ends the walk ``pts`` (in place) on the push line through the box's
     actual centre, plus the push up to where the walker stands when the box
     is centred in its last cell; returns (the leg's ``push``, ``cell_lat``)."""

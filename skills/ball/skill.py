@@ -90,7 +90,7 @@ class BallSkill(Skill):
         self._settle = 0
         self._est_seen = None
         self._est_match = False
-        self._prev_box = None
+        self._prev_box: tuple[float, float] | None = None  # the pushed box at the last step
         contact.touched = False
         contact.backing = False
         try:

@@ -106,16 +106,20 @@ then DAgger rounds in which the student acts at a fraction of the steps
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from skills.arm.config import ArmTouchConfig
 from skills.arm.model import ArmModel
 from skills.arm.skill import ArmTouchSkill, touch_outcome
-from skills.arm.targets import touch_target
+from skills.arm.targets import TouchTarget, touch_target
 from skills.base import Status
 from skills.learned.base import LearnedSkill
 from skills.learned.policy import load_policy
+
+if TYPE_CHECKING:
+    from abstract_planners.base import Subgoal
 
 __all__ = ["LearnedArmSkill", "FEATURES", "ACTION_DIM", "POLICY_PATH", "MAX_STEPS"]
 
@@ -157,6 +161,10 @@ class LearnedArmSkill(LearnedSkill):
     name = "learned-arm"
     FEATURES = FEATURES
     ACTION_DIM = ACTION_DIM
+    # The target's frame (radial, tangential, up; rows) and the features that
+    # are constant during a touch: set by `reset` once the target is known.
+    _frame: np.ndarray
+    _target_const: np.ndarray
 
     def __init__(self, policy=None, *, record_only: bool = False, labels: bool | None = None,
                  max_steps: int = MAX_STEPS, teacher_config: ArmTouchConfig | None = None):
@@ -173,8 +181,8 @@ class LearnedArmSkill(LearnedSkill):
         self._arm: ArmModel | None = None
         self._features = np.zeros(len(FEATURES), np.float32)
         self._teacher_action: np.ndarray | None = None
-        self.subgoal = None
-        self.target = None
+        self.subgoal: Subgoal | None = None
+        self.target: TouchTarget | None = None
         self.steps = 0
         self.teacher_resets = 0
         self._description = None
@@ -232,6 +240,7 @@ class LearnedArmSkill(LearnedSkill):
             if status is Status.SUCCESS:
                 self.status = status
             elif status is Status.FAILURE:
+                assert reason is not None       # `touch_outcome` gives a FAILURE its reason
                 self._fail(reason)
         if self.status is Status.RUNNING and self.steps >= self.max_steps:
             self._fail(f"timeout: no move registered in {self.max_steps} steps")
@@ -305,11 +314,14 @@ class LearnedArmSkill(LearnedSkill):
         return self._normalise(command) if teacher.status is Status.RUNNING else None
 
     def _normalise(self, command) -> np.ndarray:
+        assert self._arm is not None            # `act` checked it
         return np.clip(np.asarray(command, float)[:ACTION_DIM] / self._arm.vmax,
                        -1.0, 1.0).astype(np.float32)
 
     def _compute_features(self, scene) -> np.ndarray:
         arm = self._arm
+        # `act` checked the arm; a target is set: `act` checks it, or the touch runs.
+        assert arm is not None and self.target is not None
         qpos = np.asarray(scene.qpos, float)
         arm.set_posture(qpos)
         data = arm.current.data

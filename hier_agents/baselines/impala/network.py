@@ -73,14 +73,15 @@ class NetOutput(NamedTuple):
     """Network outputs, time-major.
 
     ``mean``, ``std``: ``[T, B, A]`` Gaussian policy parameters;
-    ``value_env``: ``[T, B]`` value of the environment reward stream;
+    ``value_env``: ``[T, B]`` value of the environment reward stream (None
+    when run with ``with_value=False``);
     ``value_abs``: ``[T, B]`` value of the auxiliary (abstract-task) reward
     stream, or None for a single-value (vanilla) network.
     """
 
     mean: torch.Tensor
     std: torch.Tensor
-    value_env: torch.Tensor
+    value_env: torch.Tensor | None
     value_abs: torch.Tensor | None
 
 
@@ -133,8 +134,9 @@ class ImpalaNet(nn.Module):
             size += ENCODING_SIZE
         size += int(spec.planner_action_dim)
         self.state_encoder = None
-        if getattr(spec, "state_shape", None) is not None:
-            self.state_encoder = PlannerEncoder(tuple(spec.state_shape))
+        state_shape = getattr(spec, "state_shape", None)
+        if state_shape is not None:
+            self.state_encoder = PlannerEncoder(tuple(state_shape))
             size += ENCODING_SIZE
         if size == 0:
             raise ValueError(f"{spec} gives the network no input")
@@ -215,7 +217,8 @@ class ImpalaNet(nn.Module):
             v_out, (hv, cv) = self._chained_value_core(x, first, state, value_state_after,
                                                        [int(i) for i in value_chain])
         value_env = self.value_env_head(v_out).squeeze(-1)
-        value_abs = self.value_abs_head(v_out).squeeze(-1) if self.two_values else None
+        abs_head = self.value_abs_head      # None unless two_values
+        value_abs = abs_head(v_out).squeeze(-1) if abs_head is not None else None
         return NetOutput(mean, std, value_env, value_abs), (hv, cv, hp, cp)
 
     def _chained_value_core(self, x, first, state, after, chain):

@@ -9,6 +9,7 @@ says; all are importable from `hier_agents.baselines.impala.network`.
 from __future__ import annotations
 
 import math
+from typing import Sequence
 
 import numpy as np
 import torch
@@ -75,7 +76,7 @@ class ImageEncoder(nn.Module):
     #: Images per recomputed chunk of a training batch.
     CHUNK = 512
 
-    def __init__(self, image_shape: tuple[int, int, int], channels=(16, 32, 32),
+    def __init__(self, image_shape: Sequence[int], channels=(16, 32, 32),
                  out_size: int = ENCODING_SIZE):
         super().__init__()
         groups, c_in = [], int(image_shape[0])
@@ -127,7 +128,7 @@ class PlannerEncoder(nn.Module):
     #: Encodings kept for inference (see `forward`).
     cache_size = 4096
 
-    def __init__(self, shape: tuple[int, int, int], out_size: int = ENCODING_SIZE):
+    def __init__(self, shape: Sequence[int], out_size: int = ENCODING_SIZE):
         super().__init__()
         c, h, w = (int(s) for s in shape)
         self.pad = nn.ZeroPad2d((1, 2, 1, 2))  # (left, right, top, bottom)
