@@ -2,10 +2,11 @@
 plugin (``mkdocs.yml`` runs this file on every ``mkdocs build`` / ``mkdocs serve``).
 
 * ``api/<module>.md``: one API reference page per public module of the project's packages
-  (`PACKAGES`), holding ``::: <module>`` for mkdocstrings; ``api/index.md`` lists them all.
-  A module is public when no part of its dotted name starts with ``_`` (so ``__main__`` and
-  ``envs._gl`` are out, packages are in through their ``__init__.py``). Nothing lists modules
-  by hand: a new module gets its page at the next build.
+  (`PACKAGES`), titled by the module's name and holding ``::: <module>`` for mkdocstrings;
+  ``api/index.md`` lists them all. A module is public when no part of its dotted name starts
+  with ``_`` (so ``__main__`` and ``envs._gl`` are out, packages are in through their
+  ``__init__.py``). Nothing lists modules by hand: a new module gets its page at the next
+  build.
 * ``tutorials/*.ipynb``: the notebooks of ``notebooks/``, rendered by mkdocs-jupyter with the
   outputs they were committed with (``execute: false``).
 * ``changelog.md``: the repository's ``CHANGELOG.md``.
@@ -87,7 +88,7 @@ def generate() -> None:
     modules = public_modules()
     for module in modules:
         with mkdocs_gen_files.open(f"api/{module}.md", "w") as page:
-            page.write(f"::: {module}\n")
+            page.write(f"---\ntitle: {module}\n---\n\n::: {module}\n")
         path = Path(*module.split("."))
         source = path / "__init__.py" if (ROOT / path).is_dir() else path.with_suffix(".py")
         mkdocs_gen_files.set_edit_path(f"api/{module}.md", Path("..") / source)
