@@ -1,10 +1,12 @@
-"""Every results table of the README, generated from the JSON committed under results/.
+"""Every results table of the README and the documentation site, generated from the JSON
+committed under results/.
 
     python benchmarks/readme_tables.py            # print every table
     python benchmarks/readme_tables.py --check    # exit 1 naming each table that disagrees
-    python benchmarks/readme_tables.py --write    # rewrite the tables in README.md
+    python benchmarks/readme_tables.py --write    # rewrite the tables in README.md and docs/
 
-A table lives in the README between marker comments::
+A table lives in README.md or in any page under docs/ (``docs/**/*.md``; the results pages
+are docs/results/) between marker comments::
 
     <!-- table:NAME -->
     | ... generated Markdown ... |
@@ -13,10 +15,11 @@ A table lives in the README between marker comments::
 and is produced by the generator registered under NAME (`TABLES`). To add a
 table, write a function that returns its Markdown lines from files under
 ``results/`` and decorate it with ``@table("NAME")``; put the markers in the
-README and run ``--write``. Nothing is measured here: every number comes from
-a JSON that records its command, commit, date and machine (`provenance`).
-``--check`` also fails when a registered table has no markers in the README
-or the README has markers no generator knows.
+README or a docs page and run ``--write``. Nothing is measured here: every number
+comes from a JSON that records its command, commit, date and machine (`provenance`).
+A table may appear in several files; ``--check`` fails when any file's copy
+disagrees with the JSON, when a registered table has markers in none of the files,
+or when a file has markers no generator knows.
 """
 
 from __future__ import annotations
@@ -548,6 +551,46 @@ def check(readme_text: str, tables: dict[str, str]) -> list[str]:
     return problems
 
 
+def check_files(texts: dict[str, str], tables: dict[str, str]) -> list[str]:
+    """Problems across files (``texts``: a label, e.g. "the README" or a docs path, ->
+    its text): per file, tables that differ from the JSON and markers without a closing
+    marker or a generator; then every registered table that no file holds."""
+    problems = []
+    for label, text in texts.items():
+        found = {m.group("name"): m.group("body") for m in _BLOCK.finditer(text)}
+        for name in _OPEN.findall(text):
+            if name not in found:
+                problems.append(f"{label}: table {name!r}: no closing <!-- /table:{name} --> "
+                                f"marker")
+            elif name not in TABLES and name not in tables:
+                problems.append(f"{label}: table {name!r}: no generator registered in "
+                                f"benchmarks/readme_tables.py")
+        for name, body in found.items():
+            if name in tables and body != tables[name]:
+                problems.append(f"table {name!r}: {label} differs from the results JSON "
+                                f"(run `python benchmarks/readme_tables.py --write`)")
+    held = {m.group("name") for text in texts.values() for m in _BLOCK.finditer(text)}
+    for name in tables:
+        if name not in held:
+            problems.append(f"table {name!r}: no <!-- table:{name} --> markers in "
+                            f"{' or '.join(texts)}")
+    return problems
+
+
+def docs_pages(docs: Path) -> list[Path]:
+    """Every Markdown page under ``docs`` (recursively), in path order; none if no folder."""
+    return sorted(docs.rglob("*.md")) if docs.is_dir() else []
+
+
+def _label(path: Path, readme: Path) -> str:
+    if path == readme:
+        return "the README"
+    try:
+        return str(path.resolve().relative_to(ROOT))
+    except ValueError:
+        return str(path)
+
+
 def write(readme_text: str, tables: dict[str, str]) -> str:
     def replace(match):
         name = match.group("name")
@@ -561,9 +604,13 @@ def _main(argv=None) -> int:
     parser = make_parser(__file__, __doc__)
     mode = parser.add_mutually_exclusive_group()
     mode.add_argument("--check", action="store_true",
-                      help="exit 1 when a README table disagrees with the JSON")
-    mode.add_argument("--write", action="store_true", help="rewrite the README's tables")
+                      help="exit 1 when a table of the README or a docs page disagrees with "
+                           "the JSON")
+    mode.add_argument("--write", action="store_true",
+                      help="rewrite the tables of the README and the docs pages")
     parser.add_argument("--readme", type=cli.existing_file, default=ROOT / "README.md")
+    parser.add_argument("--docs", type=Path, default=ROOT / "docs",
+                        help="the folder whose Markdown pages (recursively) also hold tables")
     parser.add_argument("--results", type=Path, default=ROOT / "results",
                         help="the folder of committed results JSON")
     parser.add_argument("--table", action="append", metavar="NAME",
@@ -579,27 +626,36 @@ def _main(argv=None) -> int:
         for name, text in tables.items():
             print(f"<!-- table:{name} -->\n{text}<!-- /table:{name} -->\n")
         return 0
-    text = args.readme.read_text()
+    files = [args.readme] + [p for p in docs_pages(args.docs) if p.resolve() !=
+                             args.readme.resolve()]
+    texts = {path: path.read_text() for path in files}
+    labels = {_label(path, args.readme): text for path, text in texts.items()}
     if args.write:
-        new = write(text, tables)
-        missing = [name for name in tables if f"<!-- table:{name} -->" not in new]
-        args.readme.write_text(new)
-        print(f"wrote {len(tables) - len(missing)} table(s) to {args.readme}")
+        written = 0
+        for path, text in texts.items():
+            new = write(text, tables)
+            if new != text:
+                path.write_text(new)
+                written += 1
+        print(f"wrote {len(tables)} table(s) into {len(files)} file(s) "
+              f"({written} changed)")
+        held = {m.group("name") for text in texts.values() for m in _BLOCK.finditer(text)}
+        missing = [name for name in tables if name not in held]
         for name in missing:
-            print(f"table {name!r} has no markers in {args.readme}; add "
+            print(f"table {name!r} has no markers in {args.readme} or {args.docs}; add "
                   f"<!-- table:{name} --> and <!-- /table:{name} --> around it", file=sys.stderr)
         return 1 if missing else 0
-    problems = check(text, tables)
+    problems = check_files(labels, tables)
     for problem in problems:
         print(problem, file=sys.stderr)
     if not problems:
-        print(f"{len(tables)} README table(s) agree with {args.results}")
+        print(f"{len(tables)} table(s) agree with {args.results} in {len(files)} file(s)")
     return 1 if problems else 0
 
 
 def main(argv=None) -> int:
-    """Prints, checks (exit 1 on a difference) or writes the README tables;
-    bad input: one line on stderr, exit status 2."""
+    """Prints, checks (exit 1 on a difference) or writes the tables of the README and the
+    docs pages; bad input: one line on stderr, exit status 2."""
     return cli.run_main(PROG, _main, argv)
 
 

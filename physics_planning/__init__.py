@@ -3,4 +3,4 @@ command-line toolkit (`physics_planning.cli`). It imports nothing of the
 project, so `abstract_planners`, `envs`, `skills` and `hier_agents` may all
 import it."""
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"

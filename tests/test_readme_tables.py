@@ -52,3 +52,37 @@ def test_every_table_generator_reads_only_results(tmp_path):
     for name, func in readme_tables.TABLES.items():
         lines = func(ROOT / "results")
         assert lines[1].startswith("| ---"), name
+
+
+def test_tables_in_docs_pages_are_checked_with_the_readme(tmp_path):
+    # The README holds no table; a docs page holds one of them, tampered with.
+    tables = readme_tables.generate(ROOT / "results")
+    readme = tmp_path / "README.md"
+    readme.write_text("# nothing here\n")
+    docs = tmp_path / "docs" / "results"
+    docs.mkdir(parents=True)
+    page = docs / "speed.md"
+    page.write_text(readme_tables.write(
+        "x\n<!-- table:env-speed -->\n<!-- /table:env-speed -->\n", tables))
+    run = [sys.executable, "benchmarks/readme_tables.py", "--readme", str(readme),
+           "--docs", str(tmp_path / "docs"), "--table", "env-speed"]
+    assert subprocess.run(run + ["--check"], cwd=ROOT, capture_output=True).returncode == 0
+    good = page.read_text()
+    page.write_text(good.replace("|", "| 1", 1))
+    result = subprocess.run(run + ["--check"], cwd=ROOT, capture_output=True, text=True)
+    assert result.returncode == 1
+    assert "table 'env-speed':" in result.stderr and "speed.md differs" in result.stderr
+    assert subprocess.run(run + ["--write"], cwd=ROOT, capture_output=True).returncode == 0
+    assert page.read_text() == good
+
+
+def test_check_files_reports_missing_and_unknown_markers_across_files():
+    tables = {"one": "| a |\n", "two": "| b |\n"}
+    texts = {"the README": "<!-- table:one -->\n| a |\n<!-- /table:one -->\n",
+             "docs/x.md": "<!-- table:nope -->\n| c |\n<!-- /table:nope -->\n"
+                          "<!-- table:one -->\n| z |\n<!-- /table:one -->\n"}
+    assert readme_tables.check_files(texts, tables) == [
+        "docs/x.md: table 'nope': no generator registered in benchmarks/readme_tables.py",
+        "table 'one': docs/x.md differs from the results JSON "
+        "(run `python benchmarks/readme_tables.py --write`)",
+        "table 'two': no <!-- table:two --> markers in the README or docs/x.md"]

@@ -71,15 +71,17 @@ class AgentInputs:
         (its rounded cells or move record) and planner-plane shapes. Needed
         for the planner conditions and ``state``; None otherwise.
       planner, estimator: the auxiliary task's planner and ground-truth
-        estimator (`make_auxiliary`); None for vanilla.
-      seed: the run's seed (None: unseeded planner draws).
-      t_abs: control steps of a sub-episode; abs_reward: reward for reaching
-        a target; gamma_abs: the auxiliary discount.
+        estimator (`make_auxiliary`); None for vanilla. The planner's seed is
+        the episode's, given to `reset`.
+      t_abs: control steps of a sub-episode.
+      abs_reward: reward for reaching a target.
+      gamma_abs: the auxiliary discount.
 
     Attributes:
-      spec: the network's `InputSpec`. adapter: the family adapter.
-      subgoal: the current target (None: none). abstract_state: the state
-      the current sub-episode started from.
+      spec: the network's `InputSpec`.
+      adapter: the family adapter.
+      subgoal: the current target (None: none).
+      abstract_state: the state the current sub-episode started from.
     """
 
     def __init__(self, description, observation_spec, action_spec, condition: str, *,
