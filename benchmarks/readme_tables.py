@@ -62,6 +62,54 @@ def _load(path: Path) -> dict:
 # -- generators -----------------------------------------------------------------
 
 
+def _rate(summary: dict, key: str = "success") -> str:
+    """``"NN% [lo, hi]"`` of a run summary's rate and 95% Wilson interval."""
+    low, high = summary[f"{key}_interval"]
+    return f"{100 * summary[f'{key}_rate']:.1f}% [{100 * low:.1f}, {100 * high:.1f}]"
+
+
+@table("headline")
+def headline(results: Path) -> list[str]:
+    """The README's few headline results, each from its committed JSON, with
+    a link to the page that holds the full table."""
+    agent = results / "agent"
+    levels = [_load(agent / f"mujoban_level{k}-pegs.json") for k in range(1, 6)]
+    solved = [s["success_rate"] for s in levels]
+    boxoban = [(label, _load(agent / name)) for label, name in (
+        ("medium, first 100", "boxoban_medium-valid-000_first100-pegs.json"),
+        ("unfiltered, first 200", "boxoban_unfiltered-valid-000_first200-pegs.json"),
+        ("hard, first 200", "boxoban_hard-001-200-pegs.json"))]
+    xo = [_load(agent / f"mujoxo_optimal_camera_{side}.json") for side in ("first", "second")]
+    go = _load(agent / "mujogo_7x7_camera.json")
+    compare = _load(results / "compare" / "mujoban" / "comparison.json")
+    level1 = [p for p in compare["points"] if p["env"] == "mujoban/level1"]
+    best_e2e = max((p for p in level1 if p["kind"] == "train"), key=lambda p: p["mean"])
+    modular = next(p for p in level1 if p["agent"] == "modular: scripted")
+    span = (f"{100 * min(solved):.0f}" if min(solved) == max(solved)
+            else f"{100 * min(solved):.0f}-{100 * max(solved):.0f}")
+    e2e = (f"{best_e2e['agent']}, {best_e2e['budget']:,} frames"
+           + (", PRIVILEGED" if best_e2e.get("privileged") else ""))
+    rows = [
+        ("MuJoBan levels 1-5, with pegs", "modular (camera)",
+         f"{span}% solved, {levels[0]['episodes']} episodes each", "results/agent.md"),
+        *((f"Boxoban {label}, with pegs", "modular (camera)",
+           f"{_rate(s)} solved of {s['episodes']}", "results/agent.md") for label, s in boxoban),
+        ("MuJoXO against the optimal opponent", "modular (camera)",
+         f"{sum(round(s['loss_rate'] * s['episodes']) for s in xo)} lost of "
+         f"{sum(s['episodes'] for s in xo)} games (first and second)", "results/agent.md"),
+        ("MuJoGo 7x7 against GNU Go 10", "modular (camera)",
+         f"{_rate(go, 'win')} won of {go['episodes']}", "results/agent.md"),
+        ("`mujoban/level1`, 3 seeds", "modular (camera) against end-to-end",
+         f"{100 * modular['mean']:.0f}% solved against {100 * best_e2e['mean']:.0f}% for the "
+         f"best end-to-end point ({e2e})", "results/comparison.md"),
+    ]
+    lines = ["| task | agent (observes) | result [95% interval] | details |",
+             "| --- | --- | --- | --- |"]
+    lines += [f"| {task} | {who} | {result} | [{page.split('/')[-1][:-3]}](docs/{page}) |"
+              for task, who, result, page in rows]
+    return lines
+
+
 @table("agent-results")
 def agent_results(results: Path) -> list[str]:
     """The modular agent's results: exactly what `benchmarks/agent_table.py`
