@@ -95,7 +95,7 @@ def run_jobs(jobs: list[Job], cache: Path, *, backend: str = "local", cpus: int 
     (cache / "jobs").mkdir(parents=True, exist_ok=True)
     by_key = {job.key: job for job in jobs}
     records, evals, trains = {}, [], []
-    needed_trains = set()
+    needed_trains: set[str] = set()
     for job in jobs:
         record = load_record(cache, job.key)
         if record is not None and job.kind == "eval":
@@ -122,7 +122,7 @@ def run_jobs(jobs: list[Job], cache: Path, *, backend: str = "local", cpus: int 
     if not todo:
         return records
     failed: dict[str, str] = {}
-    starts = {}
+    starts: dict[str, float] = {}
 
     def ready(job):
         return all(d in records for d in job.deps)
