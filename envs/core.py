@@ -68,8 +68,9 @@ class PhysicsTask(composer.Task, abc.ABC):
     time_limit_steps: int = 1000
     #: Camera that `render()` and gymnasium's rgb_array frames show by default.
     main_camera: str = "top_camera"
-    #: (height, width) of `Environment.render` frames by default.
-    render_size: tuple[int, int] = (256, 256)
+    #: (height, width) of `Environment.render` frames by default (a task keeps
+    #: the size it was given; `envs.load` checks it is a pair).
+    render_size: tuple[int, ...] = (256, 256)
     #: Observation keys that are ground truth from the simulator or the
     #: referee, not what a robot's cameras and joint sensors give (MuJoBan's
     #: entity and pixel layers, the board games' board and move record).

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import TypedDict
 
 from physics_planning.cli import UsageError
 
@@ -27,7 +28,20 @@ ROOT = Path(__file__).resolve().parents[1]
 PROBE_S = 5.0
 
 
-def connect(address: str | None = None, *, num_cpus: int | None = None,
+class _RuntimeEnv(TypedDict):
+    env_vars: dict[str, str]
+
+
+class _InitOptions(TypedDict):
+    """The ``ray.init`` arguments `connect` passes on every path."""
+
+    include_dashboard: bool
+    log_to_driver: bool
+    configure_logging: bool
+    runtime_env: _RuntimeEnv
+
+
+def connect(address: str | None = None, *, num_cpus: float | None = None,
             log_to_driver: bool = False):
     """Connects this process to Ray (once); returns the ``ray`` module.
 
@@ -39,8 +53,9 @@ def connect(address: str | None = None, *, num_cpus: int | None = None,
     import ray
 
     if not ray.is_initialized():
-        kwargs = {"include_dashboard": False, "log_to_driver": log_to_driver,
-                  "configure_logging": False, "runtime_env": {"env_vars": worker_env()}}
+        kwargs: _InitOptions = {"include_dashboard": False, "log_to_driver": log_to_driver,
+                                "configure_logging": False,
+                                "runtime_env": {"env_vars": worker_env()}}
         if address not in (None, "local"):
             probe(address)
             try:
@@ -49,7 +64,9 @@ def connect(address: str | None = None, *, num_cpus: int | None = None,
                 raise UsageError(f"no Ray cluster at {address} "
                                  f"({str(exc).strip().splitlines()[0]})") from None
         else:
-            ray.init(**({"num_cpus": num_cpus} if num_cpus else {}), **kwargs)
+            # Ray annotates num_cpus as int but takes any whole-number float (Pool's
+            # size * cpus); it raises ValueError for a fractional one.
+            ray.init(num_cpus=num_cpus or None, **kwargs)  # type: ignore[arg-type]
     return ray
 
 

@@ -43,6 +43,7 @@ import signal
 import sys
 import time
 import traceback
+from collections.abc import Hashable
 from typing import Any, Callable
 
 #: How many times a call runs again after the worker process running it died;
@@ -91,7 +92,8 @@ class Deaths:
     in one line, and raises `WorkerDied` past `WORKER_RETRIES`."""
 
     def __init__(self, retries: int = WORKER_RETRIES, stream=None):
-        self.retries, self.stream, self.counts = retries, stream, {}
+        self.retries, self.stream = retries, stream
+        self.counts: dict[Hashable, int] = {}  # deaths by call key
 
     def died(self, keys: list, labels: list[str], how: str, where: str = "process") -> None:
         """Notes that the calls ``keys`` (described by ``labels``) died with

@@ -47,7 +47,7 @@ def play_shard(play: Play, indices: list[int]) -> tuple[list, dict]:
     if player is None:
         _close_players()  # one environment per process at a time
         player = _PLAYERS[repr(play)] = make_player(play)
-    out = []
+    out: list[tuple[dict, dict]] = []  # (row, counters) per episode
     play_each(player, play, indices, out.append)
     return out, player.info
 

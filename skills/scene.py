@@ -19,6 +19,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
+    import pyspiel
+
     from abstract_planners.sokoban import SokobanState
 
 __all__ = ["BallScene", "ArmScene", "heading_from_orientation", "world_velocity"]
@@ -67,7 +69,7 @@ class ArmScene:
       agent: the agent's OpenSpiel player (0 or 1).
     """
 
-    state: object
+    state: pyspiel.State
     moves: tuple[int, ...]
     qpos: np.ndarray
     qvel: np.ndarray

@@ -280,7 +280,7 @@ class BoardTask(GameRecordMixin, ArmPoseMixin, ObservationsMixin, PhysicsTask):
 
     # -- episode -----------------------------------------------------------
 
-    def initialize_episode(self, physics, random_state):
+    def initialize_episode(self, physics, random_state) -> None:
         self.opponent.reset(seed=int(random_state.integers(2**31)))
         if self.agent_player == "random":
             self._agent = int(random_state.integers(2))

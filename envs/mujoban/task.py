@@ -224,7 +224,7 @@ class Mujoban(ObservationsMixin, LooksMixin, LayoutMixin, PhysicsTask):
 
     # -- composer hooks -----------------------------------------------------
 
-    def after_compile(self, physics, random_state):
+    def after_compile(self, physics, random_state) -> None:
         bind = physics.bind
         arena = self._arena
         self._model = physics.model.ptr

@@ -81,15 +81,16 @@ def _main(argv=None) -> int:
     table = report.format_table(spec, pts, costs, use_iqm=args.iqm)
     print(table)
     missing = sum(1 for j in planned if j.key not in records)
+    code_versions = report.code_versions(records)
     content = {"name": spec.name, "description": spec.description, "spec": spec.raw,
                "spec_file": str(spec.path), "statistic": "iqm" if args.iqm else "mean",
                "points": pts, "series_cost": costs, "jobs": len(planned),
-               "jobs_missing": missing, "code_versions": report.code_versions(records),
+               "jobs_missing": missing, "code_versions": code_versions,
                "job_keys": [j.key for j in planned if j.kind == "eval"]}
-    if len(content["code_versions"]) > 1:
-        versions = ", ".join(f"{c} ({n})" for c, n in content["code_versions"].items())
+    if len(code_versions) > 1:
+        versions = ", ".join(f"{c} ({n})" for c, n in code_versions.items())
         print(f"{PROG}: warning: the job records come from "
-              f"{len(content['code_versions'])} code versions: {versions}; records are "
+              f"{len(code_versions)} code versions: {versions}; records are "
               f"cached by their inputs, not the code: delete CACHE/jobs/KEY.json to run a "
               f"job again", file=sys.stderr)
     out = Path(cache) / "comparison.json"

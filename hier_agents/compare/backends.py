@@ -34,9 +34,13 @@ import tempfile
 import threading
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from hier_agents.compare.jobs import Job, artifacts_present, load_record, store_record
 from hier_agents.executor import Deaths, WorkerDied, die_with_parent, exit_status
+
+if TYPE_CHECKING:
+    from ray import ObjectRef
 
 _ROOT = Path(__file__).resolve().parents[2]
 
@@ -95,7 +99,7 @@ def run_jobs(jobs: list[Job], cache: Path, *, backend: str = "local", cpus: int 
     (cache / "jobs").mkdir(parents=True, exist_ok=True)
     by_key = {job.key: job for job in jobs}
     records, evals, trains = {}, [], []
-    needed_trains = set()
+    needed_trains: set[str] = set()
     for job in jobs:
         record = load_record(cache, job.key)
         if record is not None and job.kind == "eval":
@@ -122,7 +126,7 @@ def run_jobs(jobs: list[Job], cache: Path, *, backend: str = "local", cpus: int 
     if not todo:
         return records
     failed: dict[str, str] = {}
-    starts = {}
+    starts: dict[str, float] = {}
 
     def ready(job):
         return all(d in records for d in job.deps)
@@ -170,7 +174,7 @@ def _died(deaths: Deaths, job: Job, how: str, where: str, finished) -> bool:
         return False
 
 
-def _run_local(todo, cache, slots, retries, ready, blocked, finished, starts, progress):
+def _run_local(todo, cache, slots, retries, ready, blocked, finished, starts, progress) -> None:
     pending = list(todo)
     running: dict[str, threading.Thread] = {}
     results: dict[str, tuple[int, float]] = {}
@@ -226,13 +230,14 @@ def _run_local(todo, cache, slots, retries, ready, blocked, finished, starts, pr
                 lock.wait(timeout=5.0)
 
 
-def _run_ray(todo, cache, cpus, address, retries, ready, blocked, finished, starts, progress):
+def _run_ray(todo, cache, cpus, address, retries, ready, blocked, finished, starts,
+             progress) -> None:
     from hier_agents.cluster import connect, remote
 
     ray = connect(address, num_cpus=cpus)
     task = remote(_ray_task)
     pending = list(todo)
-    running = {}
+    running: dict[ObjectRef, Job] = {}  # task ref -> its job
     attempts: dict[str, int] = {}
     deaths = Deaths()
     lost = (ray.exceptions.RayActorError, ray.exceptions.WorkerCrashedError,

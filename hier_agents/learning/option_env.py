@@ -43,6 +43,8 @@ family's), ``env_options`` passed to `envs.load`. A privileged estimator
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import gymnasium as gym
 import numpy as np
 
@@ -53,6 +55,11 @@ from hier_agents.modular.components import (ESTIMATORS, SKILLS, env_overrides, e
                                             is_privileged)
 from hier_agents.modular.families import adapter, encode_sokoban, family
 from hier_agents.modular.options import T_ABS, Outcome, run_option
+
+if TYPE_CHECKING:
+    from dm_env import TimeStep
+
+    from skills.scene import ArmScene, BallScene
 
 __all__ = ["OptionEnv", "encode_sokoban"]
 
@@ -72,6 +79,8 @@ class OptionEnv(gym.Env):
     """
 
     metadata = {"render_modes": []}
+    #: One action per option (the family adapter's `spaces`).
+    action_space: gym.spaces.Discrete
 
     def __init__(self, env_name: str, *, skill: str | None = None,
                  estimator: str | None = None, seed: int | None = None, gamma: float = 0.99,
@@ -107,8 +116,8 @@ class OptionEnv(gym.Env):
         except Exception:
             self._env.close()
             raise
-        self._timestep = None
-        self._scene = None
+        self._timestep: TimeStep | None = None
+        self._scene: BallScene | ArmScene | None = None
         self._steps = 0
 
     # -- gymnasium ---------------------------------------------------------------
@@ -162,9 +171,11 @@ class OptionEnv(gym.Env):
 
     def legal_mask(self) -> np.ndarray:
         """int8 per action: 1 where the option is legal in the current estimate."""
+        assert self._scene is not None  # estimated by reset()
         return self.adapter.legal_mask(self._scene.state, self.action_space.n)
 
     def _subgoal(self, action: int):
+        assert self._scene is not None  # estimated by reset()
         return self.adapter.option_subgoal(self._scene.state, action)
 
     def _run_hold(self):
@@ -198,6 +209,7 @@ class OptionEnv(gym.Env):
             try:
                 return self.estimator.estimate(self._timestep)
             except EstimationError:
+                assert self._timestep is not None  # reset() set it
                 if self._timestep.last():
                     break
                 self._timestep = self._view.step(self.skill.hold())
@@ -205,6 +217,7 @@ class OptionEnv(gym.Env):
         raise EstimationError(f"no estimate of the first frames of {self.env_name}")
 
     def _observation(self) -> np.ndarray:
+        assert self._scene is not None  # estimated by reset()
         return self.adapter.observation(self._scene.state, self.observation_space)
 
     def _info(self, *, status, duration) -> dict:

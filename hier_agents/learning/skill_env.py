@@ -45,7 +45,8 @@ import numpy as np
 from gymnasium import spaces
 
 from hier_agents.estimators.base import EstimationError
-from hier_agents.learning.skill_spec import SkillSpec, spec as spec_named
+from hier_agents.learning.skill_spec import (OptionStart, SceneSource, SkillSpec,
+                                             spec as spec_named)
 from hier_agents.modular.families import adapter_for
 from hier_agents.modular.options import Outcome, OptionRunner
 
@@ -86,8 +87,8 @@ class SkillEnv(gymnasium.Env):
         self._runner = OptionRunner(self.skill, t_abs=self.t_abs)
         self._seed = seed
         self._rng = np.random.default_rng(seed)
-        self._source = None
-        self._start = None
+        self._source: SceneSource | None = None
+        self._start: OptionStart | None = None
         self._scene = None
         self._obs = np.zeros(self.observation_space.shape, np.float32)
 
@@ -119,6 +120,7 @@ class SkillEnv(gymnasium.Env):
         return self._obs.copy(), self._info(None)
 
     def _start_option(self) -> bool:
+        assert self._source is not None  # reset() made it before starting an option
         start = self._source.start(self._rng)
         if start is None:
             return False
@@ -166,6 +168,7 @@ class SkillEnv(gymnasium.Env):
         return np.clip(self.skill.features, -bound, bound).astype(np.float32)
 
     def _info(self, result) -> dict:
+        assert self._start is not None  # only called once an option has started
         teacher = self.skill.teacher_action
         info = {"status": "running" if result is None else result.outcome.value,
                 "reason": None if result is None else result.reason,

@@ -28,11 +28,22 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Protocol
+from typing import TYPE_CHECKING, Any, Callable, Protocol
 
 import numpy as np
 
+if TYPE_CHECKING:
+    from abstract_planners.base import Subgoal
+    from hier_agents.estimators.base import Estimator
+    from skills.learned.base import LearnedSkill
+
 __all__ = ["SkillSpec", "SceneSource", "OptionStart", "SPECS", "spec", "register"]
+
+
+class OptionEnvironment(Protocol):
+    """The environment an option runs in: ``step(action) -> timestep``."""
+
+    def step(self, action: np.ndarray) -> Any: ...
 
 
 @dataclass
@@ -41,12 +52,12 @@ class OptionStart:
     the estimator (reset for this episode), the public ``description``, the
     current ``timestep`` and ``scene`` (its estimate), and the ``subgoal``."""
 
-    env: object
-    estimator: object
-    description: object
-    timestep: object
-    scene: object
-    subgoal: object
+    env: OptionEnvironment
+    estimator: Estimator
+    description: Any  # the family's public description
+    timestep: Any  # a dm_env.TimeStep
+    scene: Any  # the estimator's estimate
+    subgoal: Subgoal
     #: A name for logs and tables (``"mujoban/level3-pegs"``, ``"mujoxo/optimal"``).
     source: str = ""
     #: True when the skill did not see the frames before this start (a new
@@ -75,7 +86,7 @@ class SkillSpec:
     """One learned skill (module docstring)."""
 
     name: str
-    make_skill: Callable[..., object]
+    make_skill: Callable[[Any], LearnedSkill]
     scenes: Callable[[int, str], SceneSource]
     heldout: Callable[[int, str], SceneSource]
     checkpoint: Path

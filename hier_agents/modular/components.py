@@ -46,7 +46,7 @@ import hashlib
 import importlib
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, NamedTuple
+from typing import TYPE_CHECKING, Any, Callable, Generic, Literal, NamedTuple, TypeVar, overload
 
 from physics_planning.cli import UsageError, close_hint
 from hier_agents.estimators import BoardEstimator, EntityLayerEstimator, OracleEstimator
@@ -54,11 +54,19 @@ from hier_agents.modular.agent import ModularAgent
 from hier_agents.modular.families import family
 from hier_agents.modular.options import T_ABS
 
+if TYPE_CHECKING:
+    from abstract_planners.base import Planner
+    from hier_agents.estimators.base import Estimator
+    from skills.base import Skill
+
 __all__ = ["PLANNERS", "SKILLS", "ESTIMATORS", "ComponentTable", "Parameter", "Resolved",
            "UsageError", "check", "env_overrides", "estimator_name", "family", "file_hash",
            "forms", "is_privileged", "learned_files", "make_agent", "reads_record", "resolve"]
 
-Factory = Callable[..., object]
+#: What a table's factories make: a `Planner`, a `Skill` or an `Estimator`.
+C = TypeVar("C")
+#: A component factory: ``factory(description, seed[, simulator][, arg=ARG])``.
+Factory = Callable[..., C]
 
 
 @dataclass(frozen=True)
@@ -247,7 +255,7 @@ def _privileged(cls):
     return factory
 
 
-class Resolved(NamedTuple):
+class Resolved(NamedTuple, Generic[C]):
     """A component name resolved by `resolve`: ``name`` (the table's key),
     ``arg`` (the parsed ``ARG``, None for a bare name), ``parameter`` (the
     component's `Parameter` or None) and ``factory`` (called as the table's
@@ -257,16 +265,16 @@ class Resolved(NamedTuple):
     name: str
     arg: object
     parameter: Parameter | None
-    factory: Factory
+    factory: Factory[C]
 
 
-class ComponentTable(dict):
+class ComponentTable(dict[str, Factory[C]], Generic[C]):
     """One family's components of one kind: name -> factory, the first entry
     the default. ``"NAME:ARG" in table`` and ``table["NAME:ARG"]`` go through
     `resolve` (``in`` is False for a name `resolve` refuses; ``[]`` raises
     its `UsageError`, a `KeyError` is never raised for a string)."""
 
-    def __init__(self, kind: str, fam: str, entries: dict[str, Factory]):
+    def __init__(self, kind: str, fam: str, entries: dict[str, Factory[C]]):
         super().__init__(entries)
         self.kind, self.family = kind, fam
 
@@ -277,16 +285,16 @@ class ComponentTable(dict):
             return False
         return True
 
-    def __getitem__(self, spec) -> Factory:
+    def __getitem__(self, spec) -> Factory[C]:
         return self.resolve(spec).factory
 
-    def resolve(self, spec: str) -> Resolved:
+    def resolve(self, spec: str) -> Resolved[C]:
         """See the module function `resolve`."""
         if isinstance(spec, str) and dict.__contains__(self, spec):
-            factory = dict.__getitem__(self, spec)
-            return Resolved(spec, None, getattr(factory, "parameter", None), factory)
+            named: Factory[C] = dict.__getitem__(self, spec)
+            return Resolved(spec, None, getattr(named, "parameter", None), named)
         name, sep, text = str(spec).partition(":")
-        factory = dict.get(self, name) if isinstance(spec, str) else None
+        factory: Factory[C] | None = dict.get(self, name) if isinstance(spec, str) else None
         parameter = getattr(factory, "parameter", None)
         if factory is not None and parameter is not None and sep:
             try:
@@ -315,7 +323,7 @@ class ComponentTable(dict):
         return out
 
 
-def _bind(factory: Factory, arg) -> Factory:
+def _bind(factory: Factory[C], arg) -> Factory[C]:
     def bound(*args, **kwargs):
         return factory(*args, **kwargs, arg=arg)
     bound.__dict__.update(factory.__dict__)
@@ -324,7 +332,7 @@ def _bind(factory: Factory, arg) -> Factory:
 
 
 #: family -> name -> factory(description, seed); the first entry is the default.
-PLANNERS: dict[str, ComponentTable] = {
+PLANNERS: dict[str, ComponentTable[Planner]] = {
     "mujoban": ComponentTable("planner", "mujoban", {
         "sokoban-solver:time": _sokoban_time, "sokoban-solver": _sokoban_solver,
         "random": _sokoban_random, "learned": _learned_options}),
@@ -337,14 +345,14 @@ PLANNERS: dict[str, ComponentTable] = {
                                  "random": _board_random}),
 }
 #: family -> name -> factory(description, seed); the first entry is the default.
-SKILLS: dict[str, ComponentTable] = {
+SKILLS: dict[str, ComponentTable[Skill]] = {
     "mujoban": ComponentTable("skill", "mujoban", {"ball": _ball, "learned-ball": _learned_ball}),
     "mujoxo": ComponentTable("skill", "mujoxo", {"arm-touch": _arm, "learned-arm": _learned_arm}),
     "mujogo": ComponentTable("skill", "mujogo", {"arm-touch": _arm, "learned-arm": _learned_arm}),
     "mujoboard": ComponentTable("skill", "mujoboard", {"arm-touch": _arm}),
 }
 #: family -> name -> factory(description, seed, simulator=None).
-ESTIMATORS: dict[str, ComponentTable] = {
+ESTIMATORS: dict[str, ComponentTable[Estimator]] = {
     "mujoban": ComponentTable("estimator", "mujoban", {
         "camera": _camera, "oracle": _privileged(OracleEstimator),
         "entity-layer": _privileged(EntityLayerEstimator)}),
@@ -354,10 +362,20 @@ ESTIMATORS: dict[str, ComponentTable] = {
                                                            "camera": _board_camera}),
 }
 
-_TABLES = {"planner": PLANNERS, "skill": SKILLS, "estimator": ESTIMATORS}
+#: kind -> family -> table (`resolve`'s overloads give each kind its type).
+_TABLES: dict[str, dict[str, ComponentTable[Any]]] = {
+    "planner": PLANNERS, "skill": SKILLS, "estimator": ESTIMATORS}
 
 
-def resolve(kind: str, fam: str, spec: str | None) -> Resolved:
+@overload
+def resolve(kind: Literal["planner"], fam: str, spec: str | None) -> Resolved[Planner]: ...
+@overload
+def resolve(kind: Literal["skill"], fam: str, spec: str | None) -> Resolved[Skill]: ...
+@overload
+def resolve(kind: Literal["estimator"], fam: str, spec: str | None) -> Resolved[Estimator]: ...
+@overload
+def resolve(kind: str, fam: str, spec: str | None) -> Resolved[object]: ...
+def resolve(kind: str, fam: str, spec: str | None) -> Resolved[Any]:
     """The component ``spec`` (``NAME`` or ``NAME:ARG``; None: the default)
     of ``kind`` (``"planner"``, ``"skill"``, ``"estimator"``) for family
     ``fam``. Parses ``ARG``; loads nothing (see `check`).
@@ -374,7 +392,7 @@ def resolve(kind: str, fam: str, spec: str | None) -> Resolved:
     return table.resolve(spec)
 
 
-def check(kind: str, fam: str, spec: str | None) -> Resolved:
+def check(kind: str, fam: str, spec: str | None) -> Resolved[object]:
     """`resolve`, then loads what ``ARG`` names (a checkpoint), so that a
     command refuses a bad one before it plays.
 
@@ -450,12 +468,13 @@ def make_agent(env_name: str, description, *, planner: str | None = None,
       FileNotFoundError: a ``NAME:PATH`` checkpoint that does not exist.
     """
     fam = family(env_name)
-    parts = {kind: resolve(kind, fam, spec).factory
-             for kind, spec in (("estimator", estimator), ("planner", planner), ("skill", skill))}
-    estimator_, planner_, skill_ = (parts["estimator"](description, seed, simulator),
-                                    parts["planner"](description, seed),
-                                    parts["skill"](description, seed))
-    return ModularAgent(estimator_, planner_, skill_, t_abs=t_abs)  # type: ignore[arg-type]
+    make_estimator = resolve("estimator", fam, estimator).factory
+    make_planner = resolve("planner", fam, planner).factory
+    make_skill = resolve("skill", fam, skill).factory
+    estimator_, planner_, skill_ = (make_estimator(description, seed, simulator),
+                                    make_planner(description, seed),
+                                    make_skill(description, seed))
+    return ModularAgent(estimator_, planner_, skill_, t_abs=t_abs)
 
 
 def file_hash(path: str | Path) -> str:

@@ -98,15 +98,16 @@ class FamilyAdapter:
 
     # -- the semi-MDP environment ---------------------------------------------
 
-    def spaces(self, description, state) -> tuple[gym.spaces.Space, gym.spaces.Space]:
-        """(action space, observation space) of the option environment."""
+    def spaces(self, description, state) -> tuple[gym.spaces.Discrete, gym.spaces.Space]:
+        """(action space: one action per option, observation space) of the
+        option environment."""
         raise NotImplementedError
 
     def option_subgoal(self, state, action: int) -> Subgoal | None:
         """The subgoal of option ``action`` from ``state``; None if illegal."""
         raise NotImplementedError
 
-    def legal_mask(self, state, n: int) -> np.ndarray:
+    def legal_mask(self, state, n: int | np.integer) -> np.ndarray:
         """int8 per action: 1 where the option is legal."""
         raise NotImplementedError
 
@@ -234,7 +235,7 @@ class SokobanAdapter(FamilyAdapter):
             return None
         return Subgoal(action=(move,), state=state.apply(move), plan=())
 
-    def legal_mask(self, state, n: int) -> np.ndarray:
+    def legal_mask(self, state, n: int | np.integer) -> np.ndarray:
         from abstract_planners.sokoban import MOVES
         return np.array([state.is_legal(m) for m in MOVES], np.int8)
 
@@ -346,7 +347,7 @@ class BoardAdapter(FamilyAdapter):
             return None
         return Subgoal(action, state.child(action))
 
-    def legal_mask(self, state, n: int) -> np.ndarray:
+    def legal_mask(self, state, n: int | np.integer) -> np.ndarray:
         mask = np.zeros(n, np.int8)
         if not state.is_terminal() and state.current_player() >= 0:
             mask[list(state.legal_actions())] = 1

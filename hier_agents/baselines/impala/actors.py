@@ -40,12 +40,15 @@ from __future__ import annotations
 
 import time
 from functools import partial
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
 from hier_agents.baselines.impala.config import TrainConfig
 from hier_agents.executor import CallFailed, Pool
+
+if TYPE_CHECKING:
+    from ray import ObjectRef
 
 
 _BINARY_KEYS = frozenset({"planner", "planner_action", "state"})
@@ -277,7 +280,8 @@ class RayActors(_Actors):
     """
 
     def __init__(self, config: TrainConfig, num_actors: int, net, *, address: str | None = None):
-        self._weights_ref, self._version = None, 0
+        self._weights_ref: ObjectRef[dict] | None = None
+        self._version = 0
         self.pool = Pool(partial(_RayActor, config), num_actors, address=address or "local",
                          name="impala-actor")
         import ray

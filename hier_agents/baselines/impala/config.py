@@ -98,7 +98,7 @@ class TrainConfig:
             options = {**PRESETS[choice("preset", options["preset"], PRESETS)], **options}
         observations = choice("observations value", options.get("observations", "cameras"),
                               OBSERVATIONS)
-        fields = {OPTIONS[k][0]: v for k, v in options.items() if OPTIONS[k][0] is not None}
+        fields = {attr: v for k, v in options.items() if (attr := OPTIONS[k][0]) is not None}
         fields["save_at"] = tuple(sorted({int(b) for b in fields.get("save_at", ())}))
         config = cls(env=env, cameras=observations != "proprio",
                      progress=not options.get("no_progress", False), **fields)

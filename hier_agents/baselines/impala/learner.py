@@ -81,7 +81,8 @@ def make_batch(unrolls: list[dict], net, value_states: dict | None = None):
     streams = [tuple(u.get("stream", ())) for u in unrolls]
     # A stream may have several (consecutive, in arrival order) unrolls in one
     # batch: the later ones start from the earlier one's value state.
-    chain, last_column = [], {}
+    chain: list[int] = []
+    last_column: dict[tuple, int] = {}  # stream -> its latest unroll's column
     for j, stream in enumerate(streams):
         chain.append(last_column.get(stream, -1) if stream else -1)
         if stream:
@@ -323,8 +324,8 @@ class _Training:
         self.save_at = sorted({int(b) for b in config.save_at})
         self.start = self.last_ckpt = self.last_log = time.perf_counter()
         self.wall0, self.frames_at_log = counters["wall_s"], counters["frames"]
-        self.cpu0, self.process0, self.actor_cpu = counters.get("cpu_s", 0.0), \
-            time.process_time(), {}
+        self.cpu0, self.process0 = counters.get("cpu_s", 0.0), time.process_time()
+        self.actor_cpu: dict[int, tuple[float, float]] = {}  # actor -> CPU seconds (`_note_cpu`)
         self.pending: list[dict] = []
         self.value_states: dict = {}  # stream -> value-core (h, c) after its last unroll
         self.stats: dict = {}

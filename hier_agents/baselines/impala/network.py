@@ -221,7 +221,8 @@ class ImpalaNet(nn.Module):
         value_abs = abs_head(v_out).squeeze(-1) if abs_head is not None else None
         return NetOutput(mean, std, value_env, value_abs), (hv, cv, hp, cp)
 
-    def _chained_value_core(self, x, first, state, after, chain):
+    def _chained_value_core(self, x, first, state, after, chain
+                            ) -> tuple[torch.Tensor, tuple[torch.Tensor, torch.Tensor]]:
         if after is None:
             raise ValueError("value_chain needs value_state_after")
         B = x.shape[1]

@@ -25,10 +25,17 @@ estimator is the observation-only `hier_agents.estimators.BoardEstimator`
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from hier_agents.learning.skill_spec import OptionStart, SkillSpec
 from skills.learned.arm import POLICY_PATH
+
+if TYPE_CHECKING:
+    from dm_env import TimeStep
+
+    from skills.arm import ArmTouchSkill
 
 __all__ = ["ARM_SPEC", "ArmSceneSource", "TRAIN_SOURCES", "SOURCE_WEIGHTS",
            "HELDOUT_SEED_OFFSET", "make_arm_skill"]
@@ -48,7 +55,7 @@ class _Recorder:
 
     def __init__(self, env, source: "ArmSceneSource"):
         self._env, self._source = env, source
-        self.timestep = None
+        self.timestep: TimeStep | None = None
 
     def step(self, action):
         self.timestep = self._env.step(action)
@@ -77,7 +84,7 @@ class _Game:
         self.estimator = BoardEstimator()
         fam = family(name)
         self.planner = next(iter(PLANNERS[fam].values()))(self.description, seed)
-        self.timestep = None
+        self.timestep: TimeStep | None = None
         self.reset_pending = True
 
     def close(self) -> None:
@@ -114,7 +121,7 @@ class ArmSceneSource:
         self._games: dict[str, _Game] = {}
         self._current: _Game | None = None
         self._recorder: _Recorder | None = None
-        self._teacher = None
+        self._teacher: ArmTouchSkill | None = None
 
     # -- SceneSource ------------------------------------------------------------
 

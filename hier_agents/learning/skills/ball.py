@@ -40,11 +40,16 @@ proprioception).
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from hier_agents.learning.skill_spec import OptionStart, SkillSpec
 from hier_agents.modular.families import FAMILIES
 from skills.learned.ball import POLICY_PATH
+
+if TYPE_CHECKING:
+    from dm_env import TimeStep
 
 __all__ = ["BALL_SPEC", "BallSceneSource", "TRAIN_SOURCES", "HELDOUT_SOURCES",
            "make_source_env", "TRAIN_T_ABS"]
@@ -107,7 +112,7 @@ class _Level:
         self.estimator = ESTIMATORS["mujoban"][estimator](self.description, seed, self.env)
         self.planner = SokobanSolverPlanner(time_limit=5.0)
         self.counted = _Counted(self.env, self, owner)
-        self.timestep = None
+        self.timestep: TimeStep | None = None
 
 
 class BallSceneSource:
@@ -143,6 +148,7 @@ class BallSceneSource:
     def _skip(self, level: _Level, n: int) -> bool:
         """Runs the scripted agent for ``n`` subgoals; False if the level ended."""
         from hier_agents.modular.options import run_option
+        assert level.timestep is not None  # start() reset the level
         for _ in range(n):
             scene = self._estimate(level)
             if scene is None or level.timestep.last() or scene.state.is_solved():
@@ -163,7 +169,9 @@ class BallSceneSource:
             level.planner.reset(int(rng.integers(2 ** 31)))
             skip, fresh = int(rng.integers(self.max_skip + 1)), True
         else:
+            assert self._level is not None  # alive: the last option's level goes on
             level = self._level
+            assert level.timestep is not None  # and it was reset when it was picked
             skip = int(rng.random() < 0.3)
             fresh = skip > 0
         self._alive = False
@@ -197,11 +205,18 @@ def make_ball_skill(policy=None):
     return LearnedBallSkill(policy, record_only=policy is None)
 
 
+def _train_scenes(seed: int, estimator: str = "oracle") -> BallSceneSource:
+    return BallSceneSource(seed, estimator)
+
+
+def _heldout_scenes(seed: int, estimator: str = "oracle") -> BallSceneSource:
+    return BallSceneSource(seed, estimator, sources=HELDOUT_SOURCES, p_continue=0.0)
+
+
 BALL_SPEC = SkillSpec(
     name="ball", skill_name="learned-ball", make_skill=make_ball_skill,
-    scenes=lambda seed, estimator="oracle": BallSceneSource(seed, estimator),
-    heldout=lambda seed, estimator="oracle": BallSceneSource(
-        seed, estimator, sources=HELDOUT_SOURCES, p_continue=0.0),
+    scenes=_train_scenes,
+    heldout=_heldout_scenes,
     checkpoint=POLICY_PATH, t_abs=TRAIN_T_ABS, estimators=("oracle", "camera"),
     family="mujoban",
     penalties={"box disturbed": -1.0, "box off line": -1.0, "estimate deviates": -1.0,
