@@ -52,8 +52,9 @@ def _random_policy(path, seed: int = 0):
 def tiny_run(tmp_path_factory):
     """A few PPO updates: an abstract warm start, then OptionEnv (camera, learned ball)."""
     logdir = tmp_path_factory.mktemp("options_run")
-    code = train_options.main(["mujoban/level1", "--option-steps", "32", "--envs", "1", "--rollout", "16",
-                               "--sync", "--abstract-steps", "256", "--abstract-envs", "4",
+    code = train_options.main(["mujoban/level1", "--option-steps", "32", "--envs", "1",
+                               "--rollout", "16", "--sync", "--abstract-steps", "256",
+                               "--abstract-envs", "4",
                                "--seed", "3", "--eval-episodes", "0", "--logdir", str(logdir)])
     assert code == 0
     return logdir
