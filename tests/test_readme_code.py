@@ -1,4 +1,5 @@
-"""Every code block of the README runs as written, or says it is an excerpt.
+"""Every code block of the README and of the documentation's guide pages
+(`DOCUMENTS`) runs as written, or says it is an excerpt.
 
 A block whose first line is ``# excerpt: WHY`` is documentation only (it
 needs something the suite does not have, such as the original environment
@@ -29,6 +30,9 @@ from child_env import child_env
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
+#: The pages whose code blocks run: the README, getting started and the user guide.
+DOCUMENTS = [README, ROOT / "docs" / "getting-started.md",
+             *sorted((ROOT / "docs" / "guide").glob("*.md"))]
 _BLOCK = re.compile(r"^( *)```(\w*)\n(.*?)^\1```", re.M | re.S)  # indented in lists too
 INSTALL = "bash scripts/install.sh && "
 
@@ -57,11 +61,17 @@ SMALL_BUDGETS = {
 OUTPUT_FLAGS = ("--json", "--video", "--picture", "--logdir", "--cache")
 
 
-def readme_blocks() -> list[tuple[int, str, str]]:
-    """(line number, language, body) of every fenced block of the README."""
-    text = README.read_text()
+def readme_blocks(path: Path = README) -> list[tuple[int, str, str]]:
+    """(line number, language, body) of every fenced block of ``path``."""
+    text = path.read_text()
     return [(text.count("\n", 0, m.start()) + 1, m.group(2), textwrap.dedent(m.group(3)))
             for m in _BLOCK.finditer(text)]
+
+
+def all_blocks() -> list[tuple[str, str, str]]:
+    """(``FILE:LINE``, language, body) of every fenced block of `DOCUMENTS`."""
+    return [(f"{path.relative_to(ROOT)}:{line}", lang, body) for path in DOCUMENTS
+            for line, lang, body in readme_blocks(path)]
 
 
 def is_excerpt(body: str) -> bool:
@@ -107,33 +117,33 @@ def shrink(command: str, scratch: Path) -> str:
     return shlex.join(out)
 
 
-PYTHON_BLOCKS = [(line, body) for line, lang, body in readme_blocks()
+PYTHON_BLOCKS = [(where, body) for where, lang, body in all_blocks()
                  if lang == "python" and not is_excerpt(body)]
 #: The set-up's test command is what CI runs (checked by
 #: `test_the_set_up_commands_are_what_ci_runs`), not a block to run inside it.
 TEST_COMMAND = "python -m pytest -q"
-BASH_BLOCKS = [(line, body) for line, lang, body in readme_blocks()
+BASH_BLOCKS = [(where, body) for where, lang, body in all_blocks()
                if lang == "bash" and not is_excerpt(body) and body.strip() != TEST_COMMAND]
 
 
 def test_every_block_is_python_bash_or_a_listing():
-    for line, lang, body in readme_blocks():
-        assert lang in ("python", "bash", "toml", ""), (
-            f"README line {line}: unknown language {lang!r}")
-        if lang == "":  # a listing (the layout), not code
+    for where, lang, body in all_blocks():
+        assert lang in ("python", "bash", "toml", "text", ""), (
+            f"{where}: unknown language {lang!r}")
+        if lang in ("", "text"):  # a listing (the layout), not code
             assert not re.search(r"^\s*(python|bash|import) ", body, re.M), (
-                f"README line {line}: code in a block without a language")
+                f"{where}: code in a block without a language")
 
 
 def test_toml_blocks_are_the_shipped_files_they_name():
     import tomllib
-    blocks = [(line, body) for line, lang, body in readme_blocks() if lang == "toml"]
+    blocks = [(where, body) for where, lang, body in all_blocks() if lang == "toml"]
     assert blocks
-    for line, body in blocks:
+    for where, body in blocks:
         named = re.match(r"# excerpt: (\S+\.toml)", body.strip())
-        assert named, f"README line {line}: a TOML block starts with '# excerpt: FILE.toml'"
+        assert named, f"{where}: a TOML block starts with '# excerpt: FILE.toml'"
         assert tomllib.loads(body) == tomllib.loads((ROOT / named.group(1)).read_text()), (
-            f"README line {line}: differs from {named.group(1)}")
+            f"{where}: differs from {named.group(1)}")
 
 
 def test_the_set_up_commands_are_what_ci_runs():
@@ -162,19 +172,19 @@ def test_shrink_rewrites_budgets_and_outputs(tmp_path):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("line,body", PYTHON_BLOCKS, ids=[f"line{n}" for n, _ in PYTHON_BLOCKS])
-def test_python_block_runs(line, body, tmp_path):
+@pytest.mark.parametrize("where,body", PYTHON_BLOCKS, ids=[w for w, _ in PYTHON_BLOCKS])
+def test_python_block_runs(where, body, tmp_path):
     result = subprocess.run([sys.executable, "-c", body], cwd=ROOT, env=child_env(),
                             capture_output=True, text=True, timeout=600)
-    assert result.returncode == 0, f"README line {line}:\n{result.stderr[-3000:]}"
+    assert result.returncode == 0, f"{where}:\n{result.stderr[-3000:]}"
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("line,body", BASH_BLOCKS, ids=[f"line{n}" for n, _ in BASH_BLOCKS])
-def test_bash_block_runs(line, body, tmp_path):
+@pytest.mark.parametrize("where,body", BASH_BLOCKS, ids=[w for w, _ in BASH_BLOCKS])
+def test_bash_block_runs(where, body, tmp_path):
     for command in commands(body):
         small = shrink(command, tmp_path)
         result = subprocess.run(small, shell=True, cwd=ROOT, env=child_env(), capture_output=True,
                                 text=True, timeout=1200)
         assert result.returncode == 0, (
-            f"README line {line}: {small}\n{result.stdout[-2000:]}\n{result.stderr[-3000:]}")
+            f"{where}: {small}\n{result.stdout[-2000:]}\n{result.stderr[-3000:]}")
