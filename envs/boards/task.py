@@ -354,3 +354,18 @@ class BoardTask(GameRecordMixin, ArmPoseMixin, ObservationsMixin, PhysicsTask):
     def succeeded(self) -> bool:
         """The agent won the game (an opponent's resignation included)."""
         return self.outcome == "win"
+
+    @property
+    def reward_rule(self) -> str:
+        """The reward rule in a sentence (the environment gallery's cards show it)."""
+        return (f"0 until the game ends; then 1 for a win (an opponent's resignation included), "
+                f"{self.game.draw_reward:g} for a draw, 0 for a loss.")
+
+    @property
+    def success_rule(self) -> str:
+        """The success rule and how the episode ends, in a sentence."""
+        timeout = ("a game still running is a loss (reward 0, discount 0)"
+                   if self._timeout_is_loss else "a game still running is truncated (discount 1)"
+                   ", not a win")
+        return (f"A win. The episode terminates (discount 0) when the game ends; at the time "
+                f"limit {timeout}.")

@@ -125,6 +125,13 @@ class Mujoban(ObservationsMixin, LooksMixin, LayoutMixin, PhysicsTask):
     #: agents observe cameras and proprioception only).
     privileged_observations = frozenset({"full_entity_layer", "pixel_layer"})
     state_observations = ("full_entity_layer",)
+    #: The reward and the success rule in a sentence each (the module
+    #: docstring has the details; the environment gallery's cards show these).
+    reward_rule = ("+1 at the control step a box comes to cover a target pad, -1 when a box "
+                   "leaves one, 0 otherwise; +10 more at the step every pad is covered.")
+    success_rule = ("Solved when every pad is covered by a box: the episode then terminates "
+                    "(discount 0). It also terminates if the walker dies (never for the "
+                    "rolling ball); at the time limit it is truncated (discount 1), unsolved.")
 
     def __init__(self, level_source: LevelSource, *, grid_shape=(10, 10), max_boxes=4,
                  pegs=False, top_camera=(96, 96), egocentric_camera=(96, 96),
