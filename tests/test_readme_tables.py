@@ -22,7 +22,7 @@ def test_check_names_the_table_that_disagrees(tmp_path):
     # A README whose tables are all generated, then one number changed.
     text = readme_tables.write((ROOT / "README.md").read_text(),
                                readme_tables.generate(ROOT / "results"))
-    tampered = text.replace("| 47.7 |", "| 47.8 |", 1)
+    tampered = text.replace("99.5% [97.2, 99.9]", "99.6% [97.2, 99.9]", 1)
     assert tampered != text
     readme = tmp_path / "README.md"
     readme.write_text(tampered)
@@ -30,7 +30,7 @@ def test_check_names_the_table_that_disagrees(tmp_path):
                              "--readme", str(readme)], cwd=ROOT, capture_output=True, text=True)
     assert result.returncode == 1
     assert result.stderr.splitlines() == [
-        "table 'execution-time': the README differs from the results JSON "
+        "table 'headline': the README differs from the results JSON "
         "(run `python benchmarks/readme_tables.py --write`)"]
     # --write repairs it.
     assert readme_tables.main(["--write", "--readme", str(readme)]) == 0

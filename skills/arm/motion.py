@@ -45,7 +45,8 @@ def line_command(arm: ArmModel, q: np.ndarray, arm_qvel: np.ndarray, goal: np.nd
 
 def lift_command(arm: ArmModel, tool: np.ndarray, speed: float) -> np.ndarray:
     """Raises the tool point ``tool`` (of the ``current`` posture) at
-    ``speed`` (m/s) with the shoulder and elbow, the fingers closing."""
+    ``speed`` (m/s) with the shoulder and elbow, the fingers closing; within
+    the action's bounds (a joint scaled to its full speed can round past it)."""
     command = arm.hold()
     big = np.array([1, 2])  # shoulder, elbow (the base turns about the vertical)
     jz = arm.tool_jacobian_z(tool)[big]
@@ -54,4 +55,4 @@ def lift_command(arm: ArmModel, tool: np.ndarray, speed: float) -> np.ndarray:
         qdot = jz * (speed / norm)
         qdot /= max(1.0, float(np.max(np.abs(qdot) / arm.vmax[big])))
         command[big] = qdot
-    return command
+    return np.clip(command, arm.low, arm.high)
