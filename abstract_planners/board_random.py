@@ -21,8 +21,9 @@ def check_decision_state(state, who: str) -> None:
     if state.is_terminal():
         raise ValueError(f"{who}: the game is over (terminal state), there is no move to plan")
     if state.is_chance_node() or state.is_simultaneous_node():
-        raise ValueError(f"{who}: plans only where one player must move, not at chance or "
-                         f"simultaneous nodes")
+        raise ValueError(
+            f"{who}: plans only where one player must move, not at chance or simultaneous nodes"
+        )
 
 
 class RandomMovePlanner(Planner):

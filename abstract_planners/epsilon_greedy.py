@@ -46,8 +46,12 @@ class EpsilonGreedy(Planner):
             raise TypeError(f"planner must be a Planner, got {type(planner).__name__}")
         # int and float are registered numbers.Real (the run-time test is unchanged); listed
         # so that mypy, which does not know they are Reals, sees the code below as reachable.
-        if (isinstance(epsilon, bool) or not isinstance(epsilon, (int, float, numbers.Real))
-                or math.isnan(float(epsilon)) or not 0.0 <= float(epsilon) <= 1.0):
+        if (
+            isinstance(epsilon, bool)
+            or not isinstance(epsilon, (int, float, numbers.Real))
+            or math.isnan(float(epsilon))
+            or not 0.0 <= float(epsilon) <= 1.0
+        ):
             raise ValueError(f"epsilon must be a number in the range [0, 1], got {epsilon!r}")
         self.planner = planner
         self.epsilon = float(epsilon)

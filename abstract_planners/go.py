@@ -30,8 +30,7 @@ import pyspiel
 
 from abstract_planners.base import Planner, Subgoal
 from abstract_planners.board_random import check_decision_state
-from abstract_planners.gtp import (INSTALL_HINT, GnuGoNotFoundError, GTPClient,
-                                   default_gnugo_command)
+from abstract_planners.gtp import INSTALL_HINT, GnuGoNotFoundError, GTPClient, default_gnugo_command
 from abstract_planners.gtp_process import close_quietly
 from abstract_planners.openspiel_bots import MCTSPlanner, _check_int, _check_real
 
@@ -80,10 +79,14 @@ def action_to_vertex(action: int, board_size: int) -> str:
       ValueError: ``action`` outside 0..board_size**2.
     """
     n = _check_size(board_size)
-    if (isinstance(action, bool) or not isinstance(action, numbers.Integral)
-            or not 0 <= action <= n * n):
-        raise ValueError(f"action must be an integer in the range 0..{n * n} for board_size {n}, "
-                         f"got {action!r}")
+    if (
+        isinstance(action, bool)
+        or not isinstance(action, numbers.Integral)
+        or not 0 <= action <= n * n
+    ):
+        raise ValueError(
+            f"action must be an integer in the range 0..{n * n} for board_size {n}, got {action!r}"
+        )
     action = int(action)
     if action == n * n:
         return "pass"
@@ -104,9 +107,11 @@ def vertex_to_action(vertex: str, board_size: int) -> int:
     column = GTP_COLUMNS.find(text[:1]) if text else -1
     digits = text[1:]
     if column < 0 or column >= n or not digits.isdigit() or not 1 <= int(digits) <= n:
-        raise ValueError(f"{vertex!r} is not a GTP vertex of a {n}x{n} board "
-                         f"(columns {GTP_COLUMNS[0]}..{GTP_COLUMNS[n - 1]} without I, rows 1..{n}, "
-                         f"or 'pass')")
+        raise ValueError(
+            f"{vertex!r} is not a GTP vertex of a {n}x{n} board "
+            f"(columns {GTP_COLUMNS[0]}..{GTP_COLUMNS[n - 1]} without I, rows 1..{n}, "
+            f"or 'pass')"
+        )
     return (int(digits) - 1) * n + column
 
 
@@ -114,8 +119,9 @@ def _go_params(state, who: str) -> dict:
     check_decision_state(state, who)
     game = state.get_game()
     if game.get_type().short_name != "go":
-        raise ValueError(f"{who} plans OpenSpiel go states, got a "
-                         f"{game.get_type().short_name!r} state")
+        raise ValueError(
+            f"{who} plans OpenSpiel go states, got a {game.get_type().short_name!r} state"
+        )
     return game.get_parameters()
 
 
@@ -162,9 +168,17 @@ class GnuGoPlanner(Planner):
 
     name = "gnugo"
 
-    def __init__(self, level: int = 10, *, board_size: int = 7, komi: float = 5.5,
-                 timeout: float = 10.0, command=None, seed: int | None = None,
-                 cleanup: bool = True):
+    def __init__(
+        self,
+        level: int = 10,
+        *,
+        board_size: int = 7,
+        komi: float = 5.5,
+        timeout: float = 10.0,
+        command=None,
+        seed: int | None = None,
+        cleanup: bool = True,
+    ):
         self.level = _check_int(level, "level", 1, 10)
         self.board_size = _check_int(board_size, "board_size", MIN_BOARD_SIZE, MAX_BOARD_SIZE)
         self.komi = _check_real(komi, "komi")
@@ -179,7 +193,8 @@ class GnuGoPlanner(Planner):
         self.command = [str(part) for part in command]
         if not self.command or shutil.which(self.command[0]) is None:
             raise GnuGoNotFoundError(
-                f"GTP engine executable {self.command[:1]} not found; for GNU Go, {INSTALL_HINT}")
+                f"GTP engine executable {self.command[:1]} not found; for GNU Go, {INSTALL_HINT}"
+            )
         self.cleanup = bool(cleanup)
         self._seed = None if seed is None else int(seed)
         self._client: GTPClient | None = None
@@ -212,7 +227,7 @@ class GnuGoPlanner(Planner):
         with them a seeded episode's, depended on the games played before
         it in the process (about 20 ms a game)."""
         if seed is not None:
-            self._seed = int(seed) % (2 ** 31)
+            self._seed = int(seed) % (2**31)
         self.close()
 
     def _sync(self, history: list[int]) -> None:
@@ -231,10 +246,12 @@ class GnuGoPlanner(Planner):
         if params["board_size"] != self.board_size or params["komi"] != self.komi:
             raise ValueError(
                 f"{self.name} is set up for board_size={self.board_size}, komi={self.komi:g}; "
-                f"got a state with board_size={params['board_size']}, komi={params['komi']:g}")
+                f"got a state with board_size={params['board_size']}, komi={params['komi']:g}"
+            )
         if params.get("handicap", 0):
-            raise ValueError(f"{self.name} does not support handicap games "
-                             f"(handicap={params['handicap']})")
+            raise ValueError(
+                f"{self.name} does not support handicap games (handicap={params['handicap']})"
+            )
         history = [int(a) for a in state.history()]
         color = "b" if len(history) % 2 == 0 else "w"
         self._sync(history)
@@ -248,12 +265,15 @@ class GnuGoPlanner(Planner):
             action = passed
         else:
             action = vertex_to_action(vertex, self.board_size)
-            assert self._moves is not None      # `_sync` above set it
+            assert self._moves is not None  # `_sync` above set it
             self._moves.append(action)
             if action not in state.legal_actions():
                 warnings.warn(
                     f"GNU Go played {vertex} (action {action}), which OpenSpiel calls illegal "
-                    f"for {color} at\n{state}\nplaying pass instead", RuntimeWarning, stacklevel=2)
+                    f"for {color} at\n{state}\nplaying pass instead",
+                    RuntimeWarning,
+                    stacklevel=2,
+                )
                 info["illegal_engine_move"] = vertex
                 self._moves = None  # resynchronise from scratch next time
                 action = passed

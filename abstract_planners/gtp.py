@@ -47,10 +47,19 @@ import subprocess
 import time
 from typing import Sequence
 
-from abstract_planners.gtp_process import (DEBIAN_GNUGO, GNUGO_FLAGS,  # noqa: F401 (re-exported)
-                                           INSTALL_HINT, EngineDied, GnuGoNotFoundError,
-                                           GTPError, close_quietly, default_gnugo_command,
-                                           find_gnugo, kill_process, start_process)
+from abstract_planners.gtp_process import (
+    DEBIAN_GNUGO,  # noqa: F401
+    GNUGO_FLAGS,  # noqa: F401 (re-exported)
+    INSTALL_HINT,
+    EngineDied,
+    GnuGoNotFoundError,
+    GTPError,
+    close_quietly,
+    default_gnugo_command,
+    find_gnugo,
+    kill_process,
+    start_process,
+)
 
 __all__ = [
     "GTPError",
@@ -88,15 +97,21 @@ class GTPClient:
     client per thread.
     """
 
-    def __init__(self, command: Sequence[str] | str | None = None, *,
-                 timeout: float = 10.0, name: str = "gnugo"):
+    def __init__(
+        self,
+        command: Sequence[str] | str | None = None,
+        *,
+        timeout: float = 10.0,
+        name: str = "gnugo",
+    ):
         self._proc: subprocess.Popen | None = None
         self._closed = True
         try:
             timeout = float(timeout)
         except (TypeError, ValueError):
-            raise ValueError(f"timeout must be a positive number of seconds, "
-                             f"got {timeout!r}") from None
+            raise ValueError(
+                f"timeout must be a positive number of seconds, got {timeout!r}"
+            ) from None
         if not timeout > 0:
             raise ValueError(f"timeout must be a positive number of seconds, got {timeout!r}")
         if command is None:
@@ -208,8 +223,9 @@ class GTPClient:
         while True:
             remaining = deadline - time.monotonic()
             try:
-                line = (lines.get(timeout=max(remaining, 0.0)) if remaining > 0
-                        else lines.get_nowait())
+                line = (
+                    lines.get(timeout=max(remaining, 0.0)) if remaining > 0 else lines.get_nowait()
+                )
             except queue.Empty:
                 self._kill()
                 raise GTPError(
@@ -218,8 +234,9 @@ class GTPClient:
                     command=body,
                 ) from None
             if line is None:  # EOF
-                raise EngineDied(f"engine closed its output (exit code {proc.poll()})"
-                                  f"{self._stderr_hint()}")
+                raise EngineDied(
+                    f"engine closed its output (exit code {proc.poll()}){self._stderr_hint()}"
+                )
             line = line.rstrip("\r\n").replace("\t", " ")
             if reply_lines is None:
                 if not line.strip():
@@ -231,7 +248,7 @@ class GTPClient:
                 reply_lines.append(line)
             else:
                 head = _ID_REPLY.match(reply_lines[0])
-                assert head is not None     # the line starts with "=" or "?": it matches
+                assert head is not None  # the line starts with "=" or "?": it matches
                 status, reply_id = head.group(1), head.group(2)
                 text = "\n".join([head.group(3)] + reply_lines[1:]).strip("\n")
                 if reply_id and int(reply_id) != cmd_id:
@@ -280,8 +297,9 @@ class GTPClient:
             containing a line break.
         """
         if self._closed:
-            raise GTPError(f"{self.name} GTP client is closed; cannot send {command!r}",
-                           command=command)
+            raise GTPError(
+                f"{self.name} GTP client is closed; cannot send {command!r}", command=command
+            )
         if not isinstance(command, str):
             raise TypeError(f"command must be a str, got {type(command).__name__}")
         command = command.strip()
@@ -362,7 +380,7 @@ class GTPClient:
         self._closed = True
         proc = self._proc
         if proc is not None and proc.poll() is None:
-            assert proc.stdin is not None   # `start_process` opens it with stdin=PIPE
+            assert proc.stdin is not None  # `start_process` opens it with stdin=PIPE
             try:
                 proc.stdin.write(b"quit\n")
                 proc.stdin.flush()

@@ -14,9 +14,19 @@ import shutil
 import subprocess
 import threading
 
-__all__ = ["GTPError", "GnuGoNotFoundError", "EngineDied", "find_gnugo",
-           "default_gnugo_command", "start_process", "kill_process", "close_quietly",
-           "DEBIAN_GNUGO", "INSTALL_HINT", "GNUGO_FLAGS"]
+__all__ = [
+    "GTPError",
+    "GnuGoNotFoundError",
+    "EngineDied",
+    "find_gnugo",
+    "default_gnugo_command",
+    "start_process",
+    "kill_process",
+    "close_quietly",
+    "DEBIAN_GNUGO",
+    "INSTALL_HINT",
+    "GNUGO_FLAGS",
+]
 
 #: Where Debian/Ubuntu's ``gnugo`` package installs the binary (not on a
 #: non-login PATH on every system).
@@ -99,16 +109,17 @@ def start_process(command: list, name: str, stderr_tail: collections.deque):
         )
     except FileNotFoundError as exc:
         raise GnuGoNotFoundError(
-            f"GTP engine executable {command[0]!r} not found ({exc}); "
-            f"for GNU Go, {INSTALL_HINT}"
+            f"GTP engine executable {command[0]!r} not found ({exc}); for GNU Go, {INSTALL_HINT}"
         ) from exc
     except OSError as exc:
         raise GTPError(f"cannot start {name} engine {command}: {exc}") from exc
     lines: queue.Queue = queue.Queue()
-    threading.Thread(target=_pump_lines, args=(proc.stdout, lines),
-                     name=f"gtp-{name}-stdout", daemon=True).start()
-    threading.Thread(target=_pump_stderr, args=(proc.stderr, stderr_tail),
-                     name=f"gtp-{name}-stderr", daemon=True).start()
+    threading.Thread(
+        target=_pump_lines, args=(proc.stdout, lines), name=f"gtp-{name}-stdout", daemon=True
+    ).start()
+    threading.Thread(
+        target=_pump_stderr, args=(proc.stderr, stderr_tail), name=f"gtp-{name}-stderr", daemon=True
+    ).start()
     return proc, lines
 
 

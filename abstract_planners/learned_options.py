@@ -52,9 +52,18 @@ from torch import nn
 from abstract_planners.base import Planner, Subgoal
 from abstract_planners.sokoban import MOVES, SokobanState
 
-__all__ = ["FORMAT", "OptionPolicyNet", "OptionPolicyPlanner", "SHIPPED", "dead_push_mask",
-           "encode_state", "live_cells", "load_option_policy",
-           "policy_input", "save_option_policy"]
+__all__ = [
+    "FORMAT",
+    "OptionPolicyNet",
+    "OptionPolicyPlanner",
+    "SHIPPED",
+    "dead_push_mask",
+    "encode_state",
+    "live_cells",
+    "load_option_policy",
+    "policy_input",
+    "save_option_policy",
+]
 
 FORMAT = "option-policy/1"
 #: The shipped policy (``--planner learned``).
@@ -85,30 +94,35 @@ def policy_input(planes: np.ndarray, radius: int) -> np.ndarray:
     size = 2 * radius + 1
     padded = np.zeros((n, 4, height + 2 * radius, width + 2 * radius), np.float32)
     padded[:, 0] = 1.0
-    padded[:, :, radius:radius + height, radius:radius + width] = planes
+    padded[:, :, radius : radius + height, radius : radius + width] = planes
     out = np.empty((n, 5, size, size), np.float32)
     for k in range(n):
         flat = int(np.argmax(planes[k, 3]))
         row, col = divmod(flat, width)
-        out[k, :4] = padded[k, :, row:row + size, col:col + size]
+        out[k, :4] = padded[k, :, row : row + size, col : col + size]
     out[:, 4] = out[:, 1] * out[:, 2]
     return out
 
 
 def _conv_body(radius: int, hidden: int) -> nn.Sequential:
     body = nn.Sequential(
-        nn.Conv2d(5, 16, 3, padding=1), nn.ReLU(),
-        nn.Conv2d(16, 32, 3, padding=1), nn.ReLU(),
-        nn.Conv2d(32, 32, 3, stride=2, padding=1), nn.ReLU(),
-        nn.Conv2d(32, 32, 3, stride=2, padding=1), nn.ReLU(),
-        nn.Flatten())
+        nn.Conv2d(5, 16, 3, padding=1),
+        nn.ReLU(),
+        nn.Conv2d(16, 32, 3, padding=1),
+        nn.ReLU(),
+        nn.Conv2d(32, 32, 3, stride=2, padding=1),
+        nn.ReLU(),
+        nn.Conv2d(32, 32, 3, stride=2, padding=1),
+        nn.ReLU(),
+        nn.Flatten(),
+    )
     with torch.no_grad():
         flat = body(torch.zeros(1, 5, 2 * radius + 1, 2 * radius + 1)).shape[1]
     body = nn.Sequential(*body, nn.Linear(flat, hidden), nn.ReLU())
     for layer in body:  # ReLU-preserving scale (PyTorch's default init shrinks activations)
         if isinstance(layer, (nn.Conv2d, nn.Linear)):
-            nn.init.orthogonal_(layer.weight, 2 ** 0.5)
-            assert layer.bias is not None       # built with a bias (the default)
+            nn.init.orthogonal_(layer.weight, 2**0.5)
+            assert layer.bias is not None  # built with a bias (the default)
             nn.init.zeros_(layer.bias)
     return body
 
@@ -123,7 +137,7 @@ class OptionPolicyNet(nn.Module):
         self.radius, self.hidden, self.actions = int(radius), int(hidden), int(actions)
         self.actor = _conv_body(self.radius, self.hidden)
         self.policy = nn.Linear(hidden, actions)
-        critic_body = _conv_body(self.radius, self.hidden)     # built first, as before
+        critic_body = _conv_body(self.radius, self.hidden)  # built first, as before
         value_head = nn.Linear(hidden, 1)
         self.critic = nn.Sequential(critic_body, value_head)
         nn.init.orthogonal_(self.policy.weight, 0.01)
@@ -150,14 +164,26 @@ class OptionPolicyNet(nn.Module):
         return self.logits(x, mask), self.value(x)
 
 
-def save_option_policy(net: OptionPolicyNet, path, *, grid_shape, meta: dict,
-                       half: bool = False) -> None:
+def save_option_policy(
+    net: OptionPolicyNet, path, *, grid_shape, meta: dict, half: bool = False
+) -> None:
     """Writes the planner's checkpoint (``half``: float16 weights, half the size)."""
-    weights = {k: (v.detach().half() if half and v.is_floating_point() else v.detach()).clone()
-               for k, v in net.state_dict().items() if not k.startswith("critic.")}
-    torch.save({"format": FORMAT, "net": net.config(), "state_dict": weights,
-                "grid_shape": [int(v) for v in grid_shape], "moves": "".join(MOVES),
-                "meta": dict(meta)}, path)
+    weights = {
+        k: (v.detach().half() if half and v.is_floating_point() else v.detach()).clone()
+        for k, v in net.state_dict().items()
+        if not k.startswith("critic.")
+    }
+    torch.save(
+        {
+            "format": FORMAT,
+            "net": net.config(),
+            "state_dict": weights,
+            "grid_shape": [int(v) for v in grid_shape],
+            "moves": "".join(MOVES),
+            "meta": dict(meta),
+        },
+        path,
+    )
 
 
 def load_option_policy(path, device: str = "cpu") -> tuple[OptionPolicyNet, dict]:
@@ -175,12 +201,16 @@ def load_option_policy(path, device: str = "cpu") -> tuple[OptionPolicyNet, dict
                 path = path / name
                 break
         else:
-            raise FileNotFoundError(f"no option_policy.pt or checkpoint.pt in {path} (train one "
-                                    f"with python -m hier_agents.learning.train_options)")
+            raise FileNotFoundError(
+                f"no option_policy.pt or checkpoint.pt in {path} (train one "
+                f"with python -m hier_agents.learning.train_options)"
+            )
     if not path.is_file():
-        raise FileNotFoundError(f"no option-policy checkpoint at {path} (train one with "
-                                f"python -m hier_agents.learning.train_options, or use "
-                                f"--planner learned for the shipped one)")
+        raise FileNotFoundError(
+            f"no option-policy checkpoint at {path} (train one with "
+            f"python -m hier_agents.learning.train_options, or use "
+            f"--planner learned for the shipped one)"
+        )
     try:
         data = torch.load(path, map_location=device, weights_only=True)
     except Exception as exc:  # noqa: BLE001 - any unreadable file gets the same message
@@ -189,23 +219,28 @@ def load_option_policy(path, device: str = "cpu") -> tuple[OptionPolicyNet, dict
         data = data["policy"]  # the trainer's resumable checkpoint
     if not isinstance(data, dict) or data.get("format") != FORMAT:
         found = data.get("format") if isinstance(data, dict) else type(data).__name__
-        raise ValueError(f"{path} is not an option-policy checkpoint (format {FORMAT!r} "
-                         f"expected, found {found!r}); it must come from "
-                         f"python -m hier_agents.learning.train_options")
+        raise ValueError(
+            f"{path} is not an option-policy checkpoint (format {FORMAT!r} "
+            f"expected, found {found!r}); it must come from "
+            f"python -m hier_agents.learning.train_options"
+        )
     if data.get("moves") != "".join(MOVES):
-        raise ValueError(f"{path}: the policy's moves {data.get('moves')!r} are not "
-                         f"{''.join(MOVES)!r}")
+        raise ValueError(
+            f"{path}: the policy's moves {data.get('moves')!r} are not {''.join(MOVES)!r}"
+        )
     net = OptionPolicyNet(**data["net"])
     try:
-        weights = {k: v.float() if v.is_floating_point() else v
-                   for k, v in data["state_dict"].items()}
+        weights = {
+            k: v.float() if v.is_floating_point() else v for k, v in data["state_dict"].items()
+        }
         missing, unexpected = net.load_state_dict(weights, strict=False)
         missing = [k for k in missing if not k.startswith("critic.")]
         if missing or unexpected:
             raise RuntimeError(f"missing {missing}, unexpected {unexpected}")
     except (RuntimeError, AttributeError, TypeError) as exc:
-        raise ValueError(f"{path}: the weights do not fit the network {data['net']}: "
-                         f"{exc}") from None
+        raise ValueError(
+            f"{path}: the weights do not fit the network {data['net']}: {exc}"
+        ) from None
     net.to(device).eval()
     return net, data
 
@@ -218,9 +253,11 @@ def live_cells(state: SokobanState) -> frozenset:
     only; a reverse search from the pads: a box at ``p`` reaches ``p + d``
     with the player at ``p - d``). A box pushed onto any other cell (a corner,
     along a wall without a pad) is deadlocked for good."""
+
     def floor(cell):
         r, c = cell
         return cell not in state.walls and 0 <= r < state.height and 0 <= c < state.width
+
     live = set(state.targets)
     frontier = list(state.targets)
     while frontier:
@@ -235,8 +272,7 @@ def live_cells(state: SokobanState) -> frozenset:
     return frozenset(live)
 
 
-def dead_push_mask(state: SokobanState, legal: np.ndarray,
-                   cache: dict | None = None) -> np.ndarray:
+def dead_push_mask(state: SokobanState, legal: np.ndarray, cache: dict | None = None) -> np.ndarray:
     """``legal`` without the pushes that would put a box on a dead cell (see
     `live_cells`); unchanged if that would leave no move."""
     key = (state.walls, state.targets)
@@ -278,16 +314,23 @@ class OptionPolicyPlanner(Planner):
 
     name = "learned"
 
-    def __init__(self, path=None, device: str = "cpu", greedy: bool = True,
-                 seed: int | None = None, prune_dead: bool | None = None) -> None:
+    def __init__(
+        self,
+        path=None,
+        device: str = "cpu",
+        greedy: bool = True,
+        seed: int | None = None,
+        prune_dead: bool | None = None,
+    ) -> None:
         self.path = Path(path) if path is not None else SHIPPED
         self.device = device
         self.greedy = bool(greedy)
         self.net, data = load_option_policy(self.path, device)
         self.grid_shape = tuple(int(v) for v in data["grid_shape"])
         self.meta = dict(data.get("meta", {}))
-        self.prune_dead = bool(self.meta.get("prune_dead_pushes", False)
-                               if prune_dead is None else prune_dead)
+        self.prune_dead = bool(
+            self.meta.get("prune_dead_pushes", False) if prune_dead is None else prune_dead
+        )
         self._live_cache: dict = {}
         self._generator = torch.Generator(device="cpu")
         self.reset(seed if seed is not None else 0)
@@ -308,8 +351,10 @@ class OptionPolicyPlanner(Planner):
         return int(self.meta.get("abstract_steps", 0))
 
     def __repr__(self) -> str:
-        return (f"OptionPolicyPlanner({str(self.path)!r}, greedy={self.greedy}, "
-                f"prune_dead={self.prune_dead})")
+        return (
+            f"OptionPolicyPlanner({str(self.path)!r}, greedy={self.greedy}, "
+            f"prune_dead={self.prune_dead})"
+        )
 
     def reset(self, seed: int | None = None) -> None:
         if seed is not None:
@@ -321,16 +366,19 @@ class OptionPolicyPlanner(Planner):
             state = SokobanState.from_level(state)
         shape = (state.height, state.width)
         if shape != self.grid_shape:
-            raise ValueError(f"the state's grid is {shape[0]}x{shape[1]} but the policy "
-                             f"{self.path} was trained on {self.grid_shape[0]}x"
-                             f"{self.grid_shape[1]} grids")
+            raise ValueError(
+                f"the state's grid is {shape[0]}x{shape[1]} but the policy "
+                f"{self.path} was trained on {self.grid_shape[0]}x"
+                f"{self.grid_shape[1]} grids"
+            )
         mask = np.array([state.is_legal(m) for m in MOVES], np.float32)
         if not mask.any():
             raise ValueError(f"the player at {state.player} has no legal move")
         if self.prune_dead:
             mask = dead_push_mask(state, mask, self._live_cache)
-        x = torch.as_tensor(policy_input(encode_state(state, shape), self.net.radius),
-                            device=self.device)
+        x = torch.as_tensor(
+            policy_input(encode_state(state, shape), self.net.radius), device=self.device
+        )
         with torch.no_grad():
             logits = self.net.logits(x, torch.as_tensor(mask[None], device=self.device))
             probs = torch.softmax(logits[0].float(), -1).cpu().numpy()
@@ -347,8 +395,11 @@ class OptionPolicyPlanner(Planner):
         if self.greedy:
             index = int(np.argmax(probs))
         else:
-            index = int(torch.multinomial(torch.as_tensor(probs), 1,
-                                          generator=self._generator)[0])
+            index = int(torch.multinomial(torch.as_tensor(probs), 1, generator=self._generator)[0])
         move = MOVES[index]
-        return Subgoal(action=(move,), state=state.apply(move), plan=(),
-                       info={"probability": float(probs[index])})
+        return Subgoal(
+            action=(move,),
+            state=state.apply(move),
+            plan=(),
+            info={"probability": float(probs[index])},
+        )

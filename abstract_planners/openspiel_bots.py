@@ -38,7 +38,6 @@ def _check_int(value, name: str, low: int, high: int | None = None) -> int:
     return value
 
 
-
 class MCTSPlanner(Planner):
     """Monte-Carlo tree search (OpenSpiel's C++ ``MCTSBot``) with random rollouts.
 
@@ -66,8 +65,16 @@ class MCTSPlanner(Planner):
 
     name = "mcts"
 
-    def __init__(self, simulations: int = 1000, *, rollouts: int = 1, uct_c: float = 2.0,
-                 seed: int | None = None, solve: bool = False, max_memory_mb: int = 1000):
+    def __init__(
+        self,
+        simulations: int = 1000,
+        *,
+        rollouts: int = 1,
+        uct_c: float = 2.0,
+        seed: int | None = None,
+        solve: bool = False,
+        max_memory_mb: int = 1000,
+    ):
         self.simulations = _check_int(simulations, "simulations", 1)
         self.rollouts = _check_int(rollouts, "rollouts", 1)
         self.uct_c = _check_real(uct_c, "uct_c")
@@ -91,11 +98,18 @@ class MCTSPlanner(Planner):
     def _bot(self, game) -> pyspiel.MCTSBot:
         key = str(game)
         if key not in self._bots:
-            bot_seed, rollout_seed = (int(x) for x in
-                                      self._seed_rng.integers(0, 2 ** 31 - 1, size=2))
+            bot_seed, rollout_seed = (int(x) for x in self._seed_rng.integers(0, 2**31 - 1, size=2))
             evaluator = pyspiel.RandomRolloutEvaluator(self.rollouts, rollout_seed)
-            bot = pyspiel.MCTSBot(game, evaluator, self.uct_c, self.simulations,
-                                  self.max_memory_mb, self.solve, bot_seed, False)
+            bot = pyspiel.MCTSBot(
+                game,
+                evaluator,
+                self.uct_c,
+                self.simulations,
+                self.max_memory_mb,
+                self.solve,
+                bot_seed,
+                False,
+            )
             self._bots[key] = (bot, evaluator)  # keep the evaluator alive with the bot
         return self._bots[key][0]
 
@@ -129,8 +143,10 @@ class MCTSPlanner(Planner):
         self._chosen.clear()
 
     def __repr__(self) -> str:
-        return (f"MCTSPlanner(simulations={self.simulations}, rollouts={self.rollouts}, "
-                f"uct_c={self.uct_c:g})")
+        return (
+            f"MCTSPlanner(simulations={self.simulations}, rollouts={self.rollouts}, "
+            f"uct_c={self.uct_c:g})"
+        )
 
 
 class AlphaBetaPlanner(Planner):
@@ -197,22 +213,25 @@ class AlphaBetaPlanner(Planner):
     def plan(self, state) -> Subgoal:
         check_decision_state(state, self.name)
         game_type = state.get_game().get_type()
-        if state.get_game().num_players() != 2 or \
-                game_type.utility != pyspiel.GameType.Utility.ZERO_SUM:
-            raise ValueError(f"{self.name} plans two-player zero-sum games, got "
-                             f"{game_type.short_name!r}")
+        if (
+            state.get_game().num_players() != 2
+            or game_type.utility != pyspiel.GameType.Utility.ZERO_SUM
+        ):
+            raise ValueError(
+                f"{self.name} plans two-player zero-sum games, got {game_type.short_name!r}"
+            )
         start = time.perf_counter()
         self._nodes = 0
         values = {}
         for action in state.legal_actions():
             # A full window per root move, so every tie is exact.
-            values[int(action)] = self._child_value(state, state.child(action), self.depth,
-                                                    -math.inf, math.inf)
+            values[int(action)] = self._child_value(
+                state, state.child(action), self.depth, -math.inf, math.inf
+            )
         best = max(values.values())
         tied = sorted(a for a, v in values.items() if v >= best - 1e-12)
         action = tied[int(self._rng.integers(len(tied)))]
-        info = {"value": best, "nodes": self._nodes,
-                "ms": (time.perf_counter() - start) * 1e3}
+        info = {"value": best, "nodes": self._nodes, "ms": (time.perf_counter() - start) * 1e3}
         return Subgoal(action, state.child(action), info=info)
 
     def __repr__(self) -> str:

@@ -89,9 +89,15 @@ class SokobanState:
     width: int
     _hash: int | None
 
-    def __init__(self, walls: Iterable[Position], targets: Iterable[Position],
-                 boxes: Iterable[Position], player: Position, height: int,
-                 width: int) -> None:
+    def __init__(
+        self,
+        walls: Iterable[Position],
+        targets: Iterable[Position],
+        boxes: Iterable[Position],
+        player: Position,
+        height: int,
+        width: int,
+    ) -> None:
         walls, targets, boxes = _cells(walls), _cells(targets), _cells(boxes)
         player = (int(player[0]), int(player[1]))
         height, width = int(height), int(width)
@@ -117,12 +123,20 @@ class SokobanState:
         if isinstance(level, SokobanState):
             return level
         try:
-            parts = (level.walls, level.targets, level.boxes, level.player,
-                     level.height, level.width)
+            parts = (
+                level.walls,
+                level.targets,
+                level.boxes,
+                level.player,
+                level.height,
+                level.width,
+            )
         except AttributeError as error:
-            raise TypeError(f"from_level needs an object with walls, targets, boxes, "
-                            f"player, height and width attributes, got "
-                            f"{type(level).__name__}: {error}") from None
+            raise TypeError(
+                f"from_level needs an object with walls, targets, boxes, "
+                f"player, height and width attributes, got "
+                f"{type(level).__name__}: {error}"
+            ) from None
         return cls(*parts)
 
     @classmethod
@@ -151,15 +165,16 @@ class SokobanState:
                 elif ch in (_TARGET, _BOX_ON_TARGET, _PLAYER_ON_TARGET):
                     targets.append((r, c))
                 elif ch not in (_FLOOR, _PLAYER, _BOX) and ch not in _FLOOR_ALIASES:
-                    raise ValueError(f"unknown character {ch!r} at row {r}, column {c} "
-                                     f"(valid: '#', ' ', '@', '$', '.', '*', '+')")
+                    raise ValueError(
+                        f"unknown character {ch!r} at row {r}, column {c} "
+                        f"(valid: '#', ' ', '@', '$', '.', '*', '+')"
+                    )
                 if ch in (_BOX, _BOX_ON_TARGET):
                     boxes.append((r, c))
                 if ch in (_PLAYER, _PLAYER_ON_TARGET):
                     players.append((r, c))
         if len(players) != 1:
-            raise ValueError(f"a board needs exactly one player ('@' or '+'), "
-                             f"found {len(players)}")
+            raise ValueError(f"a board needs exactly one player ('@' or '+'), found {len(players)}")
         return cls(walls, targets, boxes, players[0], len(rows), max(map(len, rows)))
 
     def to_text(self) -> str:
@@ -183,8 +198,7 @@ class SokobanState:
     def _blocked(self, cell: Position) -> bool:
         """Whether ``cell`` is a wall or outside the grid."""
         r, c = cell
-        return (cell in self.walls or r < 0 or c < 0
-                or r >= self.height or c >= self.width)
+        return cell in self.walls or r < 0 or c < 0 or r >= self.height or c >= self.width
 
     def _outcome(self, move: str):
         """(new player cell, pushed box cell or None, box destination) or None if illegal."""
@@ -230,14 +244,14 @@ class SokobanState:
         """
         outcome = self._outcome(move)
         if outcome is None:
-            raise ValueError(f"illegal move {move!r} from player at {self.player}: "
-                             f"{self._why_illegal(move)}")
+            raise ValueError(
+                f"illegal move {move!r} from player at {self.player}: {self._why_illegal(move)}"
+            )
         player, pushed, beyond = outcome
         boxes = self.boxes
         if pushed is not None:
             boxes = (boxes - {pushed}) | {beyond}
-        return SokobanState._make(self.walls, self.targets, boxes, player,
-                                  self.height, self.width)
+        return SokobanState._make(self.walls, self.targets, boxes, player, self.height, self.width)
 
     def _why_illegal(self, move: str) -> str:
         dr, dc = DIRECTIONS[move]
@@ -257,8 +271,7 @@ class SokobanState:
 
     def with_player(self, player: Position) -> "SokobanState":
         """This board with the player moved to ``player`` (validated)."""
-        return SokobanState(self.walls, self.targets, self.boxes, player,
-                            self.height, self.width)
+        return SokobanState(self.walls, self.targets, self.boxes, player, self.height, self.width)
 
     # -- value semantics -----------------------------------------------------------
 
@@ -267,10 +280,14 @@ class SokobanState:
             return True
         if not isinstance(other, SokobanState):
             return NotImplemented
-        return (self.player == other.player and self.boxes == other.boxes
-                and self.height == other.height and self.width == other.width
-                and (self.targets is other.targets or self.targets == other.targets)
-                and (self.walls is other.walls or self.walls == other.walls))
+        return (
+            self.player == other.player
+            and self.boxes == other.boxes
+            and self.height == other.height
+            and self.width == other.width
+            and (self.targets is other.targets or self.targets == other.targets)
+            and (self.walls is other.walls or self.walls == other.walls)
+        )
 
     def __hash__(self) -> int:
         h = self._hash
@@ -288,8 +305,10 @@ class SokobanState:
         raise AttributeError(f"SokobanState is immutable (cannot delete {name!r})")
 
     def __reduce__(self):
-        return (SokobanState, (self.walls, self.targets, self.boxes, self.player,
-                               self.height, self.width))
+        return (
+            SokobanState,
+            (self.walls, self.targets, self.boxes, self.player, self.height, self.width),
+        )
 
     def __copy__(self):
         return self

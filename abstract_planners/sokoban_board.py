@@ -217,8 +217,9 @@ def _freeze_deadlock(board: _Board, pos: int, boxes: int) -> bool:
     dead = board.dead
     for s in (1, W):
         a, b = pos - s, pos + s
-        if not ((occupied >> a) & 1 or (occupied >> b) & 1
-                or ((dead >> a) & 1 and (dead >> b) & 1)):
+        if not (
+            (occupied >> a) & 1 or (occupied >> b) & 1 or ((dead >> a) & 1 and (dead >> b) & 1)
+        ):
             return False
     group: list[int] = []
     if not _is_frozen(board, pos, boxes, 0, group):
@@ -349,4 +350,3 @@ class _Matching:
                 h = _INF
             self.cache[boxes] = h
         return h
-

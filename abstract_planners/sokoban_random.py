@@ -58,5 +58,4 @@ class RandomPlanner(Planner):
         if not moves:
             raise ValueError(f"the player at {state.player} has no legal move")
         move = moves[self._rng.randrange(len(moves))]
-        return Subgoal(action=move, state=state.apply(move),
-                       info={"legal_moves": len(moves)})
+        return Subgoal(action=move, state=state.apply(move), info={"legal_moves": len(moves)})

@@ -43,10 +43,20 @@ from dataclasses import dataclass
 
 from abstract_planners.base import NoPlanError, Planner, Subgoal
 from abstract_planners.sokoban import MOVES, SokobanState, replay
-from abstract_planners.sokoban_board import (_INF, _Board, _Matching, _as_state, _bits,
-                                             _board_for, _corral_pushes, _freeze_deadlock,
-                                             _mask, dead_squares, frozen_deadlock,
-                                             pi_corral_pushes)
+from abstract_planners.sokoban_board import (
+    _INF,
+    _Board,
+    _Matching,
+    _as_state,
+    _bits,
+    _board_for,
+    _corral_pushes,
+    _freeze_deadlock,
+    _mask,
+    dead_squares,
+    frozen_deadlock,
+    pi_corral_pushes,
+)
 
 __all__ = [
     "SokobanSolverPlanner",
@@ -92,8 +102,12 @@ class SolveResult:
 # -- the search -----------------------------------------------------------------------
 
 
-def solve(state, *, time_limit: float | None = 10.0, max_nodes: int | None = None,
-          ) -> SolveResult:
+def solve(
+    state,
+    *,
+    time_limit: float | None = 10.0,
+    max_nodes: int | None = None,
+) -> SolveResult:
     """Solve a Sokoban state (see the module docstring for the algorithm).
 
     Args:
@@ -121,8 +135,9 @@ def solve(state, *, time_limit: float | None = 10.0, max_nodes: int | None = Non
 
     def result(solved, reason, moves=(), pushes=0, nodes=0):
         ms = (time.perf_counter() - t0) * 1000.0
-        return SolveResult(solved=solved, moves=tuple(moves), pushes=pushes, nodes=nodes,
-                           ms=ms, reason=reason)
+        return SolveResult(
+            solved=solved, moves=tuple(moves), pushes=pushes, nodes=nodes, ms=ms, reason=reason
+        )
 
     if state.is_solved():
         return result(True, "solved")
@@ -169,8 +184,12 @@ def solve(state, *, time_limit: float | None = 10.0, max_nodes: int | None = Non
         candidates = _corral_pushes(board, boxes, reach)
         if candidates is None:
             blocked = wall | dead | boxes
-            candidates = [(b, d) for b in _bits(boxes) for d, s in enumerate(steps)
-                          if (reach >> (b - s)) & 1 and not (blocked >> (b + s)) & 1]
+            candidates = [
+                (b, d)
+                for b in _bits(boxes)
+                for d, s in enumerate(steps)
+                if (reach >> (b - s)) & 1 and not (blocked >> (b + s)) & 1
+            ]
         g1 = g + 1
         for b, d in candidates:
             to = b + steps[d]
@@ -180,8 +199,7 @@ def solve(state, *, time_limit: float | None = 10.0, max_nodes: int | None = Non
                 moves = _walk_and_push(board, state, pushes)
                 final = replay(state, moves)
                 if not final.is_solved():  # pragma: no cover - a solver bug
-                    raise AssertionError("solver produced a non-solution: "
-                                         + "".join(moves))
+                    raise AssertionError("solver produced a non-solution: " + "".join(moves))
                 return result(True, "solved", moves, len(pushes), nodes)
             if (covered.get(new_boxes, 0) >> b) & 1:
                 continue
@@ -242,8 +260,7 @@ def _walk(board: _Board, start: int, goal: int, boxes: int) -> list[str]:
                 letters.reverse()
                 return letters
             queue.append(y)
-    raise AssertionError(f"solver bug: no walk from {board.cell(start)} "
-                         f"to {board.cell(goal)}")
+    raise AssertionError(f"solver bug: no walk from {board.cell(start)} to {board.cell(goal)}")
 
 
 # -- the planner ----------------------------------------------------------------------
@@ -302,17 +319,18 @@ class SokobanSolverPlanner(Planner):
             raise ValueError("the state is already solved: there is nothing to plan")
         i = self._index.get(state)
         if i is not None:
-            return state, i, {"nodes": 0, "ms": (time.perf_counter() - t0) * 1000.0,
-                              "cached": True}
+            return state, i, {"nodes": 0, "ms": (time.perf_counter() - t0) * 1000.0, "cached": True}
         found = self.search(state)
         if not found.solved:
             self.reset()
             if found.reason == "unsolvable":
                 message = "no solution: the Sokoban state is unsolvable (deadlocked)"
             else:
-                message = (f"no solution found within the budget (time_limit="
-                           f"{self.time_limit}s, max_nodes={self.max_nodes}, "
-                           f"{found.nodes} nodes expanded)")
+                message = (
+                    f"no solution found within the budget (time_limit="
+                    f"{self.time_limit}s, max_nodes={self.max_nodes}, "
+                    f"{found.nodes} nodes expanded)"
+                )
             raise NoPlanError(message, reason=found.reason)
         states = [state]
         pushes = []
@@ -323,15 +341,19 @@ class SokobanSolverPlanner(Planner):
         self._index = {}
         for k, s in enumerate(states[:-1]):
             self._index.setdefault(s, k)
-        return state, 0, {"nodes": found.nodes,
-                          "ms": (time.perf_counter() - t0) * 1000.0, "cached": False}
+        return (
+            state,
+            0,
+            {"nodes": found.nodes, "ms": (time.perf_counter() - t0) * 1000.0, "cached": False},
+        )
 
     def plan(self, state) -> Subgoal:
         """The next move from ``state`` (see the class docstring)."""
         state, i, info = self._locate(state)
         info["pushes"] = sum(self._is_push[i:])
-        return Subgoal(action=self._moves[i], state=self._states[i + 1],
-                       plan=self._moves[i + 1:], info=info)
+        return Subgoal(
+            action=self._moves[i], state=self._states[i + 1], plan=self._moves[i + 1 :], info=info
+        )
 
     def next_push(self, state) -> Subgoal:
         """The walk to the next box and its push from ``state`` (see the class docstring)."""
@@ -340,5 +362,9 @@ class SokobanSolverPlanner(Planner):
         j = i
         while not self._is_push[j]:
             j += 1
-        return Subgoal(action=self._moves[i:j + 1], state=self._states[j + 1],
-                       plan=self._moves[j + 1:], info=info)
+        return Subgoal(
+            action=self._moves[i : j + 1],
+            state=self._states[j + 1],
+            plan=self._moves[j + 1 :],
+            info=info,
+        )

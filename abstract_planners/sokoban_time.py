@@ -36,8 +36,13 @@ FEATURES = ("walk", "push", "stroke", "turn")
 #: planner with the previous weights; ``results/execution_time_*.json``):
 #: R^2 0.99, mean |error| 14 steps. (The first fit, on the skill before
 #: chaining: walk 4.75, push 13.3, stroke 19.6, turn 5.1.)
-DEFAULT_WEIGHTS: Mapping[str, float] = {"start": 0.0, "walk": 6.44, "push": 12.18,
-                                        "stroke": 13.52, "turn": 1.57}
+DEFAULT_WEIGHTS: Mapping[str, float] = {
+    "start": 0.0,
+    "walk": 6.44,
+    "push": 12.18,
+    "stroke": 13.52,
+    "turn": 1.57,
+}
 
 
 def plan_features(state: SokobanState, moves: Sequence[str]) -> dict[str, int]:
@@ -67,16 +72,19 @@ def plan_features(state: SokobanState, moves: Sequence[str]) -> dict[str, int]:
     return counts
 
 
-def estimate_steps(features: Mapping[str, float],
-                   weights: Mapping[str, float] = DEFAULT_WEIGHTS) -> float:
+def estimate_steps(
+    features: Mapping[str, float], weights: Mapping[str, float] = DEFAULT_WEIGHTS
+) -> float:
     """Estimated control steps: ``start`` plus each feature times its weight."""
-    return float(weights.get("start", 0.0)
-                 + sum(weights[name] * features[name] for name in FEATURES))
+    return float(
+        weights.get("start", 0.0) + sum(weights[name] * features[name] for name in FEATURES)
+    )
 
 
 def fit_weights(features: Iterable[Mapping[str, float]], steps: Iterable[float]) -> dict:
     """Non-negative least-squares weights (with ``start``) of measured steps."""
     from scipy.optimize import nnls
+
     rows = [[1.0] + [float(f[name]) for name in FEATURES] for f in features]
     a, b = np.asarray(rows), np.asarray(list(steps), float)
     if len(a) < len(FEATURES) + 1:

@@ -31,10 +31,21 @@ import time
 from typing import Mapping
 
 from abstract_planners.sokoban import replay
-from abstract_planners.sokoban_board import (_INF, _as_state, _bits, _board_for,
-                                             _freeze_deadlock, _mask, _Matching)
-from abstract_planners.sokoban_solver import (SokobanSolverPlanner, SolveResult, _walk_and_push,
-                                              solve)
+from abstract_planners.sokoban_board import (
+    _INF,
+    _as_state,
+    _bits,
+    _board_for,
+    _freeze_deadlock,
+    _mask,
+    _Matching,
+)
+from abstract_planners.sokoban_solver import (
+    SokobanSolverPlanner,
+    SolveResult,
+    _walk_and_push,
+    solve,
+)
 from abstract_planners.sokoban_time import DEFAULT_WEIGHTS, estimate_steps, plan_features
 
 __all__ = ["solve_for_time", "TimeSolverPlanner"]
@@ -103,9 +114,14 @@ def _successors(board, boxes: int, player: int, last: tuple, bound, costs: tuple
     return out
 
 
-def solve_for_time(state, *, weights: Mapping[str, float] = DEFAULT_WEIGHTS,
-                   weight: float = 2.0, time_limit: float | None = 10.0,
-                   max_nodes: int | None = None) -> SolveResult:
+def solve_for_time(
+    state,
+    *,
+    weights: Mapping[str, float] = DEFAULT_WEIGHTS,
+    weight: float = 2.0,
+    time_limit: float | None = 10.0,
+    max_nodes: int | None = None,
+) -> SolveResult:
     """A plan with a small estimated execution time (see the module docstring).
 
     Returns a `SolveResult` (``reason`` ``"solved"``, ``"unsolvable"`` or
@@ -117,8 +133,14 @@ def solve_for_time(state, *, weights: Mapping[str, float] = DEFAULT_WEIGHTS,
     board = _board_for(state)
 
     def result(solved, reason, moves=(), pushes=0, nodes=0):
-        return SolveResult(solved=solved, moves=tuple(moves), pushes=pushes, nodes=nodes,
-                           ms=(time.perf_counter() - t0) * 1000.0, reason=reason)
+        return SolveResult(
+            solved=solved,
+            moves=tuple(moves),
+            pushes=pushes,
+            nodes=nodes,
+            ms=(time.perf_counter() - t0) * 1000.0,
+            reason=reason,
+        )
 
     if state.is_solved():
         return result(True, "solved")
@@ -173,8 +195,7 @@ def solve_for_time(state, *, weights: Mapping[str, float] = DEFAULT_WEIGHTS,
                 continue
             best[new_key] = g1
             counter += 1
-            heapq.heappush(heap, (g1 + weight * h, counter, g1, new_boxes, b, (to, d),
-                                  key, (b, d)))
+            heapq.heappush(heap, (g1 + weight * h, counter, g1, new_boxes, b, (to, d), key, (b, d)))
     return result(False, "unsolvable", nodes=nodes)
 
 
@@ -185,8 +206,13 @@ class TimeSolverPlanner(SokobanSolverPlanner):
 
     name = "sokoban-solver:time"
 
-    def __init__(self, time_limit: float | None = 10.0, max_nodes: int | None = None,
-                 weights: Mapping[str, float] = DEFAULT_WEIGHTS, weight: float = 2.0) -> None:
+    def __init__(
+        self,
+        time_limit: float | None = 10.0,
+        max_nodes: int | None = None,
+        weights: Mapping[str, float] = DEFAULT_WEIGHTS,
+        weight: float = 2.0,
+    ) -> None:
         super().__init__(time_limit=time_limit, max_nodes=max_nodes)
         self.weights, self.weight = dict(weights), float(weight)
 
@@ -194,8 +220,13 @@ class TimeSolverPlanner(SokobanSolverPlanner):
         """Both searches; the plan with the smaller estimated time (so never
         worse, by the estimate, than the push solver's)."""
         budget = None if self.time_limit is None else 0.5 * self.time_limit
-        timed = solve_for_time(state, weights=self.weights, weight=self.weight,
-                               time_limit=budget, max_nodes=self.max_nodes)
+        timed = solve_for_time(
+            state,
+            weights=self.weights,
+            weight=self.weight,
+            time_limit=budget,
+            max_nodes=self.max_nodes,
+        )
         if timed.reason == "unsolvable":
             return timed
         pushed = solve(state, time_limit=budget, max_nodes=self.max_nodes)

@@ -89,8 +89,9 @@ class MinimaxPlanner(Planner):
         action = self._chosen.get(key)
         if action is None:
             action = self._chosen[key] = optimal[int(self._rng.integers(len(optimal)))]
-        return Subgoal(action, state.child(action),
-                       info={"value": best, "optimal_actions": tuple(optimal)})
+        return Subgoal(
+            action, state.child(action), info={"value": best, "optimal_actions": tuple(optimal)}
+        )
 
     def __repr__(self) -> str:
         return "MinimaxPlanner()"

@@ -26,8 +26,16 @@ from envs import cli as env_cli  # noqa: E402
 from physics_planning import cli  # noqa: E402
 from hier_agents.provenance import provenance  # noqa: E402
 
-__all__ = ["cli", "env_cli", "make_parser", "prog", "write_json", "run_in_tree",
-           "baseline_worktree", "remove_worktree"]
+__all__ = [
+    "cli",
+    "env_cli",
+    "make_parser",
+    "prog",
+    "write_json",
+    "run_in_tree",
+    "baseline_worktree",
+    "remove_worktree",
+]
 
 
 def prog(file: str) -> str:
@@ -52,8 +60,11 @@ def write_json(path: Path, data, indent: int = 2) -> None:
     `physics_planning.cli.output_file`.
     """
     record = provenance()
-    data = {**data, "provenance": record} if isinstance(data, dict) else {
-        "provenance": record, "rows": list(data)}
+    data = (
+        {**data, "provenance": record}
+        if isinstance(data, dict)
+        else {"provenance": record, "rows": list(data)}
+    )
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     cli.write_json(path, data, indent=indent)
@@ -69,14 +80,19 @@ def run_in_tree(tree: Path, command: list[str], timeout: float) -> None:
     """
     import os
     import subprocess
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
-        p for p in (str(tree), os.environ.get("PYTHONPATH")) if p)}
-    done = subprocess.run(command, cwd=tree, env=env, capture_output=True, text=True,
-                          timeout=timeout)
+
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join(p for p in (str(tree), os.environ.get("PYTHONPATH")) if p),
+    }
+    done = subprocess.run(
+        command, cwd=tree, env=env, capture_output=True, text=True, timeout=timeout
+    )
     if done.returncode != 0:
         tail = "\n".join(done.stderr.strip().splitlines()[-15:])
-        raise RuntimeError(f"{' '.join(command)} failed in {tree} "
-                           f"(exit {done.returncode}):\n{tail}")
+        raise RuntimeError(
+            f"{' '.join(command)} failed in {tree} (exit {done.returncode}):\n{tail}"
+        )
 
 
 def baseline_worktree(ref: str, folder: Path) -> Path:
@@ -87,10 +103,14 @@ def baseline_worktree(ref: str, folder: Path) -> Path:
       UsageError: ``ref`` is not a commit of this repository.
     """
     import subprocess
+
     root = Path(__file__).resolve().parents[1]
     path = Path(folder) / "baseline"
-    done = subprocess.run(["git", "-C", str(root), "worktree", "add", "--detach", str(path), ref],
-                          capture_output=True, text=True)
+    done = subprocess.run(
+        ["git", "-C", str(root), "worktree", "add", "--detach", str(path), ref],
+        capture_output=True,
+        text=True,
+    )
     if done.returncode != 0:
         raise cli.UsageError(f"--baseline {ref}: {done.stderr.strip() or 'git worktree failed'}")
     return path
@@ -99,6 +119,8 @@ def baseline_worktree(ref: str, folder: Path) -> Path:
 def remove_worktree(path: Path) -> None:
     """Removes a worktree made by `baseline_worktree`."""
     import subprocess
+
     root = Path(__file__).resolve().parents[1]
-    subprocess.run(["git", "-C", str(root), "worktree", "remove", "--force", str(path)],
-                   capture_output=True)
+    subprocess.run(
+        ["git", "-C", str(root), "worktree", "remove", "--force", str(path)], capture_output=True
+    )

@@ -182,9 +182,20 @@ def run_env(name: str, episodes: int, seed: int, t_abs: int) -> dict:
     env = envs.load(name, seed=seed, front_camera=None)
     planner = make_planner(name, seed)
     skill = ArmTouchSkill()
-    stats = {"touches": 0, "planned": 0, "wrong": 0, "failed": 0, "cut": 0,
-             "touch_steps": [], "failures": Counter(), "plan_s": 0.0, "plans": 0,
-             "act_s": 0.0, "acts": 0, "reset_s": 0.0}
+    stats = {
+        "touches": 0,
+        "planned": 0,
+        "wrong": 0,
+        "failed": 0,
+        "cut": 0,
+        "touch_steps": [],
+        "failures": Counter(),
+        "plan_s": 0.0,
+        "plans": 0,
+        "act_s": 0.0,
+        "acts": 0,
+        "reset_s": 0.0,
+    }
     results, game_steps = Counter(), []
     start = time.perf_counter()
     try:
@@ -197,26 +208,41 @@ def run_env(name: str, episodes: int, seed: int, t_abs: int) -> dict:
         planner.close()
         env.close()
     wall = time.perf_counter() - start
-    row = {"env": name, "games": episodes, "wins": results["win"], "draws": results["draw"],
-           "losses": results["loss"], "unfinished": results["unfinished"]}
-    for key, count in (("win", results["win"]), ("draw", results["draw"]),
-                       ("loss", results["loss"])):
+    row = {
+        "env": name,
+        "games": episodes,
+        "wins": results["win"],
+        "draws": results["draw"],
+        "losses": results["loss"],
+        "unfinished": results["unfinished"],
+    }
+    for key, count in (
+        ("win", results["win"]),
+        ("draw", results["draw"]),
+        ("loss", results["loss"]),
+    ):
         low, high = wilson_interval(count, episodes)
         row.update({f"{key}_rate": count / episodes, f"{key}_low": low, f"{key}_high": high})
     touch_steps = stats["touch_steps"]
-    row.update({
-        "mean_steps_per_game": float(np.mean(game_steps)),
-        "touches": stats["touches"], "touches_planned": stats["planned"],
-        "touches_wrong": stats["wrong"], "touches_failed": stats["failed"],
-        "touches_cut": stats["cut"],
-        "mean_steps_per_touch": float(np.mean(touch_steps)) if touch_steps else math.nan,
-        "p90_steps_per_touch": float(np.percentile(touch_steps, 90)) if touch_steps else math.nan,
-        "failures": dict(stats["failures"]),
-        "mean_act_ms": 1e3 * stats["act_s"] / max(stats["acts"], 1),
-        "mean_reset_ms": 1e3 * stats["reset_s"] / max(stats["touches"], 1),
-        "mean_plan_ms": 1e3 * stats["plan_s"] / max(stats["plans"], 1),
-        "wall_s_per_game": wall / episodes,
-    })
+    row.update(
+        {
+            "mean_steps_per_game": float(np.mean(game_steps)),
+            "touches": stats["touches"],
+            "touches_planned": stats["planned"],
+            "touches_wrong": stats["wrong"],
+            "touches_failed": stats["failed"],
+            "touches_cut": stats["cut"],
+            "mean_steps_per_touch": float(np.mean(touch_steps)) if touch_steps else math.nan,
+            "p90_steps_per_touch": float(np.percentile(touch_steps, 90))
+            if touch_steps
+            else math.nan,
+            "failures": dict(stats["failures"]),
+            "mean_act_ms": 1e3 * stats["act_s"] / max(stats["acts"], 1),
+            "mean_reset_ms": 1e3 * stats["reset_s"] / max(stats["touches"], 1),
+            "mean_plan_ms": 1e3 * stats["plan_s"] / max(stats["plans"], 1),
+            "wall_s_per_game": wall / episodes,
+        }
+    )
     return row
 
 
@@ -250,10 +276,12 @@ def _rate(row: dict, key: str) -> str:
 
 
 def format_table(rows: list[dict]) -> str:
-    head = (f"{'env':16} {'games':>5} {'win % [95% CI]':>16} {'draw %':>16} {'loss %':>16} "
-            f"{'unfin':>5} {'steps/game':>10} {'touches':>7} {'planned':>7} {'wrong':>5} "
-            f"{'failed':>6} {'cut':>4} {'steps/touch':>11} {'p90':>4} {'ms/act':>6} "
-            f"{'ms/reset':>8} {'s/game':>6}")
+    head = (
+        f"{'env':16} {'games':>5} {'win % [95% CI]':>16} {'draw %':>16} {'loss %':>16} "
+        f"{'unfin':>5} {'steps/game':>10} {'touches':>7} {'planned':>7} {'wrong':>5} "
+        f"{'failed':>6} {'cut':>4} {'steps/touch':>11} {'p90':>4} {'ms/act':>6} "
+        f"{'ms/reset':>8} {'s/game':>6}"
+    )
     lines = [head, "-" * len(head)]
     for r in rows:
         lines.append(
@@ -262,7 +290,8 @@ def format_table(rows: list[dict]) -> str:
             f"{r['touches']:7d} {r['touches_planned']:7d} {r['touches_wrong']:5d} "
             f"{r['touches_failed']:6d} {r['touches_cut']:4d} {r['mean_steps_per_touch']:11.1f} "
             f"{r['p90_steps_per_touch']:4.0f} {r['mean_act_ms']:6.2f} {r['mean_reset_ms']:8.1f} "
-            f"{r['wall_s_per_game']:6.1f}")
+            f"{r['wall_s_per_game']:6.1f}"
+        )
         if r["failures"]:
             lines.append(f"{'':16}   skill failures: {r['failures']}")
     return "\n".join(lines)
@@ -270,15 +299,29 @@ def format_table(rows: list[dict]) -> str:
 
 def _main(argv=None) -> int:
     parser = make_parser(__file__, __doc__)
-    parser.add_argument("--envs", nargs="+", default=DEFAULT_ENVS, metavar="NAME",
-                        help="MuJoXO / MuJoGo environments")
-    parser.add_argument("--episodes", type=cli.positive_int, default=20,
-                        help="games per environment")
+    parser.add_argument(
+        "--envs",
+        nargs="+",
+        default=DEFAULT_ENVS,
+        metavar="NAME",
+        help="MuJoXO / MuJoGo environments",
+    )
+    parser.add_argument(
+        "--episodes", type=cli.positive_int, default=20, help="games per environment"
+    )
     parser.add_argument("--seed", type=cli.non_negative_int, default=0)
-    parser.add_argument("--t-abs", type=cli.positive_int, default=T_ABS,
-                        help="control steps a touch may take before re-planning")
-    parser.add_argument("--abstract-games", type=cli.non_negative_int, default=20_000,
-                        help="games for the abstract (no physics) MuJoXO rates (0: none)")
+    parser.add_argument(
+        "--t-abs",
+        type=cli.positive_int,
+        default=T_ABS,
+        help="control steps a touch may take before re-planning",
+    )
+    parser.add_argument(
+        "--abstract-games",
+        type=cli.non_negative_int,
+        default=20_000,
+        help="games for the abstract (no physics) MuJoXO rates (0: none)",
+    )
     parser.add_argument("--json", type=Path, help="write the results here")
     args = parser.parse_args(argv)
     boards = [n for n in envs.names() if n.startswith(("mujoxo/", "mujogo/"))]
@@ -292,9 +335,11 @@ def _main(argv=None) -> int:
         if name in MUJOXO_EPSILON and args.abstract_games > 0:
             rates = abstract_rates(MUJOXO_EPSILON[name], args.abstract_games, args.seed)
             abstract[name] = rates
-            print(f"abstract minimax vs {name} (epsilon {rates['epsilon']:g}, no physics, "
-                  f"{rates['games']} games): win {_rate(rates, 'win')}  "
-                  f"draw {_rate(rates, 'draw')}  loss {_rate(rates, 'loss')}")
+            print(
+                f"abstract minimax vs {name} (epsilon {rates['epsilon']:g}, no physics, "
+                f"{rates['games']} games): win {_rate(rates, 'win')}  "
+                f"draw {_rate(rates, 'draw')}  loss {_rate(rates, 'loss')}"
+            )
     if args.json:
         write_json(args.json, {"rows": rows, "abstract": abstract})
     return 0

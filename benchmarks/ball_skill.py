@@ -99,17 +99,32 @@ def run_episode(view, agent) -> dict:
         agent.end_episode(timestep)
     stats = agent.episode_stats
     no_plan = agent.gave_up.split(":", 1)[0] if agent.gave_up else None
-    return {"steps": steps, "issued": stats.issued, "reached": stats.reached,
-            "failed": stats.failed, "cut": stats.cut_off + stats.unfinished,
-            "failures": Counter(stats.failures), "no_plan": no_plan, "plan_moves": plan_moves}
+    return {
+        "steps": steps,
+        "issued": stats.issued,
+        "reached": stats.reached,
+        "failed": stats.failed,
+        "cut": stats.cut_off + stats.unfinished,
+        "failures": Counter(stats.failures),
+        "no_plan": no_plan,
+        "plan_moves": plan_moves,
+    }
 
 
 def measure(name: str, episodes: int, seed: int, t_abs: int, estimator: str = "oracle") -> dict:
     env = make_env(name, seed, estimator)
     privileged = is_privileged("mujoban", estimator)
     view = env if privileged else BoundaryEnv(env)
-    with env, make_agent("mujoban/level1", view.description(), estimator=estimator,
-                         simulator=env if privileged else None, t_abs=t_abs) as agent:
+    with (
+        env,
+        make_agent(
+            "mujoban/level1",
+            view.description(),
+            estimator=estimator,
+            simulator=env if privileged else None,
+            t_abs=t_abs,
+        ) as agent,
+    ):
         results = []
         t0 = time.perf_counter()
         for _ in tqdm(range(episodes), desc=name, unit="ep", leave=False):
@@ -138,8 +153,9 @@ def measure(name: str, episodes: int, seed: int, t_abs: int, estimator: str = "o
         "wilson_low": round(low, 2),
         "wilson_high": round(high, 2),
         "mean_steps_solved": round(float(np.mean(solved_steps)), 1) if solved_steps else None,
-        "p95_steps_solved": (round(float(np.percentile(solved_steps, 95)), 1)
-                             if solved_steps else None),
+        "p95_steps_solved": (
+            round(float(np.percentile(solved_steps, 95)), 1) if solved_steps else None
+        ),
         "subgoals": sum(r["issued"] for r in results),
         "subgoals_reached": reached,
         "subgoals_failed": failed,
@@ -156,12 +172,14 @@ def check_source(name: str) -> str:
     """``name`` if it is a MuJoBan environment or ``boxoban/<file>[-pegs]``
     with ``<file>.txt`` in `BOXOBAN_DIR`; else `physics_planning.cli.UsageError`."""
     if name.startswith("boxoban/"):
-        stem = name[len("boxoban/"):].removesuffix("-pegs")
+        stem = name[len("boxoban/") :].removesuffix("-pegs")
         files = sorted(f"boxoban/{p.stem}" for p in BOXOBAN_DIR.glob("*.txt"))
         if not (BOXOBAN_DIR / f"{stem}.txt").is_file():
-            raise cli.UsageError(f"unknown level source {name!r}{cli.close_hint(name, files)}; "
-                                 f"valid: boxoban/<file>[-pegs] with <file> one of "
-                                 f"{', '.join(p.split('/')[1] for p in files)}")
+            raise cli.UsageError(
+                f"unknown level source {name!r}{cli.close_hint(name, files)}; "
+                f"valid: boxoban/<file>[-pegs] with <file> one of "
+                f"{', '.join(p.split('/')[1] for p in files)}"
+            )
         return name
     mujoban = [n for n in envs.names() if n.startswith("mujoban/")]
     return env_cli.environment(name, mujoban + ["boxoban/<file>[-pegs]"])
@@ -169,24 +187,39 @@ def check_source(name: str) -> str:
 
 def _main(argv=None) -> int:
     parser = make_parser(__file__, __doc__)
-    parser.add_argument("--envs", nargs="+", default=MUJOBAN + BOXOBAN, metavar="NAME",
-                        help="MuJoBan environments or boxoban/<file>[-pegs] level files")
-    parser.add_argument("--episodes", type=cli.positive_int, default=100,
-                        help="episodes per environment")
+    parser.add_argument(
+        "--envs",
+        nargs="+",
+        default=MUJOBAN + BOXOBAN,
+        metavar="NAME",
+        help="MuJoBan environments or boxoban/<file>[-pegs] level files",
+    )
+    parser.add_argument(
+        "--episodes", type=cli.positive_int, default=100, help="episodes per environment"
+    )
     parser.add_argument("--seed", type=cli.non_negative_int, default=0, help="environment seed")
-    parser.add_argument("--t-abs", type=cli.positive_int, default=T_ABS,
-                        help="control steps before the agent re-estimates and replans")
-    parser.add_argument("--estimator", default="oracle",
-                        help="oracle (privileged, isolates the skill), entity-layer "
-                             "(privileged) or camera (observation-only)")
+    parser.add_argument(
+        "--t-abs",
+        type=cli.positive_int,
+        default=T_ABS,
+        help="control steps before the agent re-estimates and replans",
+    )
+    parser.add_argument(
+        "--estimator",
+        default="oracle",
+        help="oracle (privileged, isolates the skill), entity-layer "
+        "(privileged) or camera (observation-only)",
+    )
     parser.add_argument("--json", type=Path, help="write the rows here")
     args = parser.parse_args(argv)
     check("estimator", "mujoban", args.estimator)
     for name in args.envs:
         check_source(name)
     cli.output_file(args.json, "--json")
-    header = (f"{'env':<34} {'eps':>4} {'solved%':>8} {'95% CI':>13} {'steps':>6} "
-              f"{'p95':>5} {'subgoal%':>9} {'s/ep':>6}  failures")
+    header = (
+        f"{'env':<34} {'eps':>4} {'solved%':>8} {'95% CI':>13} {'steps':>6} "
+        f"{'p95':>5} {'subgoal%':>9} {'s/ep':>6}  failures"
+    )
     print(header)
     print("-" * len(header))
     rows = []
@@ -198,10 +231,13 @@ def _main(argv=None) -> int:
         top = ", ".join(f"{k} {v}" for k, v in list(row["failures"].items())[:3])
         if row["no_plan"]:
             top += "; no plan: " + ", ".join(f"{k} {v}" for k, v in row["no_plan"].items())
-        print(f"{name:<34} {row['episodes']:>4} {row['solved_pct']:>7.1f}% "
-              f"[{row['wilson_low']:>5.1f},{row['wilson_high']:>5.1f}] {steps:>6} {p95:>5} "
-              f"{100 * row['subgoal_success_rate']:>8.1f}% {row['wall_s_per_episode']:>6.2f}  "
-              f"{top}", flush=True)
+        print(
+            f"{name:<34} {row['episodes']:>4} {row['solved_pct']:>7.1f}% "
+            f"[{row['wilson_low']:>5.1f},{row['wilson_high']:>5.1f}] {steps:>6} {p95:>5} "
+            f"{100 * row['subgoal_success_rate']:>8.1f}% {row['wall_s_per_episode']:>6.2f}  "
+            f"{top}",
+            flush=True,
+        )
     if args.json:
         write_json(args.json, rows)
     return 0

@@ -42,8 +42,10 @@ from envs.rendering import Cameras  # noqa: E402
 
 PROG = prog(__file__)
 ENVS = ("mujoxo/mixture", "mujogo/7x7")
-ORIGINAL_NAMES = {"mujoxo/mixture": "tic_tac_toe_mixture_opponent_markers_features",
-                  "mujogo/7x7": "go_7x7"}
+ORIGINAL_NAMES = {
+    "mujoxo/mixture": "tic_tac_toe_mixture_opponent_markers_features",
+    "mujogo/7x7": "go_7x7",
+}
 LOOKS = {
     "default": {},
     "multisamples=4": {"multisamples": 4},
@@ -75,8 +77,10 @@ def _frame_cost(env, frames: int, shadow_map: int | None = None) -> tuple[float,
 
 def _difference(a: np.ndarray, b: np.ndarray) -> dict:
     d = np.abs(a.astype(int) - b.astype(int))
-    return {"mean_abs": round(float(d.mean()), 4),
-            "share_above_8": round(float((d.max(-1) > 8).mean()), 4)}
+    return {
+        "mean_abs": round(float(d.mean()), 4),
+        "share_above_8": round(float((d.max(-1) > 8).mean()), 4),
+    }
 
 
 def _settled(name: str, options: dict, seed: int):
@@ -115,37 +119,57 @@ def _main(argv=None) -> int:
             env = _settled(name, options, args.seed)
             ms, images[label] = _frame_cost(env, args.frames)
             env.close()
-            rows.append({"env": name, "look": label, "options": options,
-                         "ms_per_frame": round(ms, 3),
-                         "vs_default": _difference(images[label], images["default"])})
+            rows.append(
+                {
+                    "env": name,
+                    "look": label,
+                    "options": options,
+                    "ms_per_frame": round(ms, 3),
+                    "vs_default": _difference(images[label], images["default"]),
+                }
+            )
         env = _settled(name, LOOKS["original (multisamples=4, shadows)"], args.seed)
         ms, full_map = _frame_cost(env, args.frames, shadow_map=4096)
         env.close()
-        rows.append({"env": name, "look": "original with a 4096 shadow map",
-                     "options": {"multisamples": 4, "shadows": True, "shadowsize": 4096},
-                     "ms_per_frame": round(ms, 3),
-                     "vs_default": _difference(full_map, images["default"]),
-                     "shadow_map_2048_vs_4096": _difference(
-                         images["original (multisamples=4, shadows)"], full_map)})
+        rows.append(
+            {
+                "env": name,
+                "look": "original with a 4096 shadow map",
+                "options": {"multisamples": 4, "shadows": True, "shadowsize": 4096},
+                "ms_per_frame": round(ms, 3),
+                "vs_default": _difference(full_map, images["default"]),
+                "shadow_map_2048_vs_4096": _difference(
+                    images["original (multisamples=4, shadows)"], full_map
+                ),
+            }
+        )
         original = _original_frame(name, args.seed)
-        strips.append((name, images["default"], images["original (multisamples=4, shadows)"],
-                       original))
+        strips.append(
+            (name, images["default"], images["original (multisamples=4, shadows)"], original)
+        )
     default_ms = {r["env"]: r["ms_per_frame"] for r in rows if r["look"] == "default"}
-    print(f"{'environment':<16} {'look':<36} {'ms/frame':>9} {'x default':>9} "
-          f"{'mean diff':>9} {'px > 8':>7}")
+    print(
+        f"{'environment':<16} {'look':<36} {'ms/frame':>9} {'x default':>9} "
+        f"{'mean diff':>9} {'px > 8':>7}"
+    )
     for r in rows:
-        print(f"{r['env']:<16} {r['look']:<36} {r['ms_per_frame']:>9.2f} "
-              f"{r['ms_per_frame'] / default_ms[r['env']]:>8.1f}x "
-              f"{r['vs_default']['mean_abs']:>9.3f} "
-              f"{100 * r['vs_default']['share_above_8']:>6.1f}%")
+        print(
+            f"{r['env']:<16} {r['look']:<36} {r['ms_per_frame']:>9.2f} "
+            f"{r['ms_per_frame'] / default_ms[r['env']]:>8.1f}x "
+            f"{r['vs_default']['mean_abs']:>9.3f} "
+            f"{100 * r['vs_default']['share_above_8']:>6.1f}%"
+        )
     for r in rows:
         if "shadow_map_2048_vs_4096" in r:
             d = r["shadow_map_2048_vs_4096"]
-            print(f"{r['env']}: the {arena_lib.SHADOW_MAP_SIZE}-texel map against 4096: mean "
-                  f"difference {d['mean_abs']:.4f}, {100 * d['share_above_8']:.2f}% of pixels > 8")
+            print(
+                f"{r['env']}: the {arena_lib.SHADOW_MAP_SIZE}-texel map against 4096: mean "
+                f"difference {d['mean_abs']:.4f}, {100 * d['share_above_8']:.2f}% of pixels > 8"
+            )
     picture = None
     if args.picture:
         from PIL import Image, ImageDraw
+
         scale = 3
         with_original = all(s[3] is not None for s in strips)
         columns = ["default", "original looks"] + (["the original"] if with_original else [])
@@ -153,10 +177,12 @@ def _main(argv=None) -> int:
         canvas = Image.new("RGB", (tile * len(columns), (tile + 14) * len(strips)), "white")
         draw = ImageDraw.Draw(canvas)
         for i, (name, default, original_looks, original) in enumerate(strips):
-            for j, image in enumerate([default, original_looks] + ([original] if with_original
-                                                                   else [])):
-                big = Image.fromarray(np.asarray(image, np.uint8)).resize((tile, tile),
-                                                                          Image.NEAREST)
+            for j, image in enumerate(
+                [default, original_looks] + ([original] if with_original else [])
+            ):
+                big = Image.fromarray(np.asarray(image, np.uint8)).resize(
+                    (tile, tile), Image.NEAREST
+                )
                 canvas.paste(big, (j * tile, i * (tile + 14) + 14))
                 draw.text((j * tile + 3, i * (tile + 14)), f"{name}: {columns[j]}", fill="black")
         args.picture.parent.mkdir(parents=True, exist_ok=True)
@@ -164,9 +190,17 @@ def _main(argv=None) -> int:
         picture = {"path": str(args.picture), "columns": columns}
         print(f"wrote {args.picture}")
     if args.json:
-        write_json(args.json, {"frames": args.frames, "seed": args.seed, "size": list(SIZE),
-                               "shadow_map_size": arena_lib.SHADOW_MAP_SIZE, "rows": rows,
-                               "picture": picture})
+        write_json(
+            args.json,
+            {
+                "frames": args.frames,
+                "seed": args.seed,
+                "size": list(SIZE),
+                "shadow_map_size": arena_lib.SHADOW_MAP_SIZE,
+                "rows": rows,
+                "picture": picture,
+            },
+        )
     return 0
 
 

@@ -27,13 +27,22 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from _common import (baseline_worktree, cli, make_parser, prog, remove_worktree,  # noqa: E402
-                     run_in_tree, write_json)
+from _common import (
+    baseline_worktree,
+    cli,
+    make_parser,
+    prog,
+    remove_worktree,  # noqa: E402
+    run_in_tree,
+    write_json,
+)
 
 PROG = prog(__file__)
-SETTINGS = [("mujoban/level5", "top_camera"),
-            ("mujoxo/mixture", "front_camera+front_camera_2"),
-            ("mujogo/7x7", "front_camera+front_camera_2")]
+SETTINGS = [
+    ("mujoban/level5", "top_camera"),
+    ("mujoxo/mixture", "front_camera+front_camera_2"),
+    ("mujogo/7x7", "front_camera+front_camera_2"),
+]
 #: The same frames per step in an env_speed.py without ``front_camera_2``.
 OLDER_NAME = {"front_camera+front_camera_2": "front_camera+second_view"}
 
@@ -46,16 +55,33 @@ def _setting_in(tree: Path, setting: str) -> str:
 def measure(tree: Path, env_name: str, setting: str, steps: int, tmp: Path) -> float:
     """Control steps/s of ``env_name`` with camera ``setting``, run from ``tree``."""
     out = tmp / "speed.json"
-    run_in_tree(tree, [sys.executable, "benchmarks/env_speed.py", "--envs", env_name,
-                       "--cameras", _setting_in(tree, setting), "--steps", str(steps),
-                       "--json", str(out)], timeout=3600)
+    run_in_tree(
+        tree,
+        [
+            sys.executable,
+            "benchmarks/env_speed.py",
+            "--envs",
+            env_name,
+            "--cameras",
+            _setting_in(tree, setting),
+            "--steps",
+            str(steps),
+            "--json",
+            str(out),
+        ],
+        timeout=3600,
+    )
     return float(json.loads(out.read_text())["rows"][0]["steps_per_s"])
 
 
 def _main(argv=None) -> int:
     parser = make_parser(__file__, __doc__)
-    parser.add_argument("--baseline", metavar="REF", required=True,
-                        help="the git commit to measure beside this checkout")
+    parser.add_argument(
+        "--baseline",
+        metavar="REF",
+        required=True,
+        help="the git commit to measure beside this checkout",
+    )
     parser.add_argument("--steps", type=cli.positive_int, default=1500)
     parser.add_argument("--rounds", type=cli.positive_int, default=2)
     parser.add_argument("--json", type=Path, help="write the results here")
@@ -67,23 +93,37 @@ def _main(argv=None) -> int:
         tmp = Path(tmp_name)
         baseline = baseline_worktree(args.baseline, tmp)
         try:
-            print(f"{'environment':<16} {'cameras':<28} {'round':>5} {'this':>8} "
-                  f"{'baseline':>9} {'x':>6}")
+            print(
+                f"{'environment':<16} {'cameras':<28} {'round':>5} {'this':>8} "
+                f"{'baseline':>9} {'x':>6}"
+            )
             for env_name, setting in SETTINGS:
                 for r in range(args.rounds):
                     ours = measure(root, env_name, setting, args.steps, tmp)
                     theirs = measure(baseline, env_name, setting, args.steps, tmp)
-                    rows.append({"env": env_name, "cameras": setting, "round": r + 1,
-                                 "steps_per_s": ours, "baseline_steps_per_s": theirs,
-                                 "baseline_cameras": _setting_in(baseline, setting),
-                                 "x_baseline": round(ours / theirs, 3)})
-                    print(f"{env_name:<16} {setting:<28} {r + 1:>5} {ours:>8.1f} "
-                          f"{theirs:>9.1f} {ours / theirs:>5.2f}x", flush=True)
+                    rows.append(
+                        {
+                            "env": env_name,
+                            "cameras": setting,
+                            "round": r + 1,
+                            "steps_per_s": ours,
+                            "baseline_steps_per_s": theirs,
+                            "baseline_cameras": _setting_in(baseline, setting),
+                            "x_baseline": round(ours / theirs, 3),
+                        }
+                    )
+                    print(
+                        f"{env_name:<16} {setting:<28} {r + 1:>5} {ours:>8.1f} "
+                        f"{theirs:>9.1f} {ours / theirs:>5.2f}x",
+                        flush=True,
+                    )
         finally:
             remove_worktree(baseline)
     if args.json:
-        write_json(args.json, {"baseline": args.baseline, "steps": args.steps,
-                               "rounds": args.rounds, "rows": rows})
+        write_json(
+            args.json,
+            {"baseline": args.baseline, "steps": args.steps, "rounds": args.rounds, "rows": rows},
+        )
     return 0
 
 

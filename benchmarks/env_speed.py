@@ -46,8 +46,14 @@ import numpy as np  # noqa: E402
 
 PROG = prog(__file__)
 MUJOBAN = [f"mujoban/level{d}{p}" for p in ("", "-pegs") for d in range(1, 6)]
-BOARDS = ["mujoxo/mixture", "mujoxo/optimal", "mujoxo/random", "mujogo/7x7",
-          "mujogo/7x7-mixture", "mujogo/9x9"]
+BOARDS = [
+    "mujoxo/mixture",
+    "mujoxo/optimal",
+    "mujoxo/random",
+    "mujogo/7x7",
+    "mujogo/7x7-mixture",
+    "mujogo/9x9",
+]
 #: Camera settings per environment family; a row is measured for each
 #: requested setting its family has.
 CAMERA_SETTINGS = {
@@ -64,6 +70,8 @@ CAMERA_SETTINGS = {
         "front_camera+front_camera_2": dict(front_camera=(84, 84), front_camera_2=(84, 84)),
     },
 }
+
+
 def _family(name: str) -> str:
     return "mujoban" if name.startswith("mujoban/") else "boards"
 
@@ -74,8 +82,14 @@ def _actions(n: int, dim: int, seed: int) -> np.ndarray:
     return np.repeat(held, 10, axis=0)[:n]
 
 
-def measure(name: str, cameras: str, steps: int, seed: int = 0,
-            physics_timestep: float | None = None, env_options: dict | None = None) -> dict:
+def measure(
+    name: str,
+    cameras: str,
+    steps: int,
+    seed: int = 0,
+    physics_timestep: float | None = None,
+    env_options: dict | None = None,
+) -> dict:
     family = _family(name)
     env_options = dict(env_options or {})
     overrides = {**CAMERA_SETTINGS[family][cameras], **env_options}
@@ -129,8 +143,11 @@ def measure(name: str, cameras: str, steps: int, seed: int = 0,
     limit_per_s = steps / raw_time
     return {
         "env": name,
-        "cameras": ([] if cameras == "none"
-                    else cameras.replace("egocentric", "walker/egocentric_camera").split("+")),
+        "cameras": (
+            []
+            if cameras == "none"
+            else cameras.replace("egocentric", "walker/egocentric_camera").split("+")
+        ),
         "physics_timestep": timestep_s,
         "env_options": env_options,
         "steps_per_s": round(steps_per_s, 1),
@@ -146,37 +163,54 @@ def measure(name: str, cameras: str, steps: int, seed: int = 0,
 def _main(argv=None) -> int:
     parser = make_parser(__file__, __doc__)
     parser.add_argument("--json", type=Path, help="write the rows here")
-    parser.add_argument("--steps", type=cli.positive_int, default=2000,
-                        help="control steps per row")
-    parser.add_argument("--envs", nargs="+", default=MUJOBAN + BOARDS, metavar="NAME",
-                        help="environment names")
+    parser.add_argument(
+        "--steps", type=cli.positive_int, default=2000, help="control steps per row"
+    )
+    parser.add_argument(
+        "--envs", nargs="+", default=MUJOBAN + BOARDS, metavar="NAME", help="environment names"
+    )
     all_settings = sorted({k for family in CAMERA_SETTINGS.values() for k in family})
-    parser.add_argument("--cameras", nargs="+", metavar="SETTING",
-                        default=["none", "top_camera", "front_camera",
-                                 "front_camera+front_camera_2"],
-                        help=f"camera settings, of {', '.join(all_settings)} (each measured "
-                             f"where the environment has it)")
-    parser.add_argument("--physics-timestep", type=cli.positive_float, default=None,
-                        help="physics timestep in seconds (default: each environment's own, "
-                             "the original's)")
-    parser.add_argument("--env-option", action="append", default=[], metavar="KEY=VALUE",
-                        help="an envs.load override, e.g. noslip_iterations=0 or sleep=True "
-                             "(repeatable; VALUE is a Python literal)")
+    parser.add_argument(
+        "--cameras",
+        nargs="+",
+        metavar="SETTING",
+        default=["none", "top_camera", "front_camera", "front_camera+front_camera_2"],
+        help=f"camera settings, of {', '.join(all_settings)} (each measured "
+        f"where the environment has it)",
+    )
+    parser.add_argument(
+        "--physics-timestep",
+        type=cli.positive_float,
+        default=None,
+        help="physics timestep in seconds (default: each environment's own, the original's)",
+    )
+    parser.add_argument(
+        "--env-option",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="an envs.load override, e.g. noslip_iterations=0 or sleep=True "
+        "(repeatable; VALUE is a Python literal)",
+    )
     args = parser.parse_args(argv)
     for setting in args.cameras:
         cli.choice("camera setting", setting, all_settings)
     env_options = {}
     for name in args.envs:
         env_cli.environment(name)
-        env_options = env_cli.env_options(name, args.env_option,
-                                      exclude=lambda key: key.endswith("_camera"))
+        env_options = env_cli.env_options(
+            name, args.env_option, exclude=lambda key: key.endswith("_camera")
+        )
         if args.physics_timestep is not None:
-            env_cli.env_options(name, [f"physics_timestep={args.physics_timestep!r}"],
-                            flag="--physics-timestep")
+            env_cli.env_options(
+                name, [f"physics_timestep={args.physics_timestep!r}"], flag="--physics-timestep"
+            )
     cli.output_file(args.json, "--json")
 
-    header = (f"{'env':<22} {'cameras':<28} {'dt ms':>5} {'steps/s':>9} {'limit/s':>9} "
-              f"{'ratio':>6} {'reset ms':>9}")
+    header = (
+        f"{'env':<22} {'cameras':<28} {'dt ms':>5} {'steps/s':>9} {'limit/s':>9} "
+        f"{'ratio':>6} {'reset ms':>9}"
+    )
     print(header)
     print("-" * len(header))
     rows = []
@@ -184,12 +218,20 @@ def _main(argv=None) -> int:
         for cameras in args.cameras:
             if cameras not in CAMERA_SETTINGS[_family(name)]:
                 continue
-            row = measure(name, cameras, args.steps, physics_timestep=args.physics_timestep,
-                          env_options=env_options)
+            row = measure(
+                name,
+                cameras,
+                args.steps,
+                physics_timestep=args.physics_timestep,
+                env_options=env_options,
+            )
             rows.append(row)
-            print(f"{name:<22} {cameras:<28} {row['physics_timestep'] * 1e3:>5.1f} "
-                  f"{row['steps_per_s']:>9.1f} {row['physics_limit_steps_per_s']:>9.1f} "
-                  f"{row['ratio']:>6.2f} {row['reset_s'] * 1e3:>9.2f}", flush=True)
+            print(
+                f"{name:<22} {cameras:<28} {row['physics_timestep'] * 1e3:>5.1f} "
+                f"{row['steps_per_s']:>9.1f} {row['physics_limit_steps_per_s']:>9.1f} "
+                f"{row['ratio']:>6.2f} {row['reset_s'] * 1e3:>9.2f}",
+                flush=True,
+            )
     if args.json:
         write_json(args.json, rows)
     return 0

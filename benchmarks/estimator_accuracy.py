@@ -75,10 +75,13 @@ PROG = prog(__file__)
 
 BOXOBAN = Path(envs.__file__).resolve().parent / "mujoban" / "data" / "boxoban"
 #: (label, env name, levels file or None)
-SOURCES = ([(f"level{d}{p}", f"mujoban/level{d}{p}", None)
-            for p in ("", "-pegs") for d in range(1, 6)]
-           + [(f"boxoban-{f}{p}", f"mujoban/level1{p}", BOXOBAN / f"{f}-valid-000.txt")
-              for p in ("", "-pegs") for f in ("unfiltered", "medium")])
+SOURCES = [
+    (f"level{d}{p}", f"mujoban/level{d}{p}", None) for p in ("", "-pegs") for d in range(1, 6)
+] + [
+    (f"boxoban-{f}{p}", f"mujoban/level1{p}", BOXOBAN / f"{f}-valid-000.txt")
+    for p in ("", "-pegs")
+    for f in ("unfiltered", "medium")
+]
 FRAMES_PER_EPISODE = 4
 #: Scored frames fewer than this many steps after a nudge are the
 #: ``teleport_frames`` (the camera estimator's longest gap between frames).
@@ -104,8 +107,11 @@ def _nudge_box(env, rng) -> None:
     occupied = set(map(tuple, task.level.walls)) | set(map(tuple, box_cells)) | {tuple(player)}
     i = int(rng.integers(len(boxes)))
     r, c = box_cells[i]
-    free = [(dr, dc) for dr, dc in ((1, 0), (-1, 0), (0, 1), (0, -1))
-            if (r + dr, c + dc) not in occupied]
+    free = [
+        (dr, dc)
+        for dr, dc in ((1, 0), (-1, 0), (0, 1), (0, -1))
+        if (r + dr, c + dc) not in occupied
+    ]
     if not free:
         return
     dr, dc = free[int(rng.integers(len(free)))]
@@ -168,7 +174,7 @@ def _episode(env, estimators, rng, stats, frames_wanted) -> int:
                     scene = est.estimate(timestep)
                 except EstimationError:
                     scene = None
-                except ValueError:   # the oracle's SokobanState on an invalid state
+                except ValueError:  # the oracle's SokobanState on an invalid state
                     if valid:
                         raise
                 s["estimate_s"].append(time.perf_counter() - t)
@@ -198,8 +204,10 @@ def _episode(env, estimators, rng, stats, frames_wanted) -> int:
             s["look_frames"][look] += 1
             s["look_whole"][look] += int(all(ok.values()))
             cell = description.cell_size
-            s["walker_err"].append(float(np.linalg.norm(
-                np.asarray(scene.walker_xy) - env.task.walker_position())) / cell)
+            s["walker_err"].append(
+                float(np.linalg.norm(np.asarray(scene.walker_xy) - env.task.walker_position()))
+                / cell
+            )
             truth_xy = env.task.box_positions()
             est_xy = np.asarray(scene.box_xy, float).reshape(-1, 2)
             if est_xy.shape == truth_xy.shape:
@@ -210,10 +218,24 @@ def _episode(env, estimators, rng, stats, frames_wanted) -> int:
 
 
 def _new_stats():
-    return dict(frames=0, whole=0, walls=0, targets=0, boxes=0, player=0, failures=0,
-                teleport_frames=0, teleport_whole=0,
-                invalid_truth=0, walker_err=[], box_err=[], estimate_s=[], reset_s=[],
-                look_frames=Counter(), look_whole=Counter())
+    return dict(
+        frames=0,
+        whole=0,
+        walls=0,
+        targets=0,
+        boxes=0,
+        player=0,
+        failures=0,
+        teleport_frames=0,
+        teleport_whole=0,
+        invalid_truth=0,
+        walker_err=[],
+        box_err=[],
+        estimate_s=[],
+        reset_s=[],
+        look_frames=Counter(),
+        look_whole=Counter(),
+    )
 
 
 def _summary(name, privileged, s) -> dict:
@@ -229,7 +251,8 @@ def _summary(name, privileged, s) -> dict:
         "whole_grid_accuracy": round(s["whole"] / n, 4),
         "teleport_frames": s["teleport_frames"],
         "whole_grid_accuracy_without_teleports": round(
-            (s["whole"] - s["teleport_whole"]) / max(s["frames"] - s["teleport_frames"], 1), 4),
+            (s["whole"] - s["teleport_whole"]) / max(s["frames"] - s["teleport_frames"], 1), 4
+        ),
         "walls_accuracy": round(s["walls"] / n, 4),
         "targets_accuracy": round(s["targets"] / n, 4),
         "boxes_accuracy": round(s["boxes"] / n, 4),
@@ -240,12 +263,17 @@ def _summary(name, privileged, s) -> dict:
         "walker_error_p95_cells": q(s["walker_err"], 95),
         "box_error_median_cells": q(s["box_err"], 50),
         "box_error_p95_cells": q(s["box_err"], 95),
-        "ms_per_estimate": round(1e3 * float(np.mean(s["estimate_s"])), 3) if s["estimate_s"]
+        "ms_per_estimate": round(1e3 * float(np.mean(s["estimate_s"])), 3)
+        if s["estimate_s"]
         else None,
         "ms_per_reset": round(1e3 * float(np.mean(s["reset_s"])), 3) if s["reset_s"] else None,
-        "by_appearance": {look: {"frames": n_look, "whole_grid_accuracy":
-                                 round(s["look_whole"][look] / n_look, 4)}
-                          for look, n_look in sorted(s["look_frames"].items())},
+        "by_appearance": {
+            look: {
+                "frames": n_look,
+                "whole_grid_accuracy": round(s["look_whole"][look] / n_look, 4),
+            }
+            for look, n_look in sorted(s["look_frames"].items())
+        },
     }
 
 
@@ -257,8 +285,11 @@ def render_cost(steps: int = 200, seed: int = 0) -> dict:
     actions = np.repeat(rng.uniform(-1, 1, size=(steps // 10 + 1, 2)), 10, axis=0)[:steps]
     out = {}
     agent_camera = {**CameraEstimator.env_overrides, "lazy_cameras": False}
-    for label, camera in (("none", dict(top_camera=None)), ("96x96", dict(top_camera=(96, 96))),
-                          (f"{FRAME_SHAPE[0]}x{FRAME_SHAPE[1]} (the estimator's)", agent_camera)):
+    for label, camera in (
+        ("none", dict(top_camera=None)),
+        ("96x96", dict(top_camera=(96, 96))),
+        (f"{FRAME_SHAPE[0]}x{FRAME_SHAPE[1]} (the estimator's)", agent_camera),
+    ):
         env = envs.load("mujoban/level5", seed=seed, egocentric_camera=None, **camera)
         env.reset()
         for a in actions[:5]:
@@ -277,12 +308,21 @@ def render_cost(steps: int = 200, seed: int = 0) -> dict:
 def _main(argv=None) -> int:
     parser = make_parser(__file__, __doc__)
     parser.add_argument("--json", type=Path, help="write the results here")
-    parser.add_argument("--frames", type=cli.positive_int, default=1000,
-                        help="frames scored in all")
-    parser.add_argument("--seed", type=cli.non_negative_int, default=0,
-                        help=f"base seed (episodes use seeds from seed + {SEED_OFFSET})")
-    parser.add_argument("--render-steps", type=cli.non_negative_int, default=200,
-                        help="env.step calls per render-cost setting (0: skip)")
+    parser.add_argument(
+        "--frames", type=cli.positive_int, default=1000, help="frames scored in all"
+    )
+    parser.add_argument(
+        "--seed",
+        type=cli.non_negative_int,
+        default=0,
+        help=f"base seed (episodes use seeds from seed + {SEED_OFFSET})",
+    )
+    parser.add_argument(
+        "--render-steps",
+        type=cli.non_negative_int,
+        default=200,
+        help="env.step calls per render-cost setting (0: skip)",
+    )
     args = parser.parse_args(argv)
     cli.output_file(args.json, "--json")
 
@@ -290,8 +330,9 @@ def _main(argv=None) -> int:
     totals = {}
     per_source = {}
     privileged = {}
-    progress = tqdm(total=per_source_frames * len(SOURCES), desc="frames", unit="frame",
-                    leave=False)
+    progress = tqdm(
+        total=per_source_frames * len(SOURCES), desc="frames", unit="frame", leave=False
+    )
     for index, (label, name, levels) in enumerate(SOURCES):
         seed = args.seed + SEED_OFFSET + index
         env = _make_env(name, levels, seed)
@@ -322,38 +363,62 @@ def _main(argv=None) -> int:
     rows = [_summary(n, privileged[n], s) for n, s in totals.items()]
     render = render_cost(args.render_steps, args.seed) if args.render_steps > 0 else {}
 
-    header = (f"{'estimator':<10} {'priv':<5} {'frames':>6} {'grid ok':>8} {'walls':>7} "
-              f"{'targets':>7} {'boxes':>7} {'player':>7} {'fail':>5} {'walker med/p95':>15} "
-              f"{'box med/p95':>15} {'ms/est':>7} {'ms/reset':>8}")
+    header = (
+        f"{'estimator':<10} {'priv':<5} {'frames':>6} {'grid ok':>8} {'walls':>7} "
+        f"{'targets':>7} {'boxes':>7} {'player':>7} {'fail':>5} {'walker med/p95':>15} "
+        f"{'box med/p95':>15} {'ms/est':>7} {'ms/reset':>8}"
+    )
     print(header)
     print("-" * len(header))
     for r in rows:
-        print(f"{r['estimator']:<10} {str(r['privileged']):<5} {r['frames']:>6} "
-              f"{100 * r['whole_grid_accuracy']:>7.2f}% {100 * r['walls_accuracy']:>6.2f}% "
-              f"{100 * r['targets_accuracy']:>6.2f}% {100 * r['boxes_accuracy']:>6.2f}% "
-              f"{100 * r['player_accuracy']:>6.2f}% {r['failures']:>5} "
-              f"{r['walker_error_median_cells']:>7.4f}/{r['walker_error_p95_cells']:<7.4f} "
-              f"{r['box_error_median_cells']:>7.4f}/{r['box_error_p95_cells']:<7.4f} "
-              f"{r['ms_per_estimate']:>7.2f} {r['ms_per_reset']:>8.2f}")
-    print("without the frames fewer than {} steps after a teleporting nudge: ".format(
-        TELEPORT_STEPS) + ", ".join(
-        f"{r['estimator']} {100 * r['whole_grid_accuracy_without_teleports']:.2f}% "
-        f"({r['frames'] - r['teleport_frames']} frames)" for r in rows))
+        print(
+            f"{r['estimator']:<10} {str(r['privileged']):<5} {r['frames']:>6} "
+            f"{100 * r['whole_grid_accuracy']:>7.2f}% {100 * r['walls_accuracy']:>6.2f}% "
+            f"{100 * r['targets_accuracy']:>6.2f}% {100 * r['boxes_accuracy']:>6.2f}% "
+            f"{100 * r['player_accuracy']:>6.2f}% {r['failures']:>5} "
+            f"{r['walker_error_median_cells']:>7.4f}/{r['walker_error_p95_cells']:<7.4f} "
+            f"{r['box_error_median_cells']:>7.4f}/{r['box_error_p95_cells']:<7.4f} "
+            f"{r['ms_per_estimate']:>7.2f} {r['ms_per_reset']:>8.2f}"
+        )
+    print(
+        "without the frames fewer than {} steps after a teleporting nudge: ".format(TELEPORT_STEPS)
+        + ", ".join(
+            f"{r['estimator']} {100 * r['whole_grid_accuracy_without_teleports']:.2f}% "
+            f"({r['frames'] - r['teleport_frames']} frames)"
+            for r in rows
+        )
+    )
     camera = rows[0]["by_appearance"]
     worst = min(camera.items(), key=lambda kv: kv[1]["whole_grid_accuracy"])
-    print(f"camera: {len(camera)} wall/floor appearances seen; the worst {worst[0]} "
-          f"{100 * worst[1]['whole_grid_accuracy']:.1f}% of {worst[1]['frames']} frames")
-    print("camera whole-grid accuracy per source: " + ", ".join(
-        f"{label} {100 * v['camera']['whole_grid_accuracy']:.1f}%"
-        for label, v in per_source.items()))
+    print(
+        f"camera: {len(camera)} wall/floor appearances seen; the worst {worst[0]} "
+        f"{100 * worst[1]['whole_grid_accuracy']:.1f}% of {worst[1]['frames']} frames"
+    )
+    print(
+        "camera whole-grid accuracy per source: "
+        + ", ".join(
+            f"{label} {100 * v['camera']['whole_grid_accuracy']:.1f}%"
+            for label, v in per_source.items()
+        )
+    )
     if render:
-        print("render cost, ms per env.step (mujoban/level5): " + ", ".join(
-            f"{k} {v:.2f}" for k, v in render.items()))
+        print(
+            "render cost, ms per env.step (mujoban/level5): "
+            + ", ".join(f"{k} {v:.2f}" for k, v in render.items())
+        )
     if args.json:
-        write_json(args.json, {
-            "frame_shape": list(FRAME_SHAPE), "frames": args.frames, "seed": args.seed,
-            "sources": [label for label, _, _ in SOURCES], "render_ms_per_step": render,
-            "rows": rows, "per_source": per_source})
+        write_json(
+            args.json,
+            {
+                "frame_shape": list(FRAME_SHAPE),
+                "frames": args.frames,
+                "seed": args.seed,
+                "sources": [label for label, _, _ in SOURCES],
+                "render_ms_per_step": render,
+                "rows": rows,
+                "per_source": per_source,
+            },
+        )
     return 0
 
 

@@ -59,17 +59,18 @@ def parse_spec(spec: str) -> tuple[str, tuple[int, ...]]:
     name, *texts = spec.strip().lower().split(":")
     forms = {"random": 0, "gnugo": 1, "mcts": 2}
     if name not in forms or len(texts) > forms[name]:
-        raise cli.UsageError(f"bad planner spec {spec!r}"
-                             f"{cli.close_hint(name, forms) if name not in forms else ''}; "
-                             f"use random, gnugo[:LEVEL] or mcts[:SIMULATIONS[:ROLLOUTS]]")
+        raise cli.UsageError(
+            f"bad planner spec {spec!r}"
+            f"{cli.close_hint(name, forms) if name not in forms else ''}; "
+            f"use random, gnugo[:LEVEL] or mcts[:SIMULATIONS[:ROLLOUTS]]"
+        )
     limits = {"gnugo": [(1, 10)], "mcts": [(1, None), (1, None)]}.get(name, [])
     args = []
     for text, (low, high) in zip(texts, limits):
         value = int(text) if text.strip().lstrip("-").isdigit() else None
         if value is None or value < low or (high is not None and value > high):
             allowed = f"{low}..{high}" if high is not None else f">= {low}"
-            raise cli.UsageError(f"bad planner spec {spec!r}: {text!r} is not an integer "
-                                 f"{allowed}")
+            raise cli.UsageError(f"bad planner spec {spec!r}: {text!r} is not an integer {allowed}")
         args.append(value)
     return name, tuple(args)
 
@@ -123,19 +124,31 @@ def _fmt(value, digits=0):
 
 def _main(argv=None) -> int:
     parser = make_parser(__file__, __doc__)
-    parser.add_argument("--games", type=cli.positive_int, default=10,
-                        help="games per Black spec")
+    parser.add_argument("--games", type=cli.positive_int, default=10, help="games per Black spec")
     parser.add_argument("--board-size", type=cli.positive_int, default=7)
     parser.add_argument("--komi", type=float, default=5.5)
-    parser.add_argument("--black", nargs="+", default=None, metavar="SPEC",
-                        help="Black planner specs (default: random, unless --mcts-sweep)")
-    parser.add_argument("--white", default="gnugo:10", metavar="SPEC",
-                        help="the White planner spec")
-    parser.add_argument("--mcts-sweep", default=None, metavar="N,N,...",
-                        help="comma-separated MCTS simulation counts to play as Black")
+    parser.add_argument(
+        "--black",
+        nargs="+",
+        default=None,
+        metavar="SPEC",
+        help="Black planner specs (default: random, unless --mcts-sweep)",
+    )
+    parser.add_argument(
+        "--white", default="gnugo:10", metavar="SPEC", help="the White planner spec"
+    )
+    parser.add_argument(
+        "--mcts-sweep",
+        default=None,
+        metavar="N,N,...",
+        help="comma-separated MCTS simulation counts to play as Black",
+    )
     parser.add_argument("--seed", type=cli.non_negative_int, default=0)
-    parser.add_argument("--no-cleanup", action="store_true",
-                        help="GNU Go uses genmove instead of kgs-genmove_cleanup")
+    parser.add_argument(
+        "--no-cleanup",
+        action="store_true",
+        help="GNU Go uses genmove instead of kgs-genmove_cleanup",
+    )
     parser.add_argument("--json", type=Path, default=None, help="write the rows here")
     args = parser.parse_args(argv)
     try:
@@ -148,8 +161,9 @@ def _main(argv=None) -> int:
         try:
             sweep = [cli.positive_int(x) for x in args.mcts_sweep.split(",") if x.strip()]
         except argparse.ArgumentTypeError:
-            raise cli.UsageError(f"--mcts-sweep takes comma-separated integers >= 1, got "
-                                 f"{args.mcts_sweep!r}") from None
+            raise cli.UsageError(
+                f"--mcts-sweep takes comma-separated integers >= 1, got {args.mcts_sweep!r}"
+            ) from None
     blacks = list(args.black) if args.black is not None else ([] if sweep else ["random"])
     blacks += [f"mcts:{n}" for n in sweep]
     if not blacks:
@@ -180,41 +194,60 @@ def _main(argv=None) -> int:
             finally:
                 black.close()
             low, high = wilson_interval(wins, args.games)
-            rows.append(dict(
-                black=spec, white=args.white, board_size=args.board_size, komi=args.komi,
-                games=args.games, black_wins=int(wins), win_rate=wins / args.games,
-                ci_low=round(low, 4), ci_high=round(high, 4), mean_moves=float(np.mean(moves)),
-                gnugo_ms_median=float(np.median(gnugo_ms)) if gnugo_ms else None,
-                gnugo_ms_p95=float(np.percentile(gnugo_ms, 95)) if gnugo_ms else None,
-                black_ms_median=float(np.median(black_ms)) if black_ms else None,
-                seconds=time.perf_counter() - start,
-            ))
+            rows.append(
+                dict(
+                    black=spec,
+                    white=args.white,
+                    board_size=args.board_size,
+                    komi=args.komi,
+                    games=args.games,
+                    black_wins=int(wins),
+                    win_rate=wins / args.games,
+                    ci_low=round(low, 4),
+                    ci_high=round(high, 4),
+                    mean_moves=float(np.mean(moves)),
+                    gnugo_ms_median=float(np.median(gnugo_ms)) if gnugo_ms else None,
+                    gnugo_ms_p95=float(np.percentile(gnugo_ms, 95)) if gnugo_ms else None,
+                    black_ms_median=float(np.median(black_ms)) if black_ms else None,
+                    seconds=time.perf_counter() - start,
+                )
+            )
     finally:
         bar.close()
         white.close()
 
-    print(f"\nGo {args.board_size}x{args.board_size}, komi {args.komi:g}, White = {args.white}, "
-          f"{args.games} games per row, OpenSpiel (Tromp-Taylor) scoring")
-    header = (f"{'black':<14}{'games':>6}{'wins':>6}{'win rate':>10}{'95% CI':>15}"
-              f"{'moves':>7}{'gnugo ms med':>14}{'p95':>8}{'black ms med':>14}")
+    print(
+        f"\nGo {args.board_size}x{args.board_size}, komi {args.komi:g}, White = {args.white}, "
+        f"{args.games} games per row, OpenSpiel (Tromp-Taylor) scoring"
+    )
+    header = (
+        f"{'black':<14}{'games':>6}{'wins':>6}{'win rate':>10}{'95% CI':>15}"
+        f"{'moves':>7}{'gnugo ms med':>14}{'p95':>8}{'black ms med':>14}"
+    )
     print(header)
     print("-" * len(header))
     for row in rows:
         ci = f"[{row['ci_low']:.2f}, {row['ci_high']:.2f}]"
-        print(f"{row['black']:<14}{row['games']:>6}{row['black_wins']:>6}{row['win_rate']:>10.2f}"
-              f"{ci:>15}{row['mean_moves']:>7.1f}{_fmt(row['gnugo_ms_median'], 1):>14}"
-              f"{_fmt(row['gnugo_ms_p95'], 0):>8}{_fmt(row['black_ms_median'], 1):>14}")
+        print(
+            f"{row['black']:<14}{row['games']:>6}{row['black_wins']:>6}{row['win_rate']:>10.2f}"
+            f"{ci:>15}{row['mean_moves']:>7.1f}{_fmt(row['gnugo_ms_median'], 1):>14}"
+            f"{_fmt(row['gnugo_ms_p95'], 0):>8}{_fmt(row['black_ms_median'], 1):>14}"
+        )
     if sweep:
         sweep_rows = [row for row in rows if row["black"] in {f"mcts:{n}" for n in sweep}]
         for target in (0.5, 0.9):
             hit = next((row for row in sweep_rows if row["win_rate"] >= target), None)
             if hit:
-                print(f"MCTS reaches >= {target:.0%} wins vs {args.white} at {hit['black']} "
-                      f"({hit['black_wins']}/{hit['games']})")
+                print(
+                    f"MCTS reaches >= {target:.0%} wins vs {args.white} at {hit['black']} "
+                    f"({hit['black_wins']}/{hit['games']})"
+                )
             else:
-                print(f"MCTS does not reach >= {target:.0%} wins vs {args.white} up to "
-                      f"{max(sweep)} simulations (best: "
-                      f"{max(row['win_rate'] for row in sweep_rows):.0%})")
+                print(
+                    f"MCTS does not reach >= {target:.0%} wins vs {args.white} up to "
+                    f"{max(sweep)} simulations (best: "
+                    f"{max(row['win_rate'] for row in sweep_rows):.0%})"
+                )
     if args.json:
         write_json(args.json, rows)
     return 0

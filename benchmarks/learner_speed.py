@@ -61,8 +61,9 @@ def _random_steps(env, steps: int, rng) -> float:
     return steps / (time.perf_counter() - start)
 
 
-def bare_env_steps_per_s(name: str, cameras: bool, steps: int, seed: int = 0,
-                         repeats: int = 3) -> float:
+def bare_env_steps_per_s(
+    name: str, cameras: bool, steps: int, seed: int = 0, repeats: int = 3
+) -> float:
     """Best of ``repeats`` runs of ``steps`` random steps (resets included):
     the highest rate, so the ratio against it is the conservative one."""
     env = _make_env(name, cameras, seed)
@@ -80,16 +81,18 @@ def _parallel_worker(name, cameras, steps, seed, barrier, out) -> None:
     env.close()
 
 
-def parallel_env_steps_per_s(name: str, cameras: bool, steps: int, processes: int,
-                             seed: int = 0) -> float:
+def parallel_env_steps_per_s(
+    name: str, cameras: bool, steps: int, processes: int, seed: int = 0
+) -> float:
     """Summed steps/s of ``processes`` bare environments stepping at the same time."""
     import multiprocessing as mp
 
     ctx = mp.get_context("spawn")
     out, barrier = ctx.Queue(), ctx.Barrier(processes)
-    procs = [ctx.Process(target=_parallel_worker,
-                         args=(name, cameras, steps, seed + i, barrier, out))
-             for i in range(processes)]
+    procs = [
+        ctx.Process(target=_parallel_worker, args=(name, cameras, steps, seed + i, barrier, out))
+        for i in range(processes)
+    ]
     for p in procs:
         p.start()
     rates = [out.get(timeout=600) for _ in procs]
@@ -102,12 +105,22 @@ def learner_frames_per_s(args) -> dict:
     from hier_agents.baselines.impala.learner import TrainConfig, train
 
     with tempfile.TemporaryDirectory() as logdir:
-        config = TrainConfig(env=args.env, condition=args.condition, steps=args.frames,
-                             actors=args.actors, envs_per_actor=args.envs_per_actor,
-                             backend=args.backend, logdir=logdir,
-                             batch_size=args.batch_size, cameras=args.cameras,
-                             state=args.state, seed=args.seed, log_every_s=2.0,
-                             checkpoint_every_s=1e9, progress=False)
+        config = TrainConfig(
+            env=args.env,
+            condition=args.condition,
+            steps=args.frames,
+            actors=args.actors,
+            envs_per_actor=args.envs_per_actor,
+            backend=args.backend,
+            logdir=logdir,
+            batch_size=args.batch_size,
+            cameras=args.cameras,
+            state=args.state,
+            seed=args.seed,
+            log_every_s=2.0,
+            checkpoint_every_s=1e9,
+            progress=False,
+        )
         start = time.perf_counter()
         counters = train(config)
         total_s = time.perf_counter() - start
@@ -116,10 +129,14 @@ def learner_frames_per_s(args) -> dict:
         raise SystemExit(f"only {len(lines)} log lines: raise --frames for a steady-state rate")
     first, last = lines[0], lines[-1]
     steady = (last["frames"] - first["frames"]) / (last["wall_s"] - first["wall_s"])
-    return {"learner_frames_per_s": steady, "frames": counters["frames"],
-            "updates": counters["updates"], "total_s": total_s,
-            "overall_frames_per_s": counters["frames"] / total_s,
-            "policy_lag_updates": last.get("perf/policy_lag")}
+    return {
+        "learner_frames_per_s": steady,
+        "frames": counters["frames"],
+        "updates": counters["updates"],
+        "total_s": total_s,
+        "overall_frames_per_s": counters["frames"] / total_s,
+        "policy_lag_updates": last.get("perf/policy_lag"),
+    }
 
 
 def _main(argv=None) -> int:
@@ -127,21 +144,31 @@ def _main(argv=None) -> int:
 
     parser = make_parser(__file__, __doc__)
     parser.add_argument("--env", default="mujoban/level1", help="environment name")
-    parser.add_argument("--condition", default="expert-planner",
-                        help=f"the training condition (hier_agents.train --condition: "
-                             f"{', '.join(CONDITIONS)})")
-    parser.add_argument("--frames", type=cli.positive_int, default=200_000,
-                        help="frames the learner trains on")
+    parser.add_argument(
+        "--condition",
+        default="expert-planner",
+        help=f"the training condition (hier_agents.train --condition: {', '.join(CONDITIONS)})",
+    )
+    parser.add_argument(
+        "--frames", type=cli.positive_int, default=200_000, help="frames the learner trains on"
+    )
     parser.add_argument("--actors", type=cli.positive_int, default=2)
     parser.add_argument("--envs-per-actor", type=cli.positive_int, default=32)
     parser.add_argument("--batch-size", type=cli.positive_int, default=None)
     parser.add_argument("--backend", default="local", help="local or ray")
     parser.add_argument("--cameras", action="store_true")
-    parser.add_argument("--state", action="store_true",
-                        help="the agent also observes the abstract state (PRIVILEGED), as the "
-                             "shipped comparison's state series")
-    parser.add_argument("--bare-steps", type=cli.positive_int, default=10_000,
-                        help="control steps of the bare-environment measurement")
+    parser.add_argument(
+        "--state",
+        action="store_true",
+        help="the agent also observes the abstract state (PRIVILEGED), as the "
+        "shipped comparison's state series",
+    )
+    parser.add_argument(
+        "--bare-steps",
+        type=cli.positive_int,
+        default=10_000,
+        help="control steps of the bare-environment measurement",
+    )
     parser.add_argument("--seed", type=cli.non_negative_int, default=0)
     parser.add_argument("--json", type=Path, help="write the row here")
     args = parser.parse_args(argv)
@@ -151,31 +178,53 @@ def _main(argv=None) -> int:
     cli.output_file(args.json, "--json")
 
     bare = bare_env_steps_per_s(args.env, args.cameras, args.bare_steps, args.seed)
-    print(f"bare {args.env} (cameras {'on' if args.cameras else 'off'}): {bare:,.0f} steps/s",
-          flush=True)
-    parallel = parallel_env_steps_per_s(args.env, args.cameras, 2 * args.bare_steps,
-                                        max(1, args.actors), args.seed)
-    print(f"bare {args.env} in {max(1, args.actors)} processes at once: {parallel:,.0f} "
-          f"steps/s in total", flush=True)
+    print(
+        f"bare {args.env} (cameras {'on' if args.cameras else 'off'}): {bare:,.0f} steps/s",
+        flush=True,
+    )
+    parallel = parallel_env_steps_per_s(
+        args.env, args.cameras, 2 * args.bare_steps, max(1, args.actors), args.seed
+    )
+    print(
+        f"bare {args.env} in {max(1, args.actors)} processes at once: {parallel:,.0f} "
+        f"steps/s in total",
+        flush=True,
+    )
     learner = learner_frames_per_s(args)
-    row = {"env": args.env, "agent": args.condition, "cameras": args.cameras, "state": args.state,
-           "actors": args.actors, "envs_per_actor": args.envs_per_actor,
-           "backend": args.backend, "env_steps_per_s": bare, **learner,
-           "ratio": learner["learner_frames_per_s"] / bare,
-           "parallel_env_steps_per_s": parallel,
-           "ratio_to_parallel": learner["learner_frames_per_s"] / parallel,
-           "compared_with": (f"{max(1, args.actors)} bare environment processes stepping at "
-                             f"once on the same machine (ratio_to_parallel); ratio is against "
-                             f"one process, for reference")}
+    row = {
+        "env": args.env,
+        "agent": args.condition,
+        "cameras": args.cameras,
+        "state": args.state,
+        "actors": args.actors,
+        "envs_per_actor": args.envs_per_actor,
+        "backend": args.backend,
+        "env_steps_per_s": bare,
+        **learner,
+        "ratio": learner["learner_frames_per_s"] / bare,
+        "parallel_env_steps_per_s": parallel,
+        "ratio_to_parallel": learner["learner_frames_per_s"] / parallel,
+        "compared_with": (
+            f"{max(1, args.actors)} bare environment processes stepping at "
+            f"once on the same machine (ratio_to_parallel); ratio is against "
+            f"one process, for reference"
+        ),
+    }
     n = max(1, args.actors)
-    print(f"{'env':<18} {'agent':<15} {'learner frames/s':>16} "
-          f"{f'{n} bare procs steps/s':>20} {'ratio to them':>13} {'1 proc steps/s':>14} "
-          f"{'ratio to 1':>10} {'updates':>7}")
-    print(f"{row['env']:<18} {row['agent']:<15} {row['learner_frames_per_s']:>16,.0f} "
-          f"{parallel:>20,.0f} {row['ratio_to_parallel']:>13.2f} {bare:>14,.0f} "
-          f"{row['ratio']:>10.2f} {row['updates']:>7}")
-    print(f"learner frames/s are compared with {n} bare environment processes stepping at once "
-          f"(as many as the actors): {row['ratio_to_parallel']:.2f}")
+    print(
+        f"{'env':<18} {'agent':<15} {'learner frames/s':>16} "
+        f"{f'{n} bare procs steps/s':>20} {'ratio to them':>13} {'1 proc steps/s':>14} "
+        f"{'ratio to 1':>10} {'updates':>7}"
+    )
+    print(
+        f"{row['env']:<18} {row['agent']:<15} {row['learner_frames_per_s']:>16,.0f} "
+        f"{parallel:>20,.0f} {row['ratio_to_parallel']:>13.2f} {bare:>14,.0f} "
+        f"{row['ratio']:>10.2f} {row['updates']:>7}"
+    )
+    print(
+        f"learner frames/s are compared with {n} bare environment processes stepping at once "
+        f"(as many as the actors): {row['ratio_to_parallel']:.2f}"
+    )
     if args.json:
         write_json(args.json, row)
     return 0

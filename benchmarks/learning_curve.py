@@ -60,12 +60,18 @@ def training_curve(logdir: Path, every: int) -> list[dict]:
         mark += every
     if picked[-1] is not lines[-1]:
         picked.append(lines[-1])
-    return [{"frames": line["frames"], "wall_min": line.get("wall_s", 0.0) / 60.0,
-             "train_success_rate": line.get("episodes/success_rate"),
-             "train_return": line.get("episodes/return"),
-             "episode_steps": line.get("episodes/steps"),
-             "subgoals_reached": line.get("episodes/subgoals_reached"),
-             "episodes": line.get("episodes/count")} for line in picked]
+    return [
+        {
+            "frames": line["frames"],
+            "wall_min": line.get("wall_s", 0.0) / 60.0,
+            "train_success_rate": line.get("episodes/success_rate"),
+            "train_return": line.get("episodes/return"),
+            "episode_steps": line.get("episodes/steps"),
+            "subgoals_reached": line.get("episodes/subgoals_reached"),
+            "episodes": line.get("episodes/count"),
+        }
+        for line in picked
+    ]
 
 
 def target_sensitivity(path: Path, seed: int, steps: int = 300) -> float | None:
@@ -82,10 +88,17 @@ def target_sensitivity(path: Path, seed: int, steps: int = 300) -> float | None:
     if spec.planner_action_dim == 0:
         return None
     k = spec.planner_action_dim
-    with AgentEnv(config["env"], config["condition"], seed=seed, cameras=config["cameras"],
-                  image_size=config["image_size"], state=config.get("state", False),
-                  t_abs=config["t_abs"],
-                  abs_reward=config["abs_reward"], **config.get("env_overrides", {})) as env:
+    with AgentEnv(
+        config["env"],
+        config["condition"],
+        seed=seed,
+        cameras=config["cameras"],
+        image_size=config["image_size"],
+        state=config.get("state", False),
+        t_abs=config["t_abs"],
+        abs_reward=config["abs_reward"],
+        **config.get("env_overrides", {}),
+    ) as env:
         obs = env.reset()
         state, first, spreads = net.initial_state(k), np.ones(k, bool), []
         for _ in range(steps):
@@ -104,8 +117,9 @@ def target_sensitivity(path: Path, seed: int, steps: int = 300) -> float | None:
     return float(np.mean(spreads))
 
 
-def evaluation_curve(logdir: Path, env: str, episodes: int, seed: int,
-                     stochastic: bool, workers: int = 1) -> list[dict]:
+def evaluation_curve(
+    logdir: Path, env: str, episodes: int, seed: int, stochastic: bool, workers: int = 1
+) -> list[dict]:
     from hier_agents.baselines.impala.learner import CHECKPOINT, KEPT_CHECKPOINTS
     from hier_agents.run import run
 
@@ -113,25 +127,45 @@ def evaluation_curve(logdir: Path, env: str, episodes: int, seed: int,
         match = re.fullmatch(r"frames-(\d+)\.pt", p.name)
         return int(match.group(1)) if match else -1
 
-    files = sorted((p for p in (logdir / KEPT_CHECKPOINTS).glob("frames-*.pt")
-                    if frames_of(p) >= 0), key=frames_of)
+    files = sorted(
+        (p for p in (logdir / KEPT_CHECKPOINTS).glob("frames-*.pt") if frames_of(p) >= 0),
+        key=frames_of,
+    )
     if (logdir / CHECKPOINT).exists():
         files.append(logdir / CHECKPOINT)
     rows, seen = [], set()
     for path in files:
-        summary = run(env, episodes, seed, agent=f"checkpoint:{path}", stochastic=stochastic,
-                      progress=False, workers=workers)
+        summary = run(
+            env,
+            episodes,
+            seed,
+            agent=f"checkpoint:{path}",
+            stochastic=stochastic,
+            progress=False,
+            workers=workers,
+        )
         if summary["training_frames"] in seen:  # the final checkpoint is also kept
             continue
         seen.add(summary["training_frames"])
         lo, hi = summary.get("success_interval") or summary.get("win_interval")
-        rows.append({"frames": summary["training_frames"], "checkpoint": str(path),
-                     "success_rate": summary["success_rate"], "interval": [lo, hi],
-                     "mean_return": summary["mean_return"], "mean_steps": summary["mean_steps"],
-                     "subgoal_success_rate": summary["subgoal_success_rate"],
-                     "target_sensitivity": target_sensitivity(path, seed)})
-        print(f"  evaluated {path.name}: {100 * summary['success_rate']:.1f}% "
-              f"[{100 * lo:.1f}, {100 * hi:.1f}]", file=sys.stderr, flush=True)
+        rows.append(
+            {
+                "frames": summary["training_frames"],
+                "checkpoint": str(path),
+                "success_rate": summary["success_rate"],
+                "interval": [lo, hi],
+                "mean_return": summary["mean_return"],
+                "mean_steps": summary["mean_steps"],
+                "subgoal_success_rate": summary["subgoal_success_rate"],
+                "target_sensitivity": target_sensitivity(path, seed),
+            }
+        )
+        print(
+            f"  evaluated {path.name}: {100 * summary['success_rate']:.1f}% "
+            f"[{100 * lo:.1f}, {100 * hi:.1f}]",
+            file=sys.stderr,
+            flush=True,
+        )
     return rows
 
 
@@ -145,26 +179,45 @@ def _pct_or_dash(x, width: int) -> str:
 
 def _main(argv=None) -> int:
     parser = make_parser(__file__, __doc__)
-    parser.add_argument("runs", nargs="+", type=Path, metavar="RUN",
-                        help="hier_agents.train --logdir folders")
-    parser.add_argument("--every-frames", type=cli.positive_int, default=1_000_000,
-                        help="frames between curve points")
-    parser.add_argument("--eval-episodes", type=cli.non_negative_int, default=0,
-                        help="episodes per kept checkpoint to evaluate (0: training curve only)")
-    parser.add_argument("--stochastic", action="store_true",
-                        help="evaluation samples from the policy instead of taking its mean")
+    parser.add_argument(
+        "runs", nargs="+", type=Path, metavar="RUN", help="hier_agents.train --logdir folders"
+    )
+    parser.add_argument(
+        "--every-frames",
+        type=cli.positive_int,
+        default=1_000_000,
+        help="frames between curve points",
+    )
+    parser.add_argument(
+        "--eval-episodes",
+        type=cli.non_negative_int,
+        default=0,
+        help="episodes per kept checkpoint to evaluate (0: training curve only)",
+    )
+    parser.add_argument(
+        "--stochastic",
+        action="store_true",
+        help="evaluation samples from the policy instead of taking its mean",
+    )
     parser.add_argument("--seed", type=cli.non_negative_int, default=0)
-    parser.add_argument("--workers", type=cli.positive_int, default=1,
-                        help="processes playing the evaluation episodes at once (same rows)")
+    parser.add_argument(
+        "--workers",
+        type=cli.positive_int,
+        default=1,
+        help="processes playing the evaluation episodes at once (same rows)",
+    )
     parser.add_argument("--json", type=Path, help="write the curves here")
     args = parser.parse_args(argv)
     for logdir in args.runs:
         if not any((logdir / name).is_file() for name in (SCALARS, "progress.jsonl")):
-            raise cli.UsageError(f"{logdir} is not a hier_agents.train run directory (no "
-                                 f"{SCALARS} in it)")
+            raise cli.UsageError(
+                f"{logdir} is not a hier_agents.train run directory (no {SCALARS} in it)"
+            )
         if args.eval_episodes and not (logdir / "checkpoint.pt").is_file():
-            raise cli.UsageError(f"{logdir}: no checkpoint.pt to evaluate yet "
-                                 f"(drop --eval-episodes for the training curve)")
+            raise cli.UsageError(
+                f"{logdir}: no checkpoint.pt to evaluate yet "
+                f"(drop --eval-episodes for the training curve)"
+            )
     cli.output_file(args.json, "--json")
 
     from hier_agents.baselines.impala.learner import load_checkpoint
@@ -174,42 +227,73 @@ def _main(argv=None) -> int:
         try:
             config = load_checkpoint(logdir)["config"]
         except FileNotFoundError:  # a run still before its first checkpoint
-            config = {k: "?" for k in ("env", "condition", "batch_size", "learning_rate",
-                                       "actors", "envs_per_actor")}
-        result = {"logdir": str(logdir), "env": config["env"],
-                  "condition": config["condition"],
-                  "training": training_curve(logdir, args.every_frames), "evaluation": []}
+            config = {
+                k: "?"
+                for k in (
+                    "env",
+                    "condition",
+                    "batch_size",
+                    "learning_rate",
+                    "actors",
+                    "envs_per_actor",
+                )
+            }
+        result = {
+            "logdir": str(logdir),
+            "env": config["env"],
+            "condition": config["condition"],
+            "training": training_curve(logdir, args.every_frames),
+            "evaluation": [],
+        }
         if config["condition"] == "vanilla":  # no planner, no subgoals
             for row in result["training"]:
                 row["subgoals_reached"] = None
-        print(f"\n{logdir}: {config['env']} {config['condition']} "
-              f"(batch {config['batch_size'] or 'paper'}, lr {config['learning_rate']}, "
-              f"{config['actors']} actors x {config['envs_per_actor']} envs)")
-        print(f"{'frames':>11} {'wall min':>8} {'train success':>13} {'return':>7} "
-              f"{'ep steps':>8} {'subgoals/ep':>11}")
+        print(
+            f"\n{logdir}: {config['env']} {config['condition']} "
+            f"(batch {config['batch_size'] or 'paper'}, lr {config['learning_rate']}, "
+            f"{config['actors']} actors x {config['envs_per_actor']} envs)"
+        )
+        print(
+            f"{'frames':>11} {'wall min':>8} {'train success':>13} {'return':>7} "
+            f"{'ep steps':>8} {'subgoals/ep':>11}"
+        )
         for r in result["training"]:
-            print(f"{r['frames']:>11,} {r['wall_min']:>8.1f} "
-                  f"{_pct_or_dash(r['train_success_rate'], 13)} "
-                  f"{_fmt(r['train_return'], '>7.2f')} {_fmt(r['episode_steps'], '>8.0f')} "
-                  f"{_fmt(r['subgoals_reached'], '>11.2f')}")
+            print(
+                f"{r['frames']:>11,} {r['wall_min']:>8.1f} "
+                f"{_pct_or_dash(r['train_success_rate'], 13)} "
+                f"{_fmt(r['train_return'], '>7.2f')} {_fmt(r['episode_steps'], '>8.0f')} "
+                f"{_fmt(r['subgoals_reached'], '>11.2f')}"
+            )
         if args.eval_episodes:
-            result["evaluation"] = evaluation_curve(logdir, config["env"], args.eval_episodes,
-                                                    args.seed, args.stochastic, args.workers)
+            result["evaluation"] = evaluation_curve(
+                logdir, config["env"], args.eval_episodes, args.seed, args.stochastic, args.workers
+            )
             mode = "sampled" if args.stochastic else "mean action"
             print(f"evaluation ({args.eval_episodes} episodes, seed {args.seed}, {mode}):")
-            print(f"{'frames':>11} {'success % [95% CI]':>22} {'return':>7} {'steps':>7} "
-                  f"{'subgoal %':>9} {'target sensitivity':>18}")
+            print(
+                f"{'frames':>11} {'success % [95% CI]':>22} {'return':>7} {'steps':>7} "
+                f"{'subgoal %':>9} {'target sensitivity':>18}"
+            )
             for r in result["evaluation"]:
                 lo, hi = r["interval"]
-                print(f"{r['frames']:>11,} {100 * r['success_rate']:>6.1f} "
-                      f"[{100 * lo:5.1f},{100 * hi:5.1f}]   {r['mean_return']:>7.2f} "
-                      f"{r['mean_steps']:>7.1f} {_pct_or_dash(r['subgoal_success_rate'], 9)} "
-                      f"{_fmt(r['target_sensitivity'], '>18.4f')}")
+                print(
+                    f"{r['frames']:>11,} {100 * r['success_rate']:>6.1f} "
+                    f"[{100 * lo:5.1f},{100 * hi:5.1f}]   {r['mean_return']:>7.2f} "
+                    f"{r['mean_steps']:>7.1f} {_pct_or_dash(r['subgoal_success_rate'], 9)} "
+                    f"{_fmt(r['target_sensitivity'], '>18.4f')}"
+                )
         out.append(result)
     if args.json:
-        write_json(args.json, {"every_frames": args.every_frames,
-                               "eval_episodes": args.eval_episodes, "seed": args.seed,
-                               "stochastic": args.stochastic, "runs": out})
+        write_json(
+            args.json,
+            {
+                "every_frames": args.every_frames,
+                "eval_episodes": args.eval_episodes,
+                "seed": args.seed,
+                "stochastic": args.stochastic,
+                "runs": out,
+            },
+        )
     return 0
 
 

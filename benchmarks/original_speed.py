@@ -50,45 +50,74 @@ def _original_mujoban(pegs: bool, camera: int):
     from physics_planning_games.mujoban.boxoban import boxoban_level_generator
     from physics_planning_games.mujoban.mujoban import Mujoban
     from physics_planning_games.mujoban.mujoban_level import MujobanLevel
+
     walker = walkers.JumpingBallWithHead(add_ears=True, camera_height=0.25)
-    task = Mujoban(walker=walker, maze=MujobanLevel(boxoban_level_generator),
-                   control_timestep=0.05, top_camera_height=camera, top_camera_width=camera,
-                   with_grid_pegs=pegs)
+    task = Mujoban(
+        walker=walker,
+        maze=MujobanLevel(boxoban_level_generator),
+        control_timestep=0.05,
+        top_camera_height=camera,
+        top_camera_width=camera,
+        with_grid_pegs=pegs,
+    )
     return composer.Environment(time_limit=45, task=task, random_state=0)
 
 
 def _original_board(name: str):
     from physics_planning_games import board_games
+
     return board_games.load(environment_name=name, seed=0)
 
 
 #: (label, our environment and overrides, the original's builder).
 PAIRS = [
-    ("MuJoBan, Boxoban levels, no camera",
-     ("mujoban/level5", dict(levels=str(BOXOBAN_FILE), top_camera=None, egocentric_camera=None)),
-     lambda: _original_mujoban(False, 0)),
-    ("MuJoBan, Boxoban levels with pegs, no camera",
-     ("mujoban/level5-pegs", dict(levels=str(BOXOBAN_FILE), top_camera=None,
-                                  egocentric_camera=None)),
-     lambda: _original_mujoban(True, 0)),
-    ("MuJoBan, Boxoban levels, 96x96 top camera",
-     ("mujoban/level5", dict(levels=str(BOXOBAN_FILE), top_camera=(96, 96),
-                             egocentric_camera=None)),
-     lambda: _original_mujoban(False, 96)),
-    ("MuJoXO, two 84x84 views, our default looks",
-     ("mujoxo/mixture", dict(front_camera=(84, 84), front_camera_2=(84, 84))),
-     lambda: _original_board("tic_tac_toe_mixture_opponent_markers_features")),
-    ("MuJoXO, two 84x84 views, the original's looks",
-     ("mujoxo/mixture", dict(front_camera=(84, 84), front_camera_2=(84, 84), multisamples=4,
-                             shadows=True)),
-     lambda: _original_board("tic_tac_toe_mixture_opponent_markers_features")),
-    ("MuJoGo 7x7, two 84x84 views, our default looks",
-     ("mujogo/7x7", dict(front_camera=(84, 84), front_camera_2=(84, 84))),
-     lambda: _original_board("go_7x7")),
-    ("MuJoGo 7x7, two 84x84 views, the original's looks",
-     ("mujogo/7x7", dict(front_camera=(84, 84), front_camera_2=(84, 84), multisamples=4,
-                         shadows=True)),
-     lambda: _original_board("go_7x7")),
+    (
+        "MuJoBan, Boxoban levels, no camera",
+        ("mujoban/level5", dict(levels=str(BOXOBAN_FILE), top_camera=None, egocentric_camera=None)),
+        lambda: _original_mujoban(False, 0),
+    ),
+    (
+        "MuJoBan, Boxoban levels with pegs, no camera",
+        (
+            "mujoban/level5-pegs",
+            dict(levels=str(BOXOBAN_FILE), top_camera=None, egocentric_camera=None),
+        ),
+        lambda: _original_mujoban(True, 0),
+    ),
+    (
+        "MuJoBan, Boxoban levels, 96x96 top camera",
+        (
+            "mujoban/level5",
+            dict(levels=str(BOXOBAN_FILE), top_camera=(96, 96), egocentric_camera=None),
+        ),
+        lambda: _original_mujoban(False, 96),
+    ),
+    (
+        "MuJoXO, two 84x84 views, our default looks",
+        ("mujoxo/mixture", dict(front_camera=(84, 84), front_camera_2=(84, 84))),
+        lambda: _original_board("tic_tac_toe_mixture_opponent_markers_features"),
+    ),
+    (
+        "MuJoXO, two 84x84 views, the original's looks",
+        (
+            "mujoxo/mixture",
+            dict(front_camera=(84, 84), front_camera_2=(84, 84), multisamples=4, shadows=True),
+        ),
+        lambda: _original_board("tic_tac_toe_mixture_opponent_markers_features"),
+    ),
+    (
+        "MuJoGo 7x7, two 84x84 views, our default looks",
+        ("mujogo/7x7", dict(front_camera=(84, 84), front_camera_2=(84, 84))),
+        lambda: _original_board("go_7x7"),
+    ),
+    (
+        "MuJoGo 7x7, two 84x84 views, the original's looks",
+        (
+            "mujogo/7x7",
+            dict(front_camera=(84, 84), front_camera_2=(84, 84), multisamples=4, shadows=True),
+        ),
+        lambda: _original_board("go_7x7"),
+    ),
 ]
 
 
@@ -141,15 +170,21 @@ def measure_pair(ours_spec, build_original, steps: int, seed: int) -> dict:
     finally:
         ours.close()
         original.close()
-    return {"ours_steps_per_s": round(steps / t_ours, 1),
-            "original_steps_per_s": round(steps / t_orig, 1),
-            "x_original": round(t_orig / t_ours, 2)}
+    return {
+        "ours_steps_per_s": round(steps / t_ours, 1),
+        "original_steps_per_s": round(steps / t_orig, 1),
+        "x_original": round(t_orig / t_ours, 2),
+    }
 
 
 def _main(argv=None) -> int:
     parser = make_parser(__file__, __doc__)
-    parser.add_argument("--steps", type=cli.positive_int, default=600,
-                        help="control steps per pair, per side and round")
+    parser.add_argument(
+        "--steps",
+        type=cli.positive_int,
+        default=600,
+        help="control steps per pair, per side and round",
+    )
     parser.add_argument("--rounds", type=cli.positive_int, default=2)
     parser.add_argument("--seed", type=cli.non_negative_int, default=0)
     parser.add_argument("--json", type=Path, help="write the results here")
@@ -158,23 +193,37 @@ def _main(argv=None) -> int:
     try:
         import physics_planning_games  # noqa: F401  (the original, from PYTHONPATH)
     except ImportError:
-        raise cli.UsageError("the original (physics_planning_games) is not importable: build "
-                             "it with ../shared/peer/setup.sh and run with "
-                             "PYTHONPATH=/tmp/peer") from None
+        raise cli.UsageError(
+            "the original (physics_planning_games) is not importable: build "
+            "it with ../shared/peer/setup.sh and run with "
+            "PYTHONPATH=/tmp/peer"
+        ) from None
     rows = []
     print(f"{'pair':<50} {'round':>5} {'ours/s':>8} {'original/s':>10} {'x orig':>7}")
     for label, ours_spec, build_original in PAIRS:
         for r in range(args.rounds):
             m = measure_pair(ours_spec, build_original, args.steps, args.seed)
-            rows.append({"pair": label, "round": r + 1, "env": ours_spec[0],
-                         "overrides": {k: v for k, v in ours_spec[1].items() if k != "levels"},
-                         "levels": Path(ours_spec[1]["levels"]).name
-                         if "levels" in ours_spec[1] else None, **m})
-            print(f"{label:<50} {r + 1:>5} {m['ours_steps_per_s']:>8.1f} "
-                  f"{m['original_steps_per_s']:>10.1f} {m['x_original']:>6.1f}x", flush=True)
+            rows.append(
+                {
+                    "pair": label,
+                    "round": r + 1,
+                    "env": ours_spec[0],
+                    "overrides": {k: v for k, v in ours_spec[1].items() if k != "levels"},
+                    "levels": Path(ours_spec[1]["levels"]).name
+                    if "levels" in ours_spec[1]
+                    else None,
+                    **m,
+                }
+            )
+            print(
+                f"{label:<50} {r + 1:>5} {m['ours_steps_per_s']:>8.1f} "
+                f"{m['original_steps_per_s']:>10.1f} {m['x_original']:>6.1f}x",
+                flush=True,
+            )
     if args.json:
-        write_json(args.json, {"steps": args.steps, "rounds": args.rounds, "seed": args.seed,
-                               "rows": rows})
+        write_json(
+            args.json, {"steps": args.steps, "rounds": args.rounds, "seed": args.seed, "rows": rows}
+        )
     return 0
 
 

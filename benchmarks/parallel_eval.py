@@ -49,15 +49,30 @@ def _main(argv=None) -> int:
     env_cli.environment(args.env)
     env_cli.levels_file(args.env, args.levels)
     cli.output_file(args.json, "--json")
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
-        p for p in (str(ROOT), os.environ.get("PYTHONPATH")) if p)}
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join(p for p in (str(ROOT), os.environ.get("PYTHONPATH")) if p),
+    }
     out, first = [], None
     with tempfile.TemporaryDirectory() as tmp:
         for workers in args.workers:
             path = Path(tmp) / f"w{workers}.json"
-            command = [sys.executable, "-m", "hier_agents.run", args.env, "--levels",
-                       str(args.levels), "--episodes", str(args.episodes), "--seed",
-                       str(args.seed), "--workers", str(workers), "--json", str(path)]
+            command = [
+                sys.executable,
+                "-m",
+                "hier_agents.run",
+                args.env,
+                "--levels",
+                str(args.levels),
+                "--episodes",
+                str(args.episodes),
+                "--seed",
+                str(args.seed),
+                "--workers",
+                str(workers),
+                "--json",
+                str(path),
+            ]
             print(f"{workers} worker(s): {' '.join(command[1:])}", file=sys.stderr, flush=True)
             start = time.perf_counter()
             subprocess.run(command, check=True, env=env, cwd=ROOT, stdout=subprocess.DEVNULL)
@@ -66,20 +81,38 @@ def _main(argv=None) -> int:
             rows = _rows(summary)
             if first is None:
                 first = {"wall_s": wall, "rows": rows}
-            out.append({"workers": workers, "episodes": summary["episodes"], "wall_s": wall,
-                        "episodes_per_s": summary["episodes"] / wall,
-                        "speedup": first["wall_s"] / wall,
-                        "success_rate": summary["success_rate"],
-                        "rows_identical_to_first": rows == first["rows"]})
-    print(f"{'workers':>7} {'episodes':>8} {'wall s':>8} {'episodes/s':>10} {'speed-up':>8} "
-          f"{'success %':>9}  same rows")
+            out.append(
+                {
+                    "workers": workers,
+                    "episodes": summary["episodes"],
+                    "wall_s": wall,
+                    "episodes_per_s": summary["episodes"] / wall,
+                    "speedup": first["wall_s"] / wall,
+                    "success_rate": summary["success_rate"],
+                    "rows_identical_to_first": rows == first["rows"],
+                }
+            )
+    print(
+        f"{'workers':>7} {'episodes':>8} {'wall s':>8} {'episodes/s':>10} {'speed-up':>8} "
+        f"{'success %':>9}  same rows"
+    )
     for r in out:
-        print(f"{r['workers']:>7} {r['episodes']:>8} {r['wall_s']:>8.1f} "
-              f"{r['episodes_per_s']:>10.3f} {r['speedup']:>8.2f} {100 * r['success_rate']:>9.1f}"
-              f"  {'yes' if r['rows_identical_to_first'] else 'NO'}")
+        print(
+            f"{r['workers']:>7} {r['episodes']:>8} {r['wall_s']:>8.1f} "
+            f"{r['episodes_per_s']:>10.3f} {r['speedup']:>8.2f} {100 * r['success_rate']:>9.1f}"
+            f"  {'yes' if r['rows_identical_to_first'] else 'NO'}"
+        )
     if args.json:
-        write_json(args.json, {"env": args.env, "levels": str(Path(args.levels).name),
-                               "seed": args.seed, "cpus": os.cpu_count(), "rows": out})
+        write_json(
+            args.json,
+            {
+                "env": args.env,
+                "levels": str(Path(args.levels).name),
+                "seed": args.seed,
+                "cpus": os.cpu_count(),
+                "rows": out,
+            },
+        )
     return 0 if all(r["rows_identical_to_first"] for r in out) else 1
 
 

@@ -47,11 +47,13 @@ TABLES: dict[str, Callable[[Path], list[str]]] = {}
 
 def table(name: str):
     """Registers a table generator under ``name`` (its README marker name)."""
+
     def register(func):
         if name in TABLES:
             raise ValueError(f"table {name!r} is already registered")
         TABLES[name] = func
         return func
+
     return register
 
 
@@ -75,38 +77,73 @@ def headline(results: Path) -> list[str]:
     agent = results / "agent"
     levels = [_load(agent / f"mujoban_level{k}-pegs.json") for k in range(1, 6)]
     solved = [s["success_rate"] for s in levels]
-    boxoban = [(label, _load(agent / name)) for label, name in (
-        ("medium, first 100", "boxoban_medium-valid-000_first100-pegs.json"),
-        ("unfiltered, first 200", "boxoban_unfiltered-valid-000_first200-pegs.json"),
-        ("hard, first 200", "boxoban_hard-001-200-pegs.json"))]
+    boxoban = [
+        (label, _load(agent / name))
+        for label, name in (
+            ("medium, first 100", "boxoban_medium-valid-000_first100-pegs.json"),
+            ("unfiltered, first 200", "boxoban_unfiltered-valid-000_first200-pegs.json"),
+            ("hard, first 200", "boxoban_hard-001-200-pegs.json"),
+        )
+    ]
     xo = [_load(agent / f"mujoxo_optimal_camera_{side}.json") for side in ("first", "second")]
     go = _load(agent / "mujogo_7x7_camera.json")
     compare = _load(results / "compare" / "mujoban" / "comparison.json")
     level1 = [p for p in compare["points"] if p["env"] == "mujoban/level1"]
     best_e2e = max((p for p in level1 if p["kind"] == "train"), key=lambda p: p["mean"])
     modular = next(p for p in level1 if p["agent"] == "modular: scripted")
-    span = (f"{100 * min(solved):.0f}" if min(solved) == max(solved)
-            else f"{100 * min(solved):.0f}-{100 * max(solved):.0f}")
-    e2e = (f"{best_e2e['agent']}, {best_e2e['budget']:,} frames"
-           + (", PRIVILEGED" if best_e2e.get("privileged") else ""))
+    span = (
+        f"{100 * min(solved):.0f}"
+        if min(solved) == max(solved)
+        else f"{100 * min(solved):.0f}-{100 * max(solved):.0f}"
+    )
+    e2e = f"{best_e2e['agent']}, {best_e2e['budget']:,} frames" + (
+        ", PRIVILEGED" if best_e2e.get("privileged") else ""
+    )
     rows = [
-        ("MuJoBan levels 1-5, with pegs", "modular (camera)",
-         f"{span}% solved, {levels[0]['episodes']} episodes each", "results/agent.md"),
-        *((f"Boxoban {label}, with pegs", "modular (camera)",
-           f"{_rate(s)} solved of {s['episodes']}", "results/agent.md") for label, s in boxoban),
-        ("MuJoXO against the optimal opponent", "modular (camera)",
-         f"{sum(round(s['loss_rate'] * s['episodes']) for s in xo)} lost of "
-         f"{sum(s['episodes'] for s in xo)} games (first and second)", "results/agent.md"),
-        ("MuJoGo 7x7 against GNU Go 10", "modular (camera)",
-         f"{_rate(go, 'win')} won of {go['episodes']}", "results/agent.md"),
-        ("`mujoban/level1`, 3 seeds", "modular (camera) against end-to-end",
-         f"{100 * modular['mean']:.0f}% solved against {100 * best_e2e['mean']:.0f}% for the "
-         f"best end-to-end point ({e2e})", "results/comparison.md"),
+        (
+            "MuJoBan levels 1-5, with pegs",
+            "modular (camera)",
+            f"{span}% solved, {levels[0]['episodes']} episodes each",
+            "results/agent.md",
+        ),
+        *(
+            (
+                f"Boxoban {label}, with pegs",
+                "modular (camera)",
+                f"{_rate(s)} solved of {s['episodes']}",
+                "results/agent.md",
+            )
+            for label, s in boxoban
+        ),
+        (
+            "MuJoXO against the optimal opponent",
+            "modular (camera)",
+            f"{sum(round(s['loss_rate'] * s['episodes']) for s in xo)} lost of "
+            f"{sum(s['episodes'] for s in xo)} games (first and second)",
+            "results/agent.md",
+        ),
+        (
+            "MuJoGo 7x7 against GNU Go 10",
+            "modular (camera)",
+            f"{_rate(go, 'win')} won of {go['episodes']}",
+            "results/agent.md",
+        ),
+        (
+            "`mujoban/level1`, 3 seeds",
+            "modular (camera) against end-to-end",
+            f"{100 * modular['mean']:.0f}% solved against {100 * best_e2e['mean']:.0f}% for the "
+            f"best end-to-end point ({e2e})",
+            "results/comparison.md",
+        ),
     ]
-    lines = ["| task | agent (observes) | result [95% interval] | details |",
-             "| --- | --- | --- | --- |"]
-    lines += [f"| {task} | {who} | {result} | [{page.split('/')[-1][:-3]}](docs/{page}) |"
-              for task, who, result, page in rows]
+    lines = [
+        "| task | agent (observes) | result [95% interval] | details |",
+        "| --- | --- | --- | --- |",
+    ]
+    lines += [
+        f"| {task} | {who} | {result} | [{page.split('/')[-1][:-3]}](docs/{page}) |"
+        for task, who, result, page in rows
+    ]
     return lines
 
 
@@ -140,11 +177,13 @@ EXECUTION_TIME_FILES = (
 @table("execution-time")
 def execution_time(results: Path) -> list[str]:
     """Real Boxoban levels against the clock (`benchmarks/execution_time.py`)."""
-    lines = ["| levels (pegs) | planner | ball skill | estimator | solved [95% CI] "
-             "| control steps per push "
-             "| share of the limit used, solved levels (median / p90 / max) "
-             "| time model: estimate - measured, mean / mean abs (solved levels) |",
-             "| --- | --- | --- | --- | --- | --- | --- | --- |"]
+    lines = [
+        "| levels (pegs) | planner | ball skill | estimator | solved [95% CI] "
+        "| control steps per push "
+        "| share of the limit used, solved levels (median / p90 / max) "
+        "| time model: estimate - measured, mean / mean abs (solved levels) |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- |",
+    ]
     runs = [(_load(results / name)["summary"], skill) for name, skill in EXECUTION_TIME_FILES]
     for s, skill in runs:
         # A run whose fitted weights are the ones other runs used: the model
@@ -158,16 +197,21 @@ def execution_time(results: Path) -> list[str]:
         share = s["limit_share_solved"]
         shares = " / ".join(f"{100 * share[k]:.0f}%" for k in ("median", "p90", "max"))
         fitted = s.get("fitted_weights")
-        if fitted and any(_same_weights(fitted, w) for w in used_elsewhere) and \
-                not _same_weights(s["default_weights"], fitted):
+        if (
+            fitted
+            and any(_same_weights(fitted, w) for w in used_elsewhere)
+            and not _same_weights(s["default_weights"], fitted)
+        ):
             error = "the weights were fitted on this run"
         else:
             err = s["estimate_error_solved"]
             error = f"{err['mean']:+.0f} / {err['mean_abs']:.0f}".replace("+-", "-")
             if error.startswith("-0 ") or error.startswith("+0 "):
                 error = "0" + error[2:]
-        lines.append(f"| {label} | {planner} | {skill} | {estimator} | {solved} | "
-                     f"{s['mean_steps_per_push']:.1f} | {shares} | {error} |")
+        lines.append(
+            f"| {label} | {planner} | {skill} | {estimator} | {solved} | "
+            f"{s['mean_steps_per_push']:.1f} | {shares} | {error} |"
+        )
     return lines
 
 
@@ -205,36 +249,57 @@ def env_speed(results: Path) -> list[str]:
     mujoban = [r for r in rows if r["env"].startswith("mujoban/")]
     boards = [r for r in rows if not r["env"].startswith("mujoban/")]
     cams = lambda group, cameras: [r for r in group if r["cameras"] == cameras]  # noqa: E731
-    return ["| setting | steps/s | physics limit ratio | reset |",
-            "| --- | --- | --- | --- |",
-            _speed_row("MuJoBan, cameras off, levels 1-5 with and without pegs",
-                       cams(mujoban, []), ratio=True, level5=True),
-            _speed_row("MuJoBan, 96x96 top camera", cams(mujoban, ["top_camera"]),
-                       ratio=False, level5=True),
-            _speed_row("MuJoBan, both 96x96 cameras (the default observations), level 5", both,
-                       ratio=False, level5=False),
-            _speed_row("MuJoXO / MuJoGo, cameras off", cams(boards, []), ratio=True,
-                       level5=False),
-            _speed_row("MuJoXO / MuJoGo, 84x84 front camera (the paper's one camera)",
-                       cams(boards, ["front_camera"]), ratio=False, level5=False),
-            _speed_row("MuJoXO / MuJoGo, two 84x84 views (the original code's set)",
-                       cams(boards, ["front_camera", "front_camera_2"]), ratio=False,
-                       level5=False)]
+    return [
+        "| setting | steps/s | physics limit ratio | reset |",
+        "| --- | --- | --- | --- |",
+        _speed_row(
+            "MuJoBan, cameras off, levels 1-5 with and without pegs",
+            cams(mujoban, []),
+            ratio=True,
+            level5=True,
+        ),
+        _speed_row(
+            "MuJoBan, 96x96 top camera", cams(mujoban, ["top_camera"]), ratio=False, level5=True
+        ),
+        _speed_row(
+            "MuJoBan, both 96x96 cameras (the default observations), level 5",
+            both,
+            ratio=False,
+            level5=False,
+        ),
+        _speed_row("MuJoXO / MuJoGo, cameras off", cams(boards, []), ratio=True, level5=False),
+        _speed_row(
+            "MuJoXO / MuJoGo, 84x84 front camera (the paper's one camera)",
+            cams(boards, ["front_camera"]),
+            ratio=False,
+            level5=False,
+        ),
+        _speed_row(
+            "MuJoXO / MuJoGo, two 84x84 views (the original code's set)",
+            cams(boards, ["front_camera", "front_camera_2"]),
+            ratio=False,
+            level5=False,
+        ),
+    ]
 
 
 @table("original-speed")
 def original_speed(results: Path) -> list[str]:
     """Ours and the original side by side (`benchmarks/original_speed.py`), per pair."""
     d = _load(results / "original_speed.json")
-    lines = ["| pair (same timestep, cameras, random actions) | ours, steps/s | the original, "
-             "steps/s | x the original |",
-             "| --- | --- | --- | --- |"]
+    lines = [
+        "| pair (same timestep, cameras, random actions) | ours, steps/s | the original, "
+        "steps/s | x the original |",
+        "| --- | --- | --- | --- |",
+    ]
     pairs = list(dict.fromkeys(r["pair"] for r in d["rows"]))
     for pair in pairs:
         rows = [r for r in d["rows"] if r["pair"] == pair]
-        lines.append(f"| {pair} | {_span([r['ours_steps_per_s'] for r in rows], '{:.0f}')} "
-                     f"| {_span([r['original_steps_per_s'] for r in rows], '{:.1f}')} "
-                     f"| {_span([r['x_original'] for r in rows], '{:.1f}')}x |")
+        lines.append(
+            f"| {pair} | {_span([r['ours_steps_per_s'] for r in rows], '{:.0f}')} "
+            f"| {_span([r['original_steps_per_s'] for r in rows], '{:.1f}')} "
+            f"| {_span([r['x_original'] for r in rows], '{:.1f}')}x |"
+        )
     return lines
 
 
@@ -242,9 +307,11 @@ def original_speed(results: Path) -> list[str]:
 def learner_speed(results: Path) -> list[str]:
     """Actor-learner frames/s against as many bare environment processes stepping at once,
     one row per measurement (each measured in one run, side by side)."""
-    lines = ["| run | learner frames/s | bare environment processes at once | ratio to them "
-             "| one bare process | ratio to it |",
-             "| --- | --- | --- | --- | --- | --- |"]
+    lines = [
+        "| run | learner frames/s | bare environment processes at once | ratio to them "
+        "| one bare process | ratio to it |",
+        "| --- | --- | --- | --- | --- | --- |",
+    ]
     for name in ("learner_speed.json", "learner_speed_state.json"):
         if not (results / name).exists():
             continue
@@ -252,12 +319,14 @@ def learner_speed(results: Path) -> list[str]:
         procs = s["actors"]
         words = {1: "one", 2: "two", 3: "three", 4: "four"}.get(procs, str(procs))
         state = ", abstract state (privileged)" if s.get("state") else ""
-        lines.append(f"| `{s['env']}` {s['agent']}, cameras {'on' if s['cameras'] else 'off'}"
-                     f"{state}, {procs} actors x {s['envs_per_actor']} envs ({s['backend']}) "
-                     f"| {s['learner_frames_per_s']:,.0f} | {words}: "
-                     f"{s['parallel_env_steps_per_s']:,.0f} steps/s "
-                     f"| **{s['ratio_to_parallel']:.2f}** | {s['env_steps_per_s']:,.0f} steps/s "
-                     f"| {s['ratio']:.2f} |")
+        lines.append(
+            f"| `{s['env']}` {s['agent']}, cameras {'on' if s['cameras'] else 'off'}"
+            f"{state}, {procs} actors x {s['envs_per_actor']} envs ({s['backend']}) "
+            f"| {s['learner_frames_per_s']:,.0f} | {words}: "
+            f"{s['parallel_env_steps_per_s']:,.0f} steps/s "
+            f"| **{s['ratio_to_parallel']:.2f}** | {s['env_steps_per_s']:,.0f} steps/s "
+            f"| {s['ratio']:.2f} |"
+        )
     return lines
 
 
@@ -275,27 +344,38 @@ def soak(results: Path) -> list[str]:
     """`benchmarks/soak.py`: each sampled quantity after the first 100 episodes."""
     d = _load(results / "soak.json")
     summary = d["summary"]
-    lines = [f"| quantity (episodes {summary['from_episode']}-{summary['to_episode']}) "
-             "| at episode 100 | last | min | max | growth |",
-             "| --- | --- | --- | --- | --- | --- |"]
-    for key, words in (("rss_mb", "resident memory, MB"), ("heap_rss_mb", "of it the heap, MB"),
-                       ("anon_rss_mb", "anonymous mappings, MB"), ("open_fds", "file descriptors"),
-                       ("children", "child processes"), ("threads", "threads"),
-                       ("gl_objects", "GL contexts")):
+    lines = [
+        f"| quantity (episodes {summary['from_episode']}-{summary['to_episode']}) "
+        "| at episode 100 | last | min | max | growth |",
+        "| --- | --- | --- | --- | --- | --- |",
+    ]
+    for key, words in (
+        ("rss_mb", "resident memory, MB"),
+        ("heap_rss_mb", "of it the heap, MB"),
+        ("anon_rss_mb", "anonymous mappings, MB"),
+        ("open_fds", "file descriptors"),
+        ("children", "child processes"),
+        ("threads", "threads"),
+        ("gl_objects", "GL contexts"),
+    ):
         q = summary.get(key)
         if q is None:
             continue
-        lines.append(f"| {words} | {q['at_base']:g} | {q['last']:g} | {q['min']:g} | {q['max']:g} "
-                     f"| {q['growth']:+g} |")
+        lines.append(
+            f"| {words} | {q['at_base']:g} | {q['last']:g} | {q['min']:g} | {q['max']:g} "
+            f"| {q['growth']:+g} |"
+        )
     return lines
 
 
 @table("learned-ball")
 def learned_ball(results: Path) -> list[str]:
     """Solver + learned ball skill on generated levels, beside the scripted skill's rows."""
-    lines = ["| environment | learned skill: solved [95% CI] | mean steps | subgoal success "
-             "| scripted skill (results/agent): solved | mean steps |",
-             "| --- | --- | --- | --- | --- | --- |"]
+    lines = [
+        "| environment | learned skill: solved [95% CI] | mean steps | subgoal success "
+        "| scripted skill (results/agent): solved | mean steps |",
+        "| --- | --- | --- | --- | --- | --- |",
+    ]
     for path in sorted((results / "learned_ball").glob("run_level*.json"), key=_level_key):
         s = _load(path)
         if s.get("skill") != "learned-ball" or s.get("privileged"):
@@ -306,47 +386,57 @@ def learned_ball(results: Path) -> list[str]:
         lines.append(
             f"| `{s['env']}` | {_ci(s['success_rate'], s['success_interval'])} "
             f"| {s['mean_steps']:.0f} | {'-' if sub is None else f'{100 * sub:.1f}%'} | "
-            + (f"{_ci(ref['success_rate'], ref['success_interval'])} | {ref['mean_steps']:.0f} |"
-               if ref else "- | - |"))
+            + (
+                f"{_ci(ref['success_rate'], ref['success_interval'])} | {ref['mean_steps']:.0f} |"
+                if ref
+                else "- | - |"
+            )
+        )
     opt = _load(results / "learned_ball" / "option_success_camera.json")
     for name, r in opt["rows"].items():
-        success = _ci(r['success'], (r['wilson_low'], r['wilson_high']))
-        lines.append(f"| held-out options, {', '.join(r['sources'])} scenes, {r['estimator']} "
-                     f"estimator, {name} | {success} "
-                     f"({r['successes']}/{r['episodes']}) | {r['mean_steps_success']:.0f} | - "
-                     f"| - | - |")
+        success = _ci(r["success"], (r["wilson_low"], r["wilson_high"]))
+        lines.append(
+            f"| held-out options, {', '.join(r['sources'])} scenes, {r['estimator']} "
+            f"estimator, {name} | {success} "
+            f"({r['successes']}/{r['episodes']}) | {r['mean_steps_success']:.0f} | - "
+            f"| - | - |"
+        )
     return lines
 
 
 def _wdl(s: dict) -> str:
-    return (f"{100 * s['win_rate']:.0f}% / {100 * s['draw_rate']:.0f}% / "
-            f"{100 * s['loss_rate']:.0f}%")
+    return f"{100 * s['win_rate']:.0f}% / {100 * s['draw_rate']:.0f}% / {100 * s['loss_rate']:.0f}%"
 
 
 @table("learned-arm")
 def learned_arm(results: Path) -> list[str]:
     """Default planner + learned arm skill on the board games, beside the
     scripted (mink) skill's rows, and the skill alone on held-out options."""
-    lines = ["| environment | games | learned arm: win / draw / loss | touches registered "
-             "| scripted arm (results/agent): win / draw / loss | touches registered |",
-             "| --- | --- | --- | --- | --- | --- |"]
+    lines = [
+        "| environment | games | learned arm: win / draw / loss | touches registered "
+        "| scripted arm (results/agent): win / draw / loss | touches registered |",
+        "| --- | --- | --- | --- | --- | --- |",
+    ]
     for path in sorted((results / "learned_arm").glob("run_*.json")):
         s = _load(path)
         if s.get("skill") != "learned-arm" or s.get("privileged"):
             raise ValueError(f"{path}: not an observation-only learned-arm run")
         ref_path = results / "agent" / (s["env"].replace("/", "_") + ".json")
         ref = _load(ref_path) if ref_path.exists() else None
-        lines.append(f"| `{s['env']}` | {s['episodes']} | {_wdl(s)} "
-                     f"| {100 * s['subgoal_success_rate']:.1f}% | "
-                     + (f"{_wdl(ref)} | {100 * ref['subgoal_success_rate']:.1f}% |" if ref
-                        else "- | - |"))
+        lines.append(
+            f"| `{s['env']}` | {s['episodes']} | {_wdl(s)} "
+            f"| {100 * s['subgoal_success_rate']:.1f}% | "
+            + (f"{_wdl(ref)} | {100 * ref['subgoal_success_rate']:.1f}% |" if ref else "- | - |")
+        )
     opt_path = results / "learned_arm" / "option_success.json"
     if opt_path.exists():
         opt = _load(opt_path)
         for name, r in opt["rows"].items():
-            lines.append(f"| held-out options (MuJoXO and MuJoGo scenes), {name} | {r['episodes']} "
-                         f"| - | {_ci(r['success'], (r['wilson_low'], r['wilson_high']))} "
-                         f"| - | - |")
+            lines.append(
+                f"| held-out options (MuJoXO and MuJoGo scenes), {name} | {r['episodes']} "
+                f"| - | {_ci(r['success'], (r['wilson_low'], r['wilson_high']))} "
+                f"| - | - |"
+            )
     return lines
 
 
@@ -354,16 +444,29 @@ def learned_arm(results: Path) -> list[str]:
 def option_policy(results: Path) -> list[str]:
     """The learned policy over options as a planner (`results/option_policy/`)."""
     folder = results / "option_policy"
-    lines = ["| policy over options | environment | solved [95% CI] | mean steps "
-             "| subgoal success | frames trained (planner + skill) | abstract option steps "
-             "| training CPU (planner) |",
-             "| --- | --- | --- | --- | --- | --- | --- | --- |"]
-    groups = (("", "approach_D/train_D_summary.json",
-               "**shipped** (`learned`): approach D, the learned policy alone"),
-              ("approach_B", "approach_B/train_B_summary.json",
-               "approach B + hand-written dead-push rule"),
-              ("approach_B/no_pruning", "approach_B/train_B_summary.json",
-               "approach B, the learned policy alone"))
+    lines = [
+        "| policy over options | environment | solved [95% CI] | mean steps "
+        "| subgoal success | frames trained (planner + skill) | abstract option steps "
+        "| training CPU (planner) |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- |",
+    ]
+    groups = (
+        (
+            "",
+            "approach_D/train_D_summary.json",
+            "**shipped** (`learned`): approach D, the learned policy alone",
+        ),
+        (
+            "approach_B",
+            "approach_B/train_B_summary.json",
+            "approach B + hand-written dead-push rule",
+        ),
+        (
+            "approach_B/no_pruning",
+            "approach_B/train_B_summary.json",
+            "approach B, the learned policy alone",
+        ),
+    )
     for sub, train, words in groups:
         t = _load(folder / train)
         for path in sorted((folder / sub).glob("level*.json"), key=_level_key):
@@ -376,7 +479,8 @@ def option_policy(results: Path) -> list[str]:
                 f"| {_ci(s['success_rate'], s['success_interval'])} | {s['mean_steps']:.0f} "
                 f"| {'-' if sub_rate is None else f'{100 * sub_rate:.1f}%'} "
                 f"| {t['control_frames']:,} + {s['training_frames'] - t['control_frames']:,} "
-                f"| {t['abstract_steps']:,} | {t['cpu_minutes']:.1f} min |")
+                f"| {t['abstract_steps']:,} | {t['cpu_minutes']:.1f} min |"
+            )
     return lines
 
 
@@ -385,21 +489,32 @@ def compare_mujoban(results: Path) -> list[str]:
     """The shipped comparison (``python -m hier_agents.compare experiments/mujoban.toml``):
     one row per environment and point, then each series' CPU hours."""
     from hier_agents.compare import report
+
     data = _load(results / "compare" / "mujoban" / "comparison.json")
     lines = report.format_markdown(data["spec"]["envs"], data["points"], data["series_cost"])
     if data["jobs_missing"]:
         shown = {p["agent"] for p in data["points"] if not p["missing_seeds"]}
         missing = [a["label"] for a in data["spec"]["agent"] if a["label"] not in shown]
-        lines += ["", f"*{data['jobs_missing']} of {data['jobs']} jobs not run yet; "
-                  f"not complete: {', '.join(missing)}.*"]
-    lines += ["", "| series | environment | training CPU-h | evaluation CPU-h | jobs |",
-              "| --- | --- | --- | --- | --- |"]
+        lines += [
+            "",
+            f"*{data['jobs_missing']} of {data['jobs']} jobs not run yet; "
+            f"not complete: {', '.join(missing)}.*",
+        ]
+    lines += [
+        "",
+        "| series | environment | training CPU-h | evaluation CPU-h | jobs |",
+        "| --- | --- | --- | --- | --- |",
+    ]
     for c in data["series_cost"]:
-        train, evals = (f"{'>=' if c[f'cpu_partial_{kind}_jobs'] else ''}"
-                        f"{c[f'{kind}_cpu_hours']:.2f}" for kind in ("train", "eval"))
-        lines.append(f"| {c['agent']} | `{c['env']}` | {train if c['train_jobs'] else '-'} "
-                     f"| {evals} "
-                     f"| {c['train_jobs']} training, {c['eval_jobs']} evaluation |")
+        train, evals = (
+            f"{'>=' if c[f'cpu_partial_{kind}_jobs'] else ''}{c[f'{kind}_cpu_hours']:.2f}"
+            for kind in ("train", "eval")
+        )
+        lines.append(
+            f"| {c['agent']} | `{c['env']}` | {train if c['train_jobs'] else '-'} "
+            f"| {evals} "
+            f"| {c['train_jobs']} training, {c['eval_jobs']} evaluation |"
+        )
     return lines
 
 
@@ -408,9 +523,11 @@ def mujoboard_camera(results: Path) -> list[str]:
     """The observation-only board rows (``--estimator camera``), first and
     second: the three MuJoBoard target games, then MuJoXO against the optimal
     opponent."""
-    lines = ["| game | agent moves | won / drawn / lost [95% CI of won] | estimated board right "
-             "| wrong move | other failed touches | cut-off options | control steps / s |",
-             "| --- | --- | --- | --- | --- | --- | --- | --- |"]
+    lines = [
+        "| game | agent moves | won / drawn / lost [95% CI of won] | estimated board right "
+        "| wrong move | other failed touches | cut-off options | control steps / s |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- |",
+    ]
     boards = [f"mujoboard/{game}" for game in ("connect_four", "hex-7x7", "othello-8x8")]
     for env in boards + ["mujoxo/optimal"]:
         for side in ("first", "second"):
@@ -425,7 +542,8 @@ def mujoboard_camera(results: Path) -> list[str]:
                 f"| `{env}` | {side} | {_ci(s['win_rate'], s['win_interval'])} / "
                 f"{100 * s['draw_rate']:.0f}% / {100 * s['loss_rate']:.0f}% "
                 f"| {100 * s['estimate_accuracy']:.2f}% | {wrong} | {other} "
-                f"| {s['subgoals']['cut_off']} | {s['control_steps_per_s']:.0f} |")
+                f"| {s['subgoals']['cut_off']} | {s['control_steps_per_s']:.0f} |"
+            )
     return lines
 
 
@@ -433,15 +551,17 @@ def mujoboard_camera(results: Path) -> list[str]:
 def agent_speed(results: Path) -> list[str]:
     """The camera agent against the environment alone (`benchmarks/agent_speed.py`)."""
     d = _load(results / "agent_speed.json")
-    lines = [f"| code | `{d['env']}`: agent steps/s | environment alone, no camera | ratio "
-             f"| solved | time: physics / render / estimator / other |",
-             "| --- | --- | --- | --- | --- | --- |"]
+    lines = [
+        f"| code | `{d['env']}`: agent steps/s | environment alone, no camera | ratio "
+        f"| solved | time: physics / render / estimator / other |",
+        "| --- | --- | --- | --- | --- | --- |",
+    ]
     for tree in ("current", "baseline"):
         if tree not in d["summary"]:
             continue
         rows = [r["trees"][tree] for r in d["rounds"]]
         s = d["summary"][tree]
-        label = ("now" if tree == "current" else f"before (`{d['baseline']}`)")
+        label = "now" if tree == "current" else f"before (`{d['baseline']}`)"
         shares = s["shares"]
         other = shares["other"] + shares["planner"] + shares["skill"]
         lines.append(
@@ -450,7 +570,8 @@ def agent_speed(results: Path) -> list[str]:
             f"| **{_span([r['ratio'] for r in rows], '{:.3f}')}** "
             f"| {100 * s['success_rate']:.0f}% of {len(rows)} x {d['episodes']} "
             f"| {100 * shares['physics']:.0f}% / {100 * shares['render']:.0f}% / "
-            f"{100 * shares['estimator']:.0f}% / {100 * other:.0f}% |")
+            f"{100 * shares['estimator']:.0f}% / {100 * other:.0f}% |"
+        )
     return lines
 
 
@@ -460,14 +581,18 @@ def board_looks(results: Path) -> list[str]:
     from the default look's (`benchmarks/board_looks.py`)."""
     d = _load(results / "board_looks.json")
     default = {r["env"]: r["ms_per_frame"] for r in d["rows"] if r["look"] == "default"}
-    lines = ["| environment | look | ms per 84x84 frame | x the default | mean difference "
-             "from the default (of 255) | pixels off by more than 8 |",
-             "| --- | --- | --- | --- | --- | --- |"]
+    lines = [
+        "| environment | look | ms per 84x84 frame | x the default | mean difference "
+        "from the default (of 255) | pixels off by more than 8 |",
+        "| --- | --- | --- | --- | --- | --- |",
+    ]
     for r in d["rows"]:
-        lines.append(f"| `{r['env']}` | {r['look']} | {r['ms_per_frame']:.1f} "
-                     f"| {r['ms_per_frame'] / default[r['env']]:.1f}x "
-                     f"| {r['vs_default']['mean_abs']:.2f} "
-                     f"| {100 * r['vs_default']['share_above_8']:.1f}% |")
+        lines.append(
+            f"| `{r['env']}` | {r['look']} | {r['ms_per_frame']:.1f} "
+            f"| {r['ms_per_frame'] / default[r['env']]:.1f}x "
+            f"| {r['vs_default']['mean_abs']:.2f} "
+            f"| {100 * r['vs_default']['share_above_8']:.1f}% |"
+        )
     return lines
 
 
@@ -475,15 +600,19 @@ def board_looks(results: Path) -> list[str]:
 def camera_speed(results: Path) -> list[str]:
     """The paper's cameras, this code beside a baseline commit (`benchmarks/camera_speed.py`)."""
     d = _load(results / "camera_speed.json")
-    lines = [f"| environment | cameras | steps/s now | steps/s at `{d['baseline']}` | speed-up |",
-             "| --- | --- | --- | --- | --- |"]
+    lines = [
+        f"| environment | cameras | steps/s now | steps/s at `{d['baseline']}` | speed-up |",
+        "| --- | --- | --- | --- | --- |",
+    ]
     settings = list(dict.fromkeys((r["env"], r["cameras"]) for r in d["rows"]))
     for env, cameras in settings:
         rows = [r for r in d["rows"] if (r["env"], r["cameras"]) == (env, cameras)]
-        lines.append(f"| `{env}` | {cameras.replace('+', ', ')} "
-                     f"| {_span([r['steps_per_s'] for r in rows])} "
-                     f"| {_span([r['baseline_steps_per_s'] for r in rows])} "
-                     f"| {_span([r['x_baseline'] for r in rows], '{:.2f}')}x |")
+        lines.append(
+            f"| `{env}` | {cameras.replace('+', ', ')} "
+            f"| {_span([r['steps_per_s'] for r in rows])} "
+            f"| {_span([r['baseline_steps_per_s'] for r in rows])} "
+            f"| {_span([r['x_baseline'] for r in rows], '{:.2f}')}x |"
+        )
     return lines
 
 
@@ -491,17 +620,23 @@ def camera_speed(results: Path) -> list[str]:
 def render_profile(results: Path) -> list[str]:
     """One frame's cost, part by part, per camera (`benchmarks/render_profile.py`)."""
     d = _load(results / "render_profile.json")
-    lines = ["| looks | camera | size, samples | scene update | render passes | read-back "
-             "| whole frame | of which reflection | shadows | skybox |",
-             "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+    lines = [
+        "| looks | camera | size, samples | scene update | render passes | read-back "
+        "| whole frame | of which reflection | shadows | skybox |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+    ]
     for r in d["rows"]:
         full = r["update_ms"] + r["render_ms"]
-        parts = [max(full - r[k], 0.0) for k in ("no_reflection_ms", "no_shadow_ms",
-                                                   "no_skybox_ms")]
-        lines.append(f"| {r['case']} | {r['camera']} | {r['height']}x{r['width']}, "
-                     f"{r['multisamples']} | {r['update_ms']:.3f} | {r['draw_ms']:.2f} "
-                     f"| {r['readback_ms']:.3f} | {r['frame_ms']:.2f} | "
-                     + " | ".join(f"{p:.2f}" for p in parts) + " |")
+        parts = [
+            max(full - r[k], 0.0) for k in ("no_reflection_ms", "no_shadow_ms", "no_skybox_ms")
+        ]
+        lines.append(
+            f"| {r['case']} | {r['camera']} | {r['height']}x{r['width']}, "
+            f"{r['multisamples']} | {r['update_ms']:.3f} | {r['draw_ms']:.2f} "
+            f"| {r['readback_ms']:.3f} | {r['frame_ms']:.2f} | "
+            + " | ".join(f"{p:.2f}" for p in parts)
+            + " |"
+        )
     return lines
 
 
@@ -509,14 +644,18 @@ def render_profile(results: Path) -> list[str]:
 def parallel_eval(results: Path) -> list[str]:
     """``hier_agents.run --workers N`` against one worker (`benchmarks/parallel_eval.py`)."""
     d = _load(results / "parallel_eval.json")
-    lines = [f"| workers ({d['cpus']} CPUs) | episodes | wall s | episodes/s | speed-up "
-             f"| solved | rows equal to 1 worker's |",
-             "| --- | --- | --- | --- | --- | --- | --- |"]
+    lines = [
+        f"| workers ({d['cpus']} CPUs) | episodes | wall s | episodes/s | speed-up "
+        f"| solved | rows equal to 1 worker's |",
+        "| --- | --- | --- | --- | --- | --- | --- |",
+    ]
     for r in d["rows"]:
-        lines.append(f"| {r['workers']} | {r['episodes']} | {r['wall_s']:.0f} "
-                     f"| {r['episodes_per_s']:.3f} | {r['speedup']:.2f}x "
-                     f"| {100 * r['success_rate']:.1f}% "
-                     f"| {'yes' if r['rows_identical_to_first'] else 'no'} |")
+        lines.append(
+            f"| {r['workers']} | {r['episodes']} | {r['wall_s']:.0f} "
+            f"| {r['episodes_per_s']:.3f} | {r['speedup']:.2f}x "
+            f"| {100 * r['success_rate']:.1f}% "
+            f"| {'yes' if r['rows_identical_to_first'] else 'no'} |"
+        )
     return lines
 
 
@@ -524,17 +663,21 @@ def parallel_eval(results: Path) -> list[str]:
 def original_env(results: Path) -> list[str]:
     """Our default modular agent on the original MuJoBan (`benchmarks/original_env.py`)."""
     d = _load(results / "original_env.json")
-    lines = ["| environment | levels | pegs | agent (observation-only) | solved [95% CI] "
-             "| mean steps (solved) | its estimates right |",
-             "| --- | --- | --- | --- | --- | --- | --- |"]
+    lines = [
+        "| environment | levels | pegs | agent (observation-only) | solved [95% CI] "
+        "| mean steps (solved) | its estimates right |",
+        "| --- | --- | --- | --- | --- | --- | --- |",
+    ]
     for run in d["runs"]:
         steps = run["mean_steps_solved"]
-        lines.append(f"| the original (`physics_planning_games`) | first {run['episodes']} of "
-                     f"`{d['levels_file']}` | {'yes' if run['pegs'] else 'no'} | {d['agent']} "
-                     f"| {_ci(run['success_rate'], run['interval'])} "
-                     f"| {'-' if steps is None else f'{steps:.0f}'} "
-                     f"| {100 * run['estimate_whole_grid_accuracy']:.2f}% of "
-                     f"{run['estimates']:,} steps |")
+        lines.append(
+            f"| the original (`physics_planning_games`) | first {run['episodes']} of "
+            f"`{d['levels_file']}` | {'yes' if run['pegs'] else 'no'} | {d['agent']} "
+            f"| {_ci(run['success_rate'], run['interval'])} "
+            f"| {'-' if steps is None else f'{steps:.0f}'} "
+            f"| {100 * run['estimate_whole_grid_accuracy']:.2f}% of "
+            f"{run['estimates']:,} steps |"
+        )
     return lines
 
 
@@ -542,42 +685,54 @@ def original_env(results: Path) -> list[str]:
 def estimator_accuracy(results: Path) -> list[str]:
     """`benchmarks/estimator_accuracy.py`: whole-grid accuracy and errors per estimator."""
     d = _load(results / "estimator_accuracy.json")
-    lines = ["| estimator | frames | whole grid right | without frames just after a teleport "
-             "| walls / targets / boxes / player "
-             "| worst wall/floor appearance | walker error median / p95 (cells) "
-             "| box error median / p95 (cells) | ms per estimate |",
-             "| --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+    lines = [
+        "| estimator | frames | whole grid right | without frames just after a teleport "
+        "| walls / targets / boxes / player "
+        "| worst wall/floor appearance | walker error median / p95 (cells) "
+        "| box error median / p95 (cells) | ms per estimate |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+    ]
     for r in d["rows"]:
         looks = r.get("by_appearance") or {}
         worst = "-"
         if looks:
             name, w = min(looks.items(), key=lambda kv: (kv[1]["whole_grid_accuracy"], kv[0]))
-            worst = (f"all {len(looks)} seen at 100%" if w["whole_grid_accuracy"] == 1.0 else
-                     f"{name}: {100 * w['whole_grid_accuracy']:.1f}% of {w['frames']} "
-                     f"({len(looks)} seen)")
+            worst = (
+                f"all {len(looks)} seen at 100%"
+                if w["whole_grid_accuracy"] == 1.0
+                else f"{name}: {100 * w['whole_grid_accuracy']:.1f}% of {w['frames']} "
+                f"({len(looks)} seen)"
+            )
         label = r["estimator"] + (" (**privileged**)" if r["privileged"] else "")
-        parts = " / ".join(f"{100 * r[k + '_accuracy']:.1f}%"
-                           for k in ("walls", "targets", "boxes", "player"))
+        parts = " / ".join(
+            f"{100 * r[k + '_accuracy']:.1f}%" for k in ("walls", "targets", "boxes", "player")
+        )
         clean = r["frames"] - r["teleport_frames"]
-        lines.append(f"| {label} | {r['frames']} | {100 * r['whole_grid_accuracy']:.1f}% "
-                     f"| {100 * r['whole_grid_accuracy_without_teleports']:.1f}% of {clean} "
-                     f"| {parts} | {worst} | {r['walker_error_median_cells']:.4f} / "
-                     f"{r['walker_error_p95_cells']:.4f} | {r['box_error_median_cells']:.4f} / "
-                     f"{r['box_error_p95_cells']:.4f} | {r['ms_per_estimate']:.1f} |")
+        lines.append(
+            f"| {label} | {r['frames']} | {100 * r['whole_grid_accuracy']:.1f}% "
+            f"| {100 * r['whole_grid_accuracy_without_teleports']:.1f}% of {clean} "
+            f"| {parts} | {worst} | {r['walker_error_median_cells']:.4f} / "
+            f"{r['walker_error_p95_cells']:.4f} | {r['box_error_median_cells']:.4f} / "
+            f"{r['box_error_p95_cells']:.4f} | {r['ms_per_estimate']:.1f} |"
+        )
     return lines
 
 
 # -- README markers ---------------------------------------------------------------
 
-_BLOCK = re.compile(r"(<!-- table:(?P<name>[\w.-]+) -->\n)(?P<body>.*?)(<!-- /table:(?P=name) -->)",
-                    re.DOTALL)
+_BLOCK = re.compile(
+    r"(<!-- table:(?P<name>[\w.-]+) -->\n)(?P<body>.*?)(<!-- /table:(?P=name) -->)", re.DOTALL
+)
 _OPEN = re.compile(r"<!-- table:([\w.-]+) -->")
 
 
 def generate(results: Path, names=None) -> dict[str, str]:
     """Every registered table's Markdown (or only those in ``names``), by name."""
-    return {name: "\n".join(func(results)) + "\n" for name, func in TABLES.items()
-            if names is None or name in names}
+    return {
+        name: "\n".join(func(results)) + "\n"
+        for name, func in TABLES.items()
+        if names is None or name in names
+    }
 
 
 def check(readme_text: str, tables: dict[str, str]) -> list[str]:
@@ -588,14 +743,17 @@ def check(readme_text: str, tables: dict[str, str]) -> list[str]:
         if name not in found:
             problems.append(f"table {name!r}: no closing <!-- /table:{name} --> marker")
         elif name not in tables:
-            problems.append(f"table {name!r}: no generator registered in "
-                            f"benchmarks/readme_tables.py")
+            problems.append(
+                f"table {name!r}: no generator registered in benchmarks/readme_tables.py"
+            )
     for name, text in tables.items():
         if name not in found:
             problems.append(f"table {name!r}: no <!-- table:{name} --> markers in the README")
         elif found[name] != text:
-            problems.append(f"table {name!r}: the README differs from the results JSON "
-                            f"(run `python benchmarks/readme_tables.py --write`)")
+            problems.append(
+                f"table {name!r}: the README differs from the results JSON "
+                f"(run `python benchmarks/readme_tables.py --write`)"
+            )
     return problems
 
 
@@ -608,20 +766,26 @@ def check_files(texts: dict[str, str], tables: dict[str, str]) -> list[str]:
         found = {m.group("name"): m.group("body") for m in _BLOCK.finditer(text)}
         for name in _OPEN.findall(text):
             if name not in found:
-                problems.append(f"{label}: table {name!r}: no closing <!-- /table:{name} --> "
-                                f"marker")
+                problems.append(
+                    f"{label}: table {name!r}: no closing <!-- /table:{name} --> marker"
+                )
             elif name not in TABLES and name not in tables:
-                problems.append(f"{label}: table {name!r}: no generator registered in "
-                                f"benchmarks/readme_tables.py")
+                problems.append(
+                    f"{label}: table {name!r}: no generator registered in "
+                    f"benchmarks/readme_tables.py"
+                )
         for name, body in found.items():
             if name in tables and body != tables[name]:
-                problems.append(f"table {name!r}: {label} differs from the results JSON "
-                                f"(run `python benchmarks/readme_tables.py --write`)")
+                problems.append(
+                    f"table {name!r}: {label} differs from the results JSON "
+                    f"(run `python benchmarks/readme_tables.py --write`)"
+                )
     held = {m.group("name") for text in texts.values() for m in _BLOCK.finditer(text)}
     for name in tables:
         if name not in held:
-            problems.append(f"table {name!r}: no <!-- table:{name} --> markers in "
-                            f"{' or '.join(texts)}")
+            problems.append(
+                f"table {name!r}: no <!-- table:{name} --> markers in {' or '.join(texts)}"
+            )
     return problems
 
 
@@ -645,25 +809,40 @@ def write(readme_text: str, tables: dict[str, str]) -> str:
         if name not in tables:
             return match.group(0)
         return match.group(1) + tables[name] + match.group(4)
+
     return _BLOCK.sub(replace, readme_text)
 
 
 def _main(argv=None) -> int:
     parser = make_parser(__file__, __doc__)
     mode = parser.add_mutually_exclusive_group()
-    mode.add_argument("--check", action="store_true",
-                      help="exit 1 when a table of the README or a docs page disagrees with "
-                           "the JSON")
-    mode.add_argument("--write", action="store_true",
-                      help="rewrite the tables of the README and the docs pages")
+    mode.add_argument(
+        "--check",
+        action="store_true",
+        help="exit 1 when a table of the README or a docs page disagrees with the JSON",
+    )
+    mode.add_argument(
+        "--write", action="store_true", help="rewrite the tables of the README and the docs pages"
+    )
     parser.add_argument("--readme", type=cli.existing_file, default=ROOT / "README.md")
-    parser.add_argument("--docs", type=Path, default=ROOT / "docs",
-                        help="the folder whose Markdown pages (recursively) also hold tables")
-    parser.add_argument("--results", type=Path, default=ROOT / "results",
-                        help="the folder of committed results JSON")
-    parser.add_argument("--table", action="append", metavar="NAME",
-                        help=f"only this table, of {', '.join(sorted(TABLES))} (repeatable; "
-                             f"default: all)")
+    parser.add_argument(
+        "--docs",
+        type=Path,
+        default=ROOT / "docs",
+        help="the folder whose Markdown pages (recursively) also hold tables",
+    )
+    parser.add_argument(
+        "--results",
+        type=Path,
+        default=ROOT / "results",
+        help="the folder of committed results JSON",
+    )
+    parser.add_argument(
+        "--table",
+        action="append",
+        metavar="NAME",
+        help=f"only this table, of {', '.join(sorted(TABLES))} (repeatable; default: all)",
+    )
     args = parser.parse_args(argv)
     for name in args.table or ():
         cli.choice("table", name, sorted(TABLES))
@@ -674,8 +853,9 @@ def _main(argv=None) -> int:
         for name, text in tables.items():
             print(f"<!-- table:{name} -->\n{text}<!-- /table:{name} -->\n")
         return 0
-    files = [args.readme] + [p for p in docs_pages(args.docs) if p.resolve() !=
-                             args.readme.resolve()]
+    files = [args.readme] + [
+        p for p in docs_pages(args.docs) if p.resolve() != args.readme.resolve()
+    ]
     texts = {path: path.read_text() for path in files}
     labels = {_label(path, args.readme): text for path, text in texts.items()}
     if args.write:
@@ -685,13 +865,15 @@ def _main(argv=None) -> int:
             if new != text:
                 path.write_text(new)
                 written += 1
-        print(f"wrote {len(tables)} table(s) into {len(files)} file(s) "
-              f"({written} changed)")
+        print(f"wrote {len(tables)} table(s) into {len(files)} file(s) ({written} changed)")
         held = {m.group("name") for text in texts.values() for m in _BLOCK.finditer(text)}
         missing = [name for name in tables if name not in held]
         for name in missing:
-            print(f"table {name!r} has no markers in {args.readme} or {args.docs}; add "
-                  f"<!-- table:{name} --> and <!-- /table:{name} --> around it", file=sys.stderr)
+            print(
+                f"table {name!r} has no markers in {args.readme} or {args.docs}; add "
+                f"<!-- table:{name} --> and <!-- /table:{name} --> around it",
+                file=sys.stderr,
+            )
         return 1 if missing else 0
     problems = check_files(labels, tables)
     for problem in problems:

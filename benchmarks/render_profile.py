@@ -56,16 +56,26 @@ PROG = prog(__file__)
 #: (label, environment, envs.load options, observation keys to profile).
 CASES = (
     ("MuJoBan, default looks", "mujoban/level5", {}, None),
-    ("MuJoBan, the camera estimator's camera", "mujoban/level5",
-     {"top_camera": (199, 199), "multisamples": 0}, None),
+    (
+        "MuJoBan, the camera estimator's camera",
+        "mujoban/level5",
+        {"top_camera": (199, 199), "multisamples": 0},
+        None,
+    ),
     ("MuJoXO, default looks", "mujoxo/optimal", {"front_camera_2": (84, 84)}, None),
-    ("MuJoXO, the original's looks", "mujoxo/optimal",
-     {"front_camera_2": (84, 84), "shadows": True, "multisamples": 4}, None),
+    (
+        "MuJoXO, the original's looks",
+        "mujoxo/optimal",
+        {"front_camera_2": (84, 84), "shadows": True, "multisamples": 4},
+        None,
+    ),
     ("MuJoGo, default looks", "mujogo/7x7", {"front_camera_2": (84, 84)}, None),
 )
-PASSES = (("no_reflection_ms", mujoco.mjtRndFlag.mjRND_REFLECTION),
-          ("no_shadow_ms", mujoco.mjtRndFlag.mjRND_SHADOW),
-          ("no_skybox_ms", mujoco.mjtRndFlag.mjRND_SKYBOX))
+PASSES = (
+    ("no_reflection_ms", mujoco.mjtRndFlag.mjRND_REFLECTION),
+    ("no_shadow_ms", mujoco.mjtRndFlag.mjRND_SHADOW),
+    ("no_skybox_ms", mujoco.mjtRndFlag.mjRND_SKYBOX),
+)
 
 
 def _timed(fn, frames: int, rounds: int) -> float:
@@ -90,8 +100,12 @@ def profile_camera(env, key: str, frames: int, rounds: int) -> dict:
     scene, context = renderer.scene, renderer._mjr_context
     viewport = mujoco.MjrRect(0, 0, width, height)
     pixels = np.empty((height, width, 3), np.uint8)
-    row = {"camera": key, "height": height, "width": width,
-           "multisamples": int(env._model.vis.quality.offsamples)}
+    row = {
+        "camera": key,
+        "height": height,
+        "width": width,
+        "multisamples": int(env._model.vis.quality.offsamples),
+    }
     with quality, _KeepCurrentContext():
         renderer._gl_context.make_current()
 
@@ -112,19 +126,19 @@ def profile_camera(env, key: str, frames: int, rounds: int) -> dict:
         row["draw_ms"] = max(row["render_ms"] - row["readback_ms"], 0.0)
         row["flip_ms"] = _timed(lambda: np.flipud(pixels).copy(), frames, rounds)
         for name, flag in PASSES:
-            was = scene.flags[flag]     # update_scene leaves the render flags alone
+            was = scene.flags[flag]  # update_scene leaves the render flags alone
 
             def without(flag=flag):
                 update()
                 scene.flags[flag] = 0
                 draw()
                 read()
+
             try:
                 row[name] = _timed(without, frames, rounds)
             finally:
                 scene.flags[flag] = was
-    row["frame_ms"] = _timed(lambda: cameras.render(data, cam_id, height, width),
-                             frames, rounds)
+    row["frame_ms"] = _timed(lambda: cameras.render(data, cam_id, height, width), frames, rounds)
     return row
 
 
@@ -139,9 +153,14 @@ def run(frames: int, rounds: int, progress=print) -> list[dict]:
             for _ in range(5):
                 env.step(rng.uniform(spec.minimum, spec.maximum).astype(spec.dtype))
             for key in keys or sorted(env._camera_ids):
-                row = {"case": label, "env": name, "options": {k: list(v) if isinstance(v, tuple)
-                                                               else v for k, v in options.items()},
-                       **profile_camera(env, key, frames, rounds)}
+                row = {
+                    "case": label,
+                    "env": name,
+                    "options": {
+                        k: list(v) if isinstance(v, tuple) else v for k, v in options.items()
+                    },
+                    **profile_camera(env, key, frames, rounds),
+                }
                 rows.append(row)
                 progress(format_row(row))
         finally:
@@ -149,27 +168,45 @@ def run(frames: int, rounds: int, progress=print) -> list[dict]:
     return rows
 
 
-COLUMNS = ("update_ms", "draw_ms", "readback_ms", "flip_ms", "frame_ms", "no_reflection_ms",
-           "no_shadow_ms", "no_skybox_ms")  # the table's; the JSON also has render_ms
+COLUMNS = (
+    "update_ms",
+    "draw_ms",
+    "readback_ms",
+    "flip_ms",
+    "frame_ms",
+    "no_reflection_ms",
+    "no_shadow_ms",
+    "no_skybox_ms",
+)  # the table's; the JSON also has render_ms
 
 
 def format_row(row: dict) -> str:
-    head = f"{row['case']:<40} {row['camera']:<16} {row['height']}x{row['width']:<4} " \
-           f"ms{row['multisamples']} "
+    head = (
+        f"{row['case']:<40} {row['camera']:<16} {row['height']}x{row['width']:<4} "
+        f"ms{row['multisamples']} "
+    )
     return head + " ".join(f"{row[c]:>8.3f}" for c in COLUMNS)
 
 
 def header() -> str:
-    return f"{'case':<40} {'camera':<16} {'size':<8} {'ms':<3} " + " ".join(
-        f"{c.removesuffix('_ms'):>8}" for c in COLUMNS) + "   (ms per frame)"
+    return (
+        f"{'case':<40} {'camera':<16} {'size':<8} {'ms':<3} "
+        + " ".join(f"{c.removesuffix('_ms'):>8}" for c in COLUMNS)
+        + "   (ms per frame)"
+    )
 
 
 def _main(argv=None) -> int:
     parser = make_parser(__file__, __doc__)
-    parser.add_argument("--frames", type=cli.positive_int, default=50,
-                        help="frames per timed round (default: 50)")
-    parser.add_argument("--rounds", type=cli.positive_int, default=5,
-                        help="timed rounds per measurement; the median is kept (default: 5)")
+    parser.add_argument(
+        "--frames", type=cli.positive_int, default=50, help="frames per timed round (default: 50)"
+    )
+    parser.add_argument(
+        "--rounds",
+        type=cli.positive_int,
+        default=5,
+        help="timed rounds per measurement; the median is kept (default: 5)",
+    )
     parser.add_argument("--json", type=Path, help="write the rows here")
     args = parser.parse_args(argv)
     cli.output_file(args.json, "--json")

@@ -66,9 +66,20 @@ ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_GLOB = "results/agent/*.json"
 
 #: Row keys that decide an episode's outcome, compared whenever both rows hold them.
-OUTCOME_KEYS = ("return", "steps", "solved", "outcome", "final_reward", "failure_reason",
-                "error", "subgoals_issued", "subgoals_reached", "estimation_failures",
-                "estimates", "wrong_estimates")
+OUTCOME_KEYS = (
+    "return",
+    "steps",
+    "solved",
+    "outcome",
+    "final_reward",
+    "failure_reason",
+    "error",
+    "subgoals_issued",
+    "subgoals_reached",
+    "estimation_failures",
+    "estimates",
+    "wrong_estimates",
+)
 #: Keys whose absence means "none": a row without one differs from a row with one.
 ABSENT_MEANS_NONE = ("failure_reason", "error")
 #: Keys never compared: the index itself and timing.
@@ -80,8 +91,7 @@ class Skip(Exception):
 
 
 def _is_timing(key: str) -> bool:
-    return (key in IGNORED_KEYS or key.endswith(("_s", "_ms")) or "time" in key
-            or "profile" in key)
+    return key in IGNORED_KEYS or key.endswith(("_s", "_ms")) or "time" in key or "profile" in key
 
 
 def _same(a, b) -> bool:
@@ -102,8 +112,7 @@ def compare_rows(committed: dict, replayed: dict) -> tuple[list[dict], list[str]
     Timing keys (``wall_s``, ``profile_s``, ...) are never compared.
     """
     differences, one_sided = [], []
-    keys = list(OUTCOME_KEYS) + sorted(
-        (set(committed) | set(replayed)) - set(OUTCOME_KEYS))
+    keys = list(OUTCOME_KEYS) + sorted((set(committed) | set(replayed)) - set(OUTCOME_KEYS))
     for key in keys:
         if _is_timing(key):
             continue
@@ -116,8 +125,12 @@ def compare_rows(committed: dict, replayed: dict) -> tuple[list[dict], list[str]
         a, b = committed.get(key), replayed.get(key)
         if not _same(a, b):
             diff = {"key": key, "committed": a, "replayed": b}
-            if (isinstance(a, (int, float)) and isinstance(b, (int, float))
-                    and not isinstance(a, bool) and not isinstance(b, bool)):
+            if (
+                isinstance(a, (int, float))
+                and isinstance(b, (int, float))
+                and not isinstance(a, bool)
+                and not isinstance(b, bool)
+            ):
                 diff["delta"] = b - a
             differences.append(diff)
     return differences, one_sided
@@ -146,6 +159,7 @@ def _takes_levels(env: str) -> bool:
     try:
         from hier_agents.modular.components import family
         from hier_agents.modular.families import adapter
+
         return bool(adapter(family(env)).level_files)
     except (ValueError, KeyError):
         return True
@@ -157,6 +171,7 @@ def settings(summary: dict) -> dict:
     Raises:
       Skip: a setting is missing, or names a file that is not here.
     """
+
     def need(key):
         if key not in summary:
             raise Skip(f"does not record {key!r}")
@@ -172,8 +187,16 @@ def settings(summary: dict) -> dict:
         raise Skip("does not record 'levels'")
     else:  # older files of families without level files: there was nothing to record
         levels = None
-    out = dict(env_name=env, seed=seed, agent=agent, planner=None, skill=None, estimator=None,
-               levels=None, env_options=dict(env_options or {}))
+    out = dict(
+        env_name=env,
+        seed=seed,
+        agent=agent,
+        planner=None,
+        skill=None,
+        estimator=None,
+        levels=None,
+        env_options=dict(env_options or {}),
+    )
     if agent == "modular":
         for key in ("planner", "skill", "estimator"):
             value = need(key)
@@ -183,7 +206,7 @@ def settings(summary: dict) -> dict:
         _checkpoint_present(out["planner"], "planner")
         _checkpoint_present(out["skill"], "skill")
     elif agent.startswith("checkpoint:"):
-        path = agent[len("checkpoint:"):]
+        path = agent[len("checkpoint:") :]
         if not (Path(path) if Path(path).is_absolute() else ROOT / path).exists():
             raise Skip(f"agent checkpoint {path} is not present")
         condition = need("condition")
@@ -234,8 +257,14 @@ def replay_file(path: Path, episodes: int, first: int) -> dict:
     count = wanted[-1] - wanted[0] + 1
     start = time.perf_counter()
     try:
-        result = run(kwargs.pop("env_name"), count, kwargs.pop("seed"),
-                     first_episode=wanted[0], progress=False, **kwargs)
+        result = run(
+            kwargs.pop("env_name"),
+            count,
+            kwargs.pop("seed"),
+            first_episode=wanted[0],
+            progress=False,
+            **kwargs,
+        )
     except (ValueError, FileNotFoundError) as exc:  # refused before anything was played
         raise Skip(f"this code refuses the settings ({type(exc).__name__}: {exc})") from None
     seconds = time.perf_counter() - start
@@ -243,16 +272,21 @@ def replay_file(path: Path, episodes: int, first: int) -> dict:
     differences, one_sided = [], set()
     for e in wanted:
         if e not in replayed:
-            differences.append({"episode": e, "key": "(row)", "committed": "present",
-                                "replayed": "missing"})
+            differences.append(
+                {"episode": e, "key": "(row)", "committed": "present", "replayed": "missing"}
+            )
             continue
         diffs, keys = compare_rows(committed[e], replayed[e])
         differences += [{"episode": e, **d} for d in diffs]
         one_sided.update(keys)
-    return {"identical": not differences, "episodes": wanted, "differences": differences,
-            "one_sided_keys": sorted(one_sided),
-            "rows": [replayed[e] for e in wanted if e in replayed],
-            "seconds": round(seconds, 2)}
+    return {
+        "identical": not differences,
+        "episodes": wanted,
+        "differences": differences,
+        "one_sided_keys": sorted(one_sided),
+        "rows": [replayed[e] for e in wanted if e in replayed],
+        "seconds": round(seconds, 2),
+    }
 
 
 def _commit_of(path: Path) -> str:
@@ -278,11 +312,17 @@ def _files(args) -> list[Path]:
     else:
         files = sorted(ROOT.glob(DEFAULT_GLOB))
     if args.only:
-        files = [p for p in files if fnmatch.fnmatch(_rel(p), args.only)
-                 or fnmatch.fnmatch(p.name, args.only) or fnmatch.fnmatch(str(p), args.only)]
+        files = [
+            p
+            for p in files
+            if fnmatch.fnmatch(_rel(p), args.only)
+            or fnmatch.fnmatch(p.name, args.only)
+            or fnmatch.fnmatch(str(p), args.only)
+        ]
     if not files:
-        raise cli.UsageError("no result files to replay" +
-                             (f" match --only {args.only}" if args.only else ""))
+        raise cli.UsageError(
+            "no result files to replay" + (f" match --only {args.only}" if args.only else "")
+        )
     for path in files:
         try:
             json.loads(path.read_text())
@@ -296,8 +336,11 @@ def _value(v) -> str:
 
 
 def _print_table(entries, skipped, with_baseline: bool = False) -> None:
-    print("| file | commit | episodes | vs committed row | " +
-          ("vs baseline | " if with_baseline else "") + "s |")
+    print(
+        "| file | commit | episodes | vs committed row | "
+        + ("vs baseline | " if with_baseline else "")
+        + "s |"
+    )
     print("| --- | --- | --- | --- | " + ("--- | " if with_baseline else "") + "--- |")
     for e in entries:
         if e["identical"]:
@@ -311,41 +354,72 @@ def _print_table(entries, skipped, with_baseline: bool = False) -> None:
         span = f"{eps[0]}-{eps[-1]}" if len(eps) > 1 else (str(eps[0]) if eps else "-")
         against = ""
         if with_baseline:
-            against = ("identical" if e.get("baseline_identical") else "differs: " + ", ".join(
-                sorted({d["key"] for d in e.get("baseline_differences", [])})
-                | ({"(not in baseline)"} if e.get("baseline_missing") or not e["rows"]
-                   else set()))) + " | "
-        print(f"| {e['file']} | {_short(e['commit'])} | {span} | {result} | {against}"
-              f"{e['seconds']} |")
+            against = (
+                "identical"
+                if e.get("baseline_identical")
+                else "differs: "
+                + ", ".join(
+                    sorted({d["key"] for d in e.get("baseline_differences", [])})
+                    | (
+                        {"(not in baseline)"}
+                        if e.get("baseline_missing") or not e["rows"]
+                        else set()
+                    )
+                )
+            ) + " | "
+        print(
+            f"| {e['file']} | {_short(e['commit'])} | {span} | {result} | {against}{e['seconds']} |"
+        )
     for e in entries:
         for d in e["differences"]:
             delta = f" ({d['delta']:+g})" if "delta" in d else ""
-            print(f"  {e['file']} episode {d['episode']}: {d['key']} committed "
-                  f"{_value(d['committed'])}, replayed {_value(d['replayed'])}{delta}")
+            print(
+                f"  {e['file']} episode {d['episode']}: {d['key']} committed "
+                f"{_value(d['committed'])}, replayed {_value(d['replayed'])}{delta}"
+            )
         for d in e.get("baseline_differences", []):
             delta = f" ({d['delta']:+g})" if "delta" in d else ""
-            print(f"  {e['file']} episode {d['episode']}: {d['key']} baseline "
-                  f"{_value(d['committed'])}, replayed {_value(d['replayed'])}{delta}")
+            print(
+                f"  {e['file']} episode {d['episode']}: {d['key']} baseline "
+                f"{_value(d['committed'])}, replayed {_value(d['replayed'])}{delta}"
+            )
     for s in skipped:
         print(f"skipped {s['file']} ({_short(s['commit'])}): {s['reason']}")
 
 
 def _main(argv=None) -> int:
     parser = make_parser(__file__, __doc__)
-    parser.add_argument("files", nargs="*", metavar="FILE",
-                        help=f"hier_agents.run --json files (default: {DEFAULT_GLOB})")
-    parser.add_argument("--only", metavar="GLOB", default=None,
-                        help="replay only the files whose path (relative to the repository) "
-                             "or name matches")
-    parser.add_argument("--episodes", type=cli.positive_int, default=2,
-                        help="episodes re-played per file (K)")
-    parser.add_argument("--first-episode", type=cli.non_negative_int, default=0,
-                        help="index of the first episode re-played")
-    parser.add_argument("--json", default="results/replay_rows.json",
-                        help="where to write the report")
-    parser.add_argument("--baseline", metavar="REPORT", type=cli.existing_file, default=None,
-                        help="a report of this script whose re-played rows the new ones "
-                             "must equal")
+    parser.add_argument(
+        "files",
+        nargs="*",
+        metavar="FILE",
+        help=f"hier_agents.run --json files (default: {DEFAULT_GLOB})",
+    )
+    parser.add_argument(
+        "--only",
+        metavar="GLOB",
+        default=None,
+        help="replay only the files whose path (relative to the repository) or name matches",
+    )
+    parser.add_argument(
+        "--episodes", type=cli.positive_int, default=2, help="episodes re-played per file (K)"
+    )
+    parser.add_argument(
+        "--first-episode",
+        type=cli.non_negative_int,
+        default=0,
+        help="index of the first episode re-played",
+    )
+    parser.add_argument(
+        "--json", default="results/replay_rows.json", help="where to write the report"
+    )
+    parser.add_argument(
+        "--baseline",
+        metavar="REPORT",
+        type=cli.existing_file,
+        default=None,
+        help="a report of this script whose re-played rows the new ones must equal",
+    )
     args = parser.parse_args(argv)
     out = cli.output_file(args.json, "--json")
     baseline = None if args.baseline is None else _baseline_rows(args.baseline)
@@ -363,31 +437,66 @@ def _main(argv=None) -> int:
             continue
         except Exception as exc:  # noqa: BLE001 - a replay that raised is a finding
             print(f"raised {type(exc).__name__}: {exc}", flush=True)
-            entries.append({"file": name, "commit": commit, "identical": False, "episodes": [],
-                            "differences": [], "one_sided_keys": [], "rows": [], "seconds": 0,
-                            "error": f"{type(exc).__name__}: {exc}"})
+            entries.append(
+                {
+                    "file": name,
+                    "commit": commit,
+                    "identical": False,
+                    "episodes": [],
+                    "differences": [],
+                    "one_sided_keys": [],
+                    "rows": [],
+                    "seconds": 0,
+                    "error": f"{type(exc).__name__}: {exc}",
+                }
+            )
             continue
         summary = json.loads(path.read_text())
-        entry = {"file": name, "commit": commit,
-                 "settings": {k: summary.get(k) for k in ("env", "seed", "agent", "planner",
-                                                           "skill", "estimator", "levels",
-                                                           "env_options")},
-                 **entry}
+        entry = {
+            "file": name,
+            "commit": commit,
+            "settings": {
+                k: summary.get(k)
+                for k in (
+                    "env",
+                    "seed",
+                    "agent",
+                    "planner",
+                    "skill",
+                    "estimator",
+                    "levels",
+                    "env_options",
+                )
+            },
+            **entry,
+        }
         if baseline is not None:
             _against_baseline(entry, baseline.get(name, {}))
         entries.append(entry)
-        print(("identical" if entry["identical"] else "DIFFERS") + f" ({entry['seconds']} s)"
-              + ("" if baseline is None else "; baseline: " + (
-                  "identical" if entry["baseline_identical"] else "DIFFERS")), flush=True)
+        print(
+            ("identical" if entry["identical"] else "DIFFERS")
+            + f" ({entry['seconds']} s)"
+            + (
+                ""
+                if baseline is None
+                else "; baseline: " + ("identical" if entry["baseline_identical"] else "DIFFERS")
+            ),
+            flush=True,
+        )
     _print_table(entries, skipped, baseline is not None)
     differing = sum(not e["identical"] for e in entries)
-    report = {"episodes": args.episodes, "first_episode": args.first_episode,
-              "identical": differing == 0, "replayed": len(entries),
-              "differing": differing, "files": entries, "skipped": skipped}
+    report = {
+        "episodes": args.episodes,
+        "first_episode": args.first_episode,
+        "identical": differing == 0,
+        "replayed": len(entries),
+        "differing": differing,
+        "files": entries,
+        "skipped": skipped,
+    }
     if baseline is not None:
         report["baseline"] = str(args.baseline)
-        report["baseline_differing"] = sum(not e.get("baseline_identical", False)
-                                           for e in entries)
+        report["baseline_differing"] = sum(not e.get("baseline_identical", False) for e in entries)
         write_json(out, report)
         return 1 if report["baseline_differing"] else 0
     write_json(out, report)
@@ -400,8 +509,9 @@ def _baseline_rows(path: Path) -> dict[str, dict[int, dict]]:
         report = json.loads(Path(path).read_text())
         return {e["file"]: {row["episode"]: row for row in e["rows"]} for e in report["files"]}
     except (ValueError, KeyError, TypeError) as exc:
-        raise cli.UsageError(f"--baseline {str(path)!r} is not a report of {PROG} "
-                             f"({type(exc).__name__}: {exc})") from None
+        raise cli.UsageError(
+            f"--baseline {str(path)!r} is not a report of {PROG} ({type(exc).__name__}: {exc})"
+        ) from None
 
 
 def _against_baseline(entry: dict, rows: dict[int, dict]) -> None:

@@ -48,10 +48,16 @@ import envs  # noqa: E402
 PROG = prog(__file__)
 
 #: (name, cameras on) configurations, cycled in this order.
-CONFIGS = [("mujoban/level1", False), ("mujoban/level3-pegs", True),
-           ("mujoban/level5", False), ("mujoban/level2-pegs", False),
-           ("mujoxo/mixture", True), ("mujoxo/mixture", False),
-           ("mujogo/7x7", True), ("mujogo/7x7", False)]
+CONFIGS = [
+    ("mujoban/level1", False),
+    ("mujoban/level3-pegs", True),
+    ("mujoban/level5", False),
+    ("mujoban/level2-pegs", False),
+    ("mujoxo/mixture", True),
+    ("mujoxo/mixture", False),
+    ("mujogo/7x7", True),
+    ("mujogo/7x7", False),
+]
 
 
 def _children() -> int:
@@ -63,7 +69,7 @@ def _children() -> int:
                     stat = f.read()
             except OSError:
                 continue
-            if int(stat[stat.rindex(")") + 2:].split()[1]) == me:
+            if int(stat[stat.rindex(")") + 2 :].split()[1]) == me:
                 count += 1
     return count
 
@@ -106,17 +112,25 @@ def _malloc_stats() -> dict:
     m = envs._malloc.mallinfo()  # pylint: disable=protected-access
     if m is None:
         return {}
-    return {"malloc_in_use_mb": round(m["uordblks"] / 2**20, 1),
-            "malloc_free_mb": round(m["fordblks"] / 2**20, 1),
-            "malloc_mmapped_mb": round(m["hblkhd"] / 2**20, 1)}
+    return {
+        "malloc_in_use_mb": round(m["uordblks"] / 2**20, 1),
+        "malloc_free_mb": round(m["fordblks"] / 2**20, 1),
+        "malloc_mmapped_mb": round(m["hblkhd"] / 2**20, 1),
+    }
 
 
 def sample(episode: int, started: float) -> dict:
-    return {"episode": episode, "wall_s": round(time.perf_counter() - started, 1),
-            "rss_mb": round(_status("VmRSS") / 1024, 1),
-            "open_fds": len(os.listdir("/proc/self/fd")), "children": _children(),
-            "threads": _status("Threads"), "gl_objects": _gl_contexts(),
-            **_mappings(), **_malloc_stats()}
+    return {
+        "episode": episode,
+        "wall_s": round(time.perf_counter() - started, 1),
+        "rss_mb": round(_status("VmRSS") / 1024, 1),
+        "open_fds": len(os.listdir("/proc/self/fd")),
+        "children": _children(),
+        "threads": _status("Threads"),
+        "gl_objects": _gl_contexts(),
+        **_mappings(),
+        **_malloc_stats(),
+    }
 
 
 def _build(name: str, cameras: bool, seed: int):
@@ -139,9 +153,17 @@ def play_episode(env, rng, steps: int, moves: int) -> None:
             task._play_agent_move(int(rng.choice(legal)), None, rng)  # pylint: disable=protected-access
 
 
-def soak(episodes: int, *, sample_every: int = 50, rebuild_every: int = 25, steps: int = 20,
-         moves: int = 4, seed: int = 0, progress: bool = True,
-         configs: list[tuple[str, bool]] | None = None) -> dict:
+def soak(
+    episodes: int,
+    *,
+    sample_every: int = 50,
+    rebuild_every: int = 25,
+    steps: int = 20,
+    moves: int = 4,
+    seed: int = 0,
+    progress: bool = True,
+    configs: list[tuple[str, bool]] | None = None,
+) -> dict:
     configs = CONFIGS if configs is None else configs
     rng = np.random.default_rng(seed)
     live: dict[int, tuple] = {}  # config index -> (env, episodes played)
@@ -162,37 +184,55 @@ def soak(episodes: int, *, sample_every: int = 50, rebuild_every: int = 25, step
             try:
                 play_episode(env, rng, steps, moves)
             except Exception as exc:  # noqa: BLE001 - counted, the soak goes on
-                errors.append({"episode": episode, "env": name,
-                               "error": f"{type(exc).__name__}: {exc}"})
+                errors.append(
+                    {"episode": episode, "env": name, "error": f"{type(exc).__name__}: {exc}"}
+                )
             if episode % sample_every == 0 or episode == episodes:
                 samples.append(sample(episode, started))
                 if progress:
                     s = samples[-1]
-                    print(f"episode {episode:5d}: rss {s['rss_mb']:7.1f} MB "
-                          f"(heap {s['heap_rss_mb']:.0f}, anon {s['anon_rss_mb']:.0f}), "
-                          f"fds {s['open_fds']}, "
-                          f"children {s['children']}, threads {s['threads']}, "
-                          f"gl {s['gl_objects']}, {s['wall_s']:.0f} s", flush=True)
+                    print(
+                        f"episode {episode:5d}: rss {s['rss_mb']:7.1f} MB "
+                        f"(heap {s['heap_rss_mb']:.0f}, anon {s['anon_rss_mb']:.0f}), "
+                        f"fds {s['open_fds']}, "
+                        f"children {s['children']}, threads {s['threads']}, "
+                        f"gl {s['gl_objects']}, {s['wall_s']:.0f} s",
+                        flush=True,
+                    )
     finally:
         for env, _ in live.values():
             env.close()
     after_close = sample(episodes, started)
-    return {"episodes": episodes, "configs": [{"env": n, "cameras": c} for n, c in configs],
-            "malloc": {"mmap_threshold_fixed_by_envs": envs._malloc.applied(),  # pylint: disable=protected-access
-                       **{k: os.environ[k] for k in ("MALLOC_ARENA_MAX", "MALLOC_MMAP_THRESHOLD_",
-                                                     "GLIBC_TUNABLES") if k in os.environ}},
-            "steps_per_episode": steps, "moves_per_board_episode": moves,
-            "rebuild_every": rebuild_every, "sample_every": sample_every,
-            "samples": samples, "after_close": after_close, "errors": errors,
-            "summary": summarise(samples, after_close)}
+    return {
+        "episodes": episodes,
+        "configs": [{"env": n, "cameras": c} for n, c in configs],
+        "malloc": {
+            "mmap_threshold_fixed_by_envs": envs._malloc.applied(),  # pylint: disable=protected-access
+            **{
+                k: os.environ[k]
+                for k in ("MALLOC_ARENA_MAX", "MALLOC_MMAP_THRESHOLD_", "GLIBC_TUNABLES")
+                if k in os.environ
+            },
+        },
+        "steps_per_episode": steps,
+        "moves_per_board_episode": moves,
+        "rebuild_every": rebuild_every,
+        "sample_every": sample_every,
+        "samples": samples,
+        "after_close": after_close,
+        "errors": errors,
+        "summary": summarise(samples, after_close),
+    }
 
 
 def select(only: list[str]) -> list[tuple[str, bool]]:
     """The configurations matching any of `only` (all of them if it is empty)."""
+
     def matches(name: str, cameras: bool, pattern: str) -> bool:
         if pattern in ("cameras-on", "cameras-off"):
             return cameras == (pattern == "cameras-on")
         return pattern in name
+
     return [(n, c) for n, c in CONFIGS if not only or any(matches(n, c, p) for p in only)]
 
 
@@ -200,11 +240,23 @@ def summarise(samples: list[dict], after_close: dict) -> dict:
     base = next((s for s in samples if s["episode"] >= 100), samples[0])
     last = samples[-1]
     out = {"from_episode": base["episode"], "to_episode": last["episode"]}
-    for key in ("rss_mb", "heap_rss_mb", "anon_rss_mb", "open_fds", "children", "threads",
-                "gl_objects"):
+    for key in (
+        "rss_mb",
+        "heap_rss_mb",
+        "anon_rss_mb",
+        "open_fds",
+        "children",
+        "threads",
+        "gl_objects",
+    ):
         values = [s[key] for s in samples if s["episode"] >= base["episode"]]
-        out[key] = {"at_base": base[key], "last": last[key], "min": min(values),
-                    "max": max(values), "growth": round(last[key] - base[key], 1)}
+        out[key] = {
+            "at_base": base[key],
+            "last": last[key],
+            "min": min(values),
+            "max": max(values),
+            "growth": round(last[key] - base[key], 1),
+        }
     out["children_after_close"] = after_close["children"]
     out["targets_met"] = {
         "rss_growth_under_50_mb": out["rss_mb"]["growth"] < 50,
@@ -218,37 +270,67 @@ def summarise(samples: list[dict], after_close: dict) -> dict:
 def _main(argv=None) -> int:
     parser = make_parser(__file__, __doc__)
     parser.add_argument("--episodes", type=cli.positive_int, default=1000)
-    parser.add_argument("--sample-every", type=cli.positive_int, default=50,
-                        help="episodes between resource samples")
-    parser.add_argument("--rebuild-every", type=cli.positive_int, default=25,
-                        help="episodes between environment rebuilds")
-    parser.add_argument("--steps", type=cli.positive_int, default=20,
-                        help="random control steps per episode")
-    parser.add_argument("--moves", type=cli.positive_int, default=4,
-                        help="abstract agent moves (each answered) per board-game episode")
+    parser.add_argument(
+        "--sample-every",
+        type=cli.positive_int,
+        default=50,
+        help="episodes between resource samples",
+    )
+    parser.add_argument(
+        "--rebuild-every",
+        type=cli.positive_int,
+        default=25,
+        help="episodes between environment rebuilds",
+    )
+    parser.add_argument(
+        "--steps", type=cli.positive_int, default=20, help="random control steps per episode"
+    )
+    parser.add_argument(
+        "--moves",
+        type=cli.positive_int,
+        default=4,
+        help="abstract agent moves (each answered) per board-game episode",
+    )
     parser.add_argument("--seed", type=cli.non_negative_int, default=0)
-    parser.add_argument("--only", action="append", default=[], metavar="SUBSTRING",
-                        help="soak only the configurations whose name contains this "
-                             "('cameras-on'/'cameras-off' select by camera setting); repeatable")
+    parser.add_argument(
+        "--only",
+        action="append",
+        default=[],
+        metavar="SUBSTRING",
+        help="soak only the configurations whose name contains this "
+        "('cameras-on'/'cameras-off' select by camera setting); repeatable",
+    )
     parser.add_argument("--json", type=Path, help="write the samples and summary here")
     args = parser.parse_args(argv)
     configs = select(args.only)
     if not configs:
         names = sorted({name for name, _ in CONFIGS})
-        raise cli.UsageError(f"--only {' '.join(args.only)} matches none of the "
-                             f"configurations: {', '.join(names)}, cameras-on, cameras-off")
+        raise cli.UsageError(
+            f"--only {' '.join(args.only)} matches none of the "
+            f"configurations: {', '.join(names)}, cameras-on, cameras-off"
+        )
     cli.output_file(args.json, "--json")
-    result = soak(args.episodes, sample_every=args.sample_every,
-                  rebuild_every=args.rebuild_every, steps=args.steps, moves=args.moves,
-                  seed=args.seed, configs=configs)
+    result = soak(
+        args.episodes,
+        sample_every=args.sample_every,
+        rebuild_every=args.rebuild_every,
+        steps=args.steps,
+        moves=args.moves,
+        seed=args.seed,
+        configs=configs,
+    )
     summary = result["summary"]
-    print(f"after episode {summary['from_episode']} -> {summary['to_episode']}: "
-          f"rss {summary['rss_mb']['growth']:+.1f} MB, fds {summary['open_fds']['min']}-"
-          f"{summary['open_fds']['max']}, children {summary['children']['min']}-"
-          f"{summary['children']['max']} (after close {summary['children_after_close']}), "
-          f"errors {len(result['errors'])}")
-    print("targets: " + ", ".join(f"{k} {'yes' if v else 'NO'}"
-                                  for k, v in summary["targets_met"].items()))
+    print(
+        f"after episode {summary['from_episode']} -> {summary['to_episode']}: "
+        f"rss {summary['rss_mb']['growth']:+.1f} MB, fds {summary['open_fds']['min']}-"
+        f"{summary['open_fds']['max']}, children {summary['children']['min']}-"
+        f"{summary['children']['max']} (after close {summary['children_after_close']}), "
+        f"errors {len(result['errors'])}"
+    )
+    print(
+        "targets: "
+        + ", ".join(f"{k} {'yes' if v else 'NO'}" for k, v in summary["targets_met"].items())
+    )
     if args.json:
         write_json(args.json, result)
     return 0 if not result["errors"] else 1

@@ -64,8 +64,13 @@ def percentile(values: list[float], q: float) -> float:
 PLANNERS = ("sokoban-solver", "sokoban-solver:time")
 
 
-def run(levels_file: Path, time_limit: float, limit: int | None = None,
-        planner: str = "sokoban-solver", weight: float = 2.0) -> dict:
+def run(
+    levels_file: Path,
+    time_limit: float,
+    limit: int | None = None,
+    planner: str = "sokoban-solver",
+    weight: float = 2.0,
+) -> dict:
     if planner == "sokoban-solver":
         search = lambda state: solve(state, time_limit=time_limit)  # noqa: E731
     else:
@@ -78,17 +83,25 @@ def run(levels_file: Path, time_limit: float, limit: int | None = None,
         index = int(level.name) if level.name is not None and level.name.isdigit() else position
         start = SokobanState.from_level(level)
         result = search(start)
-        row = {"index": index, "solved": result.solved, "ms": round(result.ms, 3),
-               "nodes": result.nodes, "pushes": result.pushes,
-               "moves": "".join(result.moves), "reason": result.reason}
+        row = {
+            "index": index,
+            "solved": result.solved,
+            "ms": round(result.ms, 3),
+            "nodes": result.nodes,
+            "pushes": result.pushes,
+            "moves": "".join(result.moves),
+            "reason": result.reason,
+        }
         if result.solved:
             features = plan_features(start, result.moves)
             row["features"] = features
             row["estimated_steps"] = round(estimate_steps(features), 1)
         rows.append(row)
         if not result.solved:
-            tqdm.write(f"level {index}: not solved ({result.reason}) after "
-                       f"{result.ms:.0f} ms, {result.nodes} nodes")
+            tqdm.write(
+                f"level {index}: not solved ({result.reason}) after "
+                f"{result.ms:.0f} ms, {result.nodes} nodes"
+            )
     ms = [row["ms"] for row in rows]
     solved = sum(row["solved"] for row in rows)
     return {
@@ -103,44 +116,83 @@ def run(levels_file: Path, time_limit: float, limit: int | None = None,
         "p95_ms": percentile(ms, 95) if ms else 0.0,
         "max_ms": max(ms) if ms else 0.0,
         "mean_nodes": statistics.fmean(row["nodes"] for row in rows) if rows else 0.0,
-        "mean_pushes": (statistics.fmean(r["pushes"] for r in rows if r["solved"])
-                        if solved else None),
-        "mean_estimated_steps": (statistics.fmean(r["estimated_steps"] for r in rows
-                                                  if r["solved"]) if solved else None),
+        "mean_pushes": (
+            statistics.fmean(r["pushes"] for r in rows if r["solved"]) if solved else None
+        ),
+        "mean_estimated_steps": (
+            statistics.fmean(r["estimated_steps"] for r in rows if r["solved"]) if solved else None
+        ),
         "over_time_limit": sum(r.get("estimated_steps", 0) > 900 for r in rows),
         "levels": rows,
     }
 
 
 def print_summary(summary: dict) -> None:
-    header = ("levels", "solved", "solved %", "median ms", "p95 ms", "max ms", "mean nodes",
-              "mean pushes", "mean est. steps", "est. > 900")
+    header = (
+        "levels",
+        "solved",
+        "solved %",
+        "median ms",
+        "p95 ms",
+        "max ms",
+        "mean nodes",
+        "mean pushes",
+        "mean est. steps",
+        "est. > 900",
+    )
     pushes, est = summary["mean_pushes"], summary["mean_estimated_steps"]
-    values = (str(summary["total"]), str(summary["solved"]), f"{summary['solved_pct']:.1f}",
-              f"{summary['median_ms']:.1f}", f"{summary['p95_ms']:.1f}",
-              f"{summary['max_ms']:.1f}", f"{summary['mean_nodes']:.0f}",
-              "-" if pushes is None else f"{pushes:.1f}", "-" if est is None else f"{est:.0f}",
-              str(summary["over_time_limit"]))
+    values = (
+        str(summary["total"]),
+        str(summary["solved"]),
+        f"{summary['solved_pct']:.1f}",
+        f"{summary['median_ms']:.1f}",
+        f"{summary['p95_ms']:.1f}",
+        f"{summary['max_ms']:.1f}",
+        f"{summary['mean_nodes']:.0f}",
+        "-" if pushes is None else f"{pushes:.1f}",
+        "-" if est is None else f"{est:.0f}",
+        str(summary["over_time_limit"]),
+    )
     widths = [max(len(h), len(v)) for h, v in zip(header, values)]
     weight = "" if summary["weight"] is None else f", weight {summary['weight']}"
-    print(f"\n{summary['levels_file']}: {summary['planner']}{weight} "
-          f"(time limit {summary['time_limit_s']} s)")
+    print(
+        f"\n{summary['levels_file']}: {summary['planner']}{weight} "
+        f"(time limit {summary['time_limit_s']} s)"
+    )
     print("  ".join(h.rjust(w) for h, w in zip(header, widths)))
     print("  ".join(v.rjust(w) for v, w in zip(values, widths)))
 
 
 def _main(argv=None) -> int:
     parser = make_parser(__file__, __doc__)
-    parser.add_argument("--levels", type=cli.existing_file, default=DEFAULT_LEVELS,
-                        metavar="FILE", help="Boxoban level file")
-    parser.add_argument("--time-limit", type=cli.positive_float, default=10.0,
-                        help="seconds per level")
-    parser.add_argument("--planner", default="sokoban-solver", metavar="NAME",
-                        help=f"one of {', '.join(PLANNERS)} (default: sokoban-solver)")
-    parser.add_argument("--weight", type=cli.positive_float, default=2.0,
-                        help="sokoban-solver:time: the weight of its A* heuristic (default 2)")
-    parser.add_argument("--limit", type=cli.positive_int, default=None,
-                        help="solve only the first N levels (default: all)")
+    parser.add_argument(
+        "--levels",
+        type=cli.existing_file,
+        default=DEFAULT_LEVELS,
+        metavar="FILE",
+        help="Boxoban level file",
+    )
+    parser.add_argument(
+        "--time-limit", type=cli.positive_float, default=10.0, help="seconds per level"
+    )
+    parser.add_argument(
+        "--planner",
+        default="sokoban-solver",
+        metavar="NAME",
+        help=f"one of {', '.join(PLANNERS)} (default: sokoban-solver)",
+    )
+    parser.add_argument(
+        "--weight",
+        type=cli.positive_float,
+        default=2.0,
+        help="sokoban-solver:time: the weight of its A* heuristic (default 2)",
+    )
+    parser.add_argument(
+        "--limit",
+        type=cli.positive_int,
+        default=None,
+        help="solve only the first N levels (default: all)",
+    )
     parser.add_argument("--json", type=Path, default=None, help="write results to PATH")
     args = parser.parse_args(argv)
     cli.choice("--planner", args.planner, PLANNERS)

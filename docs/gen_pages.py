@@ -49,8 +49,10 @@ def public_modules(root: Path = ROOT, packages=PACKAGES) -> list[str]:
                 parts.pop()
             if any(part.startswith("_") for part in parts):
                 continue
-            if not all((root.joinpath(*rel.parts[:i]) / "__init__.py").is_file()
-                       for i in range(1, len(rel.parts))):
+            if not all(
+                (root.joinpath(*rel.parts[:i]) / "__init__.py").is_file()
+                for i in range(1, len(rel.parts))
+            ):
                 continue
             names.append(".".join(parts))
     return sorted(names, key=lambda name: (packages.index(name.split(".")[0]), name))
@@ -69,9 +71,13 @@ def _first_line(root: Path, module: str) -> str:
 
 def api_index(modules: list[str], root: Path = ROOT) -> str:
     """The API reference's landing page: every module, linked, with its docstring's start."""
-    lines = ["# API reference", "",
-             "Generated from the docstrings (Google style: Args, Returns, Raises) of every "
-             "public module; the page of a module documents its public names.", ""]
+    lines = [
+        "# API reference",
+        "",
+        "Generated from the docstrings (Google style: Args, Returns, Raises) of every "
+        "public module; the page of a module documents its public names.",
+        "",
+    ]
     for package in PACKAGES:
         lines += [f"## `{package}`", "", "| module | what it is |", "| --- | --- |"]
         for module in (m for m in modules if m.split(".")[0] == package):

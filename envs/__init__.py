@@ -24,13 +24,31 @@ from envs import _malloc
 _malloc.apply()  # fixed glibc mmap threshold: no growth over many rebuilds
 
 from envs.core import Environment, PhysicsTask, episode_seed
-from envs.registry import (UnknownEnvironmentError, check, describe, load, names, no_cameras,
-                           overrides)
+from envs.registry import (
+    UnknownEnvironmentError,
+    check,
+    describe,
+    load,
+    names,
+    no_cameras,
+    overrides,
+)
 from envs import mujoban  # noqa: F401  (registers the MuJoBan names)
 from envs import boards  # noqa: F401  (registers the MuJoXO and MuJoGo names)
 from envs.gymnasium_env import GymnasiumEnv, register_all as _register_gymnasium
 
 _register_gymnasium()
 
-__all__ = ["Environment", "GymnasiumEnv", "PhysicsTask", "UnknownEnvironmentError", "check",
-           "describe", "episode_seed", "load", "names", "no_cameras", "overrides"]
+__all__ = [
+    "Environment",
+    "GymnasiumEnv",
+    "PhysicsTask",
+    "UnknownEnvironmentError",
+    "check",
+    "describe",
+    "episode_seed",
+    "load",
+    "names",
+    "no_cameras",
+    "overrides",
+]

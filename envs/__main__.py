@@ -28,8 +28,9 @@ from physics_planning import cli
 PROG = "python -m envs"
 
 
-def rollout(name: str, episodes: int, seed: int, cameras: bool,
-            env_options: dict | None = None) -> list[dict]:
+def rollout(
+    name: str, episodes: int, seed: int, cameras: bool, env_options: dict | None = None
+) -> list[dict]:
     """Plays ``episodes`` random-policy episodes of environment ``name``
     (`envs.load` overrides ``env_options``; cameras off unless ``cameras``);
     returns one row per episode: episode, return, steps, solved, steps_per_s."""
@@ -39,8 +40,13 @@ def rollout(name: str, episodes: int, seed: int, cameras: bool,
         spec = env.action_spec()
         rng = np.random.default_rng(seed)
         rows = []
-        with tqdm(total=episodes * env.task.time_limit_steps, unit="step", desc=name,
-                  file=sys.stderr, disable=None) as bar:
+        with tqdm(
+            total=episodes * env.task.time_limit_steps,
+            unit="step",
+            desc=name,
+            file=sys.stderr,
+            disable=None,
+        ) as bar:
             for episode in range(episodes):
                 timestep = env.reset()
                 ret, steps, action = 0.0, 0, None
@@ -53,29 +59,42 @@ def rollout(name: str, episodes: int, seed: int, cameras: bool,
                     steps += 1
                     bar.update(1)
                 wall = time.perf_counter() - start
-                rows.append({"episode": episode, "return": ret, "steps": steps,
-                             # Solved (MuJoBan) or won (board games): a terminal
-                             # step paying at least 1.
-                             "solved": bool(timestep.discount == 0.0 and timestep.reward >= 1.0),
-                             "steps_per_s": steps / wall})
+                rows.append(
+                    {
+                        "episode": episode,
+                        "return": ret,
+                        "steps": steps,
+                        # Solved (MuJoBan) or won (board games): a terminal
+                        # step paying at least 1.
+                        "solved": bool(timestep.discount == 0.0 and timestep.reward >= 1.0),
+                        "steps_per_s": steps / wall,
+                    }
+                )
                 bar.total -= env.task.time_limit_steps - steps
                 bar.refresh()
     return rows
 
 
 def _main(argv=None) -> int:
-    parser = cli.Parser(PROG, description=__doc__.split("\n\n")[0],
-                        epilog="examples:\n" + __doc__.split("\n\n")[1])
-    parser.add_argument("env", nargs="?", default="mujoban/level1",
-                        help="environment name (see --list)")
+    parser = cli.Parser(
+        PROG, description=__doc__.split("\n\n")[0], epilog="examples:\n" + __doc__.split("\n\n")[1]
+    )
+    parser.add_argument(
+        "env", nargs="?", default="mujoban/level1", help="environment name (see --list)"
+    )
     parser.add_argument("--episodes", type=cli.positive_int, default=3)
     parser.add_argument("--seed", type=cli.non_negative_int, default=0)
     parser.add_argument("--no-cameras", action="store_true", help="switch camera observations off")
-    parser.add_argument("--env-option", action="append", default=[], metavar="KEY=VALUE",
-                        help="an envs.load override, e.g. time_limit=5 (repeatable; VALUE is a "
-                             "Python literal)")
-    parser.add_argument("--json", metavar="FILE",
-                        help="also write the rows to this file (its folder is created)")
+    parser.add_argument(
+        "--env-option",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="an envs.load override, e.g. time_limit=5 (repeatable; VALUE is a Python literal)",
+    )
+    parser.add_argument(
+        "--json", metavar="FILE", help="also write the rows to this file (its folder is created)"
+    )
     parser.add_argument("--list", action="store_true", help="list environment names and exit")
     args = parser.parse_args(argv)
     if args.list:
@@ -89,14 +108,19 @@ def _main(argv=None) -> int:
     print(f"\n{name}, random policy, seed {args.seed}")
     print(f"{'episode':>7} {'return':>8} {'steps':>6} {'success':>7} {'steps/s':>8}")
     for r in rows:
-        print(f"{r['episode']:>7} {r['return']:>8.1f} {r['steps']:>6} {str(r['solved']):>7} "
-              f"{r['steps_per_s']:>8.0f}")
+        print(
+            f"{r['episode']:>7} {r['return']:>8.1f} {r['steps']:>6} {str(r['solved']):>7} "
+            f"{r['steps_per_s']:>8.0f}"
+        )
     solved = sum(r["solved"] for r in rows)
-    print(f"solved or won {solved}/{len(rows)}, mean return "
-          f"{np.mean([r['return'] for r in rows]):.2f}")
+    print(
+        f"solved or won {solved}/{len(rows)}, mean return "
+        f"{np.mean([r['return'] for r in rows]):.2f}"
+    )
     if out is not None:
-        cli.write_json(out, {"env": name, "seed": args.seed, "env_options": options,
-                             "episodes": rows})
+        cli.write_json(
+            out, {"env": name, "seed": args.seed, "env_options": options, "episodes": rows}
+        )
         print(f"wrote {out}")
     return 0
 

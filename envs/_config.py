@@ -18,7 +18,7 @@ import numpy as np
 
 #: Bounds that keep a valid-looking value from exhausting memory or time.
 MAX_IMAGE_SIDE = 4096
-MAX_SUBSTEPS = 10_000          # physics steps per control step
+MAX_SUBSTEPS = 10_000  # physics steps per control step
 MAX_EPISODE_STEPS = 10_000_000  # control steps per episode
 MAX_GRID_SIDE = 64
 MAX_NOSLIP_ITERATIONS = 1_000
@@ -35,8 +35,9 @@ def check_bool(name: str, value) -> bool:
     return bool(value)
 
 
-def check_real(name: str, value, *, low: float | None = None, high: float | None = None,
-               low_open: bool = False) -> float:
+def check_real(
+    name: str, value, *, low: float | None = None, high: float | None = None, low_open: bool = False
+) -> float:
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
         raise TypeError(f"{name} must be a number, got {_show(value)}")
     number = float(value)
@@ -89,19 +90,27 @@ def check_timing(time_limit, control_timestep, physics_timestep) -> None:
     control = check_real("control_timestep", control_timestep, low=0.0, low_open=True, high=10.0)
     physics = check_real("physics_timestep", physics_timestep, low=0.0, low_open=True)
     if physics > control:
-        raise ValueError(f"physics_timestep {_show(physics_timestep)} must be <= "
-                         f"control_timestep {_show(control_timestep)}")
+        raise ValueError(
+            f"physics_timestep {_show(physics_timestep)} must be <= "
+            f"control_timestep {_show(control_timestep)}"
+        )
     substeps = control / physics
     if substeps > MAX_SUBSTEPS:
-        raise ValueError(f"physics_timestep {_show(physics_timestep)} gives {substeps:.3g} physics "
-                         f"steps per control step of {control:g} s (at most {MAX_SUBSTEPS})")
+        raise ValueError(
+            f"physics_timestep {_show(physics_timestep)} gives {substeps:.3g} physics "
+            f"steps per control step of {control:g} s (at most {MAX_SUBSTEPS})"
+        )
     if abs(substeps - round(substeps)) > 1e-6:  # composer's own tolerance
-        raise ValueError(f"control_timestep {_show(control_timestep)} must be a multiple of "
-                         f"physics_timestep {_show(physics_timestep)}")
+        raise ValueError(
+            f"control_timestep {_show(control_timestep)} must be a multiple of "
+            f"physics_timestep {_show(physics_timestep)}"
+        )
     limit = check_real("time_limit", time_limit, low=0.0, low_open=True)
     if limit / control > MAX_EPISODE_STEPS:
-        raise ValueError(f"time_limit {_show(time_limit)} is more than {MAX_EPISODE_STEPS:,} "
-                         f"control steps of control_timestep {_show(control_timestep)} s")
+        raise ValueError(
+            f"time_limit {_show(time_limit)} is more than {MAX_EPISODE_STEPS:,} "
+            f"control steps of control_timestep {_show(control_timestep)} s"
+        )
 
 
 def check_common(seed, render_size, raise_on_physics_error, lazy_cameras) -> None:

@@ -60,9 +60,12 @@ def _load_libc():
 def user_chose_threshold() -> bool:
     """Whether the environment already sets glibc's mmap or trim threshold."""
     tunables = os.environ.get("GLIBC_TUNABLES", "")
-    return ("MALLOC_MMAP_THRESHOLD_" in os.environ or "MALLOC_TRIM_THRESHOLD_" in os.environ
-            or "glibc.malloc.mmap_threshold" in tunables
-            or "glibc.malloc.trim_threshold" in tunables)
+    return (
+        "MALLOC_MMAP_THRESHOLD_" in os.environ
+        or "MALLOC_TRIM_THRESHOLD_" in os.environ
+        or "glibc.malloc.mmap_threshold" in tunables
+        or "glibc.malloc.trim_threshold" in tunables
+    )
 
 
 def apply() -> bool:
@@ -72,8 +75,10 @@ def apply() -> bool:
     libc = _load_libc()
     if libc is None or user_chose_threshold():
         return False
-    _applied = bool(libc.mallopt(M_MMAP_THRESHOLD, MMAP_THRESHOLD)
-                    and libc.mallopt(M_TRIM_THRESHOLD, TRIM_THRESHOLD))
+    _applied = bool(
+        libc.mallopt(M_MMAP_THRESHOLD, MMAP_THRESHOLD)
+        and libc.mallopt(M_TRIM_THRESHOLD, TRIM_THRESHOLD)
+    )
     return _applied
 
 
@@ -82,8 +87,18 @@ def applied() -> bool:
     return _applied
 
 
-_MALLINFO2_FIELDS = ("arena", "ordblks", "smblks", "hblks", "hblkhd", "usmblks", "fsmblks",
-                     "uordblks", "fordblks", "keepcost")
+_MALLINFO2_FIELDS = (
+    "arena",
+    "ordblks",
+    "smblks",
+    "hblks",
+    "hblkhd",
+    "usmblks",
+    "fsmblks",
+    "uordblks",
+    "fordblks",
+    "keepcost",
+)
 
 
 class _Mallinfo2(ctypes.Structure):

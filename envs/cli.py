@@ -21,15 +21,21 @@ def environment(name: str, allowed: Iterable[str] | None = None) -> str:
     """``name`` if it is a registered environment (or one of ``allowed``),
     else `UsageError` naming the closest and listing the valid ones."""
     import envs
+
     allowed = list(envs.names() if allowed is None else allowed)
     if name not in allowed:
-        raise UsageError(f"unknown environment {name!r}{close_hint(name, allowed)}; "
-                         f"valid: {', '.join(allowed)}")
+        raise UsageError(
+            f"unknown environment {name!r}{close_hint(name, allowed)}; valid: {', '.join(allowed)}"
+        )
     return name
 
 
-def env_options(env_name: str, items: Iterable[str], flag: str = "--env-option",
-                exclude: Callable[[str], bool] = lambda key: False) -> dict:
+def env_options(
+    env_name: str,
+    items: Iterable[str],
+    flag: str = "--env-option",
+    exclude: Callable[[str], bool] = lambda key: False,
+) -> dict:
     """The `envs.load` overrides of ``KEY=VALUE`` items (VALUE a Python
     literal, else the text), checked by `envs.check` without building the
     environment.
@@ -43,16 +49,20 @@ def env_options(env_name: str, items: Iterable[str], flag: str = "--env-option",
         own message: which setting, what is allowed).
     """
     import envs
+
     valid = [key for key in envs.overrides(env_name) if not exclude(key)]
     options = {}
     for item in items:
         key, sep, text = item.partition("=")
         if not sep or not key:
-            raise UsageError(f"{flag} must be KEY=VALUE, got {item!r}; keys for {env_name}: "
-                             f"{', '.join(valid)}")
+            raise UsageError(
+                f"{flag} must be KEY=VALUE, got {item!r}; keys for {env_name}: {', '.join(valid)}"
+            )
         if key not in valid:
-            raise UsageError(f"{flag} {item!r}: unknown key {key!r} for {env_name}"
-                             f"{close_hint(key, valid)}; valid: {', '.join(valid)}")
+            raise UsageError(
+                f"{flag} {item!r}: unknown key {key!r} for {env_name}"
+                f"{close_hint(key, valid)}; valid: {', '.join(valid)}"
+            )
         try:
             options[key] = ast.literal_eval(text)
         except (ValueError, SyntaxError):
@@ -69,6 +79,7 @@ def levels_file(env_name: str, path: str | os.PathLike, flag: str = "--levels") 
     every level in it parses and fits), else `UsageError` naming the file and,
     for a malformed level, the level, line and column."""
     import envs
+
     try:
         envs.check(env_name, levels=os.fspath(path))
     except TypeError:

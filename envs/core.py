@@ -142,8 +142,14 @@ class Environment(dm_env.Environment):
         ``AsyncVectorEnv`` does); without lazy cameras it is made here.
     """
 
-    def __init__(self, task: PhysicsTask, seed: int | None = None, *,
-                 raise_on_physics_error: bool = True, lazy_cameras: bool = False):
+    def __init__(
+        self,
+        task: PhysicsTask,
+        seed: int | None = None,
+        *,
+        raise_on_physics_error: bool = True,
+        lazy_cameras: bool = False,
+    ):
         if not isinstance(task, PhysicsTask):
             raise TypeError(f"task must be a PhysicsTask, got {type(task).__name__}")
         self._task = task
@@ -215,8 +221,9 @@ class Environment(dm_env.Environment):
         observation = self._observation()
         if task.should_terminate_episode(physics):
             self._reset_next_step = True
-            return dm_env.TimeStep(dm_env.StepType.LAST, reward,
-                                   task.get_discount(physics), observation)
+            return dm_env.TimeStep(
+                dm_env.StepType.LAST, reward, task.get_discount(physics), observation
+            )
         if self._step_count >= task.time_limit_steps:
             self._reset_next_step = True
             return dm_env.truncation(reward, observation, task.truncated_discount())
@@ -315,8 +322,14 @@ class Environment(dm_env.Environment):
         (`PhysicsTask.privileged_observations`)."""
         return frozenset(self._task.privileged_observations)
 
-    def render(self, camera: str | None = None, height: int | None = None,
-               width: int | None = None, *, markers: bool = True) -> np.ndarray:
+    def render(
+        self,
+        camera: str | None = None,
+        height: int | None = None,
+        width: int | None = None,
+        *,
+        markers: bool = True,
+    ) -> np.ndarray:
         """An RGB image (height, width, 3) uint8 of the current state from any
         camera of the model, for people to look at.
 
@@ -330,11 +343,14 @@ class Environment(dm_env.Environment):
             never show them.
         """
         default_h, default_w = self._task.render_size
-        assert self._cameras is not None    # set by the constructor
+        assert self._cameras is not None  # set by the constructor
         return self._cameras.render(
-            self._physics.data.ptr, camera or self._task.main_camera,
-            default_h if height is None else height, default_w if width is None else width,
-            markers=self._task.render_markers() if markers else ())
+            self._physics.data.ptr,
+            camera or self._task.main_camera,
+            default_h if height is None else height,
+            default_w if width is None else width,
+            markers=self._task.render_markers() if markers else (),
+        )
 
     # -- internals ----------------------------------------------------------
 
@@ -352,8 +368,10 @@ class Environment(dm_env.Environment):
         before = warnings[_BADQACC]
         mujoco.mj_step(self._model, self._data, self._n_sub_steps)
         if warnings[_BADQACC] > before:
-            message = (f"physics diverged at t={self._data.time:.3f}s (MuJoCo warning "
-                       f"{mujoco.mjtWarning.mjWARN_BADQACC.name})")
+            message = (
+                f"physics diverged at t={self._data.time:.3f}s (MuJoCo warning "
+                f"{mujoco.mjtWarning.mjWARN_BADQACC.name})"
+            )
             self._reset_next_step = True
             if self._raise_on_physics_error:
                 raise control.PhysicsError(message)
@@ -364,8 +382,9 @@ class Environment(dm_env.Environment):
         if type(action) is not np.ndarray or action.dtype is not _FLOAT64:
             action = np.asarray(action, dtype=np.float64)
         if action.shape != self._action_spec.shape:
-            raise ValueError(f"action must have shape {self._action_spec.shape}, "
-                             f"got {action.shape}")
+            raise ValueError(
+                f"action must have shape {self._action_spec.shape}, got {action.shape}"
+            )
         # A Python sum of a few floats is several times cheaper than a numpy
         # reduction; NaN and inf propagate through it.
         if not math.isfinite(sum(action.tolist())):
@@ -379,7 +398,7 @@ class Environment(dm_env.Environment):
             return LazyObservation(obs, self, self._stamp)
         if self._camera_ids:
             data, cameras = self._data, self._cameras
-            assert cameras is not None          # set by the constructor
+            assert cameras is not None  # set by the constructor
             for name, (cam_id, height, width) in self._camera_ids.items():
                 obs[name] = cameras.render(data, cam_id, height, width)
         return obs
@@ -389,9 +408,10 @@ class Environment(dm_env.Environment):
             raise StaleObservationError(
                 f"the {name!r} frame of an earlier timestep was read after the environment "
                 f"stepped on; with lazy_cameras=True read camera frames before the next "
-                f"step (or build the environment with lazy_cameras=False)")
+                f"step (or build the environment with lazy_cameras=False)"
+            )
         cam_id, height, width = self._camera_ids[name]
-        assert self._cameras is not None    # set by the constructor
+        assert self._cameras is not None  # set by the constructor
         return self._cameras.render(self._data, cam_id, height, width)
 
 
@@ -439,14 +459,15 @@ class LazyObservation(KeyedView):
         self._values[key] = frame
         return frame
 
-
     def rendered(self, key) -> bool:
         """Whether frame ``key`` has been rendered (read) already."""
         return key in self._values
 
     def __repr__(self) -> str:
-        shown = {k: ("<rendered>" if k in self._values else "<not rendered>")
-                 if k in self._env._camera_ids else self._values[k]  # pylint: disable=protected-access
-                 for k in self._keys}
+        shown = {
+            k: ("<rendered>" if k in self._values else "<not rendered>")
+            if k in self._env._camera_ids
+            else self._values[k]  # pylint: disable=protected-access
+            for k in self._keys
+        }
         return f"LazyObservation({shown})"
-

@@ -20,8 +20,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["CameraDescription", "MujobanLooks", "MujobanDescription", "ArmDescription",
-           "BoardDescription"]
+__all__ = [
+    "CameraDescription",
+    "MujobanLooks",
+    "MujobanDescription",
+    "ArmDescription",
+    "BoardDescription",
+]
 
 
 @dataclass(frozen=True)
@@ -98,8 +103,17 @@ class CameraDescription:
         height, width = self._frame_shape(shape)
         px = np.asarray(pixels, float)
         f = self.focal(height)
-        rays = np.stack([(px[..., 1] - 0.5 * width) / f, (0.5 * height - px[..., 0]) / f,
-                         -np.ones(px.shape[:-1])], axis=-1) @ self.rotation().T
+        rays = (
+            np.stack(
+                [
+                    (px[..., 1] - 0.5 * width) / f,
+                    (0.5 * height - px[..., 0]) / f,
+                    -np.ones(px.shape[:-1]),
+                ],
+                axis=-1,
+            )
+            @ self.rotation().T
+        )
         origin = np.asarray(self.position, float)
         t = (z - origin[2]) / rays[..., 2]
         return origin + t[..., None] * rays
@@ -177,8 +191,7 @@ class MujobanDescription:
     def cell_centre(self, row: int, col: int) -> tuple[float, float]:
         """World (x, y) of a cell's centre."""
         height, width = self.grid_shape
-        return ((col - (width - 1) / 2) * self.cell_size,
-                ((height - 1) / 2 - row) * self.cell_size)
+        return ((col - (width - 1) / 2) * self.cell_size, ((height - 1) / 2 - row) * self.cell_size)
 
     def world_to_cell(self, xy) -> tuple[int, int]:
         """The nearest cell (row, col) to world (x, y), clipped to the grid."""
@@ -191,8 +204,13 @@ class MujobanDescription:
         """Continuous grid coordinates (row, col) of world points (..., 2)."""
         height, width = self.grid_shape
         xy = np.asarray(xy, float)
-        return np.stack([(height - 1) / 2 - xy[..., 1] / self.cell_size,
-                         xy[..., 0] / self.cell_size + (width - 1) / 2], axis=-1)
+        return np.stack(
+            [
+                (height - 1) / 2 - xy[..., 1] / self.cell_size,
+                xy[..., 0] / self.cell_size + (width - 1) / 2,
+            ],
+            axis=-1,
+        )
 
 
 @dataclass(frozen=True)
@@ -218,6 +236,7 @@ class ArmDescription:
     def model(self):
         """A freshly compiled ``mujoco.MjModel`` of the arm."""
         import mujoco
+
         return mujoco.MjModel.from_xml_string(self.xml, dict(self.assets))
 
 

@@ -39,19 +39,24 @@ from dm_env import specs
 from gymnasium import spaces
 
 from envs.core import Environment
-from envs.registry import (gymnasium_id, load, names, overrides as env_overrides,
-                           unknown_keywords_message)
+from envs.registry import (
+    gymnasium_id,
+    load,
+    names,
+    overrides as env_overrides,
+    unknown_keywords_message,
+)
 
 #: The ``obs=`` choices of `GymnasiumEnv`, with what each holds.
 OBSERVATIONS = {
     "sensors": "what the paper's agents observe: every enabled camera ((H, W, 3) uint8) and "
-               "the proprioception (joint positions, velocities, torques, the walker's "
-               "sensors, the arm's pinch site), as a Dict (SB3 MultiInputPolicy)",
+    "the proprioception (joint positions, velocities, torques, the walker's "
+    "sensors, the arm's pinch site), as a Dict (SB3 MultiInputPolicy)",
     "pixels": "the task's main camera alone (MuJoBan's top_camera, the board games' "
-              "front_camera) as an (H, W, 3) uint8 Box (SB3 CnnPolicy)",
+    "front_camera) as an (H, W, 3) uint8 Box (SB3 CnnPolicy)",
     "state": "privileged: the proprioception and the task's abstract state (MuJoBan's "
-             "full_entity_layer, the board games' board_state; booleans as 0/1) as one "
-             "float32 vector (SB3 MlpPolicy); `GymnasiumEnv.state_layout` names its parts",
+    "full_entity_layer, the board games' board_state; booleans as 0/1) as one "
+    "float32 vector (SB3 MlpPolicy); `GymnasiumEnv.state_layout` names its parts",
     "full": "every observation as a Dict, privileged keys prefixed 'privileged/' (research)",
 }
 #: Prefix of privileged keys in the ``obs="full"`` Dict.
@@ -107,22 +112,35 @@ class GymnasiumEnv(gymnasium.Env):
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 20}
 
-    def __init__(self, env_name: str | None = None, *, env: Environment | None = None,
-                 obs: str = "sensors", render_mode: str | None = None,
-                 render_camera: str | None = None, **overrides):
+    def __init__(
+        self,
+        env_name: str | None = None,
+        *,
+        env: Environment | None = None,
+        obs: str = "sensors",
+        render_mode: str | None = None,
+        render_camera: str | None = None,
+        **overrides,
+    ):
         from physics_planning.cli import choice
+
         choice("obs", obs, OBSERVATIONS)
         if render_mode not in (None, *self.metadata["render_modes"]):
-            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, "
-                             f"got {render_mode!r}")
+            raise ValueError(
+                f"render_mode must be one of {self.metadata['render_modes']} or None, "
+                f"got {render_mode!r}"
+            )
         if env is None:
             if env_name is None:
                 raise ValueError(f"give env_name (one of {names()}) or env")
             valid = env_overrides(env_name)
             unknown = sorted(set(overrides) - set(valid))
             if unknown:
-                raise TypeError(unknown_keywords_message(
-                    env_name, unknown, sorted([*_OWN_KEYWORDS, *valid]), "keyword"))
+                raise TypeError(
+                    unknown_keywords_message(
+                        env_name, unknown, sorted([*_OWN_KEYWORDS, *valid]), "keyword"
+                    )
+                )
             if "lazy_cameras" in valid:
                 overrides.setdefault("lazy_cameras", True)
             env = load(env_name, **overrides)
@@ -156,8 +174,10 @@ class GymnasiumEnv(gymnasium.Env):
         elif self._obs == "pixels":
             main = env.task.main_camera
             if main not in cameras:
-                raise ValueError(f"obs='pixels' is the main camera {main!r}, which is switched "
-                                 f"off; build the environment with {main}=(height, width)")
+                raise ValueError(
+                    f"obs='pixels' is the main camera {main!r}, which is switched "
+                    f"off; build the environment with {main}=(height, width)"
+                )
             self._keys = main
             self.observation_space = spec_to_space(spec[main])
         else:  # "state"
@@ -170,16 +190,20 @@ class GymnasiumEnv(gymnasium.Env):
                 self.state_layout[key] = slice(start, start + box.low.size)
                 start += box.low.size
             self._keys = tuple(parts)
-            self.observation_space = spaces.Box(np.concatenate(lows), np.concatenate(highs),
-                                                dtype=np.float32)
+            self.observation_space = spaces.Box(
+                np.concatenate(lows), np.concatenate(highs), dtype=np.float32
+            )
         if isinstance(self._keys, dict):
             self.observation_space = spaces.Dict(
-                {name: spec_to_space(spec[key]) for name, key in self._keys.items()})
+                {name: spec_to_space(spec[key]) for name, key in self._keys.items()}
+            )
         aspec = env.action_spec()
         self.action_space = spaces.Box(
             np.broadcast_to(aspec.minimum, aspec.shape).astype(np.float32),
             np.broadcast_to(aspec.maximum, aspec.shape).astype(np.float32),
-            aspec.shape, dtype=np.float32)
+            aspec.shape,
+            dtype=np.float32,
+        )
 
     @property
     def dm_env(self) -> Environment:
@@ -221,8 +245,13 @@ class GymnasiumEnv(gymnasium.Env):
             terminated = timestep.discount == 0.0
             truncated = not terminated
             info["is_success"] = bool(self._env.task.succeeded)
-        return (self._observation(timestep.observation), float(timestep.reward), terminated,
-                truncated, info)
+        return (
+            self._observation(timestep.observation),
+            float(timestep.reward),
+            terminated,
+            truncated,
+            info,
+        )
 
     def render(self):
         """With ``render_mode="rgb_array"``: a (height, width, 3) uint8 frame

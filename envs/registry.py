@@ -45,9 +45,11 @@ def gymnasium_id(name: str) -> None:
     """Registers ``name`` with gymnasium (idempotent): ``gymnasium.make(name)``
     builds `envs.gymnasium_env.GymnasiumEnv` on it."""
     import gymnasium
+
     if name not in gymnasium.envs.registration.registry:
-        gymnasium.register(id=name, entry_point="envs.gymnasium_env:GymnasiumEnv",
-                           kwargs={"env_name": name})
+        gymnasium.register(
+            id=name, entry_point="envs.gymnasium_env:GymnasiumEnv", kwargs={"env_name": name}
+        )
 
 
 def names() -> list[str]:
@@ -135,4 +137,5 @@ def _entry(name: str) -> EnvEntry:
         close = difflib.get_close_matches(str(name), _REGISTRY, n=3)
         hint = f" Did you mean {close}?" if close else ""
         raise UnknownEnvironmentError(
-            f"unknown environment {name!r}.{hint} Known environments: {names()}") from None
+            f"unknown environment {name!r}.{hint} Known environments: {names()}"
+        ) from None

@@ -55,8 +55,9 @@ class CameraConfig:
         for name in ("height", "width"):
             value = getattr(self, name)
             if not isinstance(value, (int, np.integer)) or value < 1:
-                raise ValueError(f"camera {self.camera!r}: {name} must be a positive int, "
-                                 f"got {value!r}")
+                raise ValueError(
+                    f"camera {self.camera!r}: {name} must be a positive int, got {value!r}"
+                )
 
 
 @dataclass(frozen=True)
@@ -132,21 +133,31 @@ class _KeepCurrentContext:
     def __enter__(self):
         if self._egl:
             from mujoco.egl import egl_ext as EGL
-            self._saved = (EGL.eglGetCurrentDisplay(), EGL.eglGetCurrentSurface(EGL.EGL_DRAW),
-                           EGL.eglGetCurrentSurface(EGL.EGL_READ), EGL.eglGetCurrentContext())
+
+            self._saved = (
+                EGL.eglGetCurrentDisplay(),
+                EGL.eglGetCurrentSurface(EGL.EGL_DRAW),
+                EGL.eglGetCurrentSurface(EGL.EGL_READ),
+                EGL.eglGetCurrentContext(),
+            )
         return self
 
     def __exit__(self, *exc):
         if self._egl:
             from mujoco import egl as mujoco_egl
             from mujoco.egl import egl_ext as EGL
+
             display, draw, read, context = self._saved
             if context:
                 EGL.eglBindAPI(EGL.EGL_OPENGL_API)  # a context's free resets the thread's API
                 EGL.eglMakeCurrent(display, draw, read, context)
             else:
-                EGL.eglMakeCurrent(mujoco_egl.EGL_DISPLAY, EGL.EGL_NO_SURFACE,
-                                   EGL.EGL_NO_SURFACE, EGL.EGL_NO_CONTEXT)
+                EGL.eglMakeCurrent(
+                    mujoco_egl.EGL_DISPLAY,
+                    EGL.EGL_NO_SURFACE,
+                    EGL.EGL_NO_SURFACE,
+                    EGL.EGL_NO_CONTEXT,
+                )
         return False
 
 
@@ -160,7 +171,7 @@ class _Quality:
         if np.any(model.light_type != mujoco.mjtLightType.mjLIGHT_DIRECTIONAL):
             values.pop("numquads", None)
         self._values = {k: min(v, getattr(self._quality, k)) for k, v in values.items()}
-        self._saved: dict[str, Any] = {}        # the quality values replaced, to restore
+        self._saved: dict[str, Any] = {}  # the quality values replaced, to restore
 
     def __enter__(self):
         for key, value in self._values.items():
@@ -208,7 +219,8 @@ class Cameras:
                 raise ValueError(
                     f"a {height}x{width} frame is larger than the model's offscreen buffer "
                     f"({max_h}x{max_w}); build the environment with "
-                    f"render_size=({height}, {width}) or larger")
+                    f"render_size=({height}, {width}) or larger"
+                )
             small = self._small and max(height, width) <= SMALL_FRAME
             quality = _Quality(self._model, SMALL_FRAME_TESSELLATION if small else None)
             try:
@@ -230,8 +242,9 @@ class Cameras:
         """Creates the GL context for this image size ahead of the first frame."""
         self._renderer(height, width)
 
-    def render(self, data: mujoco.MjData, camera: int | str, height: int, width: int,
-               markers=()) -> np.ndarray:
+    def render(
+        self, data: mujoco.MjData, camera: int | str, height: int, width: int, markers=()
+    ) -> np.ndarray:
         """Returns a fresh (height, width, 3) uint8 image from `camera`, with
         the `Marker` discs in `markers` drawn over the scene (as many as the
         scene has room for)."""
@@ -253,10 +266,13 @@ class Cameras:
         if markers:
             for marker in markers[: scene.maxgeom - scene.ngeom]:
                 mujoco.mjv_initGeom(
-                    scene.geoms[scene.ngeom], mujoco.mjtGeom.mjGEOM_CYLINDER,
+                    scene.geoms[scene.ngeom],
+                    mujoco.mjtGeom.mjGEOM_CYLINDER,
                     np.array([marker.radius, MARKER_HALF_HEIGHT, 0.0]),
-                    np.asarray(marker.position, np.float64), _IDENTITY,
-                    np.asarray(marker.rgba, np.float32))
+                    np.asarray(marker.position, np.float64),
+                    _IDENTITY,
+                    np.asarray(marker.rgba, np.float32),
+                )
                 scene.ngeom += 1
 
     def close(self) -> None:

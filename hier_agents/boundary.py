@@ -37,8 +37,19 @@ __all__ = ["BoundaryEnv", "BoundaryViolation", "PRIVILEGED_OBSERVATIONS"]
 #: declaration, `envs.core.PhysicsTask.privileged_observations`).
 PRIVILEGED_OBSERVATIONS = frozenset(Mujoban.privileged_observations)
 
-_ALLOWED = frozenset({"reset", "step", "action_spec", "observation_spec", "reward_spec",
-                      "discount_spec", "description", "control_timestep", "close"})
+_ALLOWED = frozenset(
+    {
+        "reset",
+        "step",
+        "action_spec",
+        "observation_spec",
+        "reward_spec",
+        "discount_spec",
+        "description",
+        "control_timestep",
+        "close",
+    }
+)
 
 
 class BoundaryViolation(AttributeError):
@@ -96,7 +107,8 @@ class BoundaryEnv:
     def __getattr__(self, name):
         raise BoundaryViolation(
             f"an agent may not read env.{name}: behind the observation boundary it has "
-            f"only {sorted(_ALLOWED)} (see hier_agents.boundary)")
+            f"only {sorted(_ALLOWED)} (see hier_agents.boundary)"
+        )
 
     def __setattr__(self, name, value):
         raise BoundaryViolation(f"an agent may not set env.{name}")
@@ -116,5 +128,3 @@ class _Without(KeyedView):
         if key not in self._keys:
             raise KeyError(key)
         return self._obs[key]
-
-

@@ -41,8 +41,9 @@ class _InitOptions(TypedDict):
     runtime_env: _RuntimeEnv
 
 
-def connect(address: str | None = None, *, num_cpus: float | None = None,
-            log_to_driver: bool = False):
+def connect(
+    address: str | None = None, *, num_cpus: float | None = None, log_to_driver: bool = False
+):
     """Connects this process to Ray (once); returns the ``ray`` module.
 
     Raises:
@@ -53,16 +54,20 @@ def connect(address: str | None = None, *, num_cpus: float | None = None,
     import ray
 
     if not ray.is_initialized():
-        kwargs: _InitOptions = {"include_dashboard": False, "log_to_driver": log_to_driver,
-                                "configure_logging": False,
-                                "runtime_env": {"env_vars": worker_env()}}
+        kwargs: _InitOptions = {
+            "include_dashboard": False,
+            "log_to_driver": log_to_driver,
+            "configure_logging": False,
+            "runtime_env": {"env_vars": worker_env()},
+        }
         if address not in (None, "local"):
             probe(address)
             try:
                 ray.init(address=address, **kwargs)
             except ConnectionError as exc:
-                raise UsageError(f"no Ray cluster at {address} "
-                                 f"({str(exc).strip().splitlines()[0]})") from None
+                raise UsageError(
+                    f"no Ray cluster at {address} ({str(exc).strip().splitlines()[0]})"
+                ) from None
         else:
             # Ray annotates num_cpus as int but takes any whole-number float (Pool's
             # size * cpus); it raises ValueError for a fractional one.
@@ -84,10 +89,13 @@ def probe(address: str, timeout: float = PROBE_S) -> str:
     if address == "auto":
         try:
             from ray._private.services import canonicalize_bootstrap_address
+
             target = canonicalize_bootstrap_address("auto") or ""
         except ConnectionError:
-            raise UsageError("--ray-address auto: no Ray cluster was started on this machine "
-                             "(start one with `ray start --head`)") from None
+            raise UsageError(
+                "--ray-address auto: no Ray cluster was started on this machine "
+                "(start one with `ray start --head`)"
+            ) from None
         except Exception:  # noqa: BLE001 - Ray's internals moved: let ray.init judge
             return address
     host, _, port = target.rpartition(":")
@@ -96,9 +104,11 @@ def probe(address: str, timeout: float = PROBE_S) -> str:
     try:
         socket.create_connection((host, int(port)), timeout=timeout).close()
     except OSError as exc:
-        raise UsageError(f"no Ray cluster answers at {address} ({exc.strerror or exc}); "
-                         "start one with `ray start --head --port PORT` or give its "
-                         "address") from None
+        raise UsageError(
+            f"no Ray cluster answers at {address} ({exc.strerror or exc}); "
+            "start one with `ray start --head --port PORT` or give its "
+            "address"
+        ) from None
     return target
 
 

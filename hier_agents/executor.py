@@ -105,14 +105,23 @@ class Deaths:
         for key in keys:
             self.counts[key] = self.counts.get(key, 0) + 1
         worst = max((self.counts[k] for k in keys), default=0)
-        what = ", ".join(label if labels.count(label) == 1 else f"{label} (x{labels.count(label)})"
-                         for label in dict.fromkeys(labels)) or "nothing under way"
+        what = (
+            ", ".join(
+                label if labels.count(label) == 1 else f"{label} (x{labels.count(label)})"
+                for label in dict.fromkeys(labels)
+            )
+            or "nothing under way"
+        )
         if worst > self.retries:
-            raise WorkerDied(f"a worker process died {worst} times running {what} ({how}); "
-                             "giving up")
-        print(f"hier_agents: a worker process died ({how}); running {what} again in a new "
-              f"{where} (retry {worst} of {self.retries})", file=self.stream or sys.stderr,
-              flush=True)
+            raise WorkerDied(
+                f"a worker process died {worst} times running {what} ({how}); giving up"
+            )
+        print(
+            f"hier_agents: a worker process died ({how}); running {what} again in a new "
+            f"{where} (retry {worst} of {self.retries})",
+            file=self.stream or sys.stderr,
+            flush=True,
+        )
 
 
 @dataclasses.dataclass
@@ -132,6 +141,7 @@ def die_with_parent() -> None:  # pragma: no cover - runs in child processes
     """Asks Linux to SIGKILL this process when its parent dies (no orphans)."""
     try:
         import ctypes
+
         ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
     except (OSError, AttributeError):
         pass
@@ -207,8 +217,16 @@ class Pool:
     line, when no Ray cluster answers at ``address``.
     """
 
-    def __init__(self, factory: Callable, size: int, *, address: str | None = None,
-                 cpus: float = 1, name: str = "worker", context=None):
+    def __init__(
+        self,
+        factory: Callable,
+        size: int,
+        *,
+        address: str | None = None,
+        cpus: float = 1,
+        name: str = "worker",
+        context=None,
+    ):
         self.factory, self.address, self.cpus, self.name = factory, address, cpus, name
         self.deaths = Deaths()
         self.restarts, self._ids = 0, 0
@@ -216,10 +234,12 @@ class Pool:
         self._closed = False
         if address is None:
             import multiprocessing
+
             self._ctx = context or multiprocessing.get_context("spawn")
             self._local = [self._start_local(i) for i in range(size)]
         else:
             from hier_agents.cluster import connect, remote
+
             self._ray = connect(address, num_cpus=None if address != "local" else size * cpus)
             room = int(self._ray.cluster_resources().get("CPU", 1) // cpus) or 1
             self._remote = remote(_RayWorker, num_cpus=cpus, max_restarts=0)
@@ -257,8 +277,9 @@ class Pool:
         """Calls submitted and not yet returned by `next`."""
         return len(self._calls)
 
-    def next(self, timeout: float | None = None,
-             should_stop: Callable[[], bool] | None = None) -> Call | None:
+    def next(
+        self, timeout: float | None = None, should_stop: Callable[[], bool] | None = None
+    ) -> Call | None:
         """The first finished call (its ``result`` set), or None once
         ``should_stop()`` is true or no call is under way.
 
@@ -300,8 +321,12 @@ class Pool:
 
     def _start_local(self, index: int):
         parent, child = self._ctx.Pipe()
-        process = self._ctx.Process(target=_serve, args=(self.factory, index, child),
-                                    daemon=True, name=f"{self.name}-{index}")
+        process = self._ctx.Process(
+            target=_serve,
+            args=(self.factory, index, child),
+            daemon=True,
+            name=f"{self.name}-{index}",
+        )
         process.start()
         child.close()
         return process, parent
@@ -357,8 +382,12 @@ class Pool:
             return call_id, True, ray.get(ready[0])
         except ray.exceptions.RayTaskError as exc:
             return call_id, False, str(exc)
-        except (ray.exceptions.RayActorError, ray.exceptions.WorkerCrashedError,
-                ray.exceptions.NodeDiedError, ray.exceptions.ObjectLostError) as exc:
+        except (
+            ray.exceptions.RayActorError,
+            ray.exceptions.WorkerCrashedError,
+            ray.exceptions.NodeDiedError,
+            ray.exceptions.ObjectLostError,
+        ) as exc:
             index = self._calls[call_id].worker
             # The worker's other calls fail the same way: drop their references.
             for ref in [r for r, c in self._refs.items() if self._calls[c].worker == index]:

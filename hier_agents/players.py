@@ -18,8 +18,16 @@ from typing import Callable
 from hier_agents.agents.runner import Play, make_player, play_each
 from hier_agents.executor import WORKER_RETRIES, Pool, WorkerDied  # noqa: F401 - re-exported
 
-__all__ = ["Play", "Progress", "WORKER_RETRIES", "WorkerDied", "play_here", "play_parallel",
-           "play_shard", "shards"]
+__all__ = [
+    "Play",
+    "Progress",
+    "WORKER_RETRIES",
+    "WorkerDied",
+    "play_here",
+    "play_parallel",
+    "play_shard",
+    "shards",
+]
 
 Progress = Callable[[dict], None]
 
@@ -81,7 +89,7 @@ def shards(indices: list[int], workers: int) -> list[list[int]]:
     at most `MAX_SHARD` episodes each (at least one), so that faster workers
     take more of them and progress is reported often."""
     size = max(1, min(MAX_SHARD, math.ceil(len(indices) / (4 * workers))))
-    return [indices[i:i + size] for i in range(0, len(indices), size)]
+    return [indices[i : i + size] for i in range(0, len(indices), size)]
 
 
 def play_parallel(play: Play, indices, workers, ray_address, on_done) -> int:
@@ -102,13 +110,18 @@ def play_parallel(play: Play, indices, workers, ray_address, on_done) -> int:
     from functools import partial
 
     pieces = shards(indices, workers)
-    with Pool(partial(ShardWorker, play), min(workers, len(pieces)), address=ray_address,
-              name="player") as pool:
+    with Pool(
+        partial(ShardWorker, play), min(workers, len(pieces)), address=ray_address, name="player"
+    ) as pool:
         queue = list(enumerate(pieces))
         while queue or pool.pending:
             while queue and pool.pending < 2 * pool.size:  # one shard queued behind each
                 number, piece = queue.pop(0)
-                pool.submit("play", piece, label=f"shard {number + 1} of {len(pieces)} "
-                            f"(episodes {piece[0]}-{piece[-1]} of {play.env_name})")
+                pool.submit(
+                    "play",
+                    piece,
+                    label=f"shard {number + 1} of {len(pieces)} "
+                    f"(episodes {piece[0]}-{piece[-1]} of {play.env_name})",
+                )
             on_done(*pool.next().result)
         return pool.restarts

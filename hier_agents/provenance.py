@@ -20,8 +20,9 @@ _ROOT = Path(__file__).resolve().parents[1]
 
 def _git(*args: str, root: Path = _ROOT) -> str | None:
     try:
-        out = subprocess.run(["git", *args], cwd=root, capture_output=True, text=True,
-                             timeout=10, check=True)
+        out = subprocess.run(
+            ["git", *args], cwd=root, capture_output=True, text=True, timeout=10, check=True
+        )
     except (OSError, subprocess.SubprocessError):
         return None
     return out.stdout.strip()
@@ -48,8 +49,9 @@ def _memory_gib() -> float | None:
 def _commit(root: Path = _ROOT) -> str | None:
     """HEAD of the checkout at ``root``, ``+dirty`` if code (not results) changed."""
     commit = _git("rev-parse", "HEAD", root=root)
-    if commit is not None and _git("status", "--porcelain", "--untracked-files=no",
-                                   "--", ".", ":(exclude)results", root=root):
+    if commit is not None and _git(
+        "status", "--porcelain", "--untracked-files=no", "--", ".", ":(exclude)results", root=root
+    ):
         commit += "+dirty"
     return commit
 
@@ -86,6 +88,7 @@ def provenance(command: str | None = None) -> dict:
         command = "python " + " ".join(shlex.quote(a) for a in argv)
     commit = _COMMIT_AT_START
     import mujoco  # the simulator version matters for every physics number
+
     return {
         "command": command,
         "commit": commit,

@@ -76,20 +76,40 @@ from hier_agents.agents.runner import Play, profile_summary
 from hier_agents.modular.agent import OptionStats
 from hier_agents.modular.families import adapter, family
 from hier_agents.players import Progress, play_here, play_parallel
-from hier_agents.run_cli import (DEFAULT_ENV, DEFAULT_EPISODES, PROG,  # noqa: F401 (re-exported)
-                                 build_parser, check_args, print_components)
+from hier_agents.run_cli import (
+    DEFAULT_ENV,  # noqa: F401
+    DEFAULT_EPISODES,  # noqa: F401
+    PROG,  # noqa: F401 (re-exported)
+    build_parser,
+    check_args,
+    print_components,
+)
 from hier_agents.run_report import format_table, postfix, summarize  # noqa: F401
 from physics_planning import cli
 from physics_planning.cli import UsageError
 
 
-def run(env_name: str, episodes: int, seed: int = 0, *, planner: str | None = None,
-        skill: str | None = None, estimator: str | None = None, levels: str | None = None,
-        video: str | None = None, progress: bool = True, agent: str = "modular",
-        stochastic: bool = False, env_options: dict | None = None,
-        on_progress: Progress | None = None, first_episode: int = 0, workers: int = 1,
-        ray_address: str | None = None, profile: bool = False,
-        options: dict | None = None) -> dict:
+def run(
+    env_name: str,
+    episodes: int,
+    seed: int = 0,
+    *,
+    planner: str | None = None,
+    skill: str | None = None,
+    estimator: str | None = None,
+    levels: str | None = None,
+    video: str | None = None,
+    progress: bool = True,
+    agent: str = "modular",
+    stochastic: bool = False,
+    env_options: dict | None = None,
+    on_progress: Progress | None = None,
+    first_episode: int = 0,
+    workers: int = 1,
+    ray_address: str | None = None,
+    profile: bool = False,
+    options: dict | None = None,
+) -> dict:
     """Plays episodes ``first_episode`` .. ``first_episode + episodes - 1``;
     returns the JSON-able summary.
 
@@ -140,26 +160,56 @@ def run(env_name: str, episodes: int, seed: int = 0, *, planner: str | None = No
         load or fit the environment.
       FileNotFoundError: a checkpoint that does not exist.
     """
-    given = {"planner": planner, "skill": skill, "estimator": estimator,
-             "stochastic": stochastic or None, **(options or {})}
-    play = _play(env_name, seed, agent, {k: v for k, v in given.items() if v is not None},
-                 levels, env_options, video, first_episode, profile, workers, ray_address)
+    given = {
+        "planner": planner,
+        "skill": skill,
+        "estimator": estimator,
+        "stochastic": stochastic or None,
+        **(options or {}),
+    }
+    play = _play(
+        env_name,
+        seed,
+        agent,
+        {k: v for k, v in given.items() if v is not None},
+        levels,
+        env_options,
+        video,
+        first_episode,
+        profile,
+        workers,
+        ray_address,
+    )
     indices = list(range(first_episode, first_episode + episodes))
     return _Run(play, indices, progress, on_progress).go(workers, ray_address)
 
 
-def _play(env_name, seed, agent, options, levels, env_options, video, first_episode, profile,
-          workers, ray_address) -> Play:
+def _play(
+    env_name,
+    seed,
+    agent,
+    options,
+    levels,
+    env_options,
+    video,
+    first_episode,
+    profile,
+    workers,
+    ray_address,
+) -> Play:
     """The checked `Play` of `run`'s arguments (its ValueErrors)."""
     fam = family(env_name)
     if workers < 1 or first_episode < 0:
-        raise ValueError(f"workers must be >= 1 and first_episode >= 0, got {workers} and "
-                         f"{first_episode}")
+        raise ValueError(
+            f"workers must be >= 1 and first_episode >= 0, got {workers} and {first_episode}"
+        )
     kind, arg = resolve(agent)
     unknown = sorted(set(options) - set(kind.options))
     if unknown:
-        raise ValueError(f"--agent {agent} takes no option {', '.join(unknown)} (it takes: "
-                         f"{', '.join(kind.options) or 'none'})")
+        raise ValueError(
+            f"--agent {agent} takes no option {', '.join(unknown)} (it takes: "
+            f"{', '.join(kind.options) or 'none'})"
+        )
     if not kind.env_flags and (video or levels is not None or env_options):
         raise ValueError(f"--video, --levels and --env-option do not apply to --agent {agent}")
     if workers > 1 or ray_address is not None:  # refused here, not in every worker
@@ -167,15 +217,29 @@ def _play(env_name, seed, agent, options, levels, env_options, video, first_epis
     if levels is not None and not adapter(fam).level_files:
         raise ValueError("--levels only applies to mujoban environments")
     if video and ray_address:
-        raise ValueError("--video is written by the process that plays the first episode: "
-                         "not with --ray-address")
+        raise ValueError(
+            "--video is written by the process that plays the first episode: not with --ray-address"
+        )
     try:
-        envs.check(env_name, seed=seed, **(env_options or {}),
-                   **({"levels": levels} if levels is not None else {}))
+        envs.check(
+            env_name,
+            seed=seed,
+            **(env_options or {}),
+            **({"levels": levels} if levels is not None else {}),
+        )
     except (TypeError, ValueError) as exc:
         raise UsageError(f"{env_name}: {exc}") from None
-    return Play(env_name, int(seed), agent, dict(options), levels, dict(env_options or {}),
-                video, first_episode, bool(profile))
+    return Play(
+        env_name,
+        int(seed),
+        agent,
+        dict(options),
+        levels,
+        dict(env_options or {}),
+        video,
+        first_episode,
+        bool(profile),
+    )
 
 
 class _Run:
@@ -195,8 +259,9 @@ class _Run:
                 play_here(self.play, self.indices, self.on_done, self.built)
             else:
                 self._start_bar()
-                self.restarts = play_parallel(self.play, self.indices, workers, ray_address,
-                                              self.on_done)
+                self.restarts = play_parallel(
+                    self.play, self.indices, workers, ray_address, self.on_done
+                )
         except KeyboardInterrupt:
             # Ctrl-C: the episodes played so far make the table (those under way are dropped).
             self.interrupted = True
@@ -207,8 +272,13 @@ class _Run:
 
     def _start_bar(self) -> tqdm:
         if self.bar is None:
-            self.bar = tqdm(total=len(self.indices), unit="episode", desc=self.play.env_name,
-                            file=sys.stderr, disable=not self.progress)
+            self.bar = tqdm(
+                total=len(self.indices),
+                unit="episode",
+                desc=self.play.env_name,
+                file=sys.stderr,
+                disable=not self.progress,
+            )
         return self.bar
 
     def built(self, info: dict) -> None:
@@ -237,17 +307,21 @@ class _Run:
         # Who played: "-" until the kind's description arrives (a worker reports it).
         out.update(agent=play.agent, planner="-", skill="-")
         out.update(self.meta)
-        out.update(env_options=play.env_options, levels=play.levels,
-                   episodes_requested=len(self.indices), interrupted=self.interrupted,
-                   finished=finished, worker_restarts=self.restarts)
+        out.update(
+            env_options=play.env_options,
+            levels=play.levels,
+            episodes_requested=len(self.indices),
+            interrupted=self.interrupted,
+            finished=finished,
+            worker_restarts=self.restarts,
+        )
         if play.profile:
             out["profile"] = profile_summary(rows)
         return out
 
 
 def _main(argv=None) -> int:
-    parser = build_parser(__doc__.split("\n\n")[0],
-                          epilog="examples:\n" + __doc__.split("\n\n")[1])
+    parser = build_parser(__doc__.split("\n\n")[0], epilog="examples:\n" + __doc__.split("\n\n")[1])
     args = parser.parse_args(argv)
     if args.list:
         print_components()
@@ -256,16 +330,27 @@ def _main(argv=None) -> int:
     save = None
     if checked.json is not None:
         from hier_agents.provenance import provenance
+
         record, out = provenance(), checked.json
 
         def save(summary: dict) -> None:
             cli.write_json(out, {**summary, "provenance": record})
-    summary = run(checked.env, checked.episodes, args.seed, levels=checked.levels,
-                  video=None if checked.video is None else str(checked.video),
-                  agent=args.agent, options=checked.options,
-                  env_options=checked.env_options, on_progress=save,
-                  first_episode=args.first_episode, workers=args.workers,
-                  ray_address=args.ray_address, profile=args.profile)
+
+    summary = run(
+        checked.env,
+        checked.episodes,
+        args.seed,
+        levels=checked.levels,
+        video=None if checked.video is None else str(checked.video),
+        agent=args.agent,
+        options=checked.options,
+        env_options=checked.env_options,
+        on_progress=save,
+        first_episode=args.first_episode,
+        workers=args.workers,
+        ray_address=args.ray_address,
+        profile=args.profile,
+    )
     print(format_table(summary))
     if save is not None:
         save(summary)

@@ -18,8 +18,15 @@ from hier_agents.modular import components
 from hier_agents.modular.components import ESTIMATORS, PLANNERS, family
 from hier_agents.modular.families import adapter
 
-__all__ = ["DEFAULT_ENV", "DEFAULT_EPISODES", "PROG", "Checked", "build_parser",
-           "print_components", "check_args"]
+__all__ = [
+    "DEFAULT_ENV",
+    "DEFAULT_EPISODES",
+    "PROG",
+    "Checked",
+    "build_parser",
+    "print_components",
+    "check_args",
+]
 
 PROG = "python -m hier_agents.run"
 DEFAULT_ENV = "mujoban/level3"
@@ -31,58 +38,109 @@ NAMED_ENV_EPISODES = 10
 def build_parser(description: str, epilog: str | None = None) -> argparse.ArgumentParser:
     """The ``python -m hier_agents.run`` argument parser (`physics_planning.cli.Parser`)."""
     parser = cli.Parser(PROG, description=description, epilog=epilog)
-    parser.add_argument("env", nargs="?", default=None,
-                        help=f"environment name, see python -m envs --list (default: "
-                             f"{DEFAULT_ENV})")
-    parser.add_argument("--episodes", type=cli.positive_int, default=None,
-                        help=f"episodes to play (default: {DEFAULT_EPISODES} with the default "
-                             f"environment, {NAMED_ENV_EPISODES} with a named one)")
-    parser.add_argument("--seed", type=cli.non_negative_int, default=0,
-                        help="seed of the environment and the agent")
-    parser.add_argument("--agent", default="modular", metavar="NAME[:ARG]",
-                        help="the agent kind: modular (estimator + planner + skill), "
-                             "checkpoint:PATH (a hier_agents.train run directory or checkpoint "
-                             "file), random or random:HOLD (uniform random actions, each held "
-                             "HOLD control steps), or a registered kind (see --list)")
-    parser.add_argument("--stochastic", action="store_true",
-                        help="checkpoint agents: sample actions from the policy instead of "
-                             "taking its mean")
-    parser.add_argument("--planner", metavar="NAME[:ARG]",
-                        help="modular agent: the planner, e.g. mcts:3000 or learned:PATH "
-                             "(see --list; default: the family's first)")
-    parser.add_argument("--skill", metavar="NAME[:ARG]",
-                        help="modular agent: the skill, e.g. learned-ball:PATH (see --list; "
-                             "default: the family's first)")
-    parser.add_argument("--estimator", metavar="NAME",
-                        help="modular agent: the estimator (see --list; default: the "
-                             "family's first, observation-only)")
-    parser.add_argument("--levels", metavar="FILE",
-                        help="MuJoBan, modular and checkpoint agents: a Boxoban level file to "
-                             "play in order")
-    parser.add_argument("--env-option", action="append", default=[], metavar="KEY=VALUE",
-                        help="an envs.load override of the played environment, e.g. "
-                             "physics_timestep=0.005 or time_limit=5 (repeatable; VALUE is a "
-                             "Python literal; modular and checkpoint agents)")
-    parser.add_argument("--video", metavar="MP4",
-                        help="write an MP4 of the first episode here (its folder is created)")
-    parser.add_argument("--json", metavar="FILE",
-                        help="write the summary here, rewritten after every episode "
-                             "(\"finished\": false until the run ends; its folder is created)")
-    parser.add_argument("--first-episode", type=cli.non_negative_int, default=0,
-                        help="index of the first episode (episode e is seeded from (seed, e) "
-                             "and plays the e-th level of --levels)")
-    parser.add_argument("--workers", type=cli.positive_int, default=1,
-                        help="processes playing episodes at once; the rows are the same for "
-                             "any count")
-    parser.add_argument("--ray-address", metavar="ADDRESS",
-                        help="play on a Ray cluster (auto: the one `ray start` made; local: "
-                             "start one here), --workers tasks at a time")
-    parser.add_argument("--profile", action="store_true",
-                        help="report the share of time spent in physics, rendering, the "
-                             "estimator, the planner and the skill (table and JSON)")
-    parser.add_argument("--list", action="store_true",
-                        help="list the agent kinds and each family's planners, skills and "
-                             "estimators and exit")
+    parser.add_argument(
+        "env",
+        nargs="?",
+        default=None,
+        help=f"environment name, see python -m envs --list (default: {DEFAULT_ENV})",
+    )
+    parser.add_argument(
+        "--episodes",
+        type=cli.positive_int,
+        default=None,
+        help=f"episodes to play (default: {DEFAULT_EPISODES} with the default "
+        f"environment, {NAMED_ENV_EPISODES} with a named one)",
+    )
+    parser.add_argument(
+        "--seed", type=cli.non_negative_int, default=0, help="seed of the environment and the agent"
+    )
+    parser.add_argument(
+        "--agent",
+        default="modular",
+        metavar="NAME[:ARG]",
+        help="the agent kind: modular (estimator + planner + skill), "
+        "checkpoint:PATH (a hier_agents.train run directory or checkpoint "
+        "file), random or random:HOLD (uniform random actions, each held "
+        "HOLD control steps), or a registered kind (see --list)",
+    )
+    parser.add_argument(
+        "--stochastic",
+        action="store_true",
+        help="checkpoint agents: sample actions from the policy instead of taking its mean",
+    )
+    parser.add_argument(
+        "--planner",
+        metavar="NAME[:ARG]",
+        help="modular agent: the planner, e.g. mcts:3000 or learned:PATH "
+        "(see --list; default: the family's first)",
+    )
+    parser.add_argument(
+        "--skill",
+        metavar="NAME[:ARG]",
+        help="modular agent: the skill, e.g. learned-ball:PATH (see --list; "
+        "default: the family's first)",
+    )
+    parser.add_argument(
+        "--estimator",
+        metavar="NAME",
+        help="modular agent: the estimator (see --list; default: the "
+        "family's first, observation-only)",
+    )
+    parser.add_argument(
+        "--levels",
+        metavar="FILE",
+        help="MuJoBan, modular and checkpoint agents: a Boxoban level file to play in order",
+    )
+    parser.add_argument(
+        "--env-option",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="an envs.load override of the played environment, e.g. "
+        "physics_timestep=0.005 or time_limit=5 (repeatable; VALUE is a "
+        "Python literal; modular and checkpoint agents)",
+    )
+    parser.add_argument(
+        "--video",
+        metavar="MP4",
+        help="write an MP4 of the first episode here (its folder is created)",
+    )
+    parser.add_argument(
+        "--json",
+        metavar="FILE",
+        help="write the summary here, rewritten after every episode "
+        '("finished": false until the run ends; its folder is created)',
+    )
+    parser.add_argument(
+        "--first-episode",
+        type=cli.non_negative_int,
+        default=0,
+        help="index of the first episode (episode e is seeded from (seed, e) "
+        "and plays the e-th level of --levels)",
+    )
+    parser.add_argument(
+        "--workers",
+        type=cli.positive_int,
+        default=1,
+        help="processes playing episodes at once; the rows are the same for any count",
+    )
+    parser.add_argument(
+        "--ray-address",
+        metavar="ADDRESS",
+        help="play on a Ray cluster (auto: the one `ray start` made; local: "
+        "start one here), --workers tasks at a time",
+    )
+    parser.add_argument(
+        "--profile",
+        action="store_true",
+        help="report the share of time spent in physics, rendering, the "
+        "estimator, the planner and the skill (table and JSON)",
+    )
+    parser.add_argument(
+        "--list",
+        action="store_true",
+        help="list the agent kinds and each family's planners, skills and estimators and exit",
+    )
     return parser
 
 
@@ -91,19 +149,24 @@ def print_components() -> None:
     skills and estimators in the form the flags take them (``NAME``,
     ``NAME:ARG``; the first is the default; privileged estimators marked)."""
     from hier_agents.agents import KINDS, forms
+
     forms()  # registers the shipped kinds
     print("agents:")
     for kind in KINDS.values():
         print(f"  {' | '.join(kind.forms()):<28} {kind.help}")
     for fam in PLANNERS:
-        estimators = [f"{name} (privileged)" if getattr(factory, "privileged", False) else name
-                      for name, factory in ESTIMATORS[fam].items()]
+        estimators = [
+            f"{name} (privileged)" if getattr(factory, "privileged", False) else name
+            for name, factory in ESTIMATORS[fam].items()
+        ]
         print(f"{fam}:")
         print(f"  planners    {', '.join(components.forms('planner', fam))}")
         print(f"  skills      {', '.join(components.forms('skill', fam))}")
         print(f"  estimators  {', '.join(estimators)}")
-    print("ARG: learned*:PATH a checkpoint file or run directory; mcts:N tree simulations "
-          "per move; gnugo:LEVEL 1..10")
+    print(
+        "ARG: learned*:PATH a checkpoint file or run directory; mcts:N tree simulations "
+        "per move; gnugo:LEVEL 1..10"
+    )
 
 
 @dataclass
@@ -130,8 +193,12 @@ class Checked:
 
 
 #: The flags of agent kinds' options (`hier_agents.agents.AgentKind.options`).
-_OPTION_FLAGS = {"planner": "--planner", "skill": "--skill", "estimator": "--estimator",
-                 "stochastic": "--stochastic"}
+_OPTION_FLAGS = {
+    "planner": "--planner",
+    "skill": "--skill",
+    "estimator": "--estimator",
+    "stochastic": "--stochastic",
+}
 
 
 def _agent_options(args) -> dict:
@@ -141,15 +208,21 @@ def _agent_options(args) -> dict:
 
     env_name = cli_env(args)
     kind, arg = resolve(args.agent)
-    given = {key: getattr(args, key) for key in _OPTION_FLAGS
-             if getattr(args, key) not in (None, False)}
+    given = {
+        key: getattr(args, key) for key in _OPTION_FLAGS if getattr(args, key) not in (None, False)
+    }
     for key in given:
         if key not in kind.options:
-            raise UsageError(f"{_OPTION_FLAGS[key]} applies to the agents that take it "
-                             f"({', '.join(_takers(key))}), not to --agent {args.agent}")
+            raise UsageError(
+                f"{_OPTION_FLAGS[key]} applies to the agents that take it "
+                f"({', '.join(_takers(key))}), not to --agent {args.agent}"
+            )
     if not kind.env_flags:
-        for flag, value in (("--levels", args.levels), ("--env-option", args.env_option or None),
-                            ("--video", args.video)):
+        for flag, value in (
+            ("--levels", args.levels),
+            ("--env-option", args.env_option or None),
+            ("--video", args.video),
+        ):
             if value is not None:
                 raise UsageError(f"{flag} does not apply to --agent {args.agent}")
     kind.check(env_name, arg, given)
@@ -158,6 +231,7 @@ def _agent_options(args) -> dict:
 
 def _takers(key: str) -> list[str]:
     from hier_agents.agents import KINDS
+
     return [name for name, kind in KINDS.items() if key in kind.options]
 
 
@@ -175,8 +249,11 @@ def check_args(args) -> Checked:
     path that cannot be written, or a flag that does not apply to the agent.
     Creates the output folders."""
     env_name = cli_env(args)
-    episodes = args.episodes if args.episodes is not None else (
-        DEFAULT_EPISODES if args.env is None else NAMED_ENV_EPISODES)
+    episodes = (
+        args.episodes
+        if args.episodes is not None
+        else (DEFAULT_EPISODES if args.env is None else NAMED_ENV_EPISODES)
+    )
     fam = family(env_name)
     options = _agent_options(args)
     levels = None
@@ -187,13 +264,25 @@ def check_args(args) -> Checked:
     for item in args.env_option:
         key = item.partition("=")[0]
         if key == "levels" or key.endswith("_camera"):
-            why = ("give a level file with --levels FILE" if key == "levels"
-                   else "the cameras are the agent's (its estimator's or checkpoint's)")
+            why = (
+                "give a level file with --levels FILE"
+                if key == "levels"
+                else "the cameras are the agent's (its estimator's or checkpoint's)"
+            )
             raise UsageError(f"--env-option {item!r}: {why}")
     if args.ray_address is not None and args.video is not None:
-        raise UsageError("--video is written by the process that plays the first episode: "
-                         "not with --ray-address")
+        raise UsageError(
+            "--video is written by the process that plays the first episode: not with --ray-address"
+        )
     env_options = env_cli.env_options(
-        env_name, args.env_option, exclude=lambda key: key.endswith("_camera") or key == "levels")
-    return Checked(env_name, episodes, options, env_options, levels,
-                   cli.output_file(args.json, "--json"), cli.output_file(args.video, "--video"))
+        env_name, args.env_option, exclude=lambda key: key.endswith("_camera") or key == "levels"
+    )
+    return Checked(
+        env_name,
+        episodes,
+        options,
+        env_options,
+        levels,
+        cli.output_file(args.json, "--json"),
+        cli.output_file(args.video, "--video"),
+    )

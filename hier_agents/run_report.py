@@ -32,12 +32,23 @@ def summarize(env_name, fam, rows, totals: OptionStats, seed) -> dict:
     n = len(rows)
     out = {"env": env_name, "episodes": n, "seed": seed}
     if n == 0:  # e.g. interrupted before the first episode ended
-        for key in (("success_rate",) if not adapter(fam).games else
-                    ("win_rate", "draw_rate", "loss_rate", "success_rate")):
+        for key in (
+            ("success_rate",)
+            if not adapter(fam).games
+            else ("win_rate", "draw_rate", "loss_rate", "success_rate")
+        ):
             out[key] = None
-        out.update(mean_return=None, mean_steps=None, subgoal_success_rate=None,
-                   subgoals={}, episode_failures={}, errors=0, wall_s=None,
-                   control_steps_per_s=None, rows=[])
+        out.update(
+            mean_return=None,
+            mean_steps=None,
+            subgoal_success_rate=None,
+            subgoals={},
+            episode_failures={},
+            errors=0,
+            wall_s=None,
+            control_steps_per_s=None,
+            rows=[],
+        )
         return out
     if not adapter(fam).games:
         solved = sum(r["solved"] for r in rows)
@@ -58,11 +69,15 @@ def summarize(env_name, fam, rows, totals: OptionStats, seed) -> dict:
     out["mean_steps"] = float(np.mean([r["steps"] for r in rows]))
     rate = totals.success_rate
     out["subgoal_success_rate"] = None if rate != rate else rate  # NaN is not JSON
-    out["subgoals"] = {"issued": totals.issued, "reached": totals.reached,
-                       "failed": totals.failed, "cut_off": totals.cut_off,
-                       "unfinished": totals.unfinished,
-                       "failures": totals.failures,
-                       "estimation_failures": totals.estimation_failures}
+    out["subgoals"] = {
+        "issued": totals.issued,
+        "reached": totals.reached,
+        "failed": totals.failed,
+        "cut_off": totals.cut_off,
+        "unfinished": totals.unfinished,
+        "failures": totals.failures,
+        "estimation_failures": totals.estimation_failures,
+    }
     reasons: dict[str, int] = {}
     for row in rows:
         if "failure_reason" in row:
@@ -85,17 +100,22 @@ def _pct(rate, interval) -> str:
 def format_table(summary: dict) -> str:
     """The printed results table of a `hier_agents.run.run` summary."""
     from hier_agents.agents import kind_of
+
     who = kind_of(summary.get("agent", "modular")).describe(summary)
-    lines = [f"{summary['env']}: {who}, {plural(summary['episodes'], 'episode')}, "
-             f"seed {summary['seed']}"]
+    lines = [
+        f"{summary['env']}: {who}, {plural(summary['episodes'], 'episode')}, seed {summary['seed']}"
+    ]
     if summary.get("levels"):
         lines.append(f"  levels from {summary['levels']}")
     if summary.get("env_options"):
-        lines.append("  env options  " + ", ".join(
-            f"{k}={v!r}" for k, v in summary["env_options"].items()))
+        lines.append(
+            "  env options  " + ", ".join(f"{k}={v!r}" for k, v in summary["env_options"].items())
+        )
     if summary.get("interrupted"):
-        lines.append(f"  INTERRUPTED (Ctrl-C): {summary['episodes']} of "
-                     f"{plural(summary.get('episodes_requested', '?'), 'episode')} played")
+        lines.append(
+            f"  INTERRUPTED (Ctrl-C): {summary['episodes']} of "
+            f"{plural(summary.get('episodes_requested', '?'), 'episode')} played"
+        )
     if not summary["episodes"]:
         return "\n".join(lines)
     if "win_rate" in summary:
@@ -103,32 +123,46 @@ def format_table(summary: dict) -> str:
         lines.append(f"  draw  {_pct(summary['draw_rate'], summary['draw_interval'])}")
         lines.append(f"  loss  {_pct(summary['loss_rate'], summary['loss_interval'])}")
     else:
-        lines.append("  solved            "
-                     + _pct(summary["success_rate"], summary["success_interval"]))
+        lines.append(
+            "  solved            " + _pct(summary["success_rate"], summary["success_interval"])
+        )
     lines.append(f"  mean return       {summary['mean_return']:.2f}")
     lines.append(f"  mean steps        {summary['mean_steps']:.1f}")
     if summary["subgoal_success_rate"] is not None:
-        lines.append(f"  subgoal success   {100 * summary['subgoal_success_rate']:.1f}% "
-                     f"({summary['subgoals']['reached']}/{summary['subgoals']['issued']} issued)")
+        lines.append(
+            f"  subgoal success   {100 * summary['subgoal_success_rate']:.1f}% "
+            f"({summary['subgoals']['reached']}/{summary['subgoals']['issued']} issued)"
+        )
     else:
         lines.append("  subgoal success   - (no subgoals)")
     if summary.get("estimate_accuracy") is not None:
-        lines.append(f"  estimated board   {100 * summary['estimate_accuracy']:.2f}% of steps "
-                     f"right (the referee's board and player to move)")
+        lines.append(
+            f"  estimated board   {100 * summary['estimate_accuracy']:.2f}% of steps "
+            f"right (the referee's board and player to move)"
+        )
     if summary.get("episode_failures"):
-        lines.append("  unsolved because  " + ", ".join(
-            f"{k} x{v}" for k, v in sorted(summary["episode_failures"].items())))
+        lines.append(
+            "  unsolved because  "
+            + ", ".join(f"{k} x{v}" for k, v in sorted(summary["episode_failures"].items()))
+        )
     if summary.get("errors"):
         first = next(r["error"] for r in summary["rows"] if "error" in r)
-        lines.append(f"  errors            {plural(summary['errors'], 'episode')} ended by "
-                     f"an error (first: {first[:120]})")
+        lines.append(
+            f"  errors            {plural(summary['errors'], 'episode')} ended by "
+            f"an error (first: {first[:120]})"
+        )
     lines.append(f"  wall s / episode  {summary['wall_s']:.2f}")
     shares = (summary.get("profile") or {}).get("shares")
     if shares and summary.get("episodes"):
-        lines.append("  time spent in     " + ", ".join(
-            f"{name} {100 * share:.0f}%" for name, share in shares.items()
-            if share is not None))
+        lines.append(
+            "  time spent in     "
+            + ", ".join(
+                f"{name} {100 * share:.0f}%" for name, share in shares.items() if share is not None
+            )
+        )
     if summary.get("control_steps_per_s"):
-        lines.append(f"  control steps / s {summary['control_steps_per_s']:.0f} "
-                     f"(environment and agent, one process)")
+        lines.append(
+            f"  control steps / s {summary['control_steps_per_s']:.0f} "
+            f"(environment and agent, one process)"
+        )
     return "\n".join(lines)

@@ -38,8 +38,9 @@ def iqm(values) -> float:
     return total / (high - low)
 
 
-def bootstrap_interval(values, statistic=None, *, level: float = 0.95,
-                       resamples: int = 10_000, seed: int = 0) -> tuple[float, float]:
+def bootstrap_interval(
+    values, statistic=None, *, level: float = 0.95, resamples: int = 10_000, seed: int = 0
+) -> tuple[float, float]:
     """Percentile bootstrap interval of ``statistic`` (default: the mean) over
     ``values`` (e.g. one success rate per seed), ``resamples`` draws with
     replacement from a generator seeded with ``seed`` (the same input gives

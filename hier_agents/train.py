@@ -67,60 +67,140 @@ def build_parser() -> Parser:
     from hier_agents.modular.families import FAMILIES
     from physics_planning.cli import non_negative_float
 
-    default = {f.name: f.default for f in dataclasses.fields(TrainConfig)
-               if f.default is not dataclasses.MISSING}
-    parser = Parser(PROG, description=__doc__.split("\n\n")[0],
-                    epilog=__doc__.split("\n\n", 1)[1])
+    default = {
+        f.name: f.default
+        for f in dataclasses.fields(TrainConfig)
+        if f.default is not dataclasses.MISSING
+    }
+    parser = Parser(PROG, description=__doc__.split("\n\n")[0], epilog=__doc__.split("\n\n", 1)[1])
     add = parser.add_argument
     add("env", help="environment name, e.g. mujoban/level1 (python -m hier_agents.run --list)")
-    add("--condition", default=default["condition"],
-        help=f"the training condition: {', '.join(CONDITIONS)}")
-    add("--frames", type=positive_int, default=default["steps"],
-        help="environment frames (control steps) to train for, in total")
-    add("--observations", default="cameras",
+    add(
+        "--condition",
+        default=default["condition"],
+        help=f"the training condition: {', '.join(CONDITIONS)}",
+    )
+    add(
+        "--frames",
+        type=positive_int,
+        default=default["steps"],
+        help="environment frames (control steps) to train for, in total",
+    )
+    add(
+        "--observations",
+        default="cameras",
         help="cameras: every camera view + proprioception (the paper's); main-camera: the "
-             "main view + proprioception; proprio: proprioception only")
-    add("--image-size", type=positive_int, default=default["image_size"],
-        help="side of the square camera images, in pixels (the paper's 96)")
-    add("--state", action="store_true",
+        "main view + proprioception; proprio: proprioception only",
+    )
+    add(
+        "--image-size",
+        type=positive_int,
+        default=default["image_size"],
+        help="side of the square camera images, in pixels (the paper's 96)",
+    )
+    add(
+        "--state",
+        action="store_true",
         help="also observe the current abstract state (MuJoBan's entity grid; the board "
-             "games' board, the paper's board-game setting): PRIVILEGED")
-    add("--preset", default=None,
-        help="a set of defaults that explicit flags override: " + "; ".join(
+        "games' board, the paper's board-game setting): PRIVILEGED",
+    )
+    add(
+        "--preset",
+        default=None,
+        help="a set of defaults that explicit flags override: "
+        + "; ".join(
             f"{name}: " + " ".join(f"--{k.replace('_', '-')} {v}" for k, v in flags.items())
-            for name, flags in PRESETS.items()))
-    add("--actors", type=positive_int, default=default["actors"],
-        help="actor processes / Ray actors")
-    add("--envs-per-actor", type=positive_int, default=default["envs_per_actor"],
-        help="environments stepped together by one actor (one batched policy call)")
+            for name, flags in PRESETS.items()
+        ),
+    )
+    add(
+        "--actors",
+        type=positive_int,
+        default=default["actors"],
+        help="actor processes / Ray actors",
+    )
+    add(
+        "--envs-per-actor",
+        type=positive_int,
+        default=default["envs_per_actor"],
+        help="environments stepped together by one actor (one batched policy call)",
+    )
     add("--backend", default=default["backend"], help="local or ray")
-    add("--ray-address", default=None,
-        help="join a running Ray cluster (e.g. auto); default: start one")
-    add("--logdir", default=default["logdir"],
-        help="the run directory (the same one again resumes the run)")
-    add("--unroll-length", type=positive_int, default=default["unroll_length"],
-        help="control steps per unroll")
-    add("--batch-size", type=positive_int, default=None,
+    add(
+        "--ray-address",
+        default=None,
+        help="join a running Ray cluster (e.g. auto); default: start one",
+    )
+    add(
+        "--logdir",
+        default=default["logdir"],
+        help="the run directory (the same one again resumes the run)",
+    )
+    add(
+        "--unroll-length",
+        type=positive_int,
+        default=default["unroll_length"],
+        help="control steps per unroll",
+    )
+    add(
+        "--batch-size",
+        type=positive_int,
+        default=None,
         help="unrolls per update (default: the paper's, "
-             + ", ".join(f"{a.paper_batch} {fam}" for fam, a in FAMILIES.items()) + ")")
-    add("--learning-rate", type=positive_float, default=default["learning_rate"],
-        help="RMSProp learning rate")
-    add("--entropy-cost", type=non_negative_float, default=default["entropy_cost"],
-        help="weight of the policy's entropy bonus")
-    add("--abs-reward", type=non_negative_float, default=default["abs_reward"],
-        help="auxiliary reward for reaching the planner's target")
-    add("--seed", type=non_negative_int, default=default["seed"],
-        help="seed of the network and the actors' environments")
-    add("--checkpoint-every", type=positive_float, default=default["checkpoint_every_s"],
-        help="seconds between checkpoints")
-    add("--keep-checkpoints", action="store_true",
+        + ", ".join(f"{a.paper_batch} {fam}" for fam, a in FAMILIES.items())
+        + ")",
+    )
+    add(
+        "--learning-rate",
+        type=positive_float,
+        default=default["learning_rate"],
+        help="RMSProp learning rate",
+    )
+    add(
+        "--entropy-cost",
+        type=non_negative_float,
+        default=default["entropy_cost"],
+        help="weight of the policy's entropy bonus",
+    )
+    add(
+        "--abs-reward",
+        type=non_negative_float,
+        default=default["abs_reward"],
+        help="auxiliary reward for reaching the planner's target",
+    )
+    add(
+        "--seed",
+        type=non_negative_int,
+        default=default["seed"],
+        help="seed of the network and the actors' environments",
+    )
+    add(
+        "--checkpoint-every",
+        type=positive_float,
+        default=default["checkpoint_every_s"],
+        help="seconds between checkpoints",
+    )
+    add(
+        "--keep-checkpoints",
+        action="store_true",
         help="also keep every checkpoint as LOGDIR/checkpoints/frames-N.pt "
-             "(for benchmarks/learning_curve.py)")
-    add("--save-at", type=positive_int, nargs="+", default=[], metavar="FRAMES",
+        "(for benchmarks/learning_curve.py)",
+    )
+    add(
+        "--save-at",
+        type=positive_int,
+        nargs="+",
+        default=[],
+        metavar="FRAMES",
         help="also keep a checkpoint LOGDIR/checkpoints/frames-N.pt exactly at each of these "
-             "frame counts (multiples of the unroll length; evaluation at equal budgets)")
-    add("--log-every", type=non_negative_float, default=default["log_every_s"],
-        help="seconds between TensorBoard / scalars.jsonl rows (0: every update)")
+        "frame counts (multiples of the unroll length; evaluation at equal budgets)",
+    )
+    add(
+        "--log-every",
+        type=non_negative_float,
+        default=default["log_every_s"],
+        help="seconds between TensorBoard / scalars.jsonl rows (0: every update)",
+    )
     add("--no-progress", action="store_true", help="no progress bar")
     return parser
 
@@ -130,8 +210,9 @@ def parse_args(argv=None) -> argparse.Namespace:
     and the ``--preset``'s, are `TrainConfig.from_options`'s to apply)."""
     parser = build_parser()
     parser.parse_args(argv)  # --help shows, and errors name, the documented defaults
-    parser.set_defaults(**{action.dest: None for action in parser._actions
-                           if action.dest not in ("help", "env")})
+    parser.set_defaults(
+        **{action.dest: None for action in parser._actions if action.dest not in ("help", "env")}
+    )
     return parser.parse_args(argv)
 
 

@@ -41,8 +41,12 @@ def tidy_streams(notebook) -> None:
             continue
         outputs = []
         for out in cell.outputs:
-            if (out.output_type == "stream" and outputs
-                    and outputs[-1].output_type == "stream" and outputs[-1].name == out.name):
+            if (
+                out.output_type == "stream"
+                and outputs
+                and outputs[-1].output_type == "stream"
+                and outputs[-1].name == out.name
+            ):
                 outputs[-1].text += out.text
             else:
                 outputs.append(out)
@@ -57,8 +61,12 @@ def save_outputs(path: Path, out: Path | None = None, timeout: int = 3600) -> fl
     outputs to ``out`` (default: in place). Returns the seconds it took."""
     notebook = nbformat.read(path, as_version=4)
     start = time.perf_counter()
-    NotebookClient(notebook, timeout=timeout, kernel_name="python3",
-                   resources={"metadata": {"path": str(path.resolve().parent)}}).execute()
+    NotebookClient(
+        notebook,
+        timeout=timeout,
+        kernel_name="python3",
+        resources={"metadata": {"path": str(path.resolve().parent)}},
+    ).execute()
     seconds = time.perf_counter() - start
     tidy_streams(notebook)
     nbformat.write(notebook, out or path)
@@ -66,21 +74,26 @@ def save_outputs(path: Path, out: Path | None = None, timeout: int = 3600) -> fl
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="python notebooks/save_outputs.py",
-                                     description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(
+        prog="python notebooks/save_outputs.py", description=__doc__.split("\n\n")[0]
+    )
     parser.add_argument("notebooks", nargs="+", type=Path)
     parser.add_argument("--out", type=Path, help="write here (one notebook only)")
     args = parser.parse_args(argv)
     if args.out and len(args.notebooks) > 1:
         parser.error("--out takes one notebook")
     if os.environ.get("NOTEBOOK_SMALL") == "1":
-        print("warning: NOTEBOOK_SMALL=1 is set; the saved outputs will be the small run's",
-              file=sys.stderr)
+        print(
+            "warning: NOTEBOOK_SMALL=1 is set; the saved outputs will be the small run's",
+            file=sys.stderr,
+        )
     for path in args.notebooks:
         seconds = save_outputs(path, args.out)
         target = args.out or path
-        print(f"{path}: executed in {seconds:.0f} s, saved to {target} "
-              f"({target.stat().st_size:,} bytes)")
+        print(
+            f"{path}: executed in {seconds:.0f} s, saved to {target} "
+            f"({target.stat().st_size:,} bytes)"
+        )
     return 0
 
 

@@ -38,9 +38,25 @@ import tempfile
 from pathlib import Path
 from typing import Callable, Iterable, Sequence
 
-__all__ = ["INPUT_ERRORS", "Parser", "UsageError", "atomic_write", "choice", "close_hint",
-           "existing_file", "fail", "fraction", "non_negative_float", "non_negative_int",
-           "output_file", "plural", "positive_float", "positive_int", "run_main", "write_json"]
+__all__ = [
+    "INPUT_ERRORS",
+    "Parser",
+    "UsageError",
+    "atomic_write",
+    "choice",
+    "close_hint",
+    "existing_file",
+    "fail",
+    "fraction",
+    "non_negative_float",
+    "non_negative_int",
+    "output_file",
+    "plural",
+    "positive_float",
+    "positive_int",
+    "run_main",
+    "write_json",
+]
 
 
 class UsageError(ValueError):
@@ -51,7 +67,12 @@ class UsageError(ValueError):
 #: the packages above (an unknown environment, a malformed level file)
 #: subclass `UsageError`, so this module imports none of them.
 INPUT_ERRORS: tuple[type[BaseException], ...] = (
-    UsageError, FileNotFoundError, IsADirectoryError, NotADirectoryError, PermissionError)
+    UsageError,
+    FileNotFoundError,
+    IsADirectoryError,
+    NotADirectoryError,
+    PermissionError,
+)
 
 
 class _HelpFormatter(argparse.RawDescriptionHelpFormatter):
@@ -66,12 +87,17 @@ class _HelpFormatter(argparse.RawDescriptionHelpFormatter):
         if action.required and action.option_strings:
             return f"{text} (required)".strip()
         default = action.default
-        if ("%(default)" not in text and "default:" not in text and default is not None
-                and default is not False and default is not argparse.SUPPRESS
-                and default != [] and not isinstance(action, argparse._HelpAction)):
+        if (
+            "%(default)" not in text
+            and "default:" not in text
+            and default is not None
+            and default is not False
+            and default is not argparse.SUPPRESS
+            and default != []
+            and not isinstance(action, argparse._HelpAction)
+        ):
             text = f"{text} (default: %(default)s)".strip()
         return text
-
 
     def _format_action(self, action: argparse.Action) -> str:
         # argparse prints nothing after an option without help text; the
@@ -93,8 +119,9 @@ class Parser(argparse.ArgumentParser):
       description, epilog: as for argparse; their line breaks are kept.
     """
 
-    def __init__(self, prog: str, description: str | None = None, epilog: str | None = None,
-                 **kwargs):
+    def __init__(
+        self, prog: str, description: str | None = None, epilog: str | None = None, **kwargs
+    ):
         kwargs.setdefault("formatter_class", _HelpFormatter)
         super().__init__(prog=prog, description=description, epilog=epilog, **kwargs)
 
@@ -102,8 +129,11 @@ class Parser(argparse.ArgumentParser):
         prefix = "unrecognized arguments: "
         if message.startswith(prefix):  # name the closest option of each unknown one
             options = [o for o in self._option_string_actions if o.startswith("--")]
-            hints = [close_hint(word.split("=", 1)[0], options)
-                     for word in message[len(prefix):].split() if word.startswith("-")]
+            hints = [
+                close_hint(word.split("=", 1)[0], options)
+                for word in message[len(prefix) :].split()
+                if word.startswith("-")
+            ]
             message += "".join(h for h in hints if h)
         fail(self.prog, message)
 
@@ -116,8 +146,9 @@ def fail(prog: str, message: str, status: int = 2):
     raise SystemExit(status)
 
 
-def run_main(prog: str, main: Callable[[Sequence[str] | None], int | None],
-             argv: Sequence[str] | None = None) -> int:
+def run_main(
+    prog: str, main: Callable[[Sequence[str] | None], int | None], argv: Sequence[str] | None = None
+) -> int:
     """Calls ``main(argv)``; an `INPUT_ERRORS` exception becomes one line on
     stderr and exit status 2, Ctrl-C one line and status 130. Returns main's
     status (0 for None)."""
@@ -147,8 +178,10 @@ def choice(kind: str, value: str, allowed: Iterable[str]) -> str:
     values and the closest one."""
     allowed = list(allowed)
     if value not in allowed:
-        raise UsageError(f"unknown {kind} {value!r}{close_hint(value, allowed)}; "
-                         f"valid: {', '.join(map(str, allowed))}")
+        raise UsageError(
+            f"unknown {kind} {value!r}{close_hint(value, allowed)}; "
+            f"valid: {', '.join(map(str, allowed))}"
+        )
     return value
 
 
@@ -161,6 +194,7 @@ def _number(convert, test, what: str):
         if not test(value):
             raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}")
         return value
+
     parse.__name__ = what  # argparse names the type in "invalid ... value"
     return parse
 
@@ -168,8 +202,7 @@ def _number(convert, test, what: str):
 #: argparse types: ``type=positive_int`` etc.
 non_negative_int = _number(int, lambda v: v >= 0, "an integer >= 0")
 positive_int = _number(int, lambda v: v >= 1, "an integer >= 1")
-positive_float = _number(float, lambda v: v > 0 and v == v and v != float("inf"),
-                         "a number > 0")
+positive_float = _number(float, lambda v: v > 0 and v == v and v != float("inf"), "a number > 0")
 non_negative_float = _number(float, lambda v: v >= 0 and v != float("inf"), "a number >= 0")
 fraction = _number(float, lambda v: 0.0 <= v <= 1.0, "a number in [0, 1]")
 
@@ -179,7 +212,8 @@ def existing_file(text: str) -> Path:
     path = Path(text)
     if not path.is_file():
         raise argparse.ArgumentTypeError(
-            f"{text!r} is not a file" if path.exists() else f"no such file: {text!r}")
+            f"{text!r} is not a file" if path.exists() else f"no such file: {text!r}"
+        )
     return path
 
 
@@ -199,8 +233,9 @@ def output_file(path: str | os.PathLike | None, flag: str) -> Path | None:
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise UsageError(f"{flag} {str(path)!r}: cannot create its folder "
-                         f"({exc.strerror})") from exc
+        raise UsageError(
+            f"{flag} {str(path)!r}: cannot create its folder ({exc.strerror})"
+        ) from exc
     if not os.access(path.parent, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
         raise UsageError(f"{flag} {str(path)!r}: not writable")
     return path

@@ -58,9 +58,11 @@ def touch_point(env, target_xyz, *, press_depth=0.01, steps=80, until=None):
     registered = until or (lambda: task.moves_registered > before)  # noqa: E731
     pinch = task.pinch_site_position()
     high = max(pinch[2], target[2] + SAFE_HEIGHT)
-    for goal, stop in ((np.array([pinch[0], pinch[1], high]), None),
-                       (np.array([target[0], target[1], high]), None),
-                       (target - (0, 0, press_depth), registered)):
+    for goal, stop in (
+        (np.array([pinch[0], pinch[1], high]), None),
+        (np.array([target[0], target[1], high]), None),
+        (target - (0, 0, press_depth), registered),
+    ):
         timestep = _drive(env, goal, steps, stop)
         if timestep.last() or registered():
             return timestep
@@ -75,13 +77,16 @@ def central_action(task):
     def spread(action):
         zones = task.game.touches(task.state, action)
         return max(np.abs(task.arena.point_xy[z] - centre).max() for z in zones)
+
     return min(sorted(task.state.legal_actions()), key=spread)
 
 
 # -- set-ups that place the arm directly (for tests of registration) ---------
 
+
 def _yaw_quat(yaw, base):
     from envs.boards.task import _quat_mul  # pylint: disable=import-outside-toplevel
+
     return _quat_mul([np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)], base)
 
 
@@ -97,12 +102,14 @@ def place_hand(env, xyz, *, yaw=None, up=False, fingers=None):
     joints (default closed). Returns False if the IK fails.
     """
     import mujoco  # pylint: disable=import-outside-toplevel
+
     task = env.task
     xyz = np.asarray(xyz, float)
     if yaw is None and not up:
         q = task.solve_ik(xyz)
     else:
         from envs.boards.task import DOWN_QUAT  # pylint: disable=import-outside-toplevel
+
         q = task._solve_tcp(xyz, _yaw_quat(yaw or 0.0, UP_QUAT if up else DOWN_QUAT))
     if q is None:
         return False
@@ -136,6 +143,7 @@ def substep_touches(env, action):
     own state is untouched.
     """
     import mujoco  # pylint: disable=import-outside-toplevel
+
     task = env.task
     model, data = env.physics.model.ptr, env.physics.data.ptr
     copy = mujoco.MjData(model)
@@ -155,8 +163,12 @@ def substep_touches(env, action):
                 continue
             for a, b in ((g1, g2), (g2, g1)):
                 if robot[a] and model.geom_bodyid[b] == board:
-                    pairs.add((mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, a),
-                               mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, b)))
+                    pairs.add(
+                        (
+                            mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, a),
+                            mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, b),
+                        )
+                    )
         contacts.append(pairs)
     return np.array(readings), contacts
 
@@ -171,5 +183,6 @@ def press_from_above(env, target_xyz, *, height=0.05, press_depth=0.01, steps=60
     if not place_hand(env, target + (0, 0, height)):
         raise RuntimeError(f"no IK solution above {target}")
     before = task.moves_registered
-    return _drive(env, target - (0, 0, press_depth), steps,
-                  stop=lambda: task.moves_registered > before)
+    return _drive(
+        env, target - (0, 0, press_depth), steps, stop=lambda: task.moves_registered > before
+    )

@@ -13,7 +13,8 @@ def child_env(*extra: Path, **variables: str) -> dict:
     inherited path; ``MUJOCO_GL`` defaulting to ``egl``; ``variables`` set."""
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join(
-        filter(None, [str(ROOT), *map(str, extra), env.get("PYTHONPATH")]))
+        filter(None, [str(ROOT), *map(str, extra), env.get("PYTHONPATH")])
+    )
     env.setdefault("MUJOCO_GL", "egl")
     env.update(variables)
     return env

@@ -30,12 +30,24 @@ import envs  # noqa: F401
 from abstract_planners.gtp import GnuGoNotFoundError, find_gnugo
 
 # Hypothesis' caches (and failure patches) go to a temporary directory, not the checkout.
-set_hypothesis_home_dir(os.environ.get("HYPOTHESIS_HOME")
-                        or os.path.join(tempfile.gettempdir(), "physics-planning-hypothesis"))
-settings.register_profile("dev", max_examples=300, deadline=None, database=None,
-                          suppress_health_check=[HealthCheck.too_slow])
-settings.register_profile("ci", max_examples=10_000, deadline=None, database=None,
-                          suppress_health_check=[HealthCheck.too_slow])
+set_hypothesis_home_dir(
+    os.environ.get("HYPOTHESIS_HOME")
+    or os.path.join(tempfile.gettempdir(), "physics-planning-hypothesis")
+)
+settings.register_profile(
+    "dev",
+    max_examples=300,
+    deadline=None,
+    database=None,
+    suppress_health_check=[HealthCheck.too_slow],
+)
+settings.register_profile(
+    "ci",
+    max_examples=10_000,
+    deadline=None,
+    database=None,
+    suppress_health_check=[HealthCheck.too_slow],
+)
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "dev"))
 
 
@@ -102,8 +114,11 @@ def _uses_ray(item) -> bool:
         return True
     callspec = getattr(item, "callspec", None)
     body = callspec.params.get("body") if callspec else None
-    return item.nodeid.startswith("tests/test_readme_code.py::") and isinstance(body, str) \
+    return (
+        item.nodeid.startswith("tests/test_readme_code.py::")
+        and isinstance(body, str)
         and RAY_README_BLOCK in body
+    )
 
 
 def _rank(item) -> int:

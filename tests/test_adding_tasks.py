@@ -23,8 +23,11 @@ def test_the_guide_has_its_two_examples():
 
 
 def test_adding_a_game_takes_under_50_lines():
-    code = [line for line in _blocks()[0].splitlines()
-            if line.strip() and not line.strip().startswith("#")]
+    code = [
+        line
+        for line in _blocks()[0].splitlines()
+        if line.strip() and not line.strip().startswith("#")
+    ]
     assert len(code) < 50
 
 
@@ -36,6 +39,7 @@ def registries():
 
     from envs import registry
     from envs.boards.games import GAMES
+
     tables = (GAMES, registry._REGISTRY, gymnasium.envs.registration.registry)
     saved = [(table, dict(table)) for table in tables]
     yield
@@ -47,6 +51,7 @@ def registries():
 @pytest.mark.parametrize("index", [0, 1], ids=["add-a-game", "add-a-grid-task"])
 def test_every_guide_example_runs(index, registries):
     import gymnasium
+
     exec(compile(_blocks()[index], f"{GUIDE.name}[{index}]", "exec"), {"__name__": "guide"})
     name = ("mujoboard/four-on-five", "mujoban/corridors")[index]
-    assert name in gymnasium.envs.registration.registry      # a gymnasium id too
+    assert name in gymnasium.envs.registration.registry  # a gymnasium id too

@@ -37,8 +37,9 @@ def test_a_short_run_solves_mujoban_level1_and_counts_every_subgoal():
     assert summary["mean_return"] > 1.0
     subgoals = summary["subgoals"]
     # Every issued subgoal is accounted for, the last push of each episode too.
-    assert subgoals["issued"] == (subgoals["reached"] + subgoals["failed"] + subgoals["cut_off"]
-                                  + subgoals["unfinished"])
+    assert subgoals["issued"] == (
+        subgoals["reached"] + subgoals["failed"] + subgoals["cut_off"] + subgoals["unfinished"]
+    )
     assert subgoals["issued"] >= 3
 
 
@@ -47,8 +48,7 @@ def test_the_option_layer_replans_after_a_box_is_moved_by_hand(tmp_path):
     levels.write_text(OPEN_ROOM)
     # The default, observation-only agent (the camera estimator) sees the box
     # move: it is given only the description and the timesteps.
-    env = envs.load("mujoban/level1", seed=0, levels=str(levels),
-                    **env_overrides("mujoban/level1"))
+    env = envs.load("mujoban/level1", seed=0, levels=str(levels), **env_overrides("mujoban/level1"))
     view = BoundaryEnv(env)
     agent = make_agent("mujoban/level1", view.description())
     assert not agent.privileged
@@ -98,14 +98,30 @@ def test_mujogo_with_the_gnugo_planner_wins_and_every_touch_registers_the_plan(g
 
 def test_cli_env_options_reach_the_environment_and_the_json(tmp_path):
     out = tmp_path / "out.json"
-    assert run_lib.main(["mujoban/level1", "--episodes", "1", "--json", str(out),
-                         "--env-option", "physics_timestep=0.005",
-                         "--env-option", "pad_tolerance=0.3"]) == 0
+    assert (
+        run_lib.main(
+            [
+                "mujoban/level1",
+                "--episodes",
+                "1",
+                "--json",
+                str(out),
+                "--env-option",
+                "physics_timestep=0.005",
+                "--env-option",
+                "pad_tolerance=0.3",
+            ]
+        )
+        == 0
+    )
     summary = json.loads(out.read_text())
     assert summary["env_options"] == {"physics_timestep": 0.005, "pad_tolerance": 0.3}
     assert {"command", "commit", "date", "machine"} <= set(summary["provenance"])
-    for bad in (["--env-option", "bogus=1"], ["--env-option", "pad_tolerance=2.0"],
-                ["--env-option", "sleep=maybe"]):
+    for bad in (
+        ["--env-option", "bogus=1"],
+        ["--env-option", "pad_tolerance=2.0"],
+        ["--env-option", "sleep=maybe"],
+    ):
         with pytest.raises(SystemExit) as exc:
             run_lib.main(["mujoban/level1", "--episodes", "1", *bad])
         assert exc.value.code == 2
@@ -113,17 +129,39 @@ def test_cli_env_options_reach_the_environment_and_the_json(tmp_path):
 
 def test_cli_writes_the_table_json_and_video(tmp_path, capsys):
     out, video = tmp_path / "out.json", tmp_path / "first.mp4"
-    assert run_lib.main(["mujoban/level1", "--episodes", "2", "--seed", "3",
-                         "--json", str(out), "--video", str(video)]) == 0
+    assert (
+        run_lib.main(
+            [
+                "mujoban/level1",
+                "--episodes",
+                "2",
+                "--seed",
+                "3",
+                "--json",
+                str(out),
+                "--video",
+                str(video),
+            ]
+        )
+        == 0
+    )
     printed = capsys.readouterr().out
     assert "solved" in printed and "wall s / episode" in printed
     summary = json.loads(out.read_text())
-    for key in ("env", "episodes", "success_rate", "mean_return", "mean_steps",
-                "subgoal_success_rate", "wall_s"):
+    for key in (
+        "env",
+        "episodes",
+        "success_rate",
+        "mean_return",
+        "mean_steps",
+        "subgoal_success_rate",
+        "wall_s",
+    ):
         assert key in summary, key
     assert summary["env"] == "mujoban/level1" and summary["episodes"] == 2
     assert video.stat().st_size > 1000
     import imageio.v2 as imageio
+
     frames = imageio.mimread(str(video), memtest=False)
     assert len(frames) == summary["rows"][0]["steps"] and np.asarray(frames[0]).ndim == 3
 
@@ -138,13 +176,16 @@ def test_board_game_json_has_win_draw_loss_rates(tmp_path):
     assert summary["win_rate"] + summary["draw_rate"] + summary["loss_rate"] == pytest.approx(1)
 
 
-@pytest.mark.parametrize("argv, listed", [
-    (["mujoban/nope"], "mujoban/level1"),
-    (["mujoban/level1", "--planner", "nope"], "sokoban-solver"),
-    (["mujoxo/mixture", "--skill", "nope"], "arm-touch"),
-    (["mujogo/7x7", "--estimator", "nope"], "board"),
-    (["mujoxo/mixture", "--levels", "x.txt"], "mujoban"),
-])
+@pytest.mark.parametrize(
+    "argv, listed",
+    [
+        (["mujoban/nope"], "mujoban/level1"),
+        (["mujoban/level1", "--planner", "nope"], "sokoban-solver"),
+        (["mujoxo/mixture", "--skill", "nope"], "arm-touch"),
+        (["mujogo/7x7", "--estimator", "nope"], "board"),
+        (["mujoxo/mixture", "--levels", "x.txt"], "mujoban"),
+    ],
+)
 def test_cli_rejects_unknown_names_listing_the_valid_ones(argv, listed, capsys):
     with pytest.raises(SystemExit) as exc:
         run_lib.main(argv)
@@ -188,8 +229,9 @@ DEADLOCK_THEN_OPEN = """; 0
 def test_a_deadlocked_episode_ends_as_a_failure_with_its_reason_and_the_run_goes_on(tmp_path):
     levels = tmp_path / "deadlock.txt"
     levels.write_text(DEADLOCK_THEN_OPEN)
-    summary = run_lib.run("mujoban/level1", 2, seed=0, levels=str(levels), progress=False,
-                          estimator="oracle")
+    summary = run_lib.run(
+        "mujoban/level1", 2, seed=0, levels=str(levels), progress=False, estimator="oracle"
+    )
     first, second = summary["rows"]
     assert not first["solved"] and first["failure_reason"].startswith("no plan (unsolvable)")
     assert first["steps"] < 5  # given up at once, not run into the time limit
@@ -200,6 +242,7 @@ def test_a_deadlocked_episode_ends_as_a_failure_with_its_reason_and_the_run_goes
 
 def test_an_agent_error_costs_its_episode_not_the_run(monkeypatch):
     from skills.ball import BallSkill
+
     calls = {"n": 0}
     original = BallSkill.act
 

@@ -8,20 +8,31 @@ import pytest
 
 from abstract_planners.base import Subgoal
 from abstract_planners.sokoban import DIRECTIONS
-from hier_agents.baselines.impala.agent_env import (CONDITIONS, PLANNER_ACTIONS, AgentEnv,
-                                                    InputSpec, StepResult)
+from hier_agents.baselines.impala.agent_env import (
+    CONDITIONS,
+    PLANNER_ACTIONS,
+    AgentEnv,
+    InputSpec,
+    StepResult,
+)
 from skills.arm import ArmTouchSkill
 from skills.ball import BallSkill
 
 
 PROPRIO = {"mujoban": 25, "mujoxo": 39, "mujogo": 39}
-CAMERAS = {"mujoban": ("top_camera", "walker/egocentric_camera"), "mujoxo": ("front_camera",),
-           "mujogo": ("front_camera",)}
-CASES = ([("mujoban/level1", c, cams) for c in CONDITIONS for cams in (True, False)]
-         + [("mujoxo/mixture", c, cams) for c in CONDITIONS for cams in (True, False)]
-         + [("mujogo/7x7", c, cams)  # these take the conftest's `gnugo` fixture
-            for c, cams in (("vanilla", True), ("expert-planner", False),
-                            ("random-planner", False))])
+CAMERAS = {
+    "mujoban": ("top_camera", "walker/egocentric_camera"),
+    "mujoxo": ("front_camera",),
+    "mujogo": ("front_camera",),
+}
+CASES = (
+    [("mujoban/level1", c, cams) for c in CONDITIONS for cams in (True, False)]
+    + [("mujoxo/mixture", c, cams) for c in CONDITIONS for cams in (True, False)]
+    + [
+        ("mujogo/7x7", c, cams)  # these take the conftest's `gnugo` fixture
+        for c, cams in (("vanilla", True), ("expert-planner", False), ("random-planner", False))
+    ]
+)
 
 
 def _check_obs(env: AgentEnv, obs: dict) -> None:
@@ -55,8 +66,7 @@ def test_input_spec_and_observations(name, condition, cameras, request):
     with AgentEnv(name, condition, seed=0, cameras=cameras, image_size=32) as env:
         spec = env.input_spec
         assert isinstance(spec, InputSpec) and env.family == fam
-        assert spec.images == (tuple((cam, (3, 32, 32)) for cam in CAMERAS[fam]) if cameras
-                               else ())
+        assert spec.images == (tuple((cam, (3, 32, 32)) for cam in CAMERAS[fam]) if cameras else ())
         assert spec.proprio_dim == PROPRIO[fam]
         assert spec.action_dim == (2 if fam == "mujoban" else 9)
         if condition == "vanilla":
@@ -67,15 +77,14 @@ def test_input_spec_and_observations(name, condition, cameras, request):
         else:
             n = 3 if fam == "mujoxo" else 7
             assert spec.planner_shape == (6, n, n) and spec.planner_action_dim == 0
-        assert (env.gamma_env, env.gamma_abs) == ((0.99, 0.9) if fam == "mujoban"
-                                                  else (0.99, 0.98))
+        assert (env.gamma_env, env.gamma_abs) == ((0.99, 0.9) if fam == "mujoban" else (0.99, 0.98))
         obs = env.reset()
         _check_obs(env, obs)
         if condition != "vanilla":
             planes = obs["planner"]
             c = planes.shape[0] // 2
             if fam == "mujoban":  # walls and pads do not move; one player each half
-                assert np.array_equal(planes[0:2], planes[c:c + 2])
+                assert np.array_equal(planes[0:2], planes[c : c + 2])
                 assert planes[2].sum() == planes[c + 2].sum() == 1
                 assert obs["planner_action"].sum() == 1.0
             else:  # an empty board and the target with one own piece on it
@@ -143,8 +152,15 @@ CORRIDOR_ROOM = """; 0
 def test_mujoban_expert_target_reached_by_the_ball_skill_pays_the_auxiliary_reward(tmp_path):
     levels = tmp_path / "room.txt"
     levels.write_text(CORRIDOR_ROOM)
-    with AgentEnv("mujoban/level1", "expert-planner", seed=0, cameras=False, t_abs=200,
-                  abs_reward=2.5, levels=str(levels)) as env:
+    with AgentEnv(
+        "mujoban/level1",
+        "expert-planner",
+        seed=0,
+        cameras=False,
+        t_abs=200,
+        abs_reward=2.5,
+        levels=str(levels),
+    ) as env:
         obs = env.reset()
         for expect_push in (False, True):  # a walk, then a push
             state, subgoal = env.abstract_state, env.subgoal
@@ -225,8 +241,9 @@ def test_an_impossible_estimate_gives_no_target_instead_of_an_error(monkeypatch)
 
 def test_subepisodes_time_out_after_t_abs_steps_with_random_actions():
     rng = np.random.default_rng(0)
-    with AgentEnv("mujoban/level1", "expert-planner", seed=1, cameras=False, t_abs=6,
-                  time_limit=1.5) as env:
+    with AgentEnv(
+        "mujoban/level1", "expert-planner", seed=1, cameras=False, t_abs=6, time_limit=1.5
+    ) as env:
         env.reset()
         targets, results = [env.subgoal], []
         for _ in range(30):
@@ -246,8 +263,9 @@ def test_subepisodes_time_out_after_t_abs_steps_with_random_actions():
 
 
 def test_board_target_move_pays_the_auxiliary_reward_and_another_move_does_not():
-    with AgentEnv("mujoxo/mixture", "expert-planner", seed=0, cameras=False, t_abs=300,
-                  abs_reward=1.5) as env:
+    with AgentEnv(
+        "mujoxo/mixture", "expert-planner", seed=0, cameras=False, t_abs=300, abs_reward=1.5
+    ) as env:
         spec = env.env.action_spec()
         low, high = spec.minimum, spec.maximum
         task = env.env.task
@@ -274,8 +292,7 @@ def test_board_target_move_pays_the_auxiliary_reward_and_another_move_does_not()
         assert result.reward_abs == 1.5 and not result.last
         # The new sub-episode starts from the board with both replies on it.
         assert result.obs["planner"][1].sum() == 1 and result.obs["planner"][2].sum() == 1
-        wrong = next(a for a in env.abstract_state.legal_actions()
-                     if a != int(env.subgoal.action))
+        wrong = next(a for a in env.abstract_state.legal_actions() if a != int(env.subgoal.action))
         result = touch(wrong)
         assert task.moves[2] == wrong
         assert result.reward_abs == 0.0 and result.discount_abs == 0.0
@@ -308,8 +325,9 @@ def test_same_seed_same_observations():
     def run(seed):
         rng = np.random.default_rng(5)
         out = []
-        with AgentEnv("mujoban/level1", "random-planner", seed=seed, cameras=False, t_abs=4,
-                      time_limit=0.75) as env:
+        with AgentEnv(
+            "mujoban/level1", "random-planner", seed=seed, cameras=False, t_abs=4, time_limit=0.75
+        ) as env:
             out.append(env.reset())
             for _ in range(25):  # crosses an episode boundary (15 steps)
                 result = env.step(rng.uniform(-1, 1, 2))
@@ -335,8 +353,9 @@ def test_unknown_condition_or_family_raises_value_error():
         AgentEnv("cartpole/swingup")
 
 
-@pytest.mark.parametrize("name, key", [("mujoban/level1", "full_entity_layer"),
-                                       ("mujoxo/mixture", "board_state")])
+@pytest.mark.parametrize(
+    "name, key", [("mujoban/level1", "full_entity_layer"), ("mujoxo/mixture", "board_state")]
+)
 @pytest.mark.parametrize("condition", ["vanilla", "expert-planner"])
 def test_state_input_is_the_current_abstract_state_at_every_step(name, key, condition):
     with AgentEnv(name, condition, seed=3, cameras=False, state=True) as env:

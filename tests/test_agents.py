@@ -21,7 +21,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 #: An agent kind as an outside package would write it: actions of zero
 #: scaled by ARG (the walker holds still), cameras off, nothing privileged.
-KIND_MODULE = textwrap.dedent('''
+KIND_MODULE = textwrap.dedent("""
     import numpy as np
 
     import envs
@@ -80,7 +80,7 @@ KIND_MODULE = textwrap.dedent('''
 
 
     KIND = HoldStillKind()
-''')
+""")
 
 
 def _write_package(folder):
@@ -91,7 +91,8 @@ def _write_package(folder):
     info.mkdir(exist_ok=True)
     (info / "METADATA").write_text("Metadata-Version: 2.1\nName: hold-still-kind\nVersion: 0.0\n")
     (info / "entry_points.txt").write_text(
-        "[physics_planning.agents]\nhold-still = hold_still_kind:KIND\n")
+        "[physics_planning.agents]\nhold-still = hold_still_kind:KIND\n"
+    )
     return folder
 
 
@@ -112,8 +113,22 @@ def test_an_outside_kind_plays_hier_agents_run_and_is_listed(hold_still, tmp_pat
     from hier_agents import run as run_lib
 
     out = tmp_path / "run.json"
-    assert run_lib.main(["mujoban/level1", "--agent", "hold-still:0.5", "--episodes", "2",
-                         "--env-option", "time_limit=1", "--json", str(out)]) == 0
+    assert (
+        run_lib.main(
+            [
+                "mujoban/level1",
+                "--agent",
+                "hold-still:0.5",
+                "--episodes",
+                "2",
+                "--env-option",
+                "time_limit=1",
+                "--json",
+                str(out),
+            ]
+        )
+        == 0
+    )
     summary = json.loads(out.read_text())
     assert summary["agent"] == "hold-still:0.5" and summary["episodes"] == 2
     assert summary["condition"] == "holds still (scale 0.5)"
@@ -136,7 +151,8 @@ def test_an_outside_kinds_bad_argument_and_options_are_refused_in_one_line(hold_
 def test_an_outside_kind_declared_as_an_entry_point_plays_a_comparison_spec(tmp_path):
     site = _write_package(tmp_path / "site")
     spec = tmp_path / "spec.toml"
-    spec.write_text(textwrap.dedent('''
+    spec.write_text(
+        textwrap.dedent("""
         name = "outside"
         cache = "cache"
         envs = ["mujoban/level1"]
@@ -146,11 +162,18 @@ def test_an_outside_kind_declared_as_an_entry_point_plays_a_comparison_spec(tmp_
         [[agent]]
         label = "holds still"
         agent = "hold-still:0.5"
-    '''))
+    """)
+    )
     env = child_env()
     env["PYTHONPATH"] = os.pathsep.join([str(site), ROOT])
-    done = subprocess.run([sys.executable, "-m", "hier_agents.compare", str(spec), "--cpus", "1"],
-                          cwd=ROOT, env=env, capture_output=True, text=True, timeout=600)
+    done = subprocess.run(
+        [sys.executable, "-m", "hier_agents.compare", str(spec), "--cpus", "1"],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert done.returncode == 0, done.stderr[-3000:]
     comparison = json.loads((tmp_path / "cache" / "comparison.json").read_text())
     (point,) = comparison["points"]
@@ -179,5 +202,8 @@ def test_every_kind_keeps_its_job_inputs_so_cached_comparisons_stay_valid():
     random_kind, hold = resolve("random:10")
     assert random_kind.job_inputs("mujoban/level1", hold, {}) == {"kind": "random", "hold": 10}
     assert modular.job_inputs("mujoban/level1", None, {"estimator": "oracle"}) == {
-        "kind": "modular", "estimator": "oracle", "learned_files": {}}
+        "kind": "modular",
+        "estimator": "oracle",
+        "learned_files": {},
+    }
     assert random_kind.from_job_inputs({"kind": "random", "hold": 10}) == (10, {})

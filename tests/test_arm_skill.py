@@ -68,8 +68,9 @@ def moved(description, shift=None, positions=None):
         points = [positions(a) for a in range(description.num_points)]
     if shift is not None:
         points = [p + np.asarray(shift, float) for p in points]
-    return dataclasses.replace(description,
-                               point_positions=tuple(tuple(map(float, p)) for p in points))
+    return dataclasses.replace(
+        description, point_positions=tuple(tuple(map(float, p)) for p in points)
+    )
 
 
 def run_touch(env, skill, action, timestep, *, description=None, t_abs=80):
@@ -78,8 +79,9 @@ def run_touch(env, skill, action, timestep, *, description=None, t_abs=80):
     estimator = BoardEstimator()
     estimator.reset(public.description(), timestep)
     scene = estimator.estimate(timestep)
-    subgoal = Subgoal(action, scene.state.child(action) if action in
-                      scene.state.legal_actions() else None)
+    subgoal = Subgoal(
+        action, scene.state.child(action) if action in scene.state.legal_actions() else None
+    )
     return run_option(public, estimator, skill, subgoal, timestep, t_abs=t_abs, scene=scene)
 
 
@@ -114,8 +116,12 @@ def test_the_skill_package_never_names_the_simulator():
         tree = ast.parse(path.read_text())
         names = {node.attr for node in ast.walk(tree) if isinstance(node, ast.Attribute)}
         names |= {node.id for node in ast.walk(tree) if isinstance(node, ast.Name)}
-        names |= {arg.arg for node in ast.walk(tree) if isinstance(node, ast.arguments)
-                  for arg in node.args + node.kwonlyargs}
+        names |= {
+            arg.arg
+            for node in ast.walk(tree)
+            if isinstance(node, ast.arguments)
+            for arg in node.args + node.kwonlyargs
+        }
         assert not names & forbidden, (path.name, names & forbidden)
 
 
@@ -128,8 +134,7 @@ def test_a_touch_registers_through_the_public_interface_only(mujoxo):
     estimator.reset(env.description(), timestep)
     scene = estimator.estimate(timestep)
     skill = ArmTouchSkill()
-    result = run_option(env, estimator, skill, Subgoal(4, scene.state.child(4)), timestep,
-                        t_abs=80)
+    result = run_option(env, estimator, skill, Subgoal(4, scene.state.child(4)), timestep, t_abs=80)
     assert result.outcome is Outcome.REACHED, result.reason
     assert estimator.estimate(result.timestep).moves[0] == 4
     assert mujoxo.task.moves[0] == 4  # (the check reads the simulator; the skill did not)
@@ -142,11 +147,11 @@ def test_the_arm_model_matches_the_simulated_arm(mujogo):
     timestep = env.reset()
     arm = ArmModel(env.description().arm, band=0.006)
     arm.set_posture(timestep.observation["arm/joints_pos"])
-    np.testing.assert_allclose(arm.current.data.site_xpos[arm.site],
-                               env.task.pinch_site_position(), atol=1e-9)
+    np.testing.assert_allclose(
+        arm.current.data.site_xpos[arm.site], env.task.pinch_site_position(), atol=1e-9
+    )
     assert np.all(arm.fingers_closed > 1.0)
-    np.testing.assert_allclose(arm.base_xy(), env.description().arm.base_position[:2],
-                               atol=1e-9)
+    np.testing.assert_allclose(arm.base_xy(), env.description().arm.base_position[:2], atol=1e-9)
 
 
 def test_config_and_keyword_overrides():
@@ -191,8 +196,11 @@ def test_mujogo_every_point_and_the_pass_register(mujogo):
         timestep = env.reset()
         skill = ArmTouchSkill()
         result = run_touch(env, skill, action, timestep)
-        if (result.outcome is not Outcome.REACHED or env.task.moves[:1] != (action,)
-                or result.duration > skill.config.max_steps + 1):
+        if (
+            result.outcome is not Outcome.REACHED
+            or env.task.moves[:1] != (action,)
+            or result.duration > skill.config.max_steps + 1
+        ):
             failures.append((action, result.reason, env.task.moves[:1], result.duration))
         leans[action] = skill.touch_tilt
     assert not failures

@@ -29,8 +29,13 @@ LIMIT = 900  # MuJoBan's 45 s episode
 
 def make_env(text: str, *, pegs=False, seed=0) -> Environment:
     level = Level.from_text(text)
-    task = Mujoban(sources.FixedLevels([level]), pegs=pegs, max_boxes=len(level.boxes),
-                   randomize_appearance=False, **NO_CAMERAS)
+    task = Mujoban(
+        sources.FixedLevels([level]),
+        pegs=pegs,
+        max_boxes=len(level.boxes),
+        randomize_appearance=False,
+        **NO_CAMERAS,
+    )
     return Environment(task, seed=seed)
 
 
@@ -60,9 +65,16 @@ def run_subgoal(env, skill, timestep, moves, *, state=None, plan=(), max_steps=3
     state = state or scene.state
     goal = replay(state, moves) if moves else state
     seen = []
-    run_option(env, oracle, skill, Subgoal(action=tuple(moves), state=goal, plan=tuple(plan)),
-               timestep, t_abs=max_steps, scene=dataclasses.replace(scene, state=state),
-               on_step=lambda ts, _: seen.append(ts))
+    run_option(
+        env,
+        oracle,
+        skill,
+        Subgoal(action=tuple(moves), state=goal, plan=tuple(plan)),
+        timestep,
+        t_abs=max_steps,
+        scene=dataclasses.replace(scene, state=state),
+        on_step=lambda ts, _: seen.append(ts),
+    )
     return seen
 
 
@@ -271,9 +283,12 @@ def test_a_leg_rebuilt_mid_push_keeps_pushing_at_speed():
     assert skill.status is Status.SUCCESS, skill.failure_reason
     scene = scene_of(env, seen[-1])  # mid-push: the box rounds into the next cell
     cfg = skill.config
-    plan = legs.plan(env.description(), cfg, Subgoal(action=("R",),
-                                                     state=replay(scene.state, "R"),
-                                                     plan=("R", "R", "R")), scene)
+    plan = legs.plan(
+        env.description(),
+        cfg,
+        Subgoal(action=("R",), state=replay(scene.state, "R"), plan=("R", "R", "R")),
+        scene,
+    )
     leg = plan.legs[0]
     assert leg.push is not None
     _, _, s_here = locate(leg.seg, 0, *scene.walker_xy)
@@ -311,8 +326,9 @@ def test_holding_centres_a_box_from_its_far_side_when_the_walker_is_not_behind_i
     assert abs(x - bx) < 0.1 and abs(y - by) < 0.05
 
 
-@pytest.mark.parametrize("name", ["mujoban/level1", "mujoban/level1-pegs",
-                                  "mujoban/level3", "mujoban/level3-pegs"])
+@pytest.mark.parametrize(
+    "name", ["mujoban/level1", "mujoban/level1-pegs", "mujoban/level3", "mujoban/level3-pegs"]
+)
 def test_generated_levels_solved_end_to_end_with_the_solver(name):
     env = envs.load(name, seed=3, **NO_CAMERAS)
     skill, planner = BallSkill(), SokobanSolverPlanner()
@@ -386,13 +402,19 @@ def test_box_pushed_into_a_wall_the_state_left_out_is_reported_stuck_not_hung():
     env = make_env(BOX_BEFORE_WALL)
     timestep = env.reset()
     true_state = estimate(env.task)
-    (r, c), = true_state.boxes
+    ((r, c),) = true_state.boxes
     wall = (r, c + 2)
     assert wall in true_state.walls
     # A wrong subgoal, planned from a state without that wall: two pushes
     # right, the second one into the wall.
-    wrong = SokobanState(true_state.walls - {wall}, true_state.targets, true_state.boxes,
-                         true_state.player, true_state.height, true_state.width)
+    wrong = SokobanState(
+        true_state.walls - {wall},
+        true_state.targets,
+        true_state.boxes,
+        true_state.player,
+        true_state.height,
+        true_state.width,
+    )
     skill = BallSkill()
     seen = run_subgoal(env, skill, timestep, ("R", "R"), state=wrong, max_steps=400)
     assert skill.status is Status.FAILURE
@@ -412,9 +434,14 @@ def test_pushing_into_an_unexpected_box_is_reported():
     true_state = estimate(env.task)
     _, second = sorted(true_state.boxes)
     # A wrong subgoal planned from a state that misses the second box.
-    wrong = SokobanState(true_state.walls, true_state.targets - {max(true_state.targets)},
-                         true_state.boxes - {second}, true_state.player,
-                         true_state.height, true_state.width)
+    wrong = SokobanState(
+        true_state.walls,
+        true_state.targets - {max(true_state.targets)},
+        true_state.boxes - {second},
+        true_state.player,
+        true_state.height,
+        true_state.width,
+    )
     skill = BallSkill()
     run_subgoal(env, skill, timestep, ("R", "R", "R"), state=wrong)
     assert skill.status is Status.FAILURE
@@ -467,8 +494,9 @@ def test_reset_mid_push_continues_without_stopping():
             state = estimate(env.task)
             # The box rounds onto its pad (the estimate is solved) before it
             # covers it (within 0.1 cells): then hold, as the agent's loop does.
-            subgoal = (Subgoal(action=(), state=state) if state.is_solved()
-                       else planner.next_push(state))
+            subgoal = (
+                Subgoal(action=(), state=state) if state.is_solved() else planner.next_push(state)
+            )
             skill.reset(env.description(), subgoal, scene_of(env, timestep))
         timestep = env.step(skill.act(timestep, scene_of(env, timestep)))
         steps += 1
@@ -477,12 +505,18 @@ def test_reset_mid_push_continues_without_stopping():
 
 
 def test_parameters_are_one_frozen_config_set_by_keyword_overrides():
-    skill = BallSkill(cruise_speed=3, push_speed=1.2, stuck_steps=25.0, lookahead=False,
-                      k_heading=3.5)
+    skill = BallSkill(
+        cruise_speed=3, push_speed=1.2, stuck_steps=25.0, lookahead=False, k_heading=3.5
+    )
     cfg = skill.config
     assert isinstance(cfg, BallConfig)
-    assert (cfg.cruise_speed, cfg.push_speed, cfg.stuck_steps, cfg.lookahead, cfg.k_heading) \
-        == (3.0, 1.2, 25, False, 3.5)
+    assert (cfg.cruise_speed, cfg.push_speed, cfg.stuck_steps, cfg.lookahead, cfg.k_heading) == (
+        3.0,
+        1.2,
+        25,
+        False,
+        3.5,
+    )
     assert type(cfg.cruise_speed) is float and type(cfg.stuck_steps) is int
     assert cfg.decel == BallConfig().decel  # the rest keeps the tuned defaults
     assert repr(skill) == "BallSkill(cruise_speed=3.0, push_speed=1.2, stuck_steps=25)"
@@ -527,7 +561,9 @@ def test_forget_history_drops_what_is_carried_between_subgoals():
     skill._legs = [object()]
     skill.forget_history()
     fresh = BallSkill()
-    assert (skill._drive.prev_heading, skill._drive.sign) == (fresh._drive.prev_heading,
-                                                             fresh._drive.sign)
+    assert (skill._drive.prev_heading, skill._drive.sign) == (
+        fresh._drive.prev_heading,
+        fresh._drive.sign,
+    )
     assert (skill._contact.backoffs, skill._contact.backing) == (0, False)
     assert skill._legs == []

@@ -14,14 +14,20 @@ from gymnasium.utils.env_checker import check_env
 
 import envs
 from abstract_planners.gtp import GTPError
-from arm_driving import (hold_action, place_hand, press_from_above, substep_touches,
-                         touch_point)
+from arm_driving import hold_action, place_hand, press_from_above, substep_touches, touch_point
 from envs.boards import arena as arena_lib
 from envs.boards import make_mujogo, make_mujoxo
 
 NO_CAMERA = {"front_camera": None}
-BOARD_NAMES = ["mujogo/7x7", "mujogo/7x7-eval", "mujogo/7x7-mixture", "mujogo/9x9",
-               "mujoxo/mixture", "mujoxo/optimal", "mujoxo/random"]
+BOARD_NAMES = [
+    "mujogo/7x7",
+    "mujogo/7x7-eval",
+    "mujogo/7x7-mixture",
+    "mujogo/9x9",
+    "mujoxo/mixture",
+    "mujoxo/optimal",
+    "mujoxo/random",
+]
 
 
 def piece_visible(env, point) -> bool:
@@ -31,14 +37,15 @@ def piece_visible(env, point) -> bool:
 
 def assert_board_matches_openspiel(env, timestep):
     task = env.task
-    np.testing.assert_array_equal(timestep.observation["board_state"],
-                                  task.game.board_planes(task.state))
+    np.testing.assert_array_equal(
+        timestep.observation["board_state"], task.game.board_planes(task.state)
+    )
     owners = task.game.owners(task.state)
     for point, owner in enumerate(owners):
         assert piece_visible(env, point) == (owner >= 0), f"point {point}"
     history = timestep.observation["move_history"]
     played = list(task.state.history())
-    assert list(history[: len(played)]) == played and (history[len(played):] == -1).all()
+    assert list(history[: len(played)]) == played and (history[len(played) :] == -1).all()
 
 
 def test_names_are_registered():
@@ -53,8 +60,7 @@ def test_touching_a_point_registers_that_move_and_the_opponent_replies(name, poi
     task = env.task
     assert task.moves_registered == 1
     assert task.moves[0] == point and len(task.moves) == 2  # the agent's, then the reply
-    assert timestep.observation["board_state"][point // task.game.size,
-                                               point % task.game.size, 1]
+    assert timestep.observation["board_state"][point // task.game.size, point % task.game.size, 1]
     # The agent's piece lies where it touched, inside the pad.
     x, y, _ = env.physics.model.geom_pos[task._piece_ids[point]]
     px, py, _ = task.point_position(point)
@@ -148,7 +154,8 @@ def test_a_loss_gives_zero():
 
 @pytest.mark.parametrize("allow_double_pass", [False, True])
 def test_holding_a_finger_on_the_pass_zone_passes_once_unless_double_passes_are_allowed(
-        allow_double_pass):
+    allow_double_pass,
+):
     env = make_mujogo(seed=0, arm_reset=False, allow_double_pass=allow_double_pass, **NO_CAMERA)
     env.reset()
     task = env.task
@@ -216,11 +223,17 @@ def test_an_engine_that_never_answers_raises_gtp_error():
     env.close()
 
 
-@pytest.mark.parametrize("kwargs, word", [
-    ({"board_size": 4}, "board_size"), ({"board_size": 20}, "board_size"),
-    ({"epsilon": -0.1}, "epsilon"), ({"epsilon": 1.5}, "epsilon"),
-    ({"level": 0}, "level"), ({"level": 11}, "level"),
-])
+@pytest.mark.parametrize(
+    "kwargs, word",
+    [
+        ({"board_size": 4}, "board_size"),
+        ({"board_size": 20}, "board_size"),
+        ({"epsilon": -0.1}, "epsilon"),
+        ({"epsilon": 1.5}, "epsilon"),
+        ({"level": 0}, "level"),
+        ({"level": 11}, "level"),
+    ],
+)
 def test_bad_go_configurations_raise_value_errors(kwargs, word):
     with pytest.raises(ValueError, match=word):
         make_mujogo(**kwargs, **NO_CAMERA)
@@ -374,7 +387,8 @@ _UPPER_ARM_ON_BOARD = {1: 5.26, 2: 4.54}
 
 @pytest.mark.parametrize("registering, registers", [(None, False), ("arm", True)])
 def test_a_press_by_a_non_finger_arm_geom_registers_only_when_any_contact_counts(
-        registering, registers):
+    registering, registers
+):
     # MuJoGo's default: a finger must touch the pressed point. registering="arm"
     # is MuJoXO's rule (any contact), offered as a MuJoGo deviation.
     overrides = {} if registering is None else {"registering": registering}

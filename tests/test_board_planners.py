@@ -40,6 +40,7 @@ def ttt_state(moves):
 
 # -- random ------------------------------------------------------------------------
 
+
 def test_random_planner_plays_legal_seeded_moves_of_any_game():
     planner = RandomMovePlanner(seed=3)
     assert planner.name == "random"
@@ -64,6 +65,7 @@ def test_planners_reject_terminal_states():
 
 
 # -- minimax -----------------------------------------------------------------------
+
 
 def test_minimax_values():
     assert minimax_value(TTT.new_initial_state()) == 0
@@ -130,6 +132,7 @@ def test_minimax_rejects_other_games():
 
 
 # -- epsilon-greedy ----------------------------------------------------------------
+
 
 class Recorder(Planner):
     """A stub planner: records calls, optionally refuses to plan."""

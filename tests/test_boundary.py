@@ -13,14 +13,25 @@ import pytest
 
 import envs
 from hier_agents.boundary import BoundaryEnv, BoundaryViolation, PRIVILEGED_OBSERVATIONS
-from hier_agents.modular.components import (ESTIMATORS, PLANNERS, SKILLS, env_overrides,
-                                            is_privileged, make_agent, reads_record)
+from hier_agents.modular.components import (
+    ESTIMATORS,
+    PLANNERS,
+    SKILLS,
+    env_overrides,
+    is_privileged,
+    make_agent,
+    reads_record,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 #: One short environment per family (a shortened time limit keeps every
 #: combination's episode short).
-FAMILY_ENVS = {"mujoban": ("mujoban/level1-pegs", 8.0), "mujoxo": ("mujoxo/mixture", 8.0),
-               "mujogo": ("mujogo/7x7", 8.0), "mujoboard": ("mujoboard/breakthrough-6x6", 8.0)}
+FAMILY_ENVS = {
+    "mujoban": ("mujoban/level1-pegs", 8.0),
+    "mujoxo": ("mujoxo/mixture", 8.0),
+    "mujogo": ("mujogo/7x7", 8.0),
+    "mujoboard": ("mujoboard/breakthrough-6x6", 8.0),
+}
 
 
 def _combinations():
@@ -29,11 +40,10 @@ def _combinations():
             yield pytest.param(name, limit, est, plan, skill, id=f"{fam}-{est}-{plan}-{skill}")
 
 
-
-
 @pytest.mark.parametrize("name, limit, estimator, planner, skill", list(_combinations()))
-def test_every_listed_combination_plays_through_the_boundary(name, limit, estimator, planner,
-                                                             skill, request):
+def test_every_listed_combination_plays_through_the_boundary(
+    name, limit, estimator, planner, skill, request
+):
     """Each estimator/planner/skill offered by ``--list`` plays an episode
     through a wrapper exposing only reset, step, the specs and the public
     description; a privileged estimator handed that wrapper as its
@@ -43,11 +53,22 @@ def test_every_listed_combination_plays_through_the_boundary(name, limit, estima
     fam = name.split("/")[0]
     env = envs.load(name, seed=1, time_limit=limit, **env_overrides(name, estimator))
     # Only the board estimator, which reads the game record, keeps it.
-    view = BoundaryEnv(env, strip=PRIVILEGED_OBSERVATIONS if reads_record(fam, estimator)
-                       else env.privileged_observations)
+    view = BoundaryEnv(
+        env,
+        strip=PRIVILEGED_OBSERVATIONS
+        if reads_record(fam, estimator)
+        else env.privileged_observations,
+    )
     privileged = is_privileged(fam, estimator)
-    agent = make_agent(name, view.description(), planner=planner, skill=skill,
-                       estimator=estimator, seed=1, simulator=view if privileged else None)
+    agent = make_agent(
+        name,
+        view.description(),
+        planner=planner,
+        skill=skill,
+        estimator=estimator,
+        seed=1,
+        simulator=view if privileged else None,
+    )
     assert agent.privileged == privileged
     try:
         timestep = view.reset()
@@ -125,12 +146,18 @@ def test_descriptions_are_static_values_without_simulator_handles(name):
 #: Agent-side code (what runs at run time behind the boundary). The
 #: privileged estimators (hier_agents/estimators/mujoban.py) are the exception
 #: by design.
-AGENT_SOURCES = sorted([*ROOT.glob("skills/**/*.py"), *ROOT.glob("abstract_planners/*.py"),
-                        ROOT / "hier_agents/modular/agent.py",
-                        *[p for p in ROOT.glob("hier_agents/estimators/*.py")
-                          if p.name != "mujoban.py"]])
-FORBIDDEN = re.compile(r"\.physics\b|\benv\.task\b|\.ptr\b|full_entity_layer|pixel_layer|"
-                       r"\btask\._")
+AGENT_SOURCES = sorted(
+    [
+        *ROOT.glob("skills/**/*.py"),
+        *ROOT.glob("abstract_planners/*.py"),
+        ROOT / "hier_agents/modular/agent.py",
+        *[p for p in ROOT.glob("hier_agents/estimators/*.py") if p.name != "mujoban.py"],
+    ]
+)
+FORBIDDEN = re.compile(
+    r"\.physics\b|\benv\.task\b|\.ptr\b|full_entity_layer|pixel_layer|"
+    r"\btask\._"
+)
 
 
 @pytest.mark.parametrize("path", AGENT_SOURCES, ids=lambda p: str(p.relative_to(ROOT)))

@@ -28,8 +28,9 @@ def _env(name, **kwargs):
 
 def _right(env, scene) -> bool:
     game, truth = env.task.game, env.task.state
-    return (scene.state.current_player() == truth.current_player()
-            and np.array_equal(game.players(scene.state), game.players(truth)))
+    return scene.state.current_player() == truth.current_player() and np.array_equal(
+        game.players(scene.state), game.players(truth)
+    )
 
 
 def test_the_camera_estimator_needs_no_record_and_asks_for_its_camera():
@@ -52,10 +53,11 @@ def test_the_first_frame_reads_as_the_referees_board(name, request):
     cells are read, and as second player the first estimate already holds
     the opponent's first move (othello's and the move games' initial pieces
     are drawn from the first frame)."""
-    if name.startswith("mujogo"):            # the opponent is GNU Go
+    if name.startswith("mujogo"):  # the opponent is GNU Go
         request.getfixturevalue("gnugo")
-    env, view = _env(name, agent_player=1,
-                     **({"opponent": "random"} if name.startswith("mujoboard") else {}))
+    env, view = _env(
+        name, agent_player=1, **({"opponent": "random"} if name.startswith("mujoboard") else {})
+    )
     timestep = view.reset()
     description = view.description()
     estimator = BoardCameraEstimator()
@@ -82,8 +84,9 @@ def test_mujoxo_markers_anywhere_on_their_pad_are_read_from_the_first_frame():
     seeds = sorted(set(range(0, 100, 4)) | {5, 29, 59, 71, 94})
     wrong, read, markers = [], 0, 0
     for seed in seeds:
-        env = envs.load("mujoxo/optimal", seed=seed, agent_player=1,
-                        **env_overrides("mujoxo/optimal", "camera"))
+        env = envs.load(
+            "mujoxo/optimal", seed=seed, agent_player=1, **env_overrides("mujoxo/optimal", "camera")
+        )
         view = BoundaryEnv(env, strip=env.privileged_observations)
         timestep = view.reset()
         estimator = BoardCameraEstimator()
@@ -113,12 +116,16 @@ def test_the_arm_hides_the_cells_under_the_hand():
     env, view = _env("mujoboard/gomoku-9x9", opponent="random")
     view.reset()
     description = view.description()
-    board = BoardView(description, BoardGame.from_description(description),
-                      description.front_camera_2)
+    board = BoardView(
+        description, BoardGame.from_description(description), description.front_camera_2
+    )
     point = 4 * 9 + 4
     target = description.point_position(point)
-    pressing = lambda: (np.linalg.norm(env.task.pinch_site_position()[:2] - target[:2])  # noqa: E731
-                        < 0.01 and env.task.pinch_site_position()[2] < target[2] + 0.03)
+
+    def pressing():
+        tool = env.task.pinch_site_position()
+        return np.linalg.norm(tool[:2] - target[:2]) < 0.01 and tool[2] < target[2] + 0.03
+
     timestep = touch_point(env, target, until=pressing)
     assert pressing()
     obs = timestep.observation
@@ -127,8 +134,9 @@ def test_the_arm_hides_the_cells_under_the_hand():
     env.close()
 
 
-@pytest.mark.parametrize("name", ["mujoboard/hex-7x7", "mujoboard/othello-8x8",
-                                  "mujoboard/breakthrough-6x6"])
+@pytest.mark.parametrize(
+    "name", ["mujoboard/hex-7x7", "mujoboard/othello-8x8", "mujoboard/breakthrough-6x6"]
+)
 def test_touched_moves_and_replies_are_found_among_the_continuations(name):
     """Three moves touched with the arm (a move game's as piece, then
     destination, the selection seen in between), each answered by the
@@ -137,7 +145,7 @@ def test_touched_moves_and_replies_are_found_among_the_continuations(name):
     env, view = _env(name, opponent="random")
     task = env.task
     timestep = view.reset()
-    estimator = BoardCameraEstimator(frame_every=1)   # called once a turn here: read each time
+    estimator = BoardCameraEstimator(frame_every=1)  # called once a turn here: read each time
     estimator.reset(view.description(), timestep)
     for turn in range(3):
         if task.state.is_terminal():
@@ -145,12 +153,15 @@ def test_touched_moves_and_replies_are_found_among_the_continuations(name):
         action = central_action(task)
         zones = task.game.touches(task.state, action)
         if len(zones) == 2:
-            touch_point(env, task.point_position(zones[0]),
-                        until=lambda zone=zones[0]: task._selected == zone)
+            touch_point(
+                env,
+                task.point_position(zones[0]),
+                until=lambda zone=zones[0]: task._selected == zone,
+            )
             timestep = touch_point(env, task.point_position(zones[0]) + (0, 0, 0.1), steps=20)
             assert estimator.estimate(timestep).selected == zones[0], f"turn {turn}"
         before = len(task.moves)
-        for _ in range(3):      # a touch from an awkward arm pose may miss: again
+        for _ in range(3):  # a touch from an awkward arm pose may miss: again
             touch_point(env, task.point_position(zones[-1]))
             if len(task.moves) > before:
                 break
@@ -203,7 +214,7 @@ def test_a_stone_first_taken_for_a_pass_is_found_when_seen(request):
     hidden[mine] = True
     cells = np.where(hidden, UNSEEN, truth).astype(np.int8)
     first = estimator._explain(cells, np.where(hidden[:, None], np.nan, shares), over=False)
-    assert first.history() == [game.pass_action, reply]       # nothing contradicts it
+    assert first.history() == [game.pass_action, reply]  # nothing contradicts it
     second = estimator._explain(truth.copy(), shares, over=False)
     # The stone in view: the board and the player to move are the game's again
     # (the history may keep the pass, the opponent's pass answering the stone).
@@ -245,8 +256,7 @@ def _frame(game, pieces, hidden=()):
     shares = np.stack([board == 0, board == 1], axis=1).astype(float)
     hide = np.zeros(game.num_points, bool)
     hide[list(hidden)] = True
-    return (np.where(hide, UNSEEN, board).astype(np.int8),
-            np.where(hide[:, None], np.nan, shares))
+    return (np.where(hide, UNSEEN, board).astype(np.int8), np.where(hide[:, None], np.nan, shares))
 
 
 def test_a_game_far_ahead_of_the_last_anchor_is_found_by_the_deeper_search():
@@ -277,8 +287,10 @@ def test_cells_seen_in_different_frames_between_two_moves_confirm_the_estimate()
     estimator.reset(view.description(), timestep)
     game = BoardGame.from_description(view.description())
     mine, reply = 24, 25
-    frames = [_frame(game, {mine: 0, reply: 1}, hidden=[reply]),
-              _frame(game, {mine: 0, reply: 1}, hidden=[mine])]
+    frames = [
+        _frame(game, {mine: 0, reply: 1}, hidden=[reply]),
+        _frame(game, {mine: 0, reply: 1}, hidden=[mine]),
+    ]
     real = estimator._view
 
     class Scripted:
@@ -294,7 +306,7 @@ def test_cells_seen_in_different_frames_between_two_moves_confirm_the_estimate()
     estimator._view = Scripted()
     still = np.zeros(view.action_spec().shape)
     assert estimator.estimate(view.step(still)).moves == (mine, reply)
-    assert [a.history() for a in estimator._anchors] == [[]]      # the reply was hidden
+    assert [a.history() for a in estimator._anchors] == [[]]  # the reply was hidden
     estimator.estimate(view.step(still))
     assert [a.history() for a in estimator._anchors] == [[], [mine, reply]]
     env.close()

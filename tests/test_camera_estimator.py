@@ -20,8 +20,9 @@ BOXOBAN = Path(envs.__file__).resolve().parent / "mujoban" / "data" / "boxoban"
 
 def _env(name="mujoban/level1", seed=0, levels=None):
     kwargs = dict(levels=str(levels), level_order="shuffle") if levels else {}
-    return envs.load(name, seed=seed, egocentric_camera=None,
-                     **CameraEstimator.env_overrides, **kwargs)
+    return envs.load(
+        name, seed=seed, egocentric_camera=None, **CameraEstimator.env_overrides, **kwargs
+    )
 
 
 def _check_scene(env, scene, timestep, walker_tol=0.03, box_tol=0.05):
@@ -29,7 +30,7 @@ def _check_scene(env, scene, timestep, walker_tol=0.03, box_tol=0.05):
     box_cells, player = env.task.abstract_cells
     assert scene.state.walls == cells_of(layer[..., 0])
     assert scene.state.targets == cells_of(layer[..., 1])
-    assert tuple(scene.box_cells) == tuple(map(tuple, box_cells))   # same box order
+    assert tuple(scene.box_cells) == tuple(map(tuple, box_cells))  # same box order
     assert scene.state.player == tuple(player)
     cell = env.description().cell_size
     assert np.linalg.norm(scene.walker_xy - env.task.walker_position()) < walker_tol * cell
@@ -52,7 +53,7 @@ def test_interface():
 def test_real_boxoban_grids_are_read_at_reset_under_random_textures(pegs, levels):
     env = _env(f"mujoban/level1{pegs}", seed=7 if pegs else 3, levels=BOXOBAN / levels)
     est = CameraEstimator(frame_every=1)
-    for _ in range(4):   # a new level and textures every episode
+    for _ in range(4):  # a new level and textures every episode
         timestep = env.reset()
         est.reset(env.description(), timestep)
         _check_scene(env, est.estimate(timestep), timestep)
@@ -71,7 +72,7 @@ def test_generated_levels_while_rolling():
             if k % 8 == 0:
                 action = rng.uniform(-1, 1, 2)
             timestep = env.step(action)
-            scene = est.estimate(timestep)       # every step: the player cell is remembered
+            scene = est.estimate(timestep)  # every step: the player cell is remembered
         _check_scene(env, scene, timestep)
         # Heading and velocity come from proprioception.
         assert abs(np.angle(np.exp(1j * (scene.heading - env.task.walker_heading())))) < 1e-6
@@ -83,8 +84,11 @@ def _free_neighbours(env, cell):
     box_cells, player = env.task.abstract_cells
     taken = set(map(tuple, env.task.level.walls)) | set(map(tuple, box_cells)) | {tuple(player)}
     r, c = cell
-    return [(r + dr, c + dc) for dr, dc in ((1, 0), (-1, 0), (0, 1), (0, -1))
-            if (r + dr, c + dc) not in taken]
+    return [
+        (r + dr, c + dc)
+        for dr, dc in ((1, 0), (-1, 0), (0, 1), (0, -1))
+        if (r + dr, c + dc) not in taken
+    ]
 
 
 def test_scripted_box_moves_are_seen():
@@ -130,7 +134,7 @@ def test_touching_and_off_centre_boxes():
                 if (r + dr, c + dc) in set(box_cells):
                     j = list(box_cells).index((r + dr, c + dc))
                     xj, yj = env.task.box_positions()[j]
-                    xy = (xj - dc * 0.8, yj + dr * 0.8)   # touching box j
+                    xy = (xj - dc * 0.8, yj + dr * 0.8)  # touching box j
                     env.task.set_box_position(env.physics, i, xy)
                     timestep = env.step(np.zeros(2))
                     _check_scene(env, est.estimate(timestep), timestep)
@@ -146,7 +150,8 @@ def test_touching_and_off_centre_boxes():
             if free:
                 (r, c), (x, y) = free[0], env.task.cell_to_world(*cell)
                 env.task.set_box_position(
-                    env.physics, i, (x + 0.3 * (c - cell[1]), y - 0.3 * (r - cell[0])))
+                    env.physics, i, (x + 0.3 * (c - cell[1]), y - 0.3 * (r - cell[0]))
+                )
                 timestep = env.step(np.zeros(2))
                 _check_scene(env, est.estimate(timestep), timestep)
                 break
@@ -175,8 +180,9 @@ def test_inconsistent_frames_raise():
         est.estimate(with_frame(hidden))
     # A box painted over: the count no longer matches.
     looks = env.description().looks
-    rows, cols = np.nonzero(np.all(np.abs(frame.astype(int) - looks.facing_rgb(looks.box)) <= 2,
-                                   axis=-1))
+    rows, cols = np.nonzero(
+        np.all(np.abs(frame.astype(int) - looks.facing_rgb(looks.box)) <= 2, axis=-1)
+    )
     assert len(rows)
     no_box = frame.copy()
     no_box[rows, cols] = (128, 128, 128)
@@ -211,9 +217,13 @@ def test_between_frames_the_scene_is_predicted_and_a_moved_box_is_seen_at_the_ne
     box_cells, player = env.task.abstract_cells
     i = 0
     r, c = box_cells[i]
-    free = next((r + dr, c + dc) for dr, dc in ((0, 1), (0, -1), (1, 0), (-1, 0))
-                if (r + dr, c + dc) not in est.walls and (r + dr, c + dc) not in box_cells
-                and (r + dr, c + dc) != player)
+    free = next(
+        (r + dr, c + dc)
+        for dr, dc in ((0, 1), (0, -1), (1, 0), (-1, 0))
+        if (r + dr, c + dc) not in est.walls
+        and (r + dr, c + dc) not in box_cells
+        and (r + dr, c + dc) != player
+    )
     env.task.set_box_position(env.physics, i, env.description().cell_centre(*free))
     seen_after = None
     for k in range(1, 4):
@@ -236,11 +246,11 @@ from hier_agents.estimators.colours import dilate3  # noqa: E402
 
 
 @settings(max_examples=60, deadline=None)
-@given(arrays(bool, st.tuples(st.integers(1, 12), st.integers(1, 12)),
-              elements=st.booleans()))
+@given(arrays(bool, st.tuples(st.integers(1, 12), st.integers(1, 12)), elements=st.booleans()))
 def test_dilate3_is_a_3x3_binary_dilation(mask):
     np.testing.assert_array_equal(
-        dilate3(mask), ndimage.binary_dilation(mask, structure=np.ones((3, 3), bool)))
+        dilate3(mask), ndimage.binary_dilation(mask, structure=np.ones((3, 3), bool))
+    )
 
 
 def _match_ears_plainly(centre, lateral, red, blue, occ, world, radius, offsets):
@@ -256,8 +266,8 @@ def _match_ears_plainly(centre, lateral, red, blue, occ, world, radius, offsets)
         er, eb = c + EAR_OFFSET * lateral, c - EAR_OFFSET * lateral
         dr = ((pts - er) ** 2).sum(1)
         db = ((pts - eb) ** 2).sum(1)
-        pred_r = (dr <= radius ** 2) & (dr <= db)
-        pred_b = (db <= radius ** 2) & (db < dr)
+        pred_r = (dr <= radius**2) & (dr <= db)
+        pred_b = (db <= radius**2) & (db < dr)
         miss.append(int((pred_r != obs_r).sum() + (pred_b != obs_b).sum()))
     miss = np.asarray(miss)
     return cands[miss == miss.min()].mean(axis=0)
@@ -313,7 +323,7 @@ def test_a_box_against_a_wall_is_located_from_its_free_edge(tmp_path, pegs):
     timestep = env.reset()
     est.reset(env.description(), timestep)
     x, y = env.task.cell_to_world(2, 8)
-    for shift in (0.098, 0.09, 0.08):     # flat against the wall, then 0.02 and 0.04 cells from it
+    for shift in (0.098, 0.09, 0.08):  # flat against the wall, then 0.02 and 0.04 cells from it
         env.task.set_box_position(env.physics, 0, (x + shift, y))
         timestep = env.step(np.zeros(2))
         scene = est.estimate(timestep)

@@ -25,10 +25,14 @@ BALL_POLICY = "skills/learned/ball_policy.pt"
 QUICK = str(ROOT / "experiments" / "quick.toml")
 
 #: Commands run as modules: name -> module.
-MODULES = {"run": "hier_agents.run", "envs": "envs.__main__", "train": "hier_agents.train",
-           "train_skill": "hier_agents.learning.train_skill",
-           "train_options": "hier_agents.learning.train_options",
-           "compare": "hier_agents.compare.__main__"}
+MODULES = {
+    "run": "hier_agents.run",
+    "envs": "envs.__main__",
+    "train": "hier_agents.train",
+    "train_skill": "hier_agents.learning.train_skill",
+    "train_options": "hier_agents.learning.train_options",
+    "compare": "hier_agents.compare.__main__",
+}
 
 
 def _main_of(command: str):
@@ -105,8 +109,11 @@ CASES = [
     ("run", ["mujoban/level1", "--agent", "robot"], "unknown agent 'robot'"),
     ("run", ["mujoban/level1", "--workers", "0"], "--workers"),
     ("run", ["mujoban/level1", "--first-episode", "-1"], "--first-episode"),
-    ("run", ["mujoban/level1", "--ray-address", "auto", "--video", "{folder}/v.mp4"],
-     "not with --ray-address"),
+    (
+        "run",
+        ["mujoban/level1", "--ray-address", "auto", "--video", "{folder}/v.mp4"],
+        "not with --ray-address",
+    ),
     ("compare", [MISSING], "no such file"),
     ("compare", [GARBAGE], "not a readable TOML spec"),
     ("compare", [QUICK, "--backend", "slurm"], "unknown --backend"),
@@ -116,12 +123,21 @@ CASES = [
     ("run", ["mujoban/level1", "--agent", "random:0"], "HOLD >= 1"),
     ("run", ["mujoban/level1", "--agent", f"checkpoint:{MISSING}"], "no checkpoint"),
     ("run", ["mujoban/level1", "--agent", f"checkpoint:{GARBAGE}"], "checkpoint"),
-    ("run", ["mujoban/level1", "--agent", "random", "--planner", "random"],
-     "--planner applies to the agents that take it (modular)"),
-    ("run", ["mujoban/level1", "--agent", "random", "--levels", LEVELS],
-     "--levels does not apply to --agent random"),
-    ("run", ["mujoban/level1", "--stochastic"],
-     "--stochastic applies to the agents that take it (checkpoint)"),
+    (
+        "run",
+        ["mujoban/level1", "--agent", "random", "--planner", "random"],
+        "--planner applies to the agents that take it (modular)",
+    ),
+    (
+        "run",
+        ["mujoban/level1", "--agent", "random", "--levels", LEVELS],
+        "--levels does not apply to --agent random",
+    ),
+    (
+        "run",
+        ["mujoban/level1", "--stochastic"],
+        "--stochastic applies to the agents that take it (checkpoint)",
+    ),
     ("run", ["mujoban/level1", "--sed", "1"], "did you mean '--seed'"),
     # python -m envs
     ("envs", ["mujoban/levl1"], "did you mean 'mujoban/level1'"),
@@ -133,8 +149,11 @@ CASES = [
     ("train", ["mujoban/levl1", "--logdir", FOLDER], "mujoban/level1"),
     ("train", ["mujoban/level1", "--seed", "-1", "--logdir", FOLDER], "--seed"),
     ("train", ["mujoban/level1", "--frames", "0", "--logdir", FOLDER], "--frames"),
-    ("train", ["mujoban/level1", "--condition", "expert-planer", "--logdir", FOLDER],
-     "did you mean 'expert-planner'"),
+    (
+        "train",
+        ["mujoban/level1", "--condition", "expert-planer", "--logdir", FOLDER],
+        "did you mean 'expert-planner'",
+    ),
     # python -m hier_agents.learning.train_skill
     ("train_skill", ["bal", "--frames", "10", "--logdir", FOLDER], "did you mean 'ball'"),
     ("train_skill", ["ball", "--seed", "-1"], "--seed"),
@@ -142,10 +161,16 @@ CASES = [
     ("train_skill", ["ball", "--evaluate", MISSING], "no such file"),
     # python -m hier_agents.learning.train_options
     ("train_options", ["mujoban/level1", "--logdir", FOLDER], "--option-steps"),
-    ("train_options", ["mujoban/level1", "--option-steps", "-5", "--logdir", FOLDER],
-     "--option-steps"),
-    ("train_options", ["mujoban/level1", "--option-steps", "10", "--envs", "0",
-                       "--logdir", FOLDER], "--envs"),
+    (
+        "train_options",
+        ["mujoban/level1", "--option-steps", "-5", "--logdir", FOLDER],
+        "--option-steps",
+    ),
+    (
+        "train_options",
+        ["mujoban/level1", "--option-steps", "10", "--envs", "0", "--logdir", FOLDER],
+        "--envs",
+    ),
     # benchmarks/*.py
     ("bench/agent_table", ["--dir", MISSING], "is not a folder"),
     ("bench/arm_skill", ["--envs", "mujoban/level1"], "unknown environment 'mujoban/level1'"),
@@ -158,8 +183,11 @@ CASES = [
     ("bench/env_speed", ["--cameras", "nne"], "did you mean 'none'"),
     ("bench/env_speed", ["--steps", "0"], "--steps"),
     ("bench/env_speed", ["--physics-timestep", "-1"], "--physics-timestep"),
-    ("bench/env_speed", ["--envs", "mujoban/level1", "--env-option", "noslip_iteration=0"],
-     "did you mean 'noslip_iterations'"),
+    (
+        "bench/env_speed",
+        ["--envs", "mujoban/level1", "--env-option", "noslip_iteration=0"],
+        "did you mean 'noslip_iterations'",
+    ),
     ("bench/agent_speed", ["--env", "mujoban/levl5"], "did you mean 'mujoban/level5'"),
     ("bench/agent_speed", ["--episodes", "0"], "--episodes"),
     ("bench/agent_speed", ["--baseline", "no-such-commit", "--episodes", "1"], "--baseline"),
@@ -209,8 +237,12 @@ def paths(tmp_path):
     levels.write_text(GOOD_LEVEL)
     folder = tmp_path / "folder"
     folder.mkdir()
-    return {MISSING: str(tmp_path / "missing.txt"), GARBAGE: str(garbage),
-            FOLDER: str(folder), LEVELS: str(levels)}
+    return {
+        MISSING: str(tmp_path / "missing.txt"),
+        GARBAGE: str(garbage),
+        FOLDER: str(folder),
+        LEVELS: str(levels),
+    }
 
 
 def _fill(argv, paths):
@@ -244,8 +276,7 @@ def test_bad_input_ends_in_one_line_and_status_2(case, paths, capsys):
         main(_fill(argv, paths))
     assert exc.value.code == 2
     captured = capsys.readouterr()
-    _assert_one_line_error(captured.err, _prog(command), expected.replace(
-        MISSING, paths[MISSING]))
+    _assert_one_line_error(captured.err, _prog(command), expected.replace(MISSING, paths[MISSING]))
     assert captured.out == ""  # nothing was played or printed
 
 
@@ -255,24 +286,33 @@ SUBPROCESS_CASES = [
     (["-m", "envs", "--seed", "-1"], "envs", "--seed"),
     (["-m", "hier_agents.train", "mujoban/level1", "--frames", "0"], "train", "--frames"),
     (["-m", "hier_agents.learning.train_skill", "bal"], "train_skill", "did you mean 'ball'"),
-    (["-m", "hier_agents.learning.train_options", "mujoban/level1"], "train_options",
-     "--option-steps"),
-    ([str(BENCHMARKS / "go_planners.py"), "--black", "mctx"], "bench/go_planners",
-     "did you mean 'mcts'"),
+    (
+        ["-m", "hier_agents.learning.train_options", "mujoban/level1"],
+        "train_options",
+        "--option-steps",
+    ),
+    (
+        [str(BENCHMARKS / "go_planners.py"), "--black", "mctx"],
+        "bench/go_planners",
+        "did you mean 'mcts'",
+    ),
 ]
 
 
-@pytest.mark.parametrize("argv, command, expected", SUBPROCESS_CASES,
-                         ids=[case[1] for case in SUBPROCESS_CASES])
+@pytest.mark.parametrize(
+    "argv, command, expected", SUBPROCESS_CASES, ids=[case[1] for case in SUBPROCESS_CASES]
+)
 def test_the_real_entry_points_fail_the_same_way(argv, command, expected):
-    result = subprocess.run([sys.executable, *argv], cwd=ROOT, capture_output=True, text=True,
-                            timeout=300)
+    result = subprocess.run(
+        [sys.executable, *argv], cwd=ROOT, capture_output=True, text=True, timeout=300
+    )
     assert result.returncode == 2, result.stderr
     _assert_one_line_error(result.stderr, _prog(command), expected)
 
 
 HELP_COMMANDS = ["run", "envs", "train", "train_skill", "train_options", "compare"] + sorted(
-    f"bench/{p.stem}" for p in BENCHMARKS.glob("[a-z]*.py"))
+    f"bench/{p.stem}" for p in BENCHMARKS.glob("[a-z]*.py")
+)
 
 
 @pytest.mark.parametrize("command", HELP_COMMANDS)
@@ -289,19 +329,29 @@ def test_help_names_the_command_as_users_start_it_and_shows_defaults(command, ca
 
 def test_list_shows_the_parameterised_forms(capsys):
     from hier_agents import run as run_lib
+
     assert run_lib.main(["--list"]) == 0
     out = capsys.readouterr().out
-    for form in ("learned:PATH", "learned-ball:PATH", "learned-arm:PATH", "mcts:N",
-                 "gnugo:LEVEL", "oracle (privileged)"):
+    for form in (
+        "learned:PATH",
+        "learned-ball:PATH",
+        "learned-arm:PATH",
+        "mcts:N",
+        "gnugo:LEVEL",
+        "oracle (privileged)",
+    ):
         assert form in out, form
 
 
 def test_one_parser_reads_component_names_everywhere():
     from hier_agents.modular.components import PLANNERS, SKILLS, UsageError, check, resolve
+
     assert resolve("planner", "mujoxo", "mcts:50")[:2] == ("mcts", 50)
     assert resolve("planner", "mujoxo", None).name == "minimax"  # the default
     assert resolve("skill", "mujoban", f"learned-ball:{BALL_POLICY}")[:2] == (
-        "learned-ball", BALL_POLICY)
+        "learned-ball",
+        BALL_POLICY,
+    )
     assert "mcts:50" in PLANNERS["mujogo"] and "mcts:x" not in PLANNERS["mujogo"]
     assert f"learned-arm:{BALL_POLICY}" in SKILLS["mujoxo"]  # `in` parses, loads nothing
     with pytest.raises(UsageError, match="do not match"):
@@ -323,8 +373,22 @@ def test_mcts_takes_its_simulation_count_by_name(tmp_path):
     finally:
         env.close()
     out = tmp_path / "xo.json"
-    assert run_lib.main(["mujoxo/mixture", "--planner", "mcts:50", "--episodes", "1",
-                         "--env-option", "time_limit=2", "--json", str(out)]) == 0
+    assert (
+        run_lib.main(
+            [
+                "mujoxo/mixture",
+                "--planner",
+                "mcts:50",
+                "--episodes",
+                "1",
+                "--env-option",
+                "time_limit=2",
+                "--json",
+                str(out),
+            ]
+        )
+        == 0
+    )
     summary = json.loads(out.read_text())
     assert summary["planner"] == "mcts:50" and summary["episodes"] == 1
     assert summary["finished"] is True
@@ -332,10 +396,26 @@ def test_mcts_takes_its_simulation_count_by_name(tmp_path):
 
 def test_a_learned_skill_takes_a_checkpoint_path(tmp_path, capsys):
     from hier_agents import run as run_lib
+
     out = tmp_path / "ball.json"
-    assert run_lib.main(["mujoban/level1", "--skill", f"learned-ball:{BALL_POLICY}",
-                         "--estimator", "oracle", "--episodes", "1",
-                         "--env-option", "time_limit=2", "--json", str(out)]) == 0
+    assert (
+        run_lib.main(
+            [
+                "mujoban/level1",
+                "--skill",
+                f"learned-ball:{BALL_POLICY}",
+                "--estimator",
+                "oracle",
+                "--episodes",
+                "1",
+                "--env-option",
+                "time_limit=2",
+                "--json",
+                str(out),
+            ]
+        )
+        == 0
+    )
     summary = json.loads(out.read_text())
     assert summary["skill"] == f"learned-ball:{BALL_POLICY}"
     assert summary["training_frames"] > 0  # the checkpoint's, read from the file given
@@ -346,6 +426,7 @@ def test_a_learned_skill_takes_a_checkpoint_path(tmp_path, capsys):
 def test_a_learned_skill_takes_a_training_run_directory(tmp_path):
     import shutil
     from skills.learned.ball import load_policy
+
     run_dir = tmp_path / "runs" / "ball"
     run_dir.mkdir(parents=True)
     with pytest.raises(FileNotFoundError, match="no \\*_policy.pt"):
@@ -358,12 +439,15 @@ def test_a_learned_skill_takes_a_training_run_directory(tmp_path):
 
 
 def test_outputs_go_into_new_folders_and_the_json_is_written_after_every_episode(
-        tmp_path, monkeypatch):
+    tmp_path, monkeypatch
+):
     from hier_agents import run as run_lib
+
     out = tmp_path / "new" / "deeper" / "run.json"
     video = tmp_path / "other" / "first.mp4"
     seen = []
     from hier_agents.agents import runner
+
     play = runner.play_episode
 
     def watched(env, view, agent, description, episode, *rest):
@@ -371,9 +455,24 @@ def test_outputs_go_into_new_folders_and_the_json_is_written_after_every_episode
         return play(env, view, agent, description, episode, *rest)
 
     monkeypatch.setattr(runner, "play_episode", watched)
-    assert run_lib.main(["mujoban/level1", "--episodes", "2", "--estimator", "oracle",
-                         "--env-option", "time_limit=1", "--json", str(out),
-                         "--video", str(video)]) == 0
+    assert (
+        run_lib.main(
+            [
+                "mujoban/level1",
+                "--episodes",
+                "2",
+                "--estimator",
+                "oracle",
+                "--env-option",
+                "time_limit=1",
+                "--json",
+                str(out),
+                "--video",
+                str(video),
+            ]
+        )
+        == 0
+    )
     (first, before_first), (second, before_second) = seen
     assert (first, before_first["episodes"], before_first["finished"]) == (0, 0, False)
     assert (second, before_second["episodes"], before_second["finished"]) == (1, 1, False)
@@ -387,8 +486,10 @@ def test_outputs_go_into_new_folders_and_the_json_is_written_after_every_episode
 
 def test_an_interrupted_run_keeps_the_episodes_it_played(tmp_path, monkeypatch, capsys):
     from hier_agents import run as run_lib
+
     out = tmp_path / "run.json"
     from hier_agents.agents import runner
+
     play = runner.play_episode
 
     def interrupted(env, view, agent, description, episode, *rest):
@@ -397,8 +498,22 @@ def test_an_interrupted_run_keeps_the_episodes_it_played(tmp_path, monkeypatch, 
         return play(env, view, agent, description, episode, *rest)
 
     monkeypatch.setattr(runner, "play_episode", interrupted)
-    assert run_lib.main(["mujoban/level1", "--episodes", "3", "--estimator", "oracle",
-                         "--env-option", "time_limit=1", "--json", str(out)]) == 130
+    assert (
+        run_lib.main(
+            [
+                "mujoban/level1",
+                "--episodes",
+                "3",
+                "--estimator",
+                "oracle",
+                "--env-option",
+                "time_limit=1",
+                "--json",
+                str(out),
+            ]
+        )
+        == 130
+    )
     summary = json.loads(out.read_text())
     assert summary["episodes"] == 1 and summary["interrupted"] is True
     assert "1 of 3 episodes played" in capsys.readouterr().out
@@ -406,11 +521,22 @@ def test_an_interrupted_run_keeps_the_episodes_it_played(tmp_path, monkeypatch, 
 
 def test_plurals_in_the_table():
     from hier_agents.run_report import format_table
-    summary = {"env": "mujoban/level1", "agent": "random:1", "episodes": 1, "seed": 0,
-               "condition": "uniform random actions, held 1 step", "success_rate": 0.0,
-               "success_interval": (0.0, 0.9), "mean_return": 0.0, "mean_steps": 3.0,
-               "subgoal_success_rate": None, "errors": 1, "wall_s": 0.1,
-               "rows": [{"error": "RuntimeError: x"}]}
+
+    summary = {
+        "env": "mujoban/level1",
+        "agent": "random:1",
+        "episodes": 1,
+        "seed": 0,
+        "condition": "uniform random actions, held 1 step",
+        "success_rate": 0.0,
+        "success_interval": (0.0, 0.9),
+        "mean_return": 0.0,
+        "mean_steps": 3.0,
+        "subgoal_success_rate": None,
+        "errors": 1,
+        "wall_s": 0.1,
+        "rows": [{"error": "RuntimeError: x"}],
+    }
     table = format_table(summary)
     assert "1 episode," in table and "1 episode ended by an error" in table
     assert "1 episodes" not in table
@@ -419,14 +545,42 @@ def test_plurals_in_the_table():
 def test_a_checkpoint_agent_takes_levels_and_env_options(tmp_path, paths, capsys):
     from hier_agents import run as run_lib
     from hier_agents.baselines.impala.learner import TrainConfig, train
-    train(TrainConfig(env="mujoban/level1", condition="vanilla", steps=10,
-                      logdir=str(tmp_path / "run"), unroll_length=5, batch_size=2, actors=1,
-                      envs_per_actor=2, cameras=False, checkpoint_every_s=1e9, log_every_s=0.0,
-                      progress=False))
+
+    train(
+        TrainConfig(
+            env="mujoban/level1",
+            condition="vanilla",
+            steps=10,
+            logdir=str(tmp_path / "run"),
+            unroll_length=5,
+            batch_size=2,
+            actors=1,
+            envs_per_actor=2,
+            cameras=False,
+            checkpoint_every_s=1e9,
+            log_every_s=0.0,
+            progress=False,
+        )
+    )
     out = tmp_path / "eval" / "checkpoint.json"
-    assert run_lib.main(["mujoban/level1", "--agent", f"checkpoint:{tmp_path / 'run'}",
-                         "--levels", paths[LEVELS], "--env-option", "time_limit=1",
-                         "--episodes", "1", "--json", str(out)]) == 0
+    assert (
+        run_lib.main(
+            [
+                "mujoban/level1",
+                "--agent",
+                f"checkpoint:{tmp_path / 'run'}",
+                "--levels",
+                paths[LEVELS],
+                "--env-option",
+                "time_limit=1",
+                "--episodes",
+                "1",
+                "--json",
+                str(out),
+            ]
+        )
+        == 0
+    )
     summary = json.loads(out.read_text())
     assert summary["levels"] == paths[LEVELS] and summary["env_options"] == {"time_limit": 1}
     assert summary["rows"][0]["steps"] <= 20  # the 1 s limit at 20 control steps/s
@@ -439,9 +593,11 @@ def test_a_checkpoint_agent_takes_levels_and_env_options(tmp_path, paths, capsys
 def test_random_and_checkpoint_agents_report_after_every_episode():
     # The same hook serves every agent: once built, then after every episode.
     from hier_agents import run as run_lib
+
     seen = []
-    summary = run_lib.run("mujoban/level1", 2, 0, agent="random:10", progress=False,
-                          on_progress=seen.append)
+    summary = run_lib.run(
+        "mujoban/level1", 2, 0, agent="random:10", progress=False, on_progress=seen.append
+    )
     assert [(s["episodes"], s["finished"]) for s in seen] == [(0, False), (1, False), (2, False)]
     assert seen[1]["rows"][0]["episode"] == 0
     assert summary["finished"] is True and summary["episodes"] == 2

@@ -67,12 +67,15 @@ def strip(rows):
 
 
 def test_spec_plans_one_eval_job_per_shard_and_train_jobs_first(tmp_path):
-    text = SPEC + """
+    text = (
+        SPEC
+        + """
 [[agent]]
 label = "e2e"
 train = { observations = "proprio", state = true, actors = 1 }
 budgets = [200, 400]
 """
+    )
     spec = load(write_spec(tmp_path, text))
     planned = jobs_mod.plan(spec)
     kinds = [j.kind for j in planned]
@@ -88,26 +91,29 @@ budgets = [200, 400]
     assert len({j.key for j in planned}) == len(planned)
 
 
-@pytest.mark.parametrize("edit, message", [
-    ('name = "t"', "name must be"),
-    ('episodes = 4', "episodes must be an integer >= 1"),
-    ('seeds = [0, 1]', "seeds repeats"),
-    ('envs = ["mujoban/level1"]', "unknown environment"),
-    ('modular = {}', "unknown planner"),
-    ('random = 10', "exactly one of"),
-    ('label = "random 10"', "two agents are labelled"),
-    ('shard_episodes = 2', "unknown key 'shard_episode'"),
-])
+@pytest.mark.parametrize(
+    "edit, message",
+    [
+        ('name = "t"', "name must be"),
+        ("episodes = 4", "episodes must be an integer >= 1"),
+        ("seeds = [0, 1]", "seeds repeats"),
+        ('envs = ["mujoban/level1"]', "unknown environment"),
+        ("modular = {}", "unknown planner"),
+        ("random = 10", "exactly one of"),
+        ('label = "random 10"', "two agents are labelled"),
+        ("shard_episodes = 2", "unknown key 'shard_episode'"),
+    ],
+)
 def test_bad_specs_are_one_line_usage_errors(tmp_path, edit, message):
     replacement = {
         'name = "t"': 'name = ""',
-        'episodes = 4': 'episodes = 0',
-        'seeds = [0, 1]': 'seeds = [1, 1]',
+        "episodes = 4": "episodes = 0",
+        "seeds = [0, 1]": "seeds = [1, 1]",
         'envs = ["mujoban/level1"]': 'envs = ["mujoban/levle1"]',
-        'modular = {}': 'modular = { planner = "sokoban-slover" }',
-        'random = 10': 'random = 10\nmodular = {}',
+        "modular = {}": 'modular = { planner = "sokoban-slover" }',
+        "random = 10": "random = 10\nmodular = {}",
         'label = "random 10"': 'label = "modular"',
-        'shard_episodes = 2': 'shard_episode = 2',
+        "shard_episodes = 2": "shard_episode = 2",
     }[edit]
     path = write_spec(tmp_path, SPEC.replace(edit, replacement, 1))
     with pytest.raises(UsageError, match=message) as info:
@@ -118,9 +124,11 @@ def test_bad_specs_are_one_line_usage_errors(tmp_path, edit, message):
 
 def test_bad_train_tables_are_refused_before_anything_runs(tmp_path):
     base = SPEC + '\n[[agent]]\nlabel = "e2e"\nbudgets = [200]\n'
-    for train, message in [('{ frames = 10 }', "set by the plan"),
-                           ('{ condition = "expert" }', "condition"),
-                           ('{ no_such_flag = 1 }', "not valid python -m hier_agents.train")]:
+    for train, message in [
+        ("{ frames = 10 }", "set by the plan"),
+        ('{ condition = "expert" }', "condition"),
+        ("{ no_such_flag = 1 }", "not valid python -m hier_agents.train"),
+    ]:
         with pytest.raises(UsageError, match=message):
             load(write_spec(tmp_path, base + f"train = {train}\n"))
     with pytest.raises(UsageError, match="needs budgets"):
@@ -148,13 +156,23 @@ def test_shipped_specs_load():
 
 # -- job keys -------------------------------------------------------------------------------
 
-leaves = st.one_of(st.integers(-10**6, 10**6), st.text(max_size=8), st.booleans(),
-                   st.none(), st.floats(allow_nan=False, allow_infinity=False))
-inputs_strategy = st.dictionaries(st.text(min_size=1, max_size=6),
-                                  st.one_of(leaves, st.lists(leaves, max_size=3),
-                                            st.dictionaries(st.text(min_size=1, max_size=4),
-                                                            leaves, max_size=3)),
-                                  min_size=1, max_size=6)
+leaves = st.one_of(
+    st.integers(-(10**6), 10**6),
+    st.text(max_size=8),
+    st.booleans(),
+    st.none(),
+    st.floats(allow_nan=False, allow_infinity=False),
+)
+inputs_strategy = st.dictionaries(
+    st.text(min_size=1, max_size=6),
+    st.one_of(
+        leaves,
+        st.lists(leaves, max_size=3),
+        st.dictionaries(st.text(min_size=1, max_size=4), leaves, max_size=3),
+    ),
+    min_size=1,
+    max_size=6,
+)
 
 
 #: Properties of small pure functions: a few hundred examples whatever the
@@ -179,12 +197,21 @@ def test_job_keys_are_stable_and_change_with_any_input(inputs, data):
 
 
 def test_job_keys_do_not_depend_on_the_process():
-    code = ("from hier_agents.compare.jobs import job_key; print(job_key('eval', "
-            "{'env': 'mujoban/level1', 'seed': 3, 'agent': {'b': 1, 'a': 2}}))")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         cwd=ROOT, check=True, env={**os.environ, "PYTHONHASHSEED": "123"})
+    code = (
+        "from hier_agents.compare.jobs import job_key; print(job_key('eval', "
+        "{'env': 'mujoban/level1', 'seed': 3, 'agent': {'b': 1, 'a': 2}}))"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        check=True,
+        env={**os.environ, "PYTHONHASHSEED": "123"},
+    )
     assert out.stdout.strip() == jobs_mod.job_key(
-        "eval", {"agent": {"a": 2, "b": 1}, "seed": 3, "env": "mujoban/level1"})
+        "eval", {"agent": {"a": 2, "b": 1}, "seed": 3, "env": "mujoban/level1"}
+    )
 
 
 def test_learned_parts_are_keyed_by_their_checkpoint_contents(tmp_path):
@@ -194,8 +221,10 @@ def test_learned_parts_are_keyed_by_their_checkpoint_contents(tmp_path):
     assert shipped == {"skill": components.file_hash(POLICY_PATH)}
     copy_path = tmp_path / "ball_policy.pt"
     copy_path.write_bytes(POLICY_PATH.read_bytes())
-    assert components.learned_files("mujoban/level1", {"skill": f"learned-ball:{copy_path}"}) \
+    assert (
+        components.learned_files("mujoban/level1", {"skill": f"learned-ball:{copy_path}"})
         == shipped
+    )
     assert components.learned_files("mujoban/level1", {"skill": "ball"}) == {}
 
 
@@ -205,38 +234,57 @@ def test_learned_parts_are_keyed_by_their_checkpoint_contents(tmp_path):
 def _fake_records(cache: Path, planned, which) -> None:
     """Stores a record for each job in ``which`` as a finished job would."""
     for job in which:
-        rows = [{"episode": e, "solved": e % 2 == 0, "steps": 10, "return": 1.0}
-                for e in range(job.inputs["first_episode"],
-                               job.inputs["first_episode"] + job.inputs["episodes"])]
-        jobs_mod.store_record(cache, {**job.to_json(), "result": {"rows": rows, "summary": {
-            "estimator": "camera", "privileged": False, "training_frames": 0}},
-            "cpu_s": 1.0, "wall_s": 1.0, "attempts": 1})
+        rows = [
+            {"episode": e, "solved": e % 2 == 0, "steps": 10, "return": 1.0}
+            for e in range(
+                job.inputs["first_episode"], job.inputs["first_episode"] + job.inputs["episodes"]
+            )
+        ]
+        jobs_mod.store_record(
+            cache,
+            {
+                **job.to_json(),
+                "result": {
+                    "rows": rows,
+                    "summary": {"estimator": "camera", "privileged": False, "training_frames": 0},
+                },
+                "cpu_s": 1.0,
+                "wall_s": 1.0,
+                "attempts": 1,
+            },
+        )
 
 
 def test_a_warm_cache_runs_nothing_and_a_partial_one_only_the_rest(tmp_path, monkeypatch):
     spec = load(write_spec(tmp_path))
     planned = jobs_mod.plan(spec)
     ran = []
-    monkeypatch.setattr("hier_agents.compare.backends.job_process",
-                        lambda job, cache, log: (ran.append(job.key), _fake_records(
-                            cache, planned, [job]), (0, 0.5))[-1])
+    monkeypatch.setattr(
+        "hier_agents.compare.backends.job_process",
+        lambda job, cache, log: (
+            ran.append(job.key),
+            _fake_records(cache, planned, [job]),
+            (0, 0.5),
+        )[-1],
+    )
     _fake_records(spec.cache, planned, planned[:3])
-    before = {j.key: jobs_mod.record_path(spec.cache, j.key).stat().st_mtime_ns
-              for j in planned[:3]}
+    before = {
+        j.key: jobs_mod.record_path(spec.cache, j.key).stat().st_mtime_ns for j in planned[:3]
+    }
     lines = []
     records = run_jobs(planned, spec.cache, cpus=2, progress=lines.append)
     assert sorted(ran) == sorted(j.key for j in planned[3:])
     assert set(records) == {j.key for j in planned}
     assert lines[0].startswith(f"{len(planned)} jobs: 3 in the cache")
-    assert all(jobs_mod.record_path(spec.cache, k).stat().st_mtime_ns == t
-               for k, t in before.items())
+    assert all(
+        jobs_mod.record_path(spec.cache, k).stat().st_mtime_ns == t for k, t in before.items()
+    )
     ran.clear()
     run_jobs(planned, spec.cache, cpus=2, progress=lines.append)
     assert ran == []
 
 
-def test_a_train_job_whose_checkpoints_are_gone_is_run_again_when_needed(tmp_path,
-                                                                        monkeypatch):
+def test_a_train_job_whose_checkpoints_are_gone_is_run_again_when_needed(tmp_path, monkeypatch):
     text = SPEC + '\n[[agent]]\nlabel = "e2e"\ntrain = { actors = 1 }\nbudgets = [200]\n'
     spec = load(write_spec(tmp_path, text))
     planned = [j for j in jobs_mod.plan(spec) if j.point["agent"] == "e2e"]
@@ -244,8 +292,9 @@ def test_a_train_job_whose_checkpoints_are_gone_is_run_again_when_needed(tmp_pat
     for train in trains:  # finished once, checkpoints since deleted (they are not shipped)
         jobs_mod.store_record(spec.cache, {**train.to_json(), "result": {}})
     # Seed 0's evaluations are all cached, seed 1's are not.
-    _fake_records(spec.cache, planned, [j for j in planned
-                                        if j.kind == "eval" and j.inputs["seed"] == 0])
+    _fake_records(
+        spec.cache, planned, [j for j in planned if j.kind == "eval" and j.inputs["seed"] == 0]
+    )
     ran = []
 
     def fake(job, cache, log):
@@ -267,8 +316,7 @@ def test_a_train_job_whose_checkpoints_are_gone_is_run_again_when_needed(tmp_pat
     assert ran == []
 
 
-def test_the_report_counts_the_code_versions_of_its_records_and_warns_on_a_mix(tmp_path,
-                                                                             capsys):
+def test_the_report_counts_the_code_versions_of_its_records_and_warns_on_a_mix(tmp_path, capsys):
     import json
 
     from hier_agents.compare.__main__ import main
@@ -285,9 +333,11 @@ def test_the_report_counts_the_code_versions_of_its_records_and_warns_on_a_mix(t
     err = capsys.readouterr().err
     assert "warning: the job records come from 2 code versions" in err
     out = json.loads((spec.cache / "comparison.json").read_text())
-    assert out["code_versions"] == {"aaa": len(planned) - len(planned[::4]),
-                                    "bbb+dirty": len(planned[::4])}
-    for job in planned:                      # one version: no warning
+    assert out["code_versions"] == {
+        "aaa": len(planned) - len(planned[::4]),
+        "bbb+dirty": len(planned[::4]),
+    }
+    for job in planned:  # one version: no warning
         record = jobs_mod.load_record(spec.cache, job.key)
         record["provenance"] = {"commit": "aaa"}
         jobs_mod.store_record(spec.cache, record)
@@ -302,22 +352,30 @@ def test_a_training_costs_its_own_cpu_count_over_every_attempt(tmp_path):
     text = SPEC + '\n[[agent]]\nlabel = "e2e"\ntrain = { actors = 1 }\nbudgets = [200]\n'
     spec = load(write_spec(tmp_path, text))
     planned = [j for j in jobs_mod.plan(spec) if j.point["agent"] == "e2e"]
-    seed0, seed1 = sorted((j for j in planned if j.kind == "train"),
-                          key=lambda j: j.inputs["seed"])
-    jobs_mod.store_record(spec.cache, {**seed0.to_json(), "cpu_s": 100.0, "attempts": 3,
-                                       "result": {"counters": {"cpu_s": 7200.0}}})
-    jobs_mod.store_record(spec.cache, {**seed1.to_json(), "cpu_s": 3600.0, "attempts": 1,
-                                       "result": {"counters": {}}})
+    seed0, seed1 = sorted((j for j in planned if j.kind == "train"), key=lambda j: j.inputs["seed"])
+    jobs_mod.store_record(
+        spec.cache,
+        {
+            **seed0.to_json(),
+            "cpu_s": 100.0,
+            "attempts": 3,
+            "result": {"counters": {"cpu_s": 7200.0}},
+        },
+    )
+    jobs_mod.store_record(
+        spec.cache, {**seed1.to_json(), "cpu_s": 3600.0, "attempts": 1, "result": {"counters": {}}}
+    )
     _fake_records(spec.cache, planned, [j for j in planned if j.kind == "eval"])
     records = {j.key: jobs_mod.load_record(spec.cache, j.key) for j in planned}
-    cost, = report.series_cost(spec, planned, records)
+    (cost,) = report.series_cost(spec, planned, records)
     assert cost["train_cpu_hours"] == pytest.approx(3.0) and cost["cpu_partial_jobs"] == 0
     assert ">=" not in report.format_table(spec, report.points(spec, planned, records), [cost])
     # Seed 1 was retried, and its record knows only the last attempt's CPU.
-    jobs_mod.store_record(spec.cache, {**seed1.to_json(), "cpu_s": 3600.0, "attempts": 2,
-                                       "result": {"counters": {}}})
+    jobs_mod.store_record(
+        spec.cache, {**seed1.to_json(), "cpu_s": 3600.0, "attempts": 2, "result": {"counters": {}}}
+    )
     records[seed1.key] = jobs_mod.load_record(spec.cache, seed1.key)
-    cost, = report.series_cost(spec, planned, records)
+    (cost,) = report.series_cost(spec, planned, records)
     assert cost["train_cpu_hours"] == pytest.approx(3.0) and cost["cpu_partial_jobs"] == 1
     assert (cost["cpu_partial_train_jobs"], cost["cpu_partial_eval_jobs"]) == (1, 0)
     pts = report.points(spec, planned, records)
@@ -326,18 +384,19 @@ def test_a_training_costs_its_own_cpu_count_over_every_attempt(tmp_path):
     assert len(markdown) == 2 + len(pts) and all(">=3.00" in line for line in markdown[2:])
     # A retried evaluation makes the evaluation CPU a lower bound, not the training's.
     seed1_eval = next(j for j in planned if j.kind == "eval" and j.inputs["seed"] == 1)
-    jobs_mod.store_record(spec.cache, {**jobs_mod.load_record(spec.cache, seed1_eval.key),
-                                       "attempts": 2})
-    jobs_mod.store_record(spec.cache, {**seed1.to_json(), "cpu_s": 3600.0, "attempts": 1,
-                                       "result": {"counters": {}}})
+    jobs_mod.store_record(
+        spec.cache, {**jobs_mod.load_record(spec.cache, seed1_eval.key), "attempts": 2}
+    )
+    jobs_mod.store_record(
+        spec.cache, {**seed1.to_json(), "cpu_s": 3600.0, "attempts": 1, "result": {"counters": {}}}
+    )
     records = {j.key: jobs_mod.load_record(spec.cache, j.key) for j in planned}
-    cost, = report.series_cost(spec, planned, records)
+    (cost,) = report.series_cost(spec, planned, records)
     assert (cost["cpu_partial_train_jobs"], cost["cpu_partial_eval_jobs"]) == (0, 1)
     assert ">=" not in report.format_table(spec, pts, [cost])
 
 
-def test_failed_jobs_are_retried_then_reported_and_their_dependents_skipped(tmp_path,
-                                                                           monkeypatch):
+def test_failed_jobs_are_retried_then_reported_and_their_dependents_skipped(tmp_path, monkeypatch):
     from hier_agents.compare.backends import JobFailed
 
     text = SPEC + '\n[[agent]]\nlabel = "e2e"\ntrain = { actors = 1 }\nbudgets = [200]\n'
@@ -388,8 +447,8 @@ def test_iqm_lies_between_the_quartiles_and_ignores_outer_quarters(values):
     assert np.quantile(x, 0.25) - 1e-6 <= m <= np.quantile(x, 0.75) + 1e-6
     if len(x) % 4 == 0:
         n = len(x) // 4
-        assert m == pytest.approx(np.mean(x[n:3 * n]))
-        assert iqm(x[:n] * 0 + [-1e6] * n + x[n:3 * n] + [1e6] * n) == pytest.approx(m)
+        assert m == pytest.approx(np.mean(x[n : 3 * n]))
+        assert iqm(x[:n] * 0 + [-1e6] * n + x[n : 3 * n] + [1e6] * n) == pytest.approx(m)
 
 
 def test_points_carry_per_seed_values_means_and_intervals(tmp_path):
@@ -432,8 +491,7 @@ def test_an_episode_seeded_by_index_does_not_depend_on_the_episodes_before(tmp_p
         assert len({next(iter(v)) for v in firsts.values()}) == 3
     finally:
         env.close()
-    files = envs.load("mujoban/level5", levels=str(BOXOBAN),
-                      **envs.no_cameras("mujoban/level5"))
+    files = envs.load("mujoban/level5", levels=str(BOXOBAN), **envs.no_cameras("mujoban/level5"))
     try:
         files.seed(0, episode=5)
         files.reset()
@@ -479,8 +537,15 @@ def test_a_worker_killed_mid_run_is_replaced_and_the_rows_are_those_of_one_worke
             os.kill(victim.pid, signal.SIGKILL)
             killed.append(victim.pid)
 
-    two = run("mujoban/level1", 8, 5, agent="random:10", progress=False, workers=2,
-              on_progress=kill_one_worker)
+    two = run(
+        "mujoban/level1",
+        8,
+        5,
+        agent="random:10",
+        progress=False,
+        workers=2,
+        on_progress=kill_one_worker,
+    )
     assert killed and two["worker_restarts"] == 1 and one["worker_restarts"] == 0
     assert strip(one["rows"]) == strip(two["rows"])
     assert "killed by SIGKILL" in capfd.readouterr().err
@@ -545,10 +610,17 @@ def test_a_killed_experiment_resumes_without_redoing_finished_jobs(tmp_path):
     command = [sys.executable, "-m", "hier_agents.compare", str(spec), "--cpus", "1"]
     env = child_env()
     jobs_dir = tmp_path / "cache" / "jobs"
-    proc = subprocess.Popen(command, cwd=ROOT, env=env, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.DEVNULL, start_new_session=True)
+    proc = subprocess.Popen(
+        command,
+        cwd=ROOT,
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,
+    )
     try:
         import time
+
         deadline = time.time() + 300
         while time.time() < deadline and len(list(jobs_dir.glob("*.json"))) < 2:
             time.sleep(0.2)
@@ -557,8 +629,7 @@ def test_a_killed_experiment_resumes_without_redoing_finished_jobs(tmp_path):
         proc.wait(timeout=60)
     finished = {p.name: p.stat().st_mtime_ns for p in jobs_dir.glob("*.json")}
     assert 2 <= len(finished) < 8
-    out = subprocess.run(command, cwd=ROOT, env=env, capture_output=True, text=True,
-                         timeout=900)
+    out = subprocess.run(command, cwd=ROOT, env=env, capture_output=True, text=True, timeout=900)
     assert out.returncode == 0, out.stderr[-3000:]
     assert f"8 jobs: {len(finished)} in the cache" in out.stderr
     assert all((jobs_dir / name).stat().st_mtime_ns == t for name, t in finished.items())
@@ -566,8 +637,7 @@ def test_a_killed_experiment_resumes_without_redoing_finished_jobs(tmp_path):
     attempts = tmp_path / "cache" / "attempts"
     for name in finished:  # a finished job was started once
         assert len((attempts / name[:-5]).read_text().splitlines()) == 1
-    again = subprocess.run(command, cwd=ROOT, env=env, capture_output=True, text=True,
-                           timeout=300)
+    again = subprocess.run(command, cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)
     assert "8 jobs: 8 in the cache" in again.stderr and "is unchanged" in again.stderr
 
 
@@ -597,11 +667,27 @@ def test_ctrl_c_stops_the_workers_and_keeps_the_episodes_played(tmp_path):
 
     out = tmp_path / "run.json"
     proc = subprocess.Popen(
-        [sys.executable, "-m", "hier_agents.run", "mujoban/level1", "--agent", "random:10",
-         "--episodes", "400", "--workers", "2", "--json", str(out)],
-        cwd=ROOT, env=child_env(),
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+        [
+            sys.executable,
+            "-m",
+            "hier_agents.run",
+            "mujoban/level1",
+            "--agent",
+            "random:10",
+            "--episodes",
+            "400",
+            "--workers",
+            "2",
+            "--json",
+            str(out),
+        ],
+        cwd=ROOT,
+        env=child_env(),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
     deadline = time.time() + 300
     while time.time() < deadline and not out.exists():  # the first shard reported
         time.sleep(0.5)
@@ -626,10 +712,11 @@ def test_the_shipped_comparison_is_what_its_committed_job_records_give(tmp_path,
     shipped = ROOT / "results" / "compare" / "mujoban"
     cache = tmp_path / "mujoban"
     shutil.copytree(shipped / "jobs", cache / "jobs")
-    monkeypatch.chdir(ROOT)                  # the spec named as the README names it
+    monkeypatch.chdir(ROOT)  # the spec named as the README names it
     spec = Path("experiments/mujoban.toml")
     assert jobs_mod.plan(load(spec)) and all(
-        (cache / "jobs" / f"{job.key}.json").is_file() for job in jobs_mod.plan(load(spec)))
+        (cache / "jobs" / f"{job.key}.json").is_file() for job in jobs_mod.plan(load(spec))
+    )
     assert main([str(spec), "--report-only", "--cache", str(cache), "--quiet"]) == 0
     made, committed = (json.loads((d / "comparison.json").read_text()) for d in (cache, shipped))
     made.pop("provenance"), committed.pop("provenance")

@@ -44,8 +44,9 @@ def _env():
 
 
 def _ray(*args, check=True):
-    return subprocess.run(["ray", *args], env=_env(), capture_output=True, text=True,
-                          timeout=180, check=check)
+    return subprocess.run(
+        ["ray", *args], env=_env(), capture_output=True, text=True, timeout=180, check=check
+    )
 
 
 @pytest.fixture
@@ -73,16 +74,30 @@ def test_an_experiment_survives_a_killed_worker_on_a_two_node_cluster(tmp_path, 
     spec = tmp_path / "spec.toml"
     spec.write_text(SPEC)
     cache = tmp_path / "cache"
-    proc = subprocess.Popen([sys.executable, "-m", "hier_agents.compare", str(spec),
-                             "--backend", "ray", "--ray-address", cluster],
-                            env=_env(), cwd=ROOT, stdout=subprocess.PIPE,
-                            stderr=subprocess.STDOUT, text=True)
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "hier_agents.compare",
+            str(spec),
+            "--backend",
+            "ray",
+            "--ray-address",
+            cluster,
+        ],
+        env=_env(),
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
     killed = None
     try:
         deadline = time.time() + 240
         while killed is None and time.time() < deadline and proc.poll() is None:
-            for log in sorted((cache / "attempts").glob("*")) if (cache / "attempts").exists() \
-                    else []:
+            for log in (
+                sorted((cache / "attempts").glob("*")) if (cache / "attempts").exists() else []
+            ):
                 lines = log.read_text().splitlines()
                 if len(lines) == 1 and not (cache / "jobs" / f"{log.name}.json").exists():
                     worker = int(re.search(r"parent=(\d+)", lines[0]).group(1))

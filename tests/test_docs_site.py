@@ -106,7 +106,7 @@ def broken_images(site: Path, page: str, dom: str, base_url: str = "") -> list[s
         if tag != "img" or key != "src" or value.startswith("data:"):
             continue
         if base_url and value.startswith(base_url):
-            value = "/" + value[len(base_url):].lstrip("/")
+            value = "/" + value[len(base_url) :].lstrip("/")
         target = _target(site, page, value)
         if target is None or not target.is_file():
             broken.append(f"{page}: {value}")
@@ -122,21 +122,27 @@ def test_the_checkers_report_a_missing_image_and_a_broken_link(tmp_path):
     (tmp_path / "pics").mkdir()
     (tmp_path / "pics" / "ok.png").write_bytes(b"\x89PNG\r\n\x1a\n")
     (tmp_path / "other.html").write_text("<p>other</p>")
-    page = ('<html><body><img src="pics/ok.png"><img src="pics/missing.png">'
-            '<a href="other.html#top">ok</a><a href="gone/">gone</a>'
-            '<a href="https://example.org/x">outside</a><a href="#here">here</a>'
-            '<img src="data:image/png;base64,AAAA"></body></html>')
+    page = (
+        '<html><body><img src="pics/ok.png"><img src="pics/missing.png">'
+        '<a href="other.html#top">ok</a><a href="gone/">gone</a>'
+        '<a href="https://example.org/x">outside</a><a href="#here">here</a>'
+        '<img src="data:image/png;base64,AAAA"></body></html>'
+    )
     (tmp_path / "page.html").write_text(page)
     assert broken_images(tmp_path, "page.html", page) == ["page.html: pics/missing.png"]
-    assert broken_links(tmp_path) == ["page.html: <img src='pics/missing.png'>",
-                                      "page.html: <a href='gone/'>"]
+    assert broken_links(tmp_path) == [
+        "page.html: <img src='pics/missing.png'>",
+        "page.html: <a href='gone/'>",
+    ]
     # An image from another host is not part of the site: broken.
     assert broken_images(tmp_path, "page.html", '<img src="https://example.org/a.png">') == [
-        "page.html: https://example.org/a.png"]
+        "page.html: https://example.org/a.png"
+    ]
     # Absolute URLs on the site's own server map to its files.
     dom = '<img src="http://127.0.0.1:8000/pics/ok.png"><img src="http://127.0.0.1:8000/x.png">'
     assert broken_images(tmp_path, "page.html", dom, "http://127.0.0.1:8000") == [
-        "page.html: /x.png"]
+        "page.html: /x.png"
+    ]
 
 
 # -- the browser ----------------------------------------------------------------------------------
@@ -153,9 +159,20 @@ def serve(folder: Path):
     """``python -m http.server`` on a free localhost port for ``folder``; yields its base URL
     and stops the server on exit."""
     port = _free_port()
-    server = subprocess.Popen([sys.executable, "-m", "http.server", str(port), "--bind",
-                               "127.0.0.1", "--directory", str(folder)],
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    server = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "http.server",
+            str(port),
+            "--bind",
+            "127.0.0.1",
+            "--directory",
+            str(folder),
+        ],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     base = f"http://127.0.0.1:{port}"
     try:
         deadline = time.monotonic() + 20
@@ -179,9 +196,20 @@ def chromium(url: str, profile: Path, *extra: str, timeout: float = 90) -> str:
     binary = _chromium()
     assert binary is not None
     profile.mkdir(parents=True, exist_ok=True)
-    command = [binary, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
-               "--no-first-run", "--disable-background-networking", "--disable-component-update",
-               "--disable-sync", f"--user-data-dir={profile}", *extra, url]
+    command = [
+        binary,
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--disable-quic",
+        "--no-first-run",
+        "--disable-background-networking",
+        "--disable-component-update",
+        "--disable-sync",
+        f"--user-data-dir={profile}",
+        *extra,
+        url,
+    ]
     result = subprocess.run(command, capture_output=True, text=True, timeout=timeout)
     assert result.returncode == 0, result.stderr[-2000:]
     return result.stdout
@@ -202,8 +230,9 @@ def test_a_page_with_a_broken_image_fails_in_the_browser(tmp_path, browser):
     site = tmp_path / "site"
     site.mkdir()
     (site / "ok.png").write_bytes((ROOT / "results" / "board_looks.png").read_bytes())
-    (site / "index.html").write_text('<html><body><h1>t</h1><img src="ok.png">'
-                                     '<img src="nowhere/missing.png"></body></html>')
+    (site / "index.html").write_text(
+        '<html><body><h1>t</h1><img src="ok.png"><img src="nowhere/missing.png"></body></html>'
+    )
     with serve(site) as base:
         dom = dump_dom(base + "/index.html", tmp_path / "profile")
     assert "<h1>t</h1>" in dom
@@ -219,20 +248,36 @@ def built_site(tmp_path_factory):
         _require_or_skip("the docs extra is not installed (pip install -e '.[docs]')")
     site = tmp_path_factory.mktemp("docs") / "site"
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    result = subprocess.run(["bash", "scripts/docs.sh", str(site)], cwd=ROOT, env=env,
-                            capture_output=True, text=True, timeout=600)
+    result = subprocess.run(
+        ["bash", "scripts/docs.sh", str(site)],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert result.returncode == 0, (result.stdout + result.stderr)[-4000:]
     return site
 
 
 @pytest.mark.slow
 def test_the_site_builds_strictly_with_every_page_and_no_broken_link(built_site):
-    for page in ("index.html", "getting-started.html", "architecture.html", "adding_tasks.html",
-                 "changelog.html", "gallery/index.html", "api/index.html",
-                 "api/physics_planning.cli.html", "api/hier_agents.agents.registry.html",
-                 "tutorials/swap_planners_and_skills.html",
-                 "tutorials/train_and_swap_a_learned_part.html", "results/agent.html",
-                 "results/comparison.html", "results/images/comparison.png"):
+    for page in (
+        "index.html",
+        "getting-started.html",
+        "architecture.html",
+        "adding_tasks.html",
+        "changelog.html",
+        "gallery/index.html",
+        "api/index.html",
+        "api/physics_planning.cli.html",
+        "api/hier_agents.agents.registry.html",
+        "tutorials/swap_planners_and_skills.html",
+        "tutorials/train_and_swap_a_learned_part.html",
+        "results/agent.html",
+        "results/comparison.html",
+        "results/images/comparison.png",
+    ):
         assert (built_site / page).is_file(), page
     # No private module or __main__ gets a page.
     names = [p.name for p in (built_site / "api").glob("*.html")]
@@ -243,11 +288,18 @@ def test_the_site_builds_strictly_with_every_page_and_no_broken_link(built_site)
 @pytest.mark.slow
 def test_the_browser_renders_the_pages_and_every_image_loads(built_site, browser, tmp_path):
     with serve(built_site) as base:
-        doms = {page: dump_dom(f"{base}/{page}", tmp_path / f"profile{i}")
-                for i, page in enumerate(BROWSED)}
+        doms = {
+            page: dump_dom(f"{base}/{page}", tmp_path / f"profile{i}")
+            for i, page in enumerate(BROWSED)
+        }
         shot = built_site / "screenshot-index.png"
-        chromium(f"{base}/index.html", tmp_path / "profile-shot", f"--screenshot={shot}",
-                 "--window-size=1280,900", "--virtual-time-budget=5000")
+        chromium(
+            f"{base}/index.html",
+            tmp_path / "profile-shot",
+            f"--screenshot={shot}",
+            "--window-size=1280,900",
+            "--virtual-time-budget=5000",
+        )
     assert "physics-planning" in doms["index.html"]
     assert "Environments" in doms["gallery/index.html"]
     assert "envs.load" in doms["api/envs.html"] or "def load" in doms["api/envs.html"]

@@ -12,8 +12,13 @@ from envs.core import Environment
 from envs.mujoban import sources
 from envs.mujoban.levels import BOXOBAN_DIR, Level, read_levels
 from envs.mujoban.task import Mujoban
-from hier_agents.estimators import (BoardEstimator, EntityLayerEstimator, EstimationError,
-                                    OracleEstimator, rounded_state)
+from hier_agents.estimators import (
+    BoardEstimator,
+    EntityLayerEstimator,
+    EstimationError,
+    OracleEstimator,
+    rounded_state,
+)
 
 NO_CAMERAS = {"top_camera": None, "egocentric_camera": None}
 
@@ -50,8 +55,12 @@ def test_rounding_rule_keeps_the_walker_off_boxes_and_rejects_two_boxes_in_a_cel
 
 def test_oracle_and_entity_layer_follow_a_pushed_box():
     level = Level.from_text("#######\n#     #\n# @$ .#\n#     #\n#######")
-    env = Environment(Mujoban(sources.FixedLevels([level]), max_boxes=1,
-                              randomize_appearance=False, **NO_CAMERAS), seed=0)
+    env = Environment(
+        Mujoban(
+            sources.FixedLevels([level]), max_boxes=1, randomize_appearance=False, **NO_CAMERAS
+        ),
+        seed=0,
+    )
     timestep = env.reset()
     grid, layer = OracleEstimator(env), EntityLayerEstimator(env)
     grid.reset(env.description(), timestep)

@@ -11,8 +11,7 @@ import numpy as np
 import pytest
 
 from abstract_planners.sokoban import SokobanState
-from abstract_planners.sokoban_time import (FEATURES, estimate_steps, fit_weights,
-                                            plan_features)
+from abstract_planners.sokoban_time import FEATURES, estimate_steps, fit_weights, plan_features
 
 ROOT = Path(__file__).resolve().parents[1]
 ROOM = SokobanState.from_text("########\n#      #\n# @$  .#\n#      #\n########")
@@ -32,8 +31,9 @@ def test_a_straight_push_is_one_stroke_and_a_detour_counts_its_turns():
 def test_the_step_model_is_linear_and_the_fit_recovers_known_weights():
     weights = {"start": 20.0, "walk": 4.0, "push": 9.0, "stroke": 12.0, "turn": 1.5}
     rng = np.random.default_rng(0)
-    features = [dict(zip(FEATURES, map(int, rng.integers(1, 60, size=len(FEATURES)))))
-                for _ in range(40)]
+    features = [
+        dict(zip(FEATURES, map(int, rng.integers(1, 60, size=len(FEATURES))))) for _ in range(40)
+    ]
     steps = [estimate_steps(f, weights) for f in features]
     fitted = fit_weights(features, steps)
     for key, value in weights.items():
@@ -50,22 +50,44 @@ def test_the_benchmark_writes_a_row_per_level_with_its_keys(tmp_path):
     spec.loader.exec_module(module)
     out = tmp_path / "et.json"
     levels = ROOT / "envs" / "mujoban" / "data" / "boxoban" / "unfiltered-valid-000.txt"
-    assert module.main(["--levels", str(levels), "--episodes", "2", "--estimator", "oracle",
-                        "--json", str(out)]) == 0
+    assert (
+        module.main(
+            [
+                "--levels",
+                str(levels),
+                "--episodes",
+                "2",
+                "--estimator",
+                "oracle",
+                "--json",
+                str(out),
+            ]
+        )
+        == 0
+    )
     result = json.loads(out.read_text())
     assert result["summary"]["privileged"] is True and result["summary"]["levels"] == 2
     assert len(result["rows"]) == 2
     for row in result["rows"]:
-        assert {"pushes", "moves", "features", "estimated_steps", "steps", "steps_per_push",
-                "limit_share", "solved"} <= set(row)
+        assert {
+            "pushes",
+            "moves",
+            "features",
+            "estimated_steps",
+            "steps",
+            "steps_per_push",
+            "limit_share",
+            "solved",
+        } <= set(row)
         assert row["limit_share"] == pytest.approx(row["steps"] / 900, abs=1e-4)
 
 
 def test_the_results_table_names_any_planner_but_mujobans_default():
     from hier_agents.modular.components import PLANNERS
 
-    spec = importlib.util.spec_from_file_location("agent_table", ROOT / "benchmarks" /
-                                                  "agent_table.py")
+    spec = importlib.util.spec_from_file_location(
+        "agent_table", ROOT / "benchmarks" / "agent_table.py"
+    )
     table = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(table)
     assert table.DEFAULT_MUJOBAN_PLANNER == next(iter(PLANNERS["mujoban"]))

@@ -16,8 +16,10 @@ import pytest
 from physics_planning.cli import UsageError
 from hier_agents.executor import WORKER_RETRIES, CallFailed, Pool, WorkerDied
 
-LINE = "hier_agents: a worker process died ({how}); running {what} again in a new {where} " \
-       "(retry {n} of " + str(WORKER_RETRIES) + ")"
+LINE = (
+    "hier_agents: a worker process died ({how}); running {what} again in a new {where} "
+    "(retry {n} of " + str(WORKER_RETRIES) + ")"
+)
 
 
 class Counter:
@@ -54,8 +56,10 @@ def test_a_killed_worker_is_replaced_and_its_call_runs_again(capfd):
         total, pid = pool.next(timeout=120).result
     assert call.result == (total, pid) and pid != first_pid and pool.restarts == 1
     assert total == 2  # the new worker was built afresh by the factory
-    assert LINE.format(how="killed by SIGKILL", what="the second add", where="process",
-                       n=1) in capfd.readouterr().err
+    assert (
+        LINE.format(how="killed by SIGKILL", what="the second add", where="process", n=1)
+        in capfd.readouterr().err
+    )
 
 
 def test_a_call_that_keeps_killing_its_worker_raises_worker_died(capfd):
@@ -65,8 +69,10 @@ def test_a_call_that_keeps_killing_its_worker_raises_worker_died(capfd):
             pool.next(timeout=300)
         assert pool.restarts == WORKER_RETRIES
     lines = [line for line in capfd.readouterr().err.splitlines() if "worker process" in line]
-    assert lines == [LINE.format(how="killed by SIGKILL", what="a deadly call", where="process",
-                                 n=n) for n in range(1, WORKER_RETRIES + 1)]
+    assert lines == [
+        LINE.format(how="killed by SIGKILL", what="a deadly call", where="process", n=n)
+        for n in range(1, WORKER_RETRIES + 1)
+    ]
 
 
 def test_a_call_that_raises_is_not_retried_and_names_the_error():
@@ -79,8 +85,9 @@ def test_a_call_that_raises_is_not_retried_and_names_the_error():
         assert pool.next(timeout=120).result[0] == 1  # the worker goes on
 
 
-def test_compare_runs_a_job_whose_process_died_again_with_the_same_line(tmp_path, monkeypatch,
-                                                                          capfd):
+def test_compare_runs_a_job_whose_process_died_again_with_the_same_line(
+    tmp_path, monkeypatch, capfd
+):
     from test_compare import SPEC, _fake_records, write_spec
 
     from hier_agents.compare import jobs as jobs_mod
@@ -102,8 +109,10 @@ def test_compare_runs_a_job_whose_process_died_again_with_the_same_line(tmp_path
     records = run_jobs(planned, spec.cache, cpus=2, progress=lambda line: None)
     assert len(records) == len(planned)
     job = next(j for j in planned if j.key == deaths[0])
-    assert LINE.format(how="killed by SIGKILL", what=job.describe(), where="process",
-                       n=1) in capfd.readouterr().err
+    assert (
+        LINE.format(how="killed by SIGKILL", what=job.describe(), where="process", n=1)
+        in capfd.readouterr().err
+    )
 
 
 def test_compare_fails_a_job_whose_process_keeps_dying(tmp_path, monkeypatch, capfd):
@@ -141,8 +150,17 @@ def test_run_refuses_an_unreachable_ray_address_in_one_line(capsys):
     from hier_agents.run import main
 
     with pytest.raises(SystemExit) as exc:
-        main(["mujoban/level1", "--agent", "random:10", "--episodes", "2",
-              "--ray-address", "127.0.0.1:1"])
+        main(
+            [
+                "mujoban/level1",
+                "--agent",
+                "random:10",
+                "--episodes",
+                "2",
+                "--ray-address",
+                "127.0.0.1:1",
+            ]
+        )
     errors = [line for line in capsys.readouterr().err.splitlines() if "error:" in line]
     assert exc.value.code == 2 and len(errors) == 1 and "127.0.0.1:1" in errors[0], errors
 
@@ -167,8 +185,9 @@ def test_a_train_table_and_its_argv_give_the_same_config(tmp_path):
     table = tomllib.loads(TABLE)
     planned = {"frames": 2000, "seed": 3, "logdir": str(tmp_path), "save_at": [1000, 2000]}
     from_table = TrainConfig.from_options("mujoban/level1", {**table, **planned})
-    argv = train_argv("mujoban/level1", table, frames=2000, seed=3, logdir=str(tmp_path),
-                      save_at=(1000, 2000))
+    argv = train_argv(
+        "mujoban/level1", table, frames=2000, seed=3, logdir=str(tmp_path), save_at=(1000, 2000)
+    )
     from_argv = train_cli.config_from_args(train_cli.parse_args(argv))
     assert from_table == from_argv
     assert (from_table.image_size, from_table.envs_per_actor, from_table.cameras) == (48, 4, True)

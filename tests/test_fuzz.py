@@ -42,7 +42,8 @@ LEVEL_TEXT = st.one_of(
     SOKOBAN_TEXT,
     ROWS.map("\n".join),
     st.lists(ROWS.map("\n".join), min_size=1, max_size=3).map(
-        lambda levels: "".join(f"; {i}\n{text}\n\n" for i, text in enumerate(levels))),
+        lambda levels: "".join(f"; {i}\n{text}\n\n" for i, text in enumerate(levels))
+    ),
 )
 
 
@@ -61,13 +62,29 @@ def test_the_level_reader_raises_only_level_errors(text):
 NAMES = envs.names()
 KEYS = sorted({key for name in NAMES for key in envs.overrides(name)} | {"bogus", "seed "})
 _tmp = tempfile.mkdtemp(prefix="fuzz-levels-")
-SPECIAL_STRINGS = ["sequential", "shuffle", "arm", "fingers", "fingertips", "", "gnugo",
-                   "/nonexistent/levels.txt", _tmp, str(BOXOBAN / "unfiltered-valid-000.txt"),
-                   "/bin/true"]
+SPECIAL_STRINGS = [
+    "sequential",
+    "shuffle",
+    "arm",
+    "fingers",
+    "fingertips",
+    "",
+    "gnugo",
+    "/nonexistent/levels.txt",
+    _tmp,
+    str(BOXOBAN / "unfiltered-valid-000.txt"),
+    "/bin/true",
+]
 SCALARS = st.one_of(
-    st.none(), st.booleans(), st.integers(), st.integers(-3, 20),
-    st.floats(allow_nan=True, allow_infinity=True), st.floats(-1, 100),
-    st.sampled_from(SPECIAL_STRINGS), st.text(max_size=8), st.binary(max_size=4),
+    st.none(),
+    st.booleans(),
+    st.integers(),
+    st.integers(-3, 20),
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.floats(-1, 100),
+    st.sampled_from(SPECIAL_STRINGS),
+    st.text(max_size=8),
+    st.binary(max_size=4),
     st.sampled_from([np.int64(3), np.float32(0.5), np.bool_(True), np.nan, 1e308, -0.0]),
 )
 VALUES = st.one_of(
@@ -79,36 +96,62 @@ VALUES = st.one_of(
     st.just(Path("/nonexistent/levels.txt")),
     st.just(object()),
 )
+
+
 @st.composite
 def configs(draw):
     """A name, a seed and overrides: mostly the name's own settings (so values,
     not unknown keys, are what gets rejected), sometimes any key at all."""
     name = draw(st.sampled_from(NAMES))
     own = envs.overrides(name)
-    keys = st.one_of(st.sampled_from(own), st.sampled_from(own), st.sampled_from(own),
-                     st.sampled_from(KEYS))
+    keys = st.one_of(
+        st.sampled_from(own), st.sampled_from(own), st.sampled_from(own), st.sampled_from(KEYS)
+    )
     chosen = draw(st.lists(keys, unique=True, max_size=4))
     kwargs = {key: draw(st.one_of(VALUES, EDGES.get(key, VALUES))) for key in chosen}
     return name, draw(st.one_of(st.none(), SCALARS, st.integers())), kwargs
 
 
-NUMBERS = st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.integers(),
-                    st.floats(-1e-3, 1.0), st.sampled_from([0, 1e-300, 1e300, -1, 0.05, 0.002]))
-PAIRS = st.one_of(st.tuples(st.integers(), st.integers()),
-                  st.tuples(st.integers(-1, 70), st.integers(-1, 70)),
-                  st.lists(st.integers(0, 5000), max_size=3), st.tuples(NUMBERS, NUMBERS))
+NUMBERS = st.one_of(
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.integers(),
+    st.floats(-1e-3, 1.0),
+    st.sampled_from([0, 1e-300, 1e300, -1, 0.05, 0.002]),
+)
+PAIRS = st.one_of(
+    st.tuples(st.integers(), st.integers()),
+    st.tuples(st.integers(-1, 70), st.integers(-1, 70)),
+    st.lists(st.integers(0, 5000), max_size=3),
+    st.tuples(NUMBERS, NUMBERS),
+)
 #: Values of the right type, often out of range, per setting.
 EDGES = {
-    **{key: NUMBERS for key in ("time_limit", "control_timestep", "physics_timestep",
-                                "pad_tolerance", "piece_noise", "komi", "gnugo_timeout",
-                                "epsilon")},
-    **{key: st.one_of(st.integers(), st.integers(-2, 12)) for key in
-       ("noslip_iterations", "level", "board_size", "difficulty")},
-    **{key: PAIRS for key in ("grid_shape", "top_camera", "egocentric_camera", "front_camera",
-                              "render_size")},
+    **{
+        key: NUMBERS
+        for key in (
+            "time_limit",
+            "control_timestep",
+            "physics_timestep",
+            "pad_tolerance",
+            "piece_noise",
+            "komi",
+            "gnugo_timeout",
+            "epsilon",
+        )
+    },
+    **{
+        key: st.one_of(st.integers(), st.integers(-2, 12))
+        for key in ("noslip_iterations", "level", "board_size", "difficulty")
+    },
+    **{
+        key: PAIRS
+        for key in ("grid_shape", "top_camera", "egocentric_camera", "front_camera", "render_size")
+    },
     "levels": st.one_of(st.sampled_from(SPECIAL_STRINGS), st.text(max_size=20)),
-    "gnugo_command": st.one_of(st.lists(st.text(max_size=6), max_size=3),
-                               st.sampled_from(["/bin/true", "", "no-such-engine --mode gtp"])),
+    "gnugo_command": st.one_of(
+        st.lists(st.text(max_size=6), max_size=3),
+        st.sampled_from(["/bin/true", "", "no-such-engine --mode gtp"]),
+    ),
 }
 
 
@@ -133,8 +176,11 @@ def test_any_configuration_is_rejected_cleanly_before_anything_is_built(config):
         message = str(exc)
         assert _names_the_bad_value(message, seed, kwargs), message
         # envs.load fails the same way, before a model is built.
-        with mock.patch.object(core_lib.Environment, "__init__",
-                               side_effect=AssertionError("physics built for a bad config")):
+        with mock.patch.object(
+            core_lib.Environment,
+            "__init__",
+            side_effect=AssertionError("physics built for a bad config"),
+        ):
             try:
                 envs.load(name, seed, **kwargs)
             except ALLOWED as again:
@@ -172,8 +218,11 @@ PLAUSIBLE = {
     "piece_noise": st.one_of(st.none(), st.floats(-0.1, 1.1)),
     "level": st.integers(0, 11),
     "komi": st.floats(-10, 10),
-    "arm_reset": st.booleans(), "sleep": st.booleans(), "lazy_cameras": st.booleans(),
-    "randomize_appearance": st.booleans(), "allow_double_pass": st.booleans(),
+    "arm_reset": st.booleans(),
+    "sleep": st.booleans(),
+    "lazy_cameras": st.booleans(),
+    "randomize_appearance": st.booleans(),
+    "allow_double_pass": st.booleans(),
     "registering": st.sampled_from(["arm", "fingers", "fingertips"]),
 }
 
@@ -203,8 +252,9 @@ def test_configurations_that_pass_the_check_build_reset_and_step(config):
 
 @given(LEVEL_TEXT)
 def test_any_level_file_is_checked_without_building(text):
-    with tempfile.NamedTemporaryFile("w", suffix=".txt", delete=False, encoding="utf-8",
-                                     errors="surrogatepass") as f:
+    with tempfile.NamedTemporaryFile(
+        "w", suffix=".txt", delete=False, encoding="utf-8", errors="surrogatepass"
+    ) as f:
         try:
             f.write(text)
         except UnicodeEncodeError:

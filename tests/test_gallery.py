@@ -115,8 +115,11 @@ def test_check_passes_then_names_a_missing_picture_and_a_stale_card(cheap_galler
 
 def test_the_committed_gallery_has_a_card_and_a_picture_per_environment():
     """Files only (no environment built): ``--check`` compares their text."""
-    missing = [name for name in envs.names()
-               if not (GALLERY / f"{generate.slug(name)}.md").is_file()
-               or not (GALLERY / "img" / f"{generate.slug(name)}.png").is_file()]
+    missing = [
+        name
+        for name in envs.names()
+        if not (GALLERY / f"{generate.slug(name)}.md").is_file()
+        or not (GALLERY / "img" / f"{generate.slug(name)}.png").is_file()
+    ]
     assert not missing, f"run python docs/gallery/generate.py --only NAME for {missing}"
     assert (GALLERY / "index.md").is_file()

@@ -116,8 +116,9 @@ def test_same_seed_same_level_and_different_seeds_differ():
         assert first == again
         assert len(set(first)) > 1
     rng_a, rng_b = np.random.default_rng(7), np.random.default_rng(7)
-    assert ([generator.generate_level(4, rng=rng_a) for _ in range(3)]
-            == [generator.generate_level(4, rng=rng_b) for _ in range(3)])
+    assert [generator.generate_level(4, rng=rng_a) for _ in range(3)] == [
+        generator.generate_level(4, rng=rng_b) for _ in range(3)
+    ]
 
 
 def test_custom_size_and_box_count():
@@ -125,16 +126,19 @@ def test_custom_size_and_box_count():
     assert (level.height, level.width, len(level.boxes)) == (9, 9, 3)
 
 
-@pytest.mark.parametrize("args, kwargs, match", [
-    ((0,), {}, "difficulty"),
-    ((6,), {}, "difficulty"),
-    ((2.0,), {}, "difficulty"),
-    ((True,), {}, "difficulty"),
-    ((4, 1), {}, "size"),
-    ((5, 0), {}, "num_boxes"),
-    ((5, 3), {}, "num_boxes"),
-    ((1,), {"seed": 1, "rng": np.random.default_rng(1)}, "either"),
-])
+@pytest.mark.parametrize(
+    "args, kwargs, match",
+    [
+        ((0,), {}, "difficulty"),
+        ((6,), {}, "difficulty"),
+        ((2.0,), {}, "difficulty"),
+        ((True,), {}, "difficulty"),
+        ((4, 1), {}, "size"),
+        ((5, 0), {}, "num_boxes"),
+        ((5, 3), {}, "num_boxes"),
+        ((1,), {"seed": 1, "rng": np.random.default_rng(1)}, "either"),
+    ],
+)
 def test_bad_arguments_are_value_errors(args, kwargs, match):
     with pytest.raises(ValueError, match=match):
         generator.generate_level(*args, **kwargs)
@@ -142,8 +146,13 @@ def test_bad_arguments_are_value_errors(args, kwargs, match):
 
 def test_paper_difficulty_table():
     table = [(d.level, d.size, d.num_boxes, d.ratio) for d in generator.DIFFICULTIES]
-    assert table == [(1, 5, 1, 0.25), (2, 7, 1, 0.25), (3, 7, 2, 0.2), (4, 8, 3, 0.2),
-                     (5, 10, 4, 0.1)]
+    assert table == [
+        (1, 5, 1, 0.25),
+        (2, 7, 1, 0.25),
+        (3, 7, 2, 0.2),
+        (4, 8, 3, 0.2),
+        (5, 10, 4, 0.1),
+    ]
 
 
 def test_curriculum_draws_difficulties_with_the_paper_ratios():
@@ -166,8 +175,9 @@ def test_curriculum_levels_match_their_difficulty_and_custom_ratios_are_respecte
     assert {only_l2.sample_difficulty(rng).level for _ in range(200)} == {2}
 
 
-@pytest.mark.parametrize("ratios", [[0.5, 0.5], [0.3, 0.3, 0.3, 0.3, 0.3],
-                                    [-0.1, 0.3, 0.3, 0.3, 0.2], ["a", 0, 0, 0, 1]])
+@pytest.mark.parametrize(
+    "ratios", [[0.5, 0.5], [0.3, 0.3, 0.3, 0.3, 0.3], [-0.1, 0.3, 0.3, 0.3, 0.2], ["a", 0, 0, 0, 1]]
+)
 def test_bad_curriculum_ratios_are_value_errors(ratios):
     with pytest.raises(ValueError, match="ratios"):
         generator.Curriculum(ratios)

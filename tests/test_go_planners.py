@@ -10,8 +10,14 @@ import pytest
 
 from abstract_planners import gtp
 from abstract_planners.board_random import RandomMovePlanner
-from abstract_planners.go import (GnuGoPlanner, MCTSPlanner, action_to_vertex, go_game,
-                                  pass_action, vertex_to_action)
+from abstract_planners.go import (
+    GnuGoPlanner,
+    MCTSPlanner,
+    action_to_vertex,
+    go_game,
+    pass_action,
+    vertex_to_action,
+)
 from abstract_planners.gtp import GnuGoNotFoundError
 
 needs_gnugo = pytest.mark.usefixtures("gnugo")  # conftest decides whether GNU Go is there
@@ -42,6 +48,7 @@ def play(game, planners, seed=0, check=None):
 
 
 # -- coordinates -------------------------------------------------------------------
+
 
 def printed_stone(state):
     """(column letter, row number) of the single stone in OpenSpiel's board printout."""
@@ -103,6 +110,7 @@ def test_go_game():
 
 # -- MCTS --------------------------------------------------------------------------
 
+
 def test_mcts_beats_random_play_on_5x5():
     game = go_game(5, 5.5)
     wins = 0
@@ -136,14 +144,17 @@ def test_mcts_plays_other_games_and_solves_tic_tac_toe():
     assert subgoal.action == 2
 
 
-@pytest.mark.parametrize("kwargs, name", [
-    (dict(simulations=0), "simulations"),
-    (dict(simulations=2.5), "simulations"),
-    (dict(rollouts=0), "rollouts"),
-    (dict(uct_c=0), "uct_c"),
-    (dict(uct_c=float("inf")), "uct_c"),
-    (dict(seed=-1), "seed"),
-])
+@pytest.mark.parametrize(
+    "kwargs, name",
+    [
+        (dict(simulations=0), "simulations"),
+        (dict(simulations=2.5), "simulations"),
+        (dict(rollouts=0), "rollouts"),
+        (dict(uct_c=0), "uct_c"),
+        (dict(uct_c=float("inf")), "uct_c"),
+        (dict(seed=-1), "seed"),
+    ],
+)
 def test_mcts_validates_arguments(kwargs, name):
     with pytest.raises(ValueError, match=name):
         MCTSPlanner(**kwargs)
@@ -157,6 +168,7 @@ def test_mcts_rejects_terminal_states():
 
 
 # -- GNU Go ------------------------------------------------------------------------
+
 
 @pytest.mark.parametrize("level", [0, 11, 5.5, None])
 def test_gnugo_level_is_validated(level):
@@ -228,8 +240,12 @@ def test_gnugo_passes_when_pass_is_the_only_legal_move():
 @needs_gnugo
 def test_default_gnugo_plays_the_original_rules():
     # The original MuJoGo ran GNU Go with area scoring and dead-stone capture.
-    assert gtp.default_gnugo_command()[1:] == ["--mode", "gtp", "--chinese-rules",
-                                               "--capture-all-dead"]
+    assert gtp.default_gnugo_command()[1:] == [
+        "--mode",
+        "gtp",
+        "--chinese-rules",
+        "--capture-all-dead",
+    ]
 
 
 @needs_gnugo

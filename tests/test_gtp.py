@@ -16,7 +16,7 @@ from abstract_planners.gtp import GnuGoNotFoundError, GTPClient, GTPError
 needs_gnugo = pytest.mark.usefixtures("gnugo")  # conftest decides whether GNU Go is there
 
 # A scripted GTP engine: answers by command name, echoing the numeric id.
-FAKE_ENGINE = textwrap.dedent(r'''
+FAKE_ENGINE = textwrap.dedent(r"""
     import sys
     for line in sys.stdin:
         words = line.split()
@@ -36,7 +36,7 @@ FAKE_ENGINE = textwrap.dedent(r'''
         sys.stdout.flush()
         if name == "quit":
             break
-''')
+""")
 
 
 @pytest.fixture()
@@ -54,6 +54,7 @@ def script_engine(tmp_path, body: str) -> list[str]:
 
 
 # -- parsing -----------------------------------------------------------------------
+
 
 def test_reply_parsing(fake):
     assert fake.send("name") == "Fake Engine"
@@ -91,12 +92,16 @@ def test_gtp_error_pickles():
 
 # -- timeouts, deaths, missing engines ----------------------------------------------
 
+
 def test_silent_engine_times_out_and_is_killed(tmp_path):
-    command = script_engine(tmp_path, """
+    command = script_engine(
+        tmp_path,
+        """
         import sys
         for line in sys.stdin:
             pass
-    """)
+    """,
+    )
     client = GTPClient(command, timeout=0.5, name="silent")
     with pytest.raises(GTPError, match=r"genmove b.*0\.5 s") as info:
         client.send("genmove b")
@@ -114,11 +119,14 @@ def test_engine_that_never_reads_times_out():
 
 
 def test_engine_dying_on_every_command_raises_after_one_retry(tmp_path):
-    command = script_engine(tmp_path, """
+    command = script_engine(
+        tmp_path,
+        """
         import sys
         sys.stdin.readline()
         sys.exit(3)
-    """)
+    """,
+    )
     with GTPClient(command, timeout=5) as client:
         with pytest.raises(GTPError, match="died") as info:
             client.send("name")

@@ -20,8 +20,11 @@ from arm_driving import touch_point
 from child_env import child_env
 
 ROOT = Path(__file__).resolve().parents[1]
-SMALL = {"mujoban": {"top_camera": (32, 32), "egocentric_camera": (32, 32)},
-         "mujoxo": {"front_camera": (32, 32)}, "mujogo": {"front_camera": (32, 32)}}
+SMALL = {
+    "mujoban": {"top_camera": (32, 32), "egocentric_camera": (32, 32)},
+    "mujoxo": {"front_camera": (32, 32)},
+    "mujogo": {"front_camera": (32, 32)},
+}
 CHECKED = {"mujoban": "mujoban/level1-pegs", "mujoxo": "mujoxo/mixture", "mujogo": "mujogo/7x7"}
 
 
@@ -50,7 +53,8 @@ def test_every_observation_choice_passes_gymnasium_check_env(built, obs):
         assert set(task.camera_configs) <= set(space.spaces)
     elif obs == "full":
         assert {k for k in space.spaces if k.startswith(PRIVILEGED_PREFIX)} == {
-            PRIVILEGED_PREFIX + k for k in privileged}
+            PRIVILEGED_PREFIX + k for k in privileged
+        }
         assert len(space.spaces) == len(built.observation_spec())
     elif obs == "pixels":
         assert space.shape == (32, 32, 3) and space.dtype == np.uint8
@@ -58,7 +62,7 @@ def test_every_observation_choice_passes_gymnasium_check_env(built, obs):
     else:
         assert space.dtype == np.float32 and len(space.shape) == 1
         layout = gym_env.state_layout
-        assert list(layout)[-len(task.state_observations):] == list(task.state_observations)
+        assert list(layout)[-len(task.state_observations) :] == list(task.state_observations)
         assert not set(layout) & set(task.camera_configs)
         state_key = task.state_observations[0]
         raw = built.task.observe(built.physics)[state_key]
@@ -85,8 +89,13 @@ def test_no_default_observation_holds_a_privileged_key():
 
 
 def test_render_frames_have_the_render_size_and_show_the_pegs():
-    env = gymnasium.make("mujoban/level5-pegs", render_mode="rgb_array",
-                         render_size=(200, 240), top_camera=(96, 96), egocentric_camera=None)
+    env = gymnasium.make(
+        "mujoban/level5-pegs",
+        render_mode="rgb_array",
+        render_size=(200, 240),
+        top_camera=(96, 96),
+        egocentric_camera=None,
+    )
     observation, _ = env.reset(seed=0)
     frame = env.render()
     assert frame.shape == (200, 240, 3) and frame.dtype == np.uint8
@@ -103,8 +112,11 @@ def test_render_frames_have_the_render_size_and_show_the_pegs():
 
 
 def test_bad_obs_and_unknown_keywords_name_the_valid_values():
-    with pytest.raises(ValueError, match=r"'pixel'.*did you mean 'pixels'.*sensors, pixels, "
-                                         r"state, full"):
+    with pytest.raises(
+        ValueError,
+        match=r"'pixel'.*did you mean 'pixels'.*sensors, pixels, "
+        r"state, full",
+    ):
         gymnasium.make("mujoban/level1", obs="pixel")
     with pytest.raises(TypeError, match=r"'rendr_size'.*did you mean 'render_size'.*obs"):
         gymnasium.make("mujoban/level1", rendr_size=(64, 64))
@@ -113,8 +125,7 @@ def test_bad_obs_and_unknown_keywords_name_the_valid_values():
 
 
 def test_is_success_at_the_end_of_a_solved_and_of_a_truncated_mujoban_episode():
-    env = gymnasium.make("mujoban/level1", top_camera=None, egocentric_camera=None,
-                         time_limit=0.25)
+    env = gymnasium.make("mujoban/level1", top_camera=None, egocentric_camera=None, time_limit=0.25)
     env.reset(seed=0)
     info, truncated = {}, False
     while not truncated:
@@ -142,7 +153,8 @@ class _GymAsDm:
 
     def step(self, action):
         obs, reward, terminated, truncated, self.info = self.gym.step(
-            np.asarray(action, np.float32))
+            np.asarray(action, np.float32)
+        )
         kind = dm_env.StepType.LAST if terminated or truncated else dm_env.StepType.MID
         return dm_env.TimeStep(kind, reward, 0.0 if terminated else 1.0, obs)
 
@@ -173,8 +185,9 @@ def _episode_ends(vec, steps=4):
 
 
 def _make_short():
-    return gymnasium.make("mujoban/level1", top_camera=(16, 16), egocentric_camera=None,
-                          time_limit=0.15)
+    return gymnasium.make(
+        "mujoban/level1", top_camera=(16, 16), egocentric_camera=None, time_limit=0.15
+    )
 
 
 def test_sync_vector_env_reports_success_at_episode_ends():
@@ -217,8 +230,14 @@ def test_module_id_form_and_async_vector_env_in_a_fresh_interpreter(tmp_path):
     script = tmp_path / "fresh.py"
     script.write_text(FRESH_INTERPRETER)
     env = child_env(ROOT / "tests")
-    out = subprocess.run([sys.executable, str(script)], cwd=ROOT, capture_output=True,
-                         text=True, timeout=180, env=env)
+    out = subprocess.run(
+        [sys.executable, str(script)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=180,
+        env=env,
+    )
     assert out.returncode == 0, out.stderr[-3000:]
     assert out.stdout.splitlines()[:3] == ["(425,)", "SkillEnv", "(2, 16, 16, 3) 2"]
 
@@ -226,8 +245,10 @@ def test_module_id_form_and_async_vector_env_in_a_fresh_interpreter(tmp_path):
 # -- Stable-Baselines3 -----------------------------------------------------------------
 
 POLICIES = {"sensors": "MultiInputPolicy", "state": "MlpPolicy", "pixels": "CnnPolicy"}
-SB3_ENVS = {"mujoban/level1": {"top_camera": (48, 48), "egocentric_camera": (48, 48)},
-            "mujoxo/mixture": {"front_camera": (48, 48)}}
+SB3_ENVS = {
+    "mujoban/level1": {"top_camera": (48, 48), "egocentric_camera": (48, 48)},
+    "mujoxo/mixture": {"front_camera": (48, 48)},
+}
 
 
 def _learn_and_evaluate(name, obs, tmp_path, **cameras):
@@ -238,12 +259,22 @@ def _learn_and_evaluate(name, obs, tmp_path, **cameras):
 
     def make():
         return gymnasium.make(name, obs=obs, time_limit=0.5, **{**SB3_ENVS[name], **cameras})
+
     env, eval_env = make(), make()
     try:
-        callback = EvalCallback(eval_env, n_eval_episodes=2, eval_freq=64,
-                                log_path=str(tmp_path), verbose=0)
-        model = PPO(POLICIES[obs], env, n_steps=64, batch_size=64, n_epochs=1, seed=0,
-                    device="cpu", verbose=0)
+        callback = EvalCallback(
+            eval_env, n_eval_episodes=2, eval_freq=64, log_path=str(tmp_path), verbose=0
+        )
+        model = PPO(
+            POLICIES[obs],
+            env,
+            n_steps=64,
+            batch_size=64,
+            n_epochs=1,
+            seed=0,
+            device="cpu",
+            verbose=0,
+        )
         model.learn(total_timesteps=128, callback=callback)
         assert model.num_timesteps == 128
         assert len(callback.evaluations_successes) == 2
@@ -258,12 +289,15 @@ def _learn_and_evaluate(name, obs, tmp_path, **cameras):
 
 def test_stable_baselines3_learns_on_the_default_observation(tmp_path):
     # NatureCNN takes frames of 36x36 pixels and more; one camera keeps it quick.
-    _learn_and_evaluate("mujoban/level1", "sensors", tmp_path, top_camera=(36, 36),
-                        egocentric_camera=None)
+    _learn_and_evaluate(
+        "mujoban/level1", "sensors", tmp_path, top_camera=(36, 36), egocentric_camera=None
+    )
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name, obs", [(n, o) for n in SB3_ENVS for o in POLICIES
-                                       if (n, o) != ("mujoban/level1", "sensors")])
+@pytest.mark.parametrize(
+    "name, obs",
+    [(n, o) for n in SB3_ENVS for o in POLICIES if (n, o) != ("mujoban/level1", "sensors")],
+)
 def test_stable_baselines3_learns_on_every_observation_choice(name, obs, tmp_path):
     _learn_and_evaluate(name, obs, tmp_path)

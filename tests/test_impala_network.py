@@ -10,29 +10,59 @@ import torch
 from torch import nn
 
 from hier_agents.baselines.impala.agent_env import InputSpec
-from hier_agents.baselines.impala.network import (ImpalaNet, NetOutput, PlannerEncoder,
-                                                  gaussian_entropy, gaussian_log_prob)
+from hier_agents.baselines.impala.network import (
+    ImpalaNet,
+    NetOutput,
+    PlannerEncoder,
+    gaussian_entropy,
+    gaussian_log_prob,
+)
 
 CAM = (3, 96, 96)
 SPECS = {
-    "mujoban-two-cameras": InputSpec(images=(("top_camera", CAM), ("egocentric_camera", CAM)),
-                                     proprio_dim=25, planner_shape=(8, 10, 10),
-                                     planner_action_dim=4, action_dim=2),
-    "mujoban-one-camera": InputSpec(images=(("top_camera", CAM),), proprio_dim=25,
-                                    planner_shape=(8, 10, 10), planner_action_dim=4,
-                                    action_dim=2),
-    "mujoban-no-camera": InputSpec(images=(), proprio_dim=25, planner_shape=(8, 10, 10),
-                                   planner_action_dim=4, action_dim=2),
-    "mujoxo": InputSpec(images=(("front_camera", CAM),), proprio_dim=39,
-                        planner_shape=(6, 3, 3), planner_action_dim=0, action_dim=9),
-    "mujogo-7x7": InputSpec(images=(), proprio_dim=39, planner_shape=(6, 7, 7),
-                            planner_action_dim=0, action_dim=9),
-    "vanilla": InputSpec(images=(("top_camera", CAM),), proprio_dim=25, planner_shape=None,
-                         planner_action_dim=0, action_dim=2),
+    "mujoban-two-cameras": InputSpec(
+        images=(("top_camera", CAM), ("egocentric_camera", CAM)),
+        proprio_dim=25,
+        planner_shape=(8, 10, 10),
+        planner_action_dim=4,
+        action_dim=2,
+    ),
+    "mujoban-one-camera": InputSpec(
+        images=(("top_camera", CAM),),
+        proprio_dim=25,
+        planner_shape=(8, 10, 10),
+        planner_action_dim=4,
+        action_dim=2,
+    ),
+    "mujoban-no-camera": InputSpec(
+        images=(), proprio_dim=25, planner_shape=(8, 10, 10), planner_action_dim=4, action_dim=2
+    ),
+    "mujoxo": InputSpec(
+        images=(("front_camera", CAM),),
+        proprio_dim=39,
+        planner_shape=(6, 3, 3),
+        planner_action_dim=0,
+        action_dim=9,
+    ),
+    "mujogo-7x7": InputSpec(
+        images=(), proprio_dim=39, planner_shape=(6, 7, 7), planner_action_dim=0, action_dim=9
+    ),
+    "vanilla": InputSpec(
+        images=(("top_camera", CAM),),
+        proprio_dim=25,
+        planner_shape=None,
+        planner_action_dim=0,
+        action_dim=2,
+    ),
 }
 #: A spec with every kind of input but small images (fast).
-SMALL = InputSpec(images=(("cam", (3, 20, 28)),), proprio_dim=5, planner_shape=(4, 3, 3),
-                  planner_action_dim=4, action_dim=3)
+SMALL = InputSpec(
+    images=(("cam", (3, 20, 28)),),
+    proprio_dim=5,
+    planner_shape=(4, 3, 3),
+    planner_action_dim=4,
+    action_dim=3,
+)
 
 
 def make_obs(spec: InputSpec, T: int, B: int, seed: int = 0) -> dict[str, torch.Tensor]:
@@ -105,8 +135,13 @@ def test_the_resnet_follows_the_table_and_has_no_normalisation():
 
 
 def test_any_image_size_and_a_3x3_board_work():
-    spec = InputSpec(images=(("cam", (3, 64, 80)),), proprio_dim=4, planner_shape=(6, 3, 3),
-                     planner_action_dim=0, action_dim=2)
+    spec = InputSpec(
+        images=(("cam", (3, 64, 80)),),
+        proprio_dim=4,
+        planner_shape=(6, 3, 3),
+        planner_action_dim=0,
+        action_dim=2,
+    )
     net = ImpalaNet(spec, two_values=True)
     assert net.image_encoders["cam"].feature_shape == (32, 8, 10)
     out, _ = net(make_obs(spec, 2, 2), _no_first(2, 2))
@@ -143,8 +178,9 @@ def test_first_resets_the_core_state_of_its_column_only():
     state = tuple(torch.randn_like(s) for s in net.initial_state(B))
     out, _ = net(obs, first, state)
     # Column 0 from step k equals a fresh run on obs[k:] (zero state).
-    fresh, _ = net({key: v[k:] for key, v in obs.items()}, _no_first(T - k, B),
-                   net.initial_state(B))
+    fresh, _ = net(
+        {key: v[k:] for key, v in obs.items()}, _no_first(T - k, B), net.initial_state(B)
+    )
     for full, new in zip(out, fresh):
         torch.testing.assert_close(full[k:, 0], new[:, 0], rtol=1e-5, atol=1e-6)
         # Column 1 was not reset: its carried state still matters.
@@ -193,8 +229,9 @@ def test_act_shapes_and_seeded_sampling(B):
     np.testing.assert_array_equal(lp1, lp2)
     assert not np.array_equal(a1, a3)
     # The log-probabilities are those of the sampled actions under the policy.
-    out, _ = net({k: torch.as_tensor(v)[None] for k, v in obs.items()},
-                 torch.ones(1, B, dtype=torch.bool))
+    out, _ = net(
+        {k: torch.as_tensor(v)[None] for k, v in obs.items()}, torch.ones(1, B, dtype=torch.bool)
+    )
     expected = gaussian_log_prob(out.mean[0], out.std[0], torch.from_numpy(a1))
     np.testing.assert_allclose(lp1, expected.detach().numpy(), rtol=1e-5, atol=1e-5)
 
@@ -205,15 +242,20 @@ def test_gaussian_helpers_match_torch_distributions():
     std = 0.3 + torch.rand(4, 3, 2, generator=g)
     actions = torch.randn(4, 3, 2, generator=g)
     dist = torch.distributions.Normal(mean, std)
-    torch.testing.assert_close(gaussian_log_prob(mean, std, actions),
-                               dist.log_prob(actions).sum(-1))
+    torch.testing.assert_close(
+        gaussian_log_prob(mean, std, actions), dist.log_prob(actions).sum(-1)
+    )
     torch.testing.assert_close(gaussian_entropy(std), dist.entropy().sum(-1))
 
 
 def test_a_spec_without_inputs_is_refused():
     with pytest.raises(ValueError, match="no input"):
-        ImpalaNet(InputSpec(images=(), proprio_dim=0, planner_shape=None, planner_action_dim=0,
-                            action_dim=2), two_values=False)
+        ImpalaNet(
+            InputSpec(
+                images=(), proprio_dim=0, planner_shape=None, planner_action_dim=0, action_dim=2
+            ),
+            two_values=False,
+        )
 
 
 def test_chained_value_core_equals_one_long_sequence():
@@ -226,16 +268,19 @@ def test_chained_value_core_equals_one_long_sequence():
     first = _no_first(2 * T + 1, 1)
     first[0] = True
     long_out, _ = net(long_obs, first, net.initial_state(1))
-    _, policy_state = net({k: v[:T] for k, v in long_obs.items()}, first[:T],
-                          net.initial_state(1))
-    obs = {k: torch.cat([v[:T + 1], v[T:]], dim=1) for k, v in long_obs.items()}
+    _, policy_state = net({k: v[:T] for k, v in long_obs.items()}, first[:T], net.initial_state(1))
+    obs = {k: torch.cat([v[: T + 1], v[T:]], dim=1) for k, v in long_obs.items()}
     state = tuple(torch.cat([z, p]) for z, p in zip(net.initial_state(1), policy_state))
-    state = (torch.zeros(2, state[0].shape[1]), torch.zeros(2, state[1].shape[1]),
-             state[2], state[3])
-    first2 = torch.cat([first[:T + 1], first[T:]], dim=1)
+    state = (
+        torch.zeros(2, state[0].shape[1]),
+        torch.zeros(2, state[1].shape[1]),
+        state[2],
+        state[3],
+    )
+    first2 = torch.cat([first[: T + 1], first[T:]], dim=1)
     out, new_state = net(obs, first2, state, value_state_after=T - 1, value_chain=[-1, 0])
     torch.testing.assert_close(out.value_env[:, 1], long_out.value_env[T:, 0])
-    torch.testing.assert_close(out.value_abs[:, 0], long_out.value_abs[:T + 1, 0])
+    torch.testing.assert_close(out.value_abs[:, 0], long_out.value_abs[: T + 1, 0])
     torch.testing.assert_close(out.mean[:, 1], long_out.mean[T:, 0])
     # Without the chain the second column's values would differ.
     plain, _ = net(obs, first2, state)

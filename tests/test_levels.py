@@ -8,8 +8,14 @@ import pickle
 import numpy as np
 import pytest
 
-from envs.mujoban.levels import (BOXOBAN_DIR, Level, LevelError, parse_levels, read_levels,
-                                 write_levels)
+from envs.mujoban.levels import (
+    BOXOBAN_DIR,
+    Level,
+    LevelError,
+    parse_levels,
+    read_levels,
+    write_levels,
+)
 
 BOXOBAN_FILES = ["unfiltered-valid-000.txt", "medium-valid-000.txt"]
 VALID = "(valid: '#', ' ', '@', '$', '.', '*', '+')"
@@ -21,6 +27,7 @@ def unfiltered() -> list[Level]:
 
 
 # -- the real Boxoban files --------------------------------------------------------
+
 
 @pytest.mark.parametrize("filename", BOXOBAN_FILES)
 def test_real_boxoban_files_hold_1000_10x10_levels_with_4_boxes(filename):
@@ -55,9 +62,15 @@ def test_entity_layers_of_the_first_unfiltered_level(unfiltered):
     assert target.sum() == 4
     assert wall[0, 0] and wall[1, 4] and wall[7, 7] and not wall[1, 5]
     assert not layers[1, 5].any()  # plain floor
-    assert wall.sum() == len(unfiltered[0].walls) == 100 - sum(
-        row.count(" ") + row.count("$") + row.count(".") + row.count("@")
-        for row in unfiltered[0].to_text().split("\n"))
+    assert (
+        wall.sum()
+        == len(unfiltered[0].walls)
+        == 100
+        - sum(
+            row.count(" ") + row.count("$") + row.count(".") + row.count("@")
+            for row in unfiltered[0].to_text().split("\n")
+        )
+    )
 
 
 def test_grid_shows_the_level_characters(unfiltered):
@@ -78,8 +91,10 @@ def test_write_then_read_round_trips_the_whole_real_file(unfiltered, tmp_path):
 
 
 def test_write_levels_to_a_text_stream_and_unnamed_levels_get_their_position():
-    levels = [Level.from_text("#####\n#@$.#\n#####"),
-              Level.from_text("#####\n#.$@#\n#####", name="hard one")]
+    levels = [
+        Level.from_text("#####\n#@$.#\n#####"),
+        Level.from_text("#####\n#.$@#\n#####", name="hard one"),
+    ]
     buffer = io.StringIO()
     write_levels(levels, buffer)
     again = parse_levels(buffer.getvalue())
@@ -93,6 +108,7 @@ def test_to_text_round_trips_real_levels(unfiltered):
 
 
 # -- characters -------------------------------------------------------------------------
+
 
 def test_box_on_target_and_player_on_target_parse_and_round_trip():
     text = "######\n#+*.$#\n#$   #\n######"
@@ -109,8 +125,9 @@ def test_box_on_target_and_player_on_target_parse_and_round_trip():
 
 
 def test_dash_and_underscore_are_floor():
-    assert Level.from_text("#####\n#@$.#\n#-_ #\n#####") == \
-        Level.from_text("#####\n#@$.#\n#   #\n#####")
+    assert Level.from_text("#####\n#@$.#\n#-_ #\n#####") == Level.from_text(
+        "#####\n#@$.#\n#   #\n#####"
+    )
 
 
 def test_interior_and_trailing_spaces_are_kept_and_crlf_is_accepted():
@@ -135,6 +152,7 @@ def test_a_single_level_file_without_header(tmp_path):
 
 # -- the Level type ----------------------------------------------------------------------
 
+
 def test_levels_are_equal_and_hash_by_content_not_name():
     a = Level.from_text("#####\n#@$.#\n#####", name="a")
     b = Level.from_text("#####\n#@$.#\n#####", name="b")
@@ -149,12 +167,14 @@ def test_direct_construction_is_validated():
     walls = frozenset((0, c) for c in range(4))
     good = dict(walls=walls, targets={(1, 1)}, boxes={(1, 2)}, player=(1, 3), height=2, width=4)
     assert Level(**good).boxes == frozenset({(1, 2)})
-    bad = [dict(good, boxes={(0, 2)}),             # box on a wall
-           dict(good, targets={(1, 4)}),           # target outside
-           dict(good, player=(1, 2)),              # player on the box
-           dict(good, player=(0, 3)),              # player on a wall
-           dict(good, boxes=set(), targets=set()),  # no box
-           dict(good, boxes={(1, 2), (1, 0)})]     # 2 boxes, 1 target
+    bad = [
+        dict(good, boxes={(0, 2)}),  # box on a wall
+        dict(good, targets={(1, 4)}),  # target outside
+        dict(good, player=(1, 2)),  # player on the box
+        dict(good, player=(0, 3)),  # player on a wall
+        dict(good, boxes=set(), targets=set()),  # no box
+        dict(good, boxes={(1, 2), (1, 0)}),
+    ]  # 2 boxes, 1 target
     for kwargs in bad:
         with pytest.raises(LevelError):
             Level(**kwargs)
@@ -194,17 +214,21 @@ def raised(path) -> LevelError:
     return info.value
 
 
-@pytest.mark.parametrize("text, line, column, words", [
-    ("#####\n#@$x#\n#.###", 8, 4, "unknown character 'x' " + VALID),
-    ("#####\n#@$.\n#####", 8, 5, "ragged rows"),            # short row
-    ("#####\n#@$.##\n#####", 8, 6, "ragged rows"),          # long row
-    ("#####\n# $.#\n#####", 7, None, "no player"),
-    ("######\n#@$.@#\n######", 8, 5, "more than one player"),
-    ("######\n#@$$.#\n######", 7, None, "2 boxes but 1 targets"),
-    ("#####\n#@ .#\n#####", 7, None, "no box"),
-])
-def test_malformed_levels_raise_with_file_line_column_and_index(tmp_path, text, line, column,
-                                                                words):
+@pytest.mark.parametrize(
+    "text, line, column, words",
+    [
+        ("#####\n#@$x#\n#.###", 8, 4, "unknown character 'x' " + VALID),
+        ("#####\n#@$.\n#####", 8, 5, "ragged rows"),  # short row
+        ("#####\n#@$.##\n#####", 8, 6, "ragged rows"),  # long row
+        ("#####\n# $.#\n#####", 7, None, "no player"),
+        ("######\n#@$.@#\n######", 8, 5, "more than one player"),
+        ("######\n#@$$.#\n######", 7, None, "2 boxes but 1 targets"),
+        ("#####\n#@ .#\n#####", 7, None, "no box"),
+    ],
+)
+def test_malformed_levels_raise_with_file_line_column_and_index(
+    tmp_path, text, line, column, words
+):
     path = bad_file(tmp_path, text)
     error = raised(path)
     assert isinstance(error, ValueError)
@@ -259,8 +283,13 @@ def test_missing_file_is_an_os_error(tmp_path):
 def test_level_error_pickles():
     error = LevelError("bad", path="a.txt", index=1, line=2, column=3)
     again = pickle.loads(pickle.dumps(error))
-    assert (again.reason, again.path, again.index, again.line, again.column) == \
-        ("bad", "a.txt", 1, 2, 3)
+    assert (again.reason, again.path, again.index, again.line, again.column) == (
+        "bad",
+        "a.txt",
+        1,
+        2,
+        3,
+    )
     assert str(again) == str(error)
 
 

@@ -15,8 +15,13 @@ from envs.mujoban.levels import BOXOBAN_DIR
 #: benchmarks/original_env.py): a box, a pad; a box on a pad and the covered
 #: pad's ring (its _BOX_PRESSED_RGBA and _PRESSED_TARGET_RGBA under the same
 #: light), and the outside of the grid (its sky_03 skybox).
-ORIGINAL_RGB = {"box": (242, 251, 84), "pad": (255, 0, 0), "box_on_pad": (0, 0, 255),
-                "pad_covered": (0, 255, 0), "backdrop": (87, 165, 255)}
+ORIGINAL_RGB = {
+    "box": (242, 251, 84),
+    "pad": (255, 0, 0),
+    "box_on_pad": (0, 0, 255),
+    "pad_covered": (0, 255, 0),
+    "backdrop": (87, 165, 255),
+}
 #: Largest difference per channel allowed (0-255).
 TOLERANCE = 2
 
@@ -26,8 +31,13 @@ def _count(frame, rgb):
 
 
 def test_rendered_box_pad_and_covered_pad_colours_match_the_originals():
-    env = envs.load("mujoban/level1", seed=0, top_camera=(199, 199), egocentric_camera=None,
-                    levels=str(BOXOBAN_DIR / "unfiltered-valid-000.txt"))
+    env = envs.load(
+        "mujoban/level1",
+        seed=0,
+        top_camera=(199, 199),
+        egocentric_camera=None,
+        levels=str(BOXOBAN_DIR / "unfiltered-valid-000.txt"),
+    )
     frame = env.reset().observation["top_camera"]
     # A box's top is 0.8 cells (14.5 px), 13-14 px of its own colour with 4x multisampling.
     side = 13
@@ -51,8 +61,9 @@ def test_description_looks_compute_the_rendered_colours():
     env = envs.load("mujoban/level1", seed=0, top_camera=None, egocentric_camera=None)
     looks = env.description().looks
     for name in ("box", "pad", "box_on_pad", "pad_covered"):
-        np.testing.assert_allclose(looks.facing_rgb(getattr(looks, name)), ORIGINAL_RGB[name],
-                                   atol=1.0)
+        np.testing.assert_allclose(
+            looks.facing_rgb(getattr(looks, name)), ORIGINAL_RGB[name], atol=1.0
+        )
     assert looks.box == arena_lib.BOX_RGBA
     assert env.description().top_camera.coverage_inset == pytest.approx(0.375)
     env.close()
@@ -73,9 +84,14 @@ def test_set_appearance_rejects_unknown_names():
 @pytest.mark.parametrize("multisamples", [0, 4])  # the agent's camera; the original's
 @pytest.mark.parametrize("pegs", ["", "-pegs"])
 def test_camera_estimator_reads_every_wall_and_floor_appearance(pegs, multisamples):
-    env = envs.load(f"mujoban/level1{pegs}", seed=3, top_camera=(199, 199),
-                    egocentric_camera=None, levels=str(BOXOBAN_DIR / "medium-valid-000.txt"),
-                    multisamples=multisamples)
+    env = envs.load(
+        f"mujoban/level1{pegs}",
+        seed=3,
+        top_camera=(199, 199),
+        egocentric_camera=None,
+        levels=str(BOXOBAN_DIR / "medium-valid-000.txt"),
+        multisamples=multisamples,
+    )
     task = env.task
     walls, floors = env.task.appearances()
     timestep = env.reset()
@@ -97,8 +113,9 @@ def test_camera_estimator_reads_every_wall_and_floor_appearance(pegs, multisampl
 
 
 def test_cheaper_look_without_multisampling_is_read_too():
-    env = envs.load("mujoban/level5-pegs", seed=2, top_camera=(199, 199),
-                    egocentric_camera=None, multisamples=0)
+    env = envs.load(
+        "mujoban/level5-pegs", seed=2, top_camera=(199, 199), egocentric_camera=None, multisamples=0
+    )
     assert env.description().top_camera.coverage_inset == 0.0
     estimator = CameraEstimator(frame_every=1, walker_every=1)
     timestep = env.reset()

@@ -19,8 +19,13 @@ NO_CAMERAS = dict(top_camera=None, egocentric_camera=None)
 
 def make_env(text: str, *, pegs=False, seed=0, **kwargs) -> Environment:
     level = Level.from_text(text)
-    task = Mujoban(sources.FixedLevels([level]), pegs=pegs, max_boxes=len(level.boxes),
-                   randomize_appearance=False, **{**NO_CAMERAS, **kwargs})
+    task = Mujoban(
+        sources.FixedLevels([level]),
+        pegs=pegs,
+        max_boxes=len(level.boxes),
+        randomize_appearance=False,
+        **{**NO_CAMERAS, **kwargs},
+    )
     return Environment(task, seed=seed)
 
 
@@ -143,8 +148,9 @@ def test_full_entity_layer_matches_real_boxoban_levels_at_reset(filename):
     for level in levels:
         obs = env.reset().observation
         np.testing.assert_array_equal(obs["full_entity_layer"], level.entity_layers())
-        np.testing.assert_array_equal(obs["pixel_layer"],
-                                      entity_layer_to_pixels(level.entity_layers()))
+        np.testing.assert_array_equal(
+            obs["pixel_layer"], entity_layer_to_pixels(level.entity_layers())
+        )
         assert env.task.level == level
 
 
@@ -205,17 +211,28 @@ def test_cameras_are_observed_at_their_size_and_can_be_switched_off():
     assert "top_camera" not in off and "walker/egocentric_camera" not in off
     assert envs.no_cameras("mujoban/level2") == NO_CAMERAS
     assert envs.no_cameras("mujoxo/mixture") == {"front_camera": None}
-    for key in ("walker/joints_pos", "walker/joints_vel", "walker/sensors_touch",
-                "walker/sensors_accelerometer", "walker/sensors_gyro",
-                "walker/sensors_velocimeter", "walker/orientation", "full_entity_layer",
-                "pixel_layer"):
+    for key in (
+        "walker/joints_pos",
+        "walker/joints_vel",
+        "walker/sensors_touch",
+        "walker/sensors_accelerometer",
+        "walker/sensors_gyro",
+        "walker/sensors_velocimeter",
+        "walker/orientation",
+        "full_entity_layer",
+        "pixel_layer",
+    ):
         assert key in off
 
 
 def test_appearance_changes_between_episodes_and_follows_the_seed():
     def appearances(seed):
-        env = envs.load("mujoban/level1", seed=seed,
-                        levels=str(BOXOBAN_DIR / "unfiltered-valid-000.txt"), **NO_CAMERAS)
+        env = envs.load(
+            "mujoban/level1",
+            seed=seed,
+            levels=str(BOXOBAN_DIR / "unfiltered-valid-000.txt"),
+            **NO_CAMERAS,
+        )
         out = []
         for _ in range(8):
             env.reset()
@@ -228,12 +245,13 @@ def test_appearance_changes_between_episodes_and_follows_the_seed():
     walls = {w for w, _ in first}
     floors = {f for _, f in first}
     assert walls <= set(arena_lib_styles()[0]) and floors <= set(arena_lib_styles()[1])
-    assert appearances(0) == first          # the same seed draws the same looks
+    assert appearances(0) == first  # the same seed draws the same looks
     assert appearances(1) != first
 
 
 def arena_lib_styles():
     from labmaze import assets
+
     return (assets.get_wall_texture_paths("style_01"), assets.get_floor_texture_paths("style_01"))
 
 
@@ -321,8 +339,13 @@ def test_defaults_are_the_original_1ms_physics_and_0_1_cell_pad_tolerance():
 
 
 def test_explicit_options_restore_5ms_physics_and_a_0_3_cell_pad_tolerance():
-    env = envs.load("mujoban/level1", physics_timestep=0.005, pad_tolerance=0.3,
-                    noslip_iterations=0, **NO_CAMERAS)
+    env = envs.load(
+        "mujoban/level1",
+        physics_timestep=0.005,
+        pad_tolerance=0.3,
+        noslip_iterations=0,
+        **NO_CAMERAS,
+    )
     assert env.physics.model.opt.noslip_iterations == 0
     assert env.physics.model.opt.timestep == pytest.approx(0.005)
     assert env.task.physics_steps_per_control_step == 10
@@ -347,6 +370,7 @@ def test_box_within_0_09_m_of_its_pad_covers_it_rewards_and_turns_pad_green_box_
     assert timestep.reward == 1.0
     assert env.task.pads_covered.tolist().count(True) == 1
     from envs.mujoban import arena as arena_lib
+
     rgba = env.physics.model.geom_rgba
     pad_ids = [env.physics.bind(g).element_id for g in env.task.arena.pads]
     covered = [np.allclose(rgba[i], arena_lib.PAD_COVERED_RGBA, atol=1e-3) for i in pad_ids[:2]]
@@ -402,9 +426,11 @@ def test_walker_driven_at_a_peg_at_full_speed_stays_on_its_side(pegs):
 
 def test_lazy_cameras_render_only_frames_that_are_read_and_refuse_stale_ones():
     from envs.core import LazyObservation, StaleObservationError
+
     eager = envs.load("mujoban/level2", seed=4, top_camera=(48, 48), egocentric_camera=None)
-    lazy = envs.load("mujoban/level2", seed=4, top_camera=(48, 48), egocentric_camera=None,
-                     lazy_cameras=True)
+    lazy = envs.load(
+        "mujoban/level2", seed=4, top_camera=(48, 48), egocentric_camera=None, lazy_cameras=True
+    )
     a, b = eager.reset(), lazy.reset()
     assert isinstance(b.observation, LazyObservation)
     assert set(b.observation) == set(a.observation)
@@ -414,8 +440,9 @@ def test_lazy_cameras_render_only_frames_that_are_read_and_refuse_stale_ones():
     for _ in range(3):
         a, b2 = eager.step([0.5, 0.2]), lazy.step([0.5, 0.2])
     np.testing.assert_array_equal(b2.observation["top_camera"], a.observation["top_camera"])
-    np.testing.assert_array_equal(b2.observation["walker/orientation"],
-                                  a.observation["walker/orientation"])
+    np.testing.assert_array_equal(
+        b2.observation["walker/orientation"], a.observation["walker/orientation"]
+    )
     unread = lazy.step([0.5, 0.2])
     lazy.step([0.5, 0.2])
     unread.observation["walker/orientation"]  # computed eagerly: still readable

@@ -59,7 +59,7 @@ def test_every_legal_action_is_played_by_its_touches_and_shown_for_its_mover(gam
                 selected = zone
             assert game.touch_effect(state, zones[-1], selected) == ("move", action)
             if zones[-1] >= game.num_points:
-                continue                                   # Go's pass
+                continue  # Go's pass
             players = game.players(state.child(action))
             if game.rules.input == "column":
                 column = players.reshape(game.rows, game.cols)[:, action]
@@ -80,10 +80,10 @@ def test_touches_that_play_nothing_are_exactly_the_illegal_ones(game_name, size)
             assert not select.any()
         elif game.rules.input == "column":
             assert set(act[act >= 0].tolist()) == legal
-        else:   # only the mover's movable pieces do something before a selection
+        else:  # only the mover's movable pieces do something before a selection
             assert (act < 0).all()
             players = game.players(state)
-            assert (players[select[:game.num_points]] == state.current_player()).all()
+            assert (players[select[: game.num_points]] == state.current_player()).all()
             sources = {src for src, _ in game.move_points(state).values()}
             assert set(np.flatnonzero(select).tolist()) == sources
 
@@ -121,6 +121,7 @@ def test_rules_and_sizes_are_checked():
 
 # -- played with the arm ------------------------------------------------------
 
+
 def _env(name, **kwargs):
     env = envs.load(name, seed=0, **NO_CAMERA, **kwargs)
     env.reset()
@@ -141,7 +142,7 @@ def assert_board_matches_openspiel(env, timestep):
             np.testing.assert_allclose(model.geom_rgba[geom], task.arena.colours[player])
     played = list(task.state.history())
     history = obs["move_history"]
-    assert list(history[:len(played)]) == played and (history[len(played):] == -1).all()
+    assert list(history[: len(played)]) == played and (history[len(played) :] == -1).all()
     assert int(obs["agent_player"][0]) == task.agent
 
 
@@ -165,15 +166,16 @@ def test_each_game_plays_an_opening_by_touch_as_openspiel_does(name):
         timestep = _touch(env, zones[-1])
         assert task.moves[before] == action, f"turn {turn}"
         assert_board_matches_openspiel(env, timestep)
-        assert timestep.reward == (task.game.final_reward(task.state, task.agent)
-                                   if task.state.is_terminal() else 0.0)
+        assert timestep.reward == (
+            task.game.final_reward(task.state, task.agent) if task.state.is_terminal() else 0.0
+        )
     env.close()
 
 
 def test_connect_four_a_touch_anywhere_on_a_column_drops_a_piece_in_it():
     env = _env("mujoboard/connect_four", opponent="random")
     task = env.task
-    timestep = _touch(env, 2 * 7 + 3)              # column 3, a middle row
+    timestep = _touch(env, 2 * 7 + 3)  # column 3, a middle row
     assert task.moves[0] == 3 and task.moves_registered == 1
     # It fell to OpenSpiel's bottom row, the row farthest from the arm.
     assert task.game.players(task.state)[0 * 7 + 3] == 0
@@ -182,13 +184,12 @@ def test_connect_four_a_touch_anywhere_on_a_column_drops_a_piece_in_it():
 
 
 def test_othello_flips_are_shown_and_the_opponents_first_move_is_seen():
-    env = envs.load("mujoboard/othello-8x8", seed=0, agent_player=1, opponent="random",
-                    **NO_CAMERA)
+    env = envs.load("mujoboard/othello-8x8", seed=0, agent_player=1, opponent="random", **NO_CAMERA)
     timestep = env.reset()
     task = env.task
-    assert task.agent == 1 and len(task.moves) == 1           # black moved first
+    assert task.agent == 1 and len(task.moves) == 1  # black moved first
     assert_board_matches_openspiel(env, timestep)
-    assert timestep.observation["board_state"][..., 2].sum() == 4   # 3 + 1 flipped
+    assert timestep.observation["board_state"][..., 2].sum() == 4  # 3 + 1 flipped
     action = task.state.legal_actions()[0]
     timestep = _touch(env, action)
     assert task.moves[1] == action
@@ -196,8 +197,9 @@ def test_othello_flips_are_shown_and_the_opponents_first_move_is_seen():
     env.close()
 
 
-@pytest.mark.parametrize("name", ["mujoboard/breakthrough-6x6", "mujoboard/checkers",
-                                  "mujoboard/clobber-5x6"])
+@pytest.mark.parametrize(
+    "name", ["mujoboard/breakthrough-6x6", "mujoboard/checkers", "mujoboard/clobber-5x6"]
+)
 def test_a_move_game_plays_a_piece_then_its_destination(name):
     env = _env(name, opponent="random")
     task, game = env.task, env.task.game
@@ -207,7 +209,7 @@ def test_a_move_game_plays_a_piece_then_its_destination(name):
     timestep = _touch(env, src, until=selected)
     assert selected() and task.moves == ()
     assert int(timestep.observation["selected_point"][0]) == src
-    assert env.physics.model.geom_group[task._selection_id] == 0       # the disc shows
+    assert env.physics.model.geom_group[task._selection_id] == 0  # the disc shows
     timestep = _touch(env, dst)
     assert task.moves[0] == action and task.moves_registered == 1
     assert int(timestep.observation["selected_point"][0]) == -1
@@ -235,8 +237,10 @@ def test_touching_an_opponents_piece_or_an_empty_point_changes_nothing():
     task, game = env.task, env.task.game
     players = game.players(task.state)
     distance = np.abs(task.arena.point_xy - np.array(task.arena.centre)).max(axis=1)
-    opponent_piece, empty = (int(min(np.flatnonzero(mask), key=lambda p: distance[p]))
-                             for mask in (players == 1, players < 0))
+    opponent_piece, empty = (
+        int(min(np.flatnonzero(mask), key=lambda p: distance[p]))
+        for mask in (players == 1, players < 0)
+    )
     for point in (opponent_piece, empty):
         _touch(env, point, steps=60)
         assert task._selected == -1 and task.moves == ()
@@ -250,7 +254,7 @@ def test_as_second_player_the_agent_first_sees_the_opponents_move(name):
     task = env.task
     assert len(task.moves) == 1 and task.state.current_player() == 1
     planes = timestep.observation["board_state"]
-    assert planes[..., 2].sum() == 1 and planes[..., 1].sum() == 0   # the opponent's piece
+    assert planes[..., 2].sum() == 1 and planes[..., 1].sum() == 0  # the opponent's piece
     assert_board_matches_openspiel(env, timestep)
     env.close()
 
@@ -296,6 +300,7 @@ def _a_win_in_one_for(state, player, points, depth=4):
 @pytest.mark.parametrize("name", NAMES)
 def test_every_mujoboard_name_passes_gymnasium_check_env(name):
     import gymnasium
+
     env = gymnasium.make(name, front_camera=(32, 32), agent_player="random")
     check_env(env.unwrapped, skip_render_check=True)
     env.close()
@@ -303,13 +308,15 @@ def test_every_mujoboard_name_passes_gymnasium_check_env(name):
 
 # -- the opponents --------------------------------------------------------------
 
+
 def test_alpha_beta_takes_a_win_and_blocks_a_loss():
     import pyspiel
+
     game = pyspiel.load_game("tic_tac_toe")
     state = game.new_initial_state()
-    for a in (0, 3, 1):        # X threatens 2
+    for a in (0, 3, 1):  # X threatens 2
         state.apply_action(a)
-    assert AlphaBetaPlanner(9, seed=0).plan(state).action == 2        # O blocks
+    assert AlphaBetaPlanner(9, seed=0).plan(state).action == 2  # O blocks
     state = game.new_initial_state()
     for a in (0, 3, 1, 4):
         state.apply_action(a)
@@ -319,16 +326,26 @@ def test_alpha_beta_takes_a_win_and_blocks_a_loss():
 
 def test_alpha_beta_breaks_ties_by_its_seed():
     import pyspiel
+
     state = pyspiel.load_game("connect_four").new_initial_state()
     picks = {AlphaBetaPlanner(2, seed=s).plan(state).action for s in range(12)}
     assert len(picks) > 1
-    assert AlphaBetaPlanner(2, seed=5).plan(state).action == \
+    assert (
         AlphaBetaPlanner(2, seed=5).plan(state).action
+        == AlphaBetaPlanner(2, seed=5).plan(state).action
+    )
 
 
-@pytest.mark.parametrize("spec, word", [("mcts:x", "not an integer"), ("minimax", "unknown"),
-                                        ("mcts:0", "simulations"), ("alphabeta:0", "depth"),
-                                        (3, "string")])
+@pytest.mark.parametrize(
+    "spec, word",
+    [
+        ("mcts:x", "not an integer"),
+        ("minimax", "unknown"),
+        ("mcts:0", "simulations"),
+        ("alphabeta:0", "depth"),
+        (3, "string"),
+    ],
+)
 def test_bad_bot_names_raise(spec, word):
     with pytest.raises(ValueError, match=word):
         make_bot(spec)
@@ -336,9 +353,11 @@ def test_bad_bot_names_raise(spec, word):
 
 # -- the agent and the task's pass rule ------------------------------------------
 
+
 class _AlwaysPass:
     def plan(self, state):
         from abstract_planners.base import Subgoal
+
         action = state.get_game().num_distinct_actions() - 1
         return Subgoal(action, state.child(action))
 
@@ -349,23 +368,30 @@ def test_the_agent_plays_a_stone_where_the_task_would_ignore_its_second_pass():
     import pyspiel
 
     from hier_agents.modular.families import adapter
+
     state = pyspiel.load_game("go", {"board_size": 5, "komi": 5.5}).new_initial_state()
     # Black (the agent) surrounds point 0 (an eye: 1 and 5 are black), passes;
     # White plays elsewhere; Black's planner wants to pass again.
     for action in (1, 24, 5, 23, 25, 22):
         state.apply_action(action)
     positions = tuple((c * 0.1, r * 0.1, 0.02) for r in range(5) for c in range(5))
-    rules = dict(game="go", board_size=5, komi=5.5, pass_action=25, board_centre=(0.2, 0.2),
-                 point_positions=positions)
+    rules = dict(
+        game="go",
+        board_size=5,
+        komi=5.5,
+        pass_action=25,
+        board_centre=(0.2, 0.2),
+        point_positions=positions,
+    )
     refused = types.SimpleNamespace(**rules, allow_double_pass=False)
     allowed = types.SimpleNamespace(**rules, allow_double_pass=True)
     go = adapter("mujogo/7x7")
     subgoal = go.next_subgoal(_AlwaysPass(), state, refused)
-    assert subgoal.action == 12                    # the centre, not the eye at 0 nor a pass
+    assert subgoal.action == 12  # the centre, not the eye at 0 nor a pass
     assert subgoal.info["replaced_pass"]
     assert go.next_subgoal(_AlwaysPass(), state, allowed).action == 25
     state.apply_action(2)
-    state.apply_action(21)          # the agent's last move is a stone: a pass is fine
+    state.apply_action(21)  # the agent's last move is a stone: a pass is fine
     assert go.next_subgoal(_AlwaysPass(), state, refused).action == 25
 
 
@@ -384,8 +410,9 @@ def test_mcts_keeps_its_move_for_a_position_until_reset():
     import pyspiel
 
     from abstract_planners.openspiel_bots import MCTSPlanner
+
     state = pyspiel.load_game("breakthrough", {"rows": 6, "columns": 6}).new_initial_state()
-    planner = MCTSPlanner(8, seed=0)      # a small search: its picks vary with the seed stream
+    planner = MCTSPlanner(8, seed=0)  # a small search: its picks vary with the seed stream
     first = planner.plan(state).action
     assert all(planner.plan(state.clone()).action == first for _ in range(20))
     picks = set()

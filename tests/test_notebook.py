@@ -39,8 +39,12 @@ def _kinds(cell) -> list[str]:
 
 
 def _text(notebook) -> str:
-    return "".join(out.get("text", "") for cell in notebook.cells if cell.cell_type == "code"
-                   for out in cell.get("outputs", []))
+    return "".join(
+        out.get("text", "")
+        for cell in notebook.cells
+        if cell.cell_type == "code"
+        for out in cell.get("outputs", [])
+    )
 
 
 def _run(name: str, monkeypatch, tmp_path):
@@ -52,8 +56,12 @@ def _run(name: str, monkeypatch, tmp_path):
     monkeypatch.setenv("PYTHONPATH", str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
     committed = nbformat.read(path, as_version=4)
     executed = nbformat.read(path, as_version=4)
-    NotebookClient(executed, timeout=600, kernel_name="python3",
-                   resources={"metadata": {"path": str(NOTEBOOKS)}}).execute()
+    NotebookClient(
+        executed,
+        timeout=600,
+        kernel_name="python3",
+        resources={"metadata": {"path": str(NOTEBOOKS)}},
+    ).execute()
     return committed, executed
 
 
@@ -63,7 +71,8 @@ def _check_shows_what_it_is_committed_with(path: Path, committed, executed) -> N
     assert all(c.get("execution_count") for c, _ in code), f"{path.name}: committed unexecuted"
     for k, (c, e) in enumerate(code):
         assert _kinds(e) == _kinds(c), (
-            f"{path.name}, code cell {k}: shows {_kinds(e)}, committed with {_kinds(c)}")
+            f"{path.name}, code cell {k}: shows {_kinds(e)}, committed with {_kinds(c)}"
+        )
     assert any("image/png" in _kinds(c) for c, _ in code), f"{path.name}: no image"
 
 

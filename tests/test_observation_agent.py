@@ -25,7 +25,7 @@ def _edge_margin(task, position) -> float:
     """Cells from ``position`` (world x, y) to the nearest cell edge."""
     origin = np.asarray(task.cell_to_world(0, 0))
     cell = task.cell_to_world(0, 1)[0] - origin[0]
-    rel = (np.asarray(position) - origin) / cell      # cell centres at integers
+    rel = (np.asarray(position) - origin) / cell  # cell centres at integers
     return float(np.min(0.5 - np.abs(rel - np.round(rel))))
 
 
@@ -36,13 +36,15 @@ def _only_edge_cases(task, estimated, truth) -> bool:
     cell)."""
     cells, _ = task.abstract_cells
     positions = dict(zip(map(tuple, cells), task.box_positions()))
-    near = [_edge_margin(task, positions[c]) < EDGE
-            for c in set(truth.boxes) - set(estimated.boxes)]
+    near = [
+        _edge_margin(task, positions[c]) < EDGE for c in set(truth.boxes) - set(estimated.boxes)
+    ]
     est_player, true_player = tuple(estimated.player), tuple(truth.player)
     if est_player != true_player:
-        near.append(_edge_margin(task, task.walker_position()) < EDGE
-                    or (bool(near) and (est_player in truth.boxes
-                                        or true_player in estimated.boxes)))
+        near.append(
+            _edge_margin(task, task.walker_position()) < EDGE
+            or (bool(near) and (est_player in truth.boxes or true_player in estimated.boxes))
+        )
     return bool(near) and all(near)
 
 
@@ -63,12 +65,14 @@ def _play_and_compare(name, seed, episodes, **load):
                 previous = agent.subgoal
                 starts += 1
                 truth = oracle.estimate(timestep).state
-                if agent.scene.state != truth and _only_edge_cases(env.task, agent.scene.state,
-                                                                   truth):
+                if agent.scene.state != truth and _only_edge_cases(
+                    env.task, agent.scene.state, truth
+                ):
                     edge_cases += 1
                 else:
                     assert agent.scene.state == truth, (
-                        f"episode {episode}: camera {agent.scene.state} vs oracle {truth}")
+                        f"episode {episode}: camera {agent.scene.state} vs oracle {truth}"
+                    )
             timestep = view.step(action)
         solved += bool(env.task.solved)
     env.close()
@@ -88,6 +92,5 @@ def test_camera_agent_solves_real_boxoban_levels_with_pegs(tmp_path):
     levels = read_levels(BOXOBAN_DIR / "unfiltered-valid-000.txt")[2:4]
     path = tmp_path / "two.txt"
     path.write_text("".join(f"; {k}\n{level.to_text()}\n\n" for k, level in enumerate(levels)))
-    starts, solved = _play_and_compare("mujoban/level5-pegs", seed=0, episodes=2,
-                                       levels=str(path))
+    starts, solved = _play_and_compare("mujoban/level5-pegs", seed=0, episodes=2, levels=str(path))
     assert solved == 2 and starts >= 8

@@ -34,8 +34,7 @@ def _record_rewards(env) -> list:
 
 def test_gymnasium_check_env_passes_on_mujoban_and_mujoxo():
     for name in ("mujoban/level1", "mujoxo/mixture"):
-        env = OptionEnv(name, estimator="oracle" if name.startswith("mujoban") else None,
-                        seed=0)
+        env = OptionEnv(name, estimator="oracle" if name.startswith("mujoban") else None, seed=0)
         try:
             check_env(env, skip_render_check=True)
         finally:
@@ -71,7 +70,7 @@ def test_the_option_reward_is_discounted_per_control_step():
     try:
         _, info = env.reset(seed=0)
         _, reward, *_ = env.step(_solver_action(env, info))
-        assert reward == pytest.approx(sum(0.9 ** k * r for k, r in enumerate(rewards)))
+        assert reward == pytest.approx(sum(0.9**k * r for k, r in enumerate(rewards)))
     finally:
         env.close()
 
@@ -120,8 +119,7 @@ def test_stable_baselines3_trains_on_option_env():
 
     env = OptionEnv("mujoban/level1", estimator="oracle", seed=0)
     try:
-        model = PPO("MlpPolicy", env, n_steps=32, batch_size=16, n_epochs=1, seed=0,
-                    device="cpu")
+        model = PPO("MlpPolicy", env, n_steps=32, batch_size=16, n_epochs=1, seed=0, device="cpu")
         model.learn(total_timesteps=64)
         action, _ = model.predict(env.reset(seed=1)[0], deterministic=True)
         assert env.action_space.contains(int(action))

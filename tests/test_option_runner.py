@@ -122,6 +122,7 @@ def test_bad_arguments():
 
 def test_sokoban_deviation_and_the_solving_push():
     from abstract_planners.sokoban import SokobanState
+
     state = SokobanState.from_text("#####\n#@$.#\n#####")
     subgoal = Subgoal(("R",), state.apply("R"))
     adapter = FAMILIES["mujoban"]
@@ -145,43 +146,73 @@ def _ball_case(skill_name):
     import envs
     from abstract_planners.sokoban_solver import SokobanSolverPlanner
     from hier_agents.modular.components import SKILLS
+
     env = envs.load("mujoban/level1", seed=3, **envs.no_cameras("mujoban/level1"))
     from hier_agents.estimators import OracleEstimator
+
     estimator = OracleEstimator(env)
     timestep = env.reset()
     estimator.reset(env.description(), timestep)
     scene = estimator.estimate(timestep)
     subgoal = SokobanSolverPlanner().next_push(scene.state)
-    return env, estimator, SKILLS["mujoban"][skill_name](env.description(), 0), subgoal, \
-        timestep, scene
+    return (
+        env,
+        estimator,
+        SKILLS["mujoban"][skill_name](env.description(), 0),
+        subgoal,
+        timestep,
+        scene,
+    )
 
 
 def _arm_case(skill_name):
     import envs
     from hier_agents.estimators import BoardEstimator
     from hier_agents.modular.components import SKILLS
+
     env = envs.load("mujoxo/optimal", seed=1, **envs.no_cameras("mujoxo/optimal"))
     estimator = BoardEstimator()
     timestep = env.reset()
     estimator.reset(env.description(), timestep)
     scene = estimator.estimate(timestep)
     subgoal = Subgoal(4, scene.state.child(4))
-    return env, estimator, SKILLS["mujoxo"][skill_name](env.description(), 0), subgoal, \
-        timestep, scene
+    return (
+        env,
+        estimator,
+        SKILLS["mujoxo"][skill_name](env.description(), 0),
+        subgoal,
+        timestep,
+        scene,
+    )
 
 
-@pytest.mark.parametrize("family,skill_name", [("mujoban", "ball"), ("mujoban", "learned-ball"),
-                                               ("mujoxo", "arm-touch"),
-                                               ("mujoxo", "learned-arm")])
+@pytest.mark.parametrize(
+    "family,skill_name",
+    [
+        ("mujoban", "ball"),
+        ("mujoban", "learned-ball"),
+        ("mujoxo", "arm-touch"),
+        ("mujoxo", "learned-arm"),
+    ],
+)
 def test_every_skill_family_runs_through_the_runner(family, skill_name):
     from hier_agents.modular.components import SKILLS
+
     if skill_name not in SKILLS[family]:
         pytest.skip(f"no {skill_name} skill registered")
     make = _ball_case if family == "mujoban" else _arm_case
     env, estimator, skill, subgoal, timestep, scene = make(skill_name)
     try:
-        result = run_option(env, estimator, skill, subgoal, timestep, scene=scene,
-                            adapter=FAMILIES[family], t_abs=150)
+        result = run_option(
+            env,
+            estimator,
+            skill,
+            subgoal,
+            timestep,
+            scene=scene,
+            adapter=FAMILIES[family],
+            t_abs=150,
+        )
     finally:
         env.close()
     assert result.outcome is Outcome.REACHED, (result.outcome, result.reason)

@@ -36,10 +36,14 @@ class OptionChain(gym.Env):
             if action == 2:
                 raise ValueError("a masked action was taken")
             self.stage = 1
-            return self._obs(), 0.0, False, False, {
-                "action_mask": np.ones(3, np.int8), "duration": 1 if action == 0 else 10}
-        return self._obs(), 1.0, True, False, {"action_mask": np.ones(3, np.int8),
-                                               "duration": 1}
+            return (
+                self._obs(),
+                0.0,
+                False,
+                False,
+                {"action_mask": np.ones(3, np.int8), "duration": 1 if action == 0 else 10},
+            )
+        return self._obs(), 1.0, True, False, {"action_mask": np.ones(3, np.int8), "duration": 1}
 
 
 class Walk(gym.Env):
@@ -77,11 +81,11 @@ def test_gae_with_durations_and_a_truncation_matches_a_hand_computation():
     dones = torch.tensor([[0.0], [1.0], [0.0]])  # step 1 ends its episode (truncated)
     bootstrap = torch.tensor([[0.0], [0.7], [0.0]])  # V(final obs) of that episode
     next_value = torch.tensor([3.0])
-    adv, returns = ppo.gae(rewards, values, gamma ** durations, dones, next_value, lam, bootstrap)
-    d2 = 2.0 + 0.9 ** 3 * 3.0 - 1.0
+    adv, returns = ppo.gae(rewards, values, gamma**durations, dones, next_value, lam, bootstrap)
+    d2 = 2.0 + 0.9**3 * 3.0 - 1.0
     d1 = 0.0 + 0.9 * 0.7 - 0.25  # the bootstrap, not the next episode's value
-    d0 = 1.0 + 0.9 ** 2 * 0.25 - 0.5
-    expected = [d0 + 0.9 ** 2 * lam * d1, d1, d2]
+    d0 = 1.0 + 0.9**2 * 0.25 - 0.5
+    expected = [d0 + 0.9**2 * lam * d1, d1, d2]
     assert adv[:, 0].tolist() == pytest.approx(expected)
     assert torch.allclose(returns, adv + values)
 
@@ -99,9 +103,9 @@ def test_the_collector_handles_same_step_autoreset_durations_and_truncation():
     assert rollout.bootstrap[:, 0].tolist() == [0, 0, 30.0, 0]  # V of the final obs (3)
     assert rollout.durations.eq(2).all() and rollout.masks is None
     assert rollout.next_value.tolist() == [10.0, 10.0]
-    assert [(e.env, e.truncated, e.terminated, e.length, e.duration, e.ret)
-            for e in rollout.episodes] == [(0, True, False, 3, 6.0, 3.0),
-                                          (1, True, False, 3, 6.0, 3.0)]
+    assert [
+        (e.env, e.truncated, e.terminated, e.length, e.duration, e.ret) for e in rollout.episodes
+    ] == [(0, True, False, 3, 6.0, 3.0), (1, True, False, 3, 6.0, 3.0)]
     assert rollout.episodes[0].info["duration"] == 2
     envs.close()
     with pytest.raises(ValueError, match="SAME_STEP"):
@@ -131,8 +135,7 @@ def test_ppo_moves_a_gaussian_policy_onto_a_continuous_target():
     torch.manual_seed(0)
     envs = ppo.make_vector_env([Target] * 8)
     policy = Gaussian()
-    cfg = ppo.PPOConfig(gamma=0.99, lr=0.02, epochs=4, minibatches=4, anneal_lr=True,
-                        lr_floor=0.1)
+    cfg = ppo.PPOConfig(gamma=0.99, lr=0.02, epochs=4, minibatches=4, anneal_lr=True, lr_floor=0.1)
     optimizer = torch.optim.Adam(policy.parameters(), lr=cfg.lr)
     collector = ppo.RolloutCollector(envs, policy, steps=32)
     collector.reset(seed=1)
@@ -159,7 +162,6 @@ def test_a_critic_only_update_leaves_the_actor_alone():
     collector = ppo.RolloutCollector(envs, policy, steps=8)
     ppo.iteration(collector, optimizer, cfg, actor=False)
     envs.close()
-    for before, after in zip(actor_before, (policy.mean.weight, policy.mean.bias,
-                                            policy.log_std)):
+    for before, after in zip(actor_before, (policy.mean.weight, policy.mean.bias, policy.log_std)):
         assert torch.equal(before, after)
     assert not torch.equal(critic_before, policy.v.weight)

@@ -31,10 +31,14 @@ from child_env import child_env
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
 #: The pages whose code blocks run: the README, getting started and the user guide.
-DOCUMENTS = [README, ROOT / "docs" / "getting-started.md",
-             *sorted((ROOT / "docs" / "guide").glob("*.md"))]
+DOCUMENTS = [
+    README,
+    ROOT / "docs" / "getting-started.md",
+    *sorted((ROOT / "docs" / "guide").glob("*.md")),
+]
 _BLOCK = re.compile(r"^( *)```(\w*)\n(.*?)^\1```", re.M | re.S)  # indented in lists too
 INSTALL = "bash scripts/install.sh && "
+
 
 def _tenth(limit: int | None = None):
     """Budgets keep their proportions (a warm start that is the whole budget
@@ -64,14 +68,19 @@ OUTPUT_FLAGS = ("--json", "--video", "--picture", "--logdir", "--cache")
 def readme_blocks(path: Path = README) -> list[tuple[int, str, str]]:
     """(line number, language, body) of every fenced block of ``path``."""
     text = path.read_text()
-    return [(text.count("\n", 0, m.start()) + 1, m.group(2), textwrap.dedent(m.group(3)))
-            for m in _BLOCK.finditer(text)]
+    return [
+        (text.count("\n", 0, m.start()) + 1, m.group(2), textwrap.dedent(m.group(3)))
+        for m in _BLOCK.finditer(text)
+    ]
 
 
 def all_blocks() -> list[tuple[str, str, str]]:
     """(``FILE:LINE``, language, body) of every fenced block of `DOCUMENTS`."""
-    return [(f"{path.relative_to(ROOT)}:{line}", lang, body) for path in DOCUMENTS
-            for line, lang, body in readme_blocks(path)]
+    return [
+        (f"{path.relative_to(ROOT)}:{line}", lang, body)
+        for path in DOCUMENTS
+        for line, lang, body in readme_blocks(path)
+    ]
 
 
 def is_excerpt(body: str) -> bool:
@@ -93,7 +102,7 @@ def commands(body: str) -> list[str]:
 def shrink(command: str, scratch: Path) -> str:
     """`command` with `SMALL_BUDGETS` applied and its outputs in `scratch`."""
     if command.startswith(INSTALL):
-        command = command[len(INSTALL):]
+        command = command[len(INSTALL) :]
     words = shlex.split(command, comments=True)
     out = []
     i = 0
@@ -117,33 +126,39 @@ def shrink(command: str, scratch: Path) -> str:
     return shlex.join(out)
 
 
-PYTHON_BLOCKS = [(where, body) for where, lang, body in all_blocks()
-                 if lang == "python" and not is_excerpt(body)]
+PYTHON_BLOCKS = [
+    (where, body) for where, lang, body in all_blocks() if lang == "python" and not is_excerpt(body)
+]
 #: The set-up's test command is what CI runs (checked by
 #: `test_the_set_up_commands_are_what_ci_runs`), not a block to run inside it.
 TEST_COMMAND = "python -m pytest -q"
-BASH_BLOCKS = [(where, body) for where, lang, body in all_blocks()
-               if lang == "bash" and not is_excerpt(body) and body.strip() != TEST_COMMAND]
+BASH_BLOCKS = [
+    (where, body)
+    for where, lang, body in all_blocks()
+    if lang == "bash" and not is_excerpt(body) and body.strip() != TEST_COMMAND
+]
 
 
 def test_every_block_is_python_bash_or_a_listing():
     for where, lang, body in all_blocks():
-        assert lang in ("python", "bash", "toml", "text", ""), (
-            f"{where}: unknown language {lang!r}")
+        assert lang in ("python", "bash", "toml", "text", ""), f"{where}: unknown language {lang!r}"
         if lang in ("", "text"):  # a listing (the layout), not code
             assert not re.search(r"^\s*(python|bash|import) ", body, re.M), (
-                f"{where}: code in a block without a language")
+                f"{where}: code in a block without a language"
+            )
 
 
 def test_toml_blocks_are_the_shipped_files_they_name():
     import tomllib
+
     blocks = [(where, body) for where, lang, body in all_blocks() if lang == "toml"]
     assert blocks
     for where, body in blocks:
         named = re.match(r"# excerpt: (\S+\.toml)", body.strip())
         assert named, f"{where}: a TOML block starts with '# excerpt: FILE.toml'"
         assert tomllib.loads(body) == tomllib.loads((ROOT / named.group(1)).read_text()), (
-            f"{where}: differs from {named.group(1)}")
+            f"{where}: differs from {named.group(1)}"
+        )
 
 
 def test_the_set_up_commands_are_what_ci_runs():
@@ -157,16 +172,26 @@ def test_the_set_up_commands_are_what_ci_runs():
 
 
 def test_shrink_rewrites_budgets_and_outputs(tmp_path):
-    got = shrink("python -m hier_agents.train mujoban/level1 --frames 5000000 "
-                 "--logdir runs/x --json out/a.json", tmp_path)
-    assert got == (f"python -m hier_agents.train mujoban/level1 --frames "
-                   f"8000 --logdir {tmp_path}/runs/x "
-                   f"--json {tmp_path}/out/a.json")
-    got = shrink("python -m hier_agents.run mujoban/level1 --agent checkpoint:runs/e "
-                 "--episodes=100", tmp_path)
+    got = shrink(
+        "python -m hier_agents.train mujoban/level1 --frames 5000000 "
+        "--logdir runs/x --json out/a.json",
+        tmp_path,
+    )
+    assert got == (
+        f"python -m hier_agents.train mujoban/level1 --frames "
+        f"8000 --logdir {tmp_path}/runs/x "
+        f"--json {tmp_path}/out/a.json"
+    )
+    got = shrink(
+        "python -m hier_agents.run mujoban/level1 --agent checkpoint:runs/e --episodes=100",
+        tmp_path,
+    )
     assert f"checkpoint:{tmp_path}/runs/e" in got and "--episodes=1" in got
-    got = shrink("python -m hier_agents.learning.train_skill arm --frames 65000 "
-                 "--bc-frames 45000 --dagger-frames 20000", tmp_path)
+    got = shrink(
+        "python -m hier_agents.learning.train_skill arm --frames 65000 "
+        "--bc-frames 45000 --dagger-frames 20000",
+        tmp_path,
+    )
     assert got.endswith("--frames 6500 --bc-frames 4500 --dagger-frames 2000")
     assert shrink(INSTALL + "python -m hier_agents.run", tmp_path) == "python -m hier_agents.run"
 
@@ -174,8 +199,14 @@ def test_shrink_rewrites_budgets_and_outputs(tmp_path):
 @pytest.mark.slow
 @pytest.mark.parametrize("where,body", PYTHON_BLOCKS, ids=[w for w, _ in PYTHON_BLOCKS])
 def test_python_block_runs(where, body, tmp_path):
-    result = subprocess.run([sys.executable, "-c", body], cwd=ROOT, env=child_env(),
-                            capture_output=True, text=True, timeout=600)
+    result = subprocess.run(
+        [sys.executable, "-c", body],
+        cwd=ROOT,
+        env=child_env(),
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert result.returncode == 0, f"{where}:\n{result.stderr[-3000:]}"
 
 
@@ -184,7 +215,15 @@ def test_python_block_runs(where, body, tmp_path):
 def test_bash_block_runs(where, body, tmp_path):
     for command in commands(body):
         small = shrink(command, tmp_path)
-        result = subprocess.run(small, shell=True, cwd=ROOT, env=child_env(), capture_output=True,
-                                text=True, timeout=1200)
+        result = subprocess.run(
+            small,
+            shell=True,
+            cwd=ROOT,
+            env=child_env(),
+            capture_output=True,
+            text=True,
+            timeout=1200,
+        )
         assert result.returncode == 0, (
-            f"{where}: {small}\n{result.stdout[-2000:]}\n{result.stderr[-3000:]}")
+            f"{where}: {small}\n{result.stdout[-2000:]}\n{result.stderr[-3000:]}"
+        )

@@ -13,25 +13,35 @@ import readme_tables  # noqa: E402
 
 
 def test_the_readme_tables_agree_with_the_results_json():
-    result = subprocess.run([sys.executable, "benchmarks/readme_tables.py", "--check"], cwd=ROOT,
-                            capture_output=True, text=True)
+    result = subprocess.run(
+        [sys.executable, "benchmarks/readme_tables.py", "--check"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+    )
     assert result.returncode == 0, result.stderr
 
 
 def test_check_names_the_table_that_disagrees(tmp_path):
     # A README whose tables are all generated, then one number changed.
-    text = readme_tables.write((ROOT / "README.md").read_text(),
-                               readme_tables.generate(ROOT / "results"))
+    text = readme_tables.write(
+        (ROOT / "README.md").read_text(), readme_tables.generate(ROOT / "results")
+    )
     tampered = text.replace("99.5% [97.2, 99.9]", "99.6% [97.2, 99.9]", 1)
     assert tampered != text
     readme = tmp_path / "README.md"
     readme.write_text(tampered)
-    result = subprocess.run([sys.executable, "benchmarks/readme_tables.py", "--check",
-                             "--readme", str(readme)], cwd=ROOT, capture_output=True, text=True)
+    result = subprocess.run(
+        [sys.executable, "benchmarks/readme_tables.py", "--check", "--readme", str(readme)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+    )
     assert result.returncode == 1
     assert result.stderr.splitlines() == [
         "table 'headline': the README differs from the results JSON "
-        "(run `python benchmarks/readme_tables.py --write`)"]
+        "(run `python benchmarks/readme_tables.py --write`)"
+    ]
     # --write repairs it.
     assert readme_tables.main(["--write", "--readme", str(readme)]) == 0
     assert readme.read_text() == text
@@ -39,12 +49,17 @@ def test_check_names_the_table_that_disagrees(tmp_path):
 
 def test_markers_without_a_generator_and_generators_without_markers_are_reported():
     tables = {"one": "| a |\n"}
-    text = "x\n<!-- table:one -->\n| a |\n<!-- /table:one -->\n<!-- table:two -->\n| b |\n" \
-           "<!-- /table:two -->\n"
+    text = (
+        "x\n<!-- table:one -->\n| a |\n<!-- /table:one -->\n<!-- table:two -->\n| b |\n"
+        "<!-- /table:two -->\n"
+    )
     assert readme_tables.check(text, tables) == [
-        "table 'two': no generator registered in benchmarks/readme_tables.py"]
-    assert "no <!-- table:three --> markers" in readme_tables.check(
-        text, {**tables, "three": "| c |\n"})[-1]
+        "table 'two': no generator registered in benchmarks/readme_tables.py"
+    ]
+    assert (
+        "no <!-- table:three --> markers"
+        in readme_tables.check(text, {**tables, "three": "| c |\n"})[-1]
+    )
     assert readme_tables.write(text, {"one": "| new |\n"}).count("| new |") == 1
 
 
@@ -62,10 +77,19 @@ def test_tables_in_docs_pages_are_checked_with_the_readme(tmp_path):
     docs = tmp_path / "docs" / "results"
     docs.mkdir(parents=True)
     page = docs / "speed.md"
-    page.write_text(readme_tables.write(
-        "x\n<!-- table:env-speed -->\n<!-- /table:env-speed -->\n", tables))
-    run = [sys.executable, "benchmarks/readme_tables.py", "--readme", str(readme),
-           "--docs", str(tmp_path / "docs"), "--table", "env-speed"]
+    page.write_text(
+        readme_tables.write("x\n<!-- table:env-speed -->\n<!-- /table:env-speed -->\n", tables)
+    )
+    run = [
+        sys.executable,
+        "benchmarks/readme_tables.py",
+        "--readme",
+        str(readme),
+        "--docs",
+        str(tmp_path / "docs"),
+        "--table",
+        "env-speed",
+    ]
     assert subprocess.run(run + ["--check"], cwd=ROOT, capture_output=True).returncode == 0
     good = page.read_text()
     page.write_text(good.replace("|", "| 1", 1))
@@ -78,11 +102,14 @@ def test_tables_in_docs_pages_are_checked_with_the_readme(tmp_path):
 
 def test_check_files_reports_missing_and_unknown_markers_across_files():
     tables = {"one": "| a |\n", "two": "| b |\n"}
-    texts = {"the README": "<!-- table:one -->\n| a |\n<!-- /table:one -->\n",
-             "docs/x.md": "<!-- table:nope -->\n| c |\n<!-- /table:nope -->\n"
-                          "<!-- table:one -->\n| z |\n<!-- /table:one -->\n"}
+    texts = {
+        "the README": "<!-- table:one -->\n| a |\n<!-- /table:one -->\n",
+        "docs/x.md": "<!-- table:nope -->\n| c |\n<!-- /table:nope -->\n"
+        "<!-- table:one -->\n| z |\n<!-- /table:one -->\n",
+    }
     assert readme_tables.check_files(texts, tables) == [
         "docs/x.md: table 'nope': no generator registered in benchmarks/readme_tables.py",
         "table 'one': docs/x.md differs from the results JSON "
         "(run `python benchmarks/readme_tables.py --write`)",
-        "table 'two': no <!-- table:two --> markers in the README or docs/x.md"]
+        "table 'two': no <!-- table:two --> markers in the README or docs/x.md",
+    ]

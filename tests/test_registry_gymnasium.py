@@ -12,7 +12,8 @@ from envs.mujoban.levels import BOXOBAN_DIR, read_levels
 
 MUJOBAN_NAMES = sorted(
     [f"mujoban/level{d}{p}" for d in range(1, 6) for p in ("", "-pegs")]
-    + ["mujoban/curriculum", "mujoban/curriculum-pegs"])
+    + ["mujoban/curriculum", "mujoban/curriculum-pegs"]
+)
 
 
 def test_names_lists_every_mujoban_variant():
@@ -35,8 +36,9 @@ def test_unknown_override_lists_the_valid_ones():
 
 @pytest.mark.parametrize("name", MUJOBAN_NAMES)
 def test_every_name_passes_gymnasium_check_env(name):
-    env = gymnasium.make(name, render_mode="rgb_array", top_camera=(32, 32),
-                         egocentric_camera=(32, 32))
+    env = gymnasium.make(
+        name, render_mode="rgb_array", top_camera=(32, 32), egocentric_camera=(32, 32)
+    )
     check_env(env.unwrapped, skip_render_check=False)
     frame = env.unwrapped.render()
     assert frame.shape == (256, 256, 3) and frame.dtype == np.uint8
@@ -44,8 +46,7 @@ def test_every_name_passes_gymnasium_check_env(name):
 
 
 def test_gymnasium_episode_reports_termination_and_truncation():
-    env = gymnasium.make("mujoban/level1", top_camera=None, egocentric_camera=None,
-                         time_limit=0.5)
+    env = gymnasium.make("mujoban/level1", top_camera=None, egocentric_camera=None, time_limit=0.5)
     obs, info = env.reset(seed=3)
     assert env.observation_space.contains(obs)
     steps, truncated, terminated = 0, False, False

@@ -50,7 +50,7 @@ def children() -> set[int]:
         except OSError:
             continue
         # pid (comm) state ppid ...: comm may contain spaces, so split after ')'.
-        fields = stat[stat.rindex(")") + 2:].split()
+        fields = stat[stat.rindex(")") + 2 :].split()
         if int(fields[1]) == me:
             found.add(int(entry))
     return found
@@ -86,8 +86,7 @@ def assert_no_new_children(before: set[int]) -> None:
 
 
 def test_environments_are_context_managers_and_close_their_engine(no_finalisers):
-    with envs.load("mujogo/7x7", seed=0, front_camera=None,
-                   gnugo_command=fake_engine()) as env:
+    with envs.load("mujogo/7x7", seed=0, front_camera=None, gnugo_command=fake_engine()) as env:
         env.reset()
         assert env.task.opponent.planner.client.alive
         assert children() - no_finalisers
@@ -98,8 +97,7 @@ def test_environments_are_context_managers_and_close_their_engine(no_finalisers)
 
 def test_gymnasium_env_closes_its_engine_when_the_block_raises(no_finalisers):
     with pytest.raises(RuntimeError, match="inside the block"):
-        with gymnasium.make("mujogo/7x7", front_camera=None,
-                            gnugo_command=fake_engine()) as env:
+        with gymnasium.make("mujogo/7x7", front_camera=None, gnugo_command=fake_engine()) as env:
             env.reset(seed=0)
             env.unwrapped.dm_env.task.opponent.planner.client  # noqa: B018 - starts the engine
             assert children() - no_finalisers
@@ -135,7 +133,10 @@ def test_modular_agent_closes_planner_skill_and_estimator_even_if_one_raises():
     log = []
     agent = ModularAgent.__new__(ModularAgent)  # the parts are stand-ins
     agent.planner, agent.skill, agent.estimator = (
-        _Part(log, "planner", fail=True), _Part(log, "skill"), _Part(log, "estimator"))
+        _Part(log, "planner", fail=True),
+        _Part(log, "skill"),
+        _Part(log, "estimator"),
+    )
     with pytest.raises(OSError, match="planner close failed"):
         with agent:
             pass
@@ -146,6 +147,7 @@ def test_base_roles_have_a_harmless_close():
     from abstract_planners.base import Planner
     from hier_agents.estimators.base import Estimator
     from skills.base import Skill
+
     for cls in (Planner, Estimator, Skill):
         assert callable(cls.close)
     GnuGoPlanner(command=fake_engine()).close()
@@ -163,7 +165,8 @@ def _raise(exc_type, text):
 @pytest.mark.parametrize("exc_type", [RuntimeError, KeyboardInterrupt])
 @pytest.mark.parametrize("stage", ["construction", "reset", "planner", "skill"])
 def test_a_run_that_raises_at_any_stage_leaves_no_child_process(
-        stage, exc_type, no_finalisers, fake_gnugo, monkeypatch):
+    stage, exc_type, no_finalisers, fake_gnugo, monkeypatch
+):
     calls = {"n": 0}
     if stage == "construction":
         original = core_lib.Environment._build
@@ -172,6 +175,7 @@ def test_a_run_that_raises_at_any_stage_leaves_no_child_process(
             original(self, task, *args)
             task.opponent.planner.client  # noqa: B018 - the property starts the engine
             _raise(exc_type, stage)
+
         monkeypatch.setattr(core_lib.Environment, "_build", patched)
     elif stage == "reset":
         original = BoardTask.initialize_episode
@@ -182,6 +186,7 @@ def test_a_run_that_raises_at_any_stage_leaves_no_child_process(
             calls["n"] += 1
             if calls["n"] == 2:
                 _raise(exc_type, stage)
+
         monkeypatch.setattr(BoardTask, "initialize_episode", patched)
     elif stage == "planner":
         original = GnuGoPlanner.plan
@@ -192,6 +197,7 @@ def test_a_run_that_raises_at_any_stage_leaves_no_child_process(
             if calls["n"] == 2:
                 _raise(exc_type, stage)
             return original(self, state)
+
         monkeypatch.setattr(GnuGoPlanner, "plan", patched)
     else:
         original = ArmTouchSkill.act
@@ -201,6 +207,7 @@ def test_a_run_that_raises_at_any_stage_leaves_no_child_process(
             if calls["n"] == 5:
                 _raise(exc_type, stage)
             return original(self, timestep, scene)
+
         monkeypatch.setattr(ArmTouchSkill, "act", patched)
 
     if stage == "construction" and exc_type is RuntimeError:
@@ -231,8 +238,9 @@ def test_a_real_gnugo_run_with_a_failing_skill_leaves_no_gnugo(gnugo, no_finalis
         return original(self, timestep, scene)
 
     monkeypatch.setattr(ArmTouchSkill, "act", patched)
-    summary = run_lib.run("mujogo/7x7", episodes=1, seed=0, progress=False,
-                          env_options={"time_limit": 6.0})
+    summary = run_lib.run(
+        "mujogo/7x7", episodes=1, seed=0, progress=False, env_options={"time_limit": 6.0}
+    )
     assert summary["rows"][0]["error"] == "RuntimeError: injected skill"
     assert_no_new_children(no_finalisers)
 
@@ -259,8 +267,14 @@ def test_an_opponent_resignation_ends_the_game_as_the_agents_win(no_finalisers):
 
 
 def test_a_run_counts_an_opponent_resignation_as_a_win(no_finalisers):
-    summary = run_lib.run("mujogo/7x7", episodes=1, seed=0, progress=False, planner="random",
-                          env_options={"gnugo_command": fake_engine("resign")})
+    summary = run_lib.run(
+        "mujogo/7x7",
+        episodes=1,
+        seed=0,
+        progress=False,
+        planner="random",
+        env_options={"gnugo_command": fake_engine("resign")},
+    )
     row = summary["rows"][0]
     assert row["outcome"] == "win" and row["opponent_resigned"] and "failure_reason" not in row
     assert summary["win_rate"] == 1.0
@@ -271,7 +285,8 @@ def test_a_run_counts_an_opponent_resignation_as_a_win(no_finalisers):
 
 
 def test_ctrl_c_ends_the_run_with_the_table_and_json_of_the_episodes_played(
-        tmp_path, monkeypatch, capsys):
+    tmp_path, monkeypatch, capsys
+):
     original = ModularAgent.reset
     calls = {"n": 0}
 
@@ -301,6 +316,7 @@ def test_ctrl_c_before_any_episode_ends_gives_an_empty_table(monkeypatch):
 
 def test_an_error_in_reset_ends_only_that_episode(monkeypatch):
     from hier_agents.boundary import BoundaryEnv
+
     original = BoundaryEnv.reset
     calls = {"n": 0}
 
@@ -333,6 +349,7 @@ WALL_CLOCK = {"wall_s"}
 @pytest.mark.parametrize("family", sorted(DETERMINISM_RUNS))
 def test_the_same_seed_gives_the_same_rows_in_two_processes(family, tmp_path, request):
     import subprocess
+
     if family == "mujogo":
         request.getfixturevalue("gnugo")
     root = Path(__file__).resolve().parents[1]
@@ -340,15 +357,34 @@ def test_the_same_seed_gives_the_same_rows_in_two_processes(family, tmp_path, re
     for i in range(2):
         path = tmp_path / f"run{i}.json"
         paths.append(path)
-        procs.append(subprocess.Popen(
-            [sys.executable, "-m", "hier_agents.run", *DETERMINISM_RUNS[family], "--seed", "7",
-             "--json", str(path)], cwd=root, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-            env={**os.environ, "PYTHONHASHSEED": str(i)}))  # hash order may differ
+        procs.append(
+            subprocess.Popen(
+                [
+                    sys.executable,
+                    "-m",
+                    "hier_agents.run",
+                    *DETERMINISM_RUNS[family],
+                    "--seed",
+                    "7",
+                    "--json",
+                    str(path),
+                ],
+                cwd=root,
+                stdout=subprocess.PIPE,
+                stderr=subprocess.STDOUT,
+                env={**os.environ, "PYTHONHASHSEED": str(i)},
+            )
+        )  # hash order may differ
     for proc in procs:
         out, _ = proc.communicate(timeout=300)
         assert proc.returncode == 0, out.decode()[-2000:]
-    rows = [[{k: v for k, v in row.items() if k not in WALL_CLOCK}
-             for row in json.loads(path.read_text())["rows"]] for path in paths]
+    rows = [
+        [
+            {k: v for k, v in row.items() if k not in WALL_CLOCK}
+            for row in json.loads(path.read_text())["rows"]
+        ]
+        for path in paths
+    ]
     assert rows[0] == rows[1]
     assert all("error" not in row for row in rows[0])
 
@@ -356,12 +392,16 @@ def test_the_same_seed_gives_the_same_rows_in_two_processes(family, tmp_path, re
 # -- faults injected in full runs -----------------------------------------------
 
 
-def test_an_engine_that_dies_once_mid_game_is_replayed_and_the_run_goes_on(
-        tmp_path, no_finalisers):
+def test_an_engine_that_dies_once_mid_game_is_replayed_and_the_run_goes_on(tmp_path, no_finalisers):
     marker = tmp_path / "died"
-    summary = run_lib.run("mujogo/7x7", episodes=2, seed=0, progress=False, planner="random",
-                          env_options={"gnugo_command": fake_engine(f"die-once:{marker}"),
-                                       "time_limit": 4.0})
+    summary = run_lib.run(
+        "mujogo/7x7",
+        episodes=2,
+        seed=0,
+        progress=False,
+        planner="random",
+        env_options={"gnugo_command": fake_engine(f"die-once:{marker}"), "time_limit": 4.0},
+    )
     assert marker.exists()  # the engine did die
     assert summary["episodes"] == 2 and summary["errors"] == 0
     assert "errors  " not in run_lib.format_table(summary)
@@ -369,11 +409,21 @@ def test_an_engine_that_dies_once_mid_game_is_replayed_and_the_run_goes_on(
 
 
 def test_an_engine_that_hangs_fails_that_episode_and_the_next_gets_a_new_engine(
-        tmp_path, no_finalisers):
+    tmp_path, no_finalisers
+):
     marker = tmp_path / "hung"
-    summary = run_lib.run("mujogo/7x7", episodes=2, seed=0, progress=False, planner="random",
-                          env_options={"gnugo_command": fake_engine(f"hang-once:{marker}"),
-                                       "gnugo_timeout": 1.0, "time_limit": 4.0})
+    summary = run_lib.run(
+        "mujogo/7x7",
+        episodes=2,
+        seed=0,
+        progress=False,
+        planner="random",
+        env_options={
+            "gnugo_command": fake_engine(f"hang-once:{marker}"),
+            "gnugo_timeout": 1.0,
+            "time_limit": 4.0,
+        },
+    )
     first, second = summary["rows"]
     assert first["error"].startswith("GTPError: ") and "timeout" in first["error"]
     assert "error" not in second and second["subgoals_issued"] >= 1
@@ -384,9 +434,11 @@ def test_an_engine_that_hangs_fails_that_episode_and_the_next_gets_a_new_engine(
 def test_the_soak_benchmark_samples_and_closes_everything(tmp_path, gnugo):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
     import soak
+
     before = children()
-    result = soak.soak(len(soak.CONFIGS), sample_every=4, rebuild_every=1, steps=3, moves=2,
-                       progress=False)
+    result = soak.soak(
+        len(soak.CONFIGS), sample_every=4, rebuild_every=1, steps=3, moves=2, progress=False
+    )
     assert not result["errors"]
     assert [s["episode"] for s in result["samples"]] == [0, 4, 8]
     assert {"rss_mb", "open_fds", "children", "threads", "gl_objects"} <= set(result["samples"][1])

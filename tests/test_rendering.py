@@ -24,8 +24,7 @@ CASES = [
     ("mujoban/level5", dict(top_camera=(96, 96), egocentric_camera=(96, 96))),
     ("mujoban/level5-pegs", dict(top_camera=(96, 96), egocentric_camera=None)),
     # The camera estimator's frame (`CameraEstimator.env_overrides`).
-    ("mujoban/level4-pegs", dict(top_camera=(199, 199), egocentric_camera=None,
-                                 multisamples=0)),
+    ("mujoban/level4-pegs", dict(top_camera=(199, 199), egocentric_camera=None, multisamples=0)),
     ("mujoxo/mixture", dict(front_camera=(84, 84))),
     ("mujogo/7x7", dict(front_camera=(84, 84))),
 ]
@@ -48,8 +47,11 @@ def _assert_current(renderer) -> None:
     assumes of its own between its calls)."""
     if os.environ.get("MUJOCO_GL") == "egl":
         from mujoco.egl import egl_ext as EGL
-        assert (ctypes.cast(EGL.eglGetCurrentContext(), ctypes.c_void_p).value
-                == ctypes.cast(renderer._gl_context._context, ctypes.c_void_p).value)
+
+        assert (
+            ctypes.cast(EGL.eglGetCurrentContext(), ctypes.c_void_p).value
+            == ctypes.cast(renderer._gl_context._context, ctypes.c_void_p).value
+        )
 
 
 @pytest.mark.parametrize("name,options", CASES, ids=[c[0] for c in CASES])
@@ -87,16 +89,20 @@ def test_the_coarse_tessellation_is_really_used_and_large_frames_keep_the_models
     # A lone sphere filling a small frame: its silhouette differs between
     # 16 and the model's 64 slices; a frame larger than SMALL_FRAME is drawn
     # with the model's 64 whichever the setting.
-    model, data = _scene('<geom type="sphere" size="0.5" rgba="1 1 1 1"/>', offscreen=300,
-                         quality='<quality numslices="64" numstacks="32"/>')
+    model, data = _scene(
+        '<geom type="sphere" size="0.5" rgba="1 1 1 1"/>',
+        offscreen=300,
+        quality='<quality numslices="64" numstacks="32"/>',
+    )
     coarse, full = Cameras(model), Cameras(model, small_frame_tessellation=False)
     try:
         small = SMALL_FRAME
         coarse_frame = coarse.render(data, "c", small, small)
         assert (coarse_frame != full.render(data, "c", small, small)).any()
         big = SMALL_FRAME + 1
-        np.testing.assert_array_equal(coarse.render(data, "c", big, big),
-                                      full.render(data, "c", big, big))
+        np.testing.assert_array_equal(
+            coarse.render(data, "c", big, big), full.render(data, "c", big, big)
+        )
         assert (model.vis.quality.numslices, model.vis.quality.numstacks) == (64, 32)
     finally:
         coarse.close()
@@ -115,7 +121,7 @@ def test_frames_survive_another_renderer_freeing_its_context_after_ours_drew():
         reference = ours.render(data, "c", 48, 48)
         other = mujoco.Renderer(_scene(geom)[0], 32, 32)
         other.render()
-        ours.render(data, "c", 48, 48)      # ours drew last
+        ours.render(data, "c", 48, 48)  # ours drew last
         _assert_current(other)
         other.close()
         for _ in range(3):
@@ -126,7 +132,7 @@ def test_frames_survive_another_renderer_freeing_its_context_after_ours_drew():
 
 def test_closing_our_cameras_leaves_another_renderers_context_current_and_working():
     model, data = _scene('<geom type="sphere" size="0.3" rgba="0.2 0.6 0.9 1"/>')
-    other = mujoco.Renderer(model, 32, 32)   # another library's, current after creation
+    other = mujoco.Renderer(model, 32, 32)  # another library's, current after creation
     try:
         other.update_scene(data, camera="c")
         before = other.render()

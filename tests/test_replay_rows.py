@@ -16,35 +16,53 @@ ROOT = Path(__file__).resolve().parents[1]
 def replay_rows():
     if str(ROOT / "benchmarks") not in sys.path:
         sys.path.insert(0, str(ROOT / "benchmarks"))  # the scripts import `_common`
-    spec = importlib.util.spec_from_file_location("benchmark_replay_rows",
-                                                  ROOT / "benchmarks" / "replay_rows.py")
+    spec = importlib.util.spec_from_file_location(
+        "benchmark_replay_rows", ROOT / "benchmarks" / "replay_rows.py"
+    )
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
 
 
-ROW = {"episode": 3, "return": 11.0, "steps": 23, "wall_s": 1.68, "subgoals_issued": 1,
-       "subgoals_reached": 1, "estimation_failures": 0, "solved": True}
+ROW = {
+    "episode": 3,
+    "return": 11.0,
+    "steps": 23,
+    "wall_s": 1.68,
+    "subgoals_issued": 1,
+    "subgoals_reached": 1,
+    "estimation_failures": 0,
+    "solved": True,
+}
 
 
-def test_a_row_differing_in_steps_differs_and_one_differing_only_in_time_is_identical(
-        replay_rows):
+def test_a_row_differing_in_steps_differs_and_one_differing_only_in_time_is_identical(replay_rows):
     diffs, _ = replay_rows.compare_rows(ROW, {**ROW, "steps": 25, "wall_s": 9.0})
     assert diffs == [{"key": "steps", "committed": 23, "replayed": 25, "delta": 2}]
-    assert replay_rows.compare_rows(ROW, {**ROW, "wall_s": 0.1, "profile_s": {"render": 1}}) \
-        == ([], [])
+    assert replay_rows.compare_rows(ROW, {**ROW, "wall_s": 0.1, "profile_s": {"render": 1}}) == (
+        [],
+        [],
+    )
     # A failure reason on one side only is a difference; a key only newer rows
     # record (estimates) is listed, not counted.
     diffs, one_sided = replay_rows.compare_rows(
-        ROW, {**ROW, "solved": False, "failure_reason": "time limit", "estimates": 23})
+        ROW, {**ROW, "solved": False, "failure_reason": "time limit", "estimates": 23}
+    )
     assert {d["key"] for d in diffs} == {"solved", "failure_reason"}
     assert one_sided == ["estimates"]
 
 
 def test_settings_that_cannot_be_replayed_are_skipped_with_the_reason(replay_rows):
-    base = {"env": "mujoban/level5-pegs", "seed": 0, "agent": "modular",
-            "planner": "sokoban-solver", "skill": "ball", "estimator": "camera", "env_options": {},
-            "levels": "envs/mujoban/data/boxoban/unfiltered-valid-000.txt"}
+    base = {
+        "env": "mujoban/level5-pegs",
+        "seed": 0,
+        "agent": "modular",
+        "planner": "sokoban-solver",
+        "skill": "ball",
+        "estimator": "camera",
+        "env_options": {},
+        "levels": "envs/mujoban/data/boxoban/unfiltered-valid-000.txt",
+    }
     assert replay_rows.settings(base)["levels"].endswith("unfiltered-valid-000.txt")
     with pytest.raises(replay_rows.Skip, match="not in the repository"):
         replay_rows.settings({**base, "levels": "/tmp/no_such_levels.txt"})
@@ -58,12 +76,13 @@ def test_settings_that_cannot_be_replayed_are_skipped_with_the_reason(replay_row
 
 def test_the_script_replays_one_committed_episode_identically(replay_rows, tmp_path):
     out = tmp_path / "replay.json"
-    status = replay_rows.main([str(ROOT / "results/agent/mujoban_level1.json"), "--episodes",
-                               "1", "--json", str(out)])
+    status = replay_rows.main(
+        [str(ROOT / "results/agent/mujoban_level1.json"), "--episodes", "1", "--json", str(out)]
+    )
     assert status == 0
     report = json.loads(out.read_text())
     assert report["identical"] is True and report["replayed"] == 1 and report["skipped"] == []
-    entry, = report["files"]
+    (entry,) = report["files"]
     assert entry["file"] == "results/agent/mujoban_level1.json" and entry["episodes"] == [0]
     assert entry["identical"] is True and entry["differences"] == []
     assert entry["commit"] and entry["settings"]["env"] == "mujoban/level1"
@@ -77,10 +96,11 @@ def test_the_script_replays_one_committed_episode_identically(replay_rows, tmp_p
     changed = tmp_path / "changed.json"
     changed.write_text(json.dumps(summary))
     assert replay_rows.main([str(changed), "--episodes", "1", "--json", str(out)]) == 1
-    entry, = json.loads(out.read_text())["files"]
+    (entry,) = json.loads(out.read_text())["files"]
     assert entry["identical"] is False
-    assert entry["differences"] == [{"episode": 0, "key": "steps", "committed": steps + 5,
-                                     "replayed": steps, "delta": -5}]
+    assert entry["differences"] == [
+        {"episode": 0, "key": "steps", "committed": steps + 5, "replayed": steps, "delta": -5}
+    ]
 
 
 def test_bad_input_is_one_line_and_status_2(replay_rows, tmp_path, capsys):
@@ -96,5 +116,6 @@ def test_a_replay_is_compared_with_a_baseline_reports_rows(replay_rows):
     assert entry["baseline_identical"] is True and entry["baseline_differences"] == []
     replay_rows._against_baseline(entry, {3: {**ROW, "steps": 30}})
     assert entry["baseline_identical"] is False and entry["baseline_missing"] == [4]
-    assert entry["baseline_differences"] == [{"episode": 3, "key": "steps", "committed": 30,
-                                              "replayed": 23, "delta": -7}]
+    assert entry["baseline_differences"] == [
+        {"episode": 3, "key": "steps", "committed": 30, "replayed": 23, "delta": -7}
+    ]

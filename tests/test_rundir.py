@@ -26,8 +26,9 @@ def toy_trainer(path, updates: int, resume: bool = False, on_update=None):
     policy = Gaussian()
     cfg = ppo.PPOConfig(lr=0.01, anneal_lr=True, epochs=2, minibatches=2)
     optimizer = torch.optim.Adam(policy.parameters(), lr=cfg.lr)
-    run = RunDir(path, {"updates": updates, "lr": cfg.lr, "width": 1}, resume=resume,
-                 fixed=("width",))
+    run = RunDir(
+        path, {"updates": updates, "lr": cfg.lr, "width": 1}, resume=resume, fixed=("width",)
+    )
     state = {"updates": 0}
     data = run.load()
     if data is not None:
@@ -37,16 +38,22 @@ def toy_trainer(path, updates: int, resume: bool = False, on_update=None):
     envs = ppo.make_vector_env([Target] * 2)
     collector = ppo.RolloutCollector(envs, policy, steps=8)
     bar = run.progress(updates, state["updates"], desc="toy", unit="update", disable=True)
-    save = lambda: run.save({"policy": policy.state_dict(),  # noqa: E731
-                             "optimizer": optimizer.state_dict(), "state": state})
+    save = lambda: run.save(  # noqa: E731
+        {
+            "policy": policy.state_dict(),
+            "optimizer": optimizer.state_dict(),
+            "state": state,
+        }
+    )
     try:
         with run.interruptible():
             while state["updates"] < updates and not run.stop_requested:
                 collector.reset(seed=1000 + state["updates"])
                 # Draws from numpy's and python's RNGs too: their states must resume.
                 noise = np.random.rand() + random.random()
-                _, stats = ppo.iteration(collector, optimizer, cfg,
-                                         fraction_left=1 - state["updates"] / updates)
+                _, stats = ppo.iteration(
+                    collector, optimizer, cfg, fraction_left=1 - state["updates"] / updates
+                )
                 state["updates"] += 1
                 run.log(state["updates"], {**stats, "noise": noise})
                 bar.update(1)
@@ -61,10 +68,12 @@ def toy_trainer(path, updates: int, resume: bool = False, on_update=None):
 
 def test_a_resumed_run_continues_bit_identically(tmp_path):
     straight, straight_opt, _ = toy_trainer(tmp_path / "straight", 6)
-    toy_trainer(tmp_path / "split", 6, on_update=lambda n: n == 3 and os.kill(
-        os.getpid(), signal.SIGINT))
-    assert torch.load(tmp_path / "split" / "checkpoint.pt",
-                      weights_only=True)["state"]["updates"] == 3
+    toy_trainer(
+        tmp_path / "split", 6, on_update=lambda n: n == 3 and os.kill(os.getpid(), signal.SIGINT)
+    )
+    assert (
+        torch.load(tmp_path / "split" / "checkpoint.pt", weights_only=True)["state"]["updates"] == 3
+    )
     # A fresh process state: other random states, new objects.
     torch.manual_seed(123)
     np.random.seed(123)
@@ -74,15 +83,18 @@ def test_a_resumed_run_continues_bit_identically(tmp_path):
     for (name, a), b in zip(straight.state_dict().items(), resumed.state_dict().values()):
         assert torch.equal(a, b), name
     assert str(straight_opt.state_dict()) == str(resumed_opt.state_dict())
-    lines = [[json.loads(line) for line in open(tmp_path / d / "scalars.jsonl")]
-             for d in ("straight", "split")]
+    lines = [
+        [json.loads(line) for line in open(tmp_path / d / "scalars.jsonl")]
+        for d in ("straight", "split")
+    ]
     assert lines[0] == lines[1] and [line["step"] for line in lines[0]] == list(range(1, 7))
 
 
 def test_ctrl_c_finishes_the_update_saves_and_restores_the_handler(tmp_path):
     before = signal.getsignal(signal.SIGINT)
-    policy, _, run = toy_trainer(tmp_path, 50, on_update=lambda n: n == 2 and os.kill(
-        os.getpid(), signal.SIGINT))
+    policy, _, run = toy_trainer(
+        tmp_path, 50, on_update=lambda n: n == 2 and os.kill(os.getpid(), signal.SIGINT)
+    )
     assert run.stop_requested and signal.getsignal(signal.SIGINT) is before
     saved = torch.load(tmp_path / "checkpoint.pt", weights_only=True)
     assert saved["state"]["updates"] == 2
@@ -114,8 +126,11 @@ def test_an_interrupted_save_leaves_the_previous_checkpoint_whole(tmp_path, monk
             run.save({"step": 2})
         monkeypatch.undo()
         assert torch.load(run.checkpoint_path, weights_only=True)["step"] == 1
-        assert sorted(p.name for p in tmp_path.iterdir() if not p.name.startswith("events")) \
-            == ["checkpoint.pt", "config.json", "scalars.jsonl"]
+        assert sorted(p.name for p in tmp_path.iterdir() if not p.name.startswith("events")) == [
+            "checkpoint.pt",
+            "config.json",
+            "scalars.jsonl",
+        ]
         run.save({"step": 3}, keep="step-3")
         assert torch.load(tmp_path / "checkpoints" / "step-3.pt", weights_only=True)["step"] == 3
 
@@ -150,17 +165,17 @@ def test_resume_modes_and_refusals_leave_the_directory_untouched(tmp_path):
         RunDir(tmp_path / "new", {}, resume=True)
     assert not (tmp_path / "new").exists()
     # resume=None: start, then continue.
-    with RunDir(tmp_path / "auto", {"env": "a"}, resume=None, trainer="t1",
-                fixed=("env",)) as run:
+    with RunDir(tmp_path / "auto", {"env": "a"}, resume=None, trainer="t1", fixed=("env",)) as run:
         assert not run.resumed
         run.record(observations=["proprio"], privileged=False)
         run.save({})
     saved = json.loads((tmp_path / "auto" / "config.json").read_text())
     assert saved["trainer"] == "t1" and saved["observations"] == ["proprio"]
-    assert torch.load(tmp_path / "auto" / "checkpoint.pt",
-                      weights_only=False)["config"]["privileged"] is False
-    with RunDir(tmp_path / "auto", {"env": "a"}, resume=None, trainer="t1",
-                fixed=("env",)) as run:
+    assert (
+        torch.load(tmp_path / "auto" / "checkpoint.pt", weights_only=False)["config"]["privileged"]
+        is False
+    )
+    with RunDir(tmp_path / "auto", {"env": "a"}, resume=None, trainer="t1", fixed=("env",)) as run:
         assert run.resumed and run.config["observations"] == ["proprio"]
     # Another trainer's run, a run made before runs recorded their trainer
     # without the identifying key, a file: refused.
@@ -171,8 +186,7 @@ def test_resume_modes_and_refusals_leave_the_directory_untouched(tmp_path):
     (tmp_path / "auto" / "config.json").write_text(json.dumps(config))
     with pytest.raises(UsageError, match="not a run of t3"):
         RunDir(tmp_path / "auto", {"spec": "x"}, resume=None, trainer="t3", fixed=("spec",))
-    with RunDir(tmp_path / "auto", {"env": "a"}, resume=None, trainer="t1",
-                fixed=("env",)) as run:
+    with RunDir(tmp_path / "auto", {"env": "a"}, resume=None, trainer="t1", fixed=("env",)) as run:
         assert run.resumed  # the legacy run has the identifying key
     (tmp_path / "file").write_text("")
     with pytest.raises(UsageError, match="is a file"):

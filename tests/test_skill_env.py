@@ -11,16 +11,23 @@ from hier_agents.learning.skills.ball import BALL_SPEC, BallSceneSource
 from skills.base import Status
 
 
-def _env(sources=("mujoban/level2-pegs", "mujoban/level1"), seed=0, estimator=None,
-         t_abs=None, **source_kw):
+def _env(
+    sources=("mujoban/level2-pegs", "mujoban/level1"),
+    seed=0,
+    estimator=None,
+    t_abs=None,
+    **source_kw,
+):
     """A ball skill environment drawing scenes from ``sources`` only."""
     spec = dataclasses.replace(
-        BALL_SPEC, scenes=lambda s, est: BallSceneSource(s, est, sources=sources, **source_kw))
+        BALL_SPEC, scenes=lambda s, est: BallSceneSource(s, est, sources=sources, **source_kw)
+    )
     return SkillEnv(spec, seed=seed, estimator=estimator, t_abs=t_abs)
 
 
 def test_gymnasium_check_env():
     from gymnasium.utils.env_checker import check_env
+
     env = _env()
     check_env(env, skip_render_check=True)
     env.close()
@@ -28,6 +35,7 @@ def test_gymnasium_check_env():
 
 def test_stable_baselines3_check_env():
     from stable_baselines3.common.env_checker import check_env
+
     env = _env()
     check_env(env, warn=True)
     env.close()
@@ -35,6 +43,7 @@ def test_stable_baselines3_check_env():
 
 def test_registered():
     import hier_agents.learning.skill_env  # noqa: F401  (registers the id)
+
     env = gymnasium.make("options/ball-push", seed=1)
     obs, info = env.reset(seed=1)
     assert env.observation_space.contains(obs)
@@ -68,9 +77,11 @@ def test_reward_exactly_when_the_subgoal_is_reached():
             obs, reward, terminated, truncated, info = env.step(info["expert_action"])
             done = terminated or truncated
             reached = info["status"] == "reached"
-            assert reward == pytest.approx(BALL_SPEC.step_cost + (1.0 if reached else 0.0)
-                                           - (1.0 if info["status"] == "failed"
-                                              and reward < -0.5 else 0.0))
+            assert reward == pytest.approx(
+                BALL_SPEC.step_cost
+                + (1.0 if reached else 0.0)
+                - (1.0 if info["status"] == "failed" and reward < -0.5 else 0.0)
+            )
             assert terminated == (info["status"] in ("reached", "failed"))
             if reached:
                 start = env._start
@@ -117,6 +128,7 @@ def test_camera_estimator_is_observation_only():
 
 def test_stable_baselines3_ppo_runs():
     from stable_baselines3 import PPO
+
     env = _env(sources=("mujoban/level1",), t_abs=40)
     model = PPO("MlpPolicy", env, n_steps=64, batch_size=32, n_epochs=2, seed=0, device="cpu")
     model.learn(total_timesteps=192)

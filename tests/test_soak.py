@@ -24,7 +24,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 pytestmark = pytest.mark.skipif(
     not sys.platform.startswith("linux") or not hasattr(ctypes.CDLL(None), "mallinfo2"),
-    reason="glibc malloc (mallinfo2) only")
+    reason="glibc malloc (mallinfo2) only",
+)
 
 # Allocates a block of MuJoBan's model-buffer size twice (freeing the first)
 # and reports whether each was mmapped (glibc's mallinfo2.hblkhd grows).
@@ -61,16 +62,26 @@ print(json.dumps({"mmapped": mmapped, "kept_top": kept_top, "applied": applied})
 
 
 def _environ_without_malloc_settings(**env) -> dict:
-    environ = {k: v for k, v in os.environ.items()
-               if k not in ("MALLOC_MMAP_THRESHOLD_", "MALLOC_TRIM_THRESHOLD_", "GLIBC_TUNABLES")}
+    environ = {
+        k: v
+        for k, v in os.environ.items()
+        if k not in ("MALLOC_MMAP_THRESHOLD_", "MALLOC_TRIM_THRESHOLD_", "GLIBC_TUNABLES")
+    }
     environ.update(env)
     return environ
 
 
 def probe(mode: str, **env) -> dict:
     environ = _environ_without_malloc_settings(**env)
-    out = subprocess.run([sys.executable, "-c", PROBE, mode], cwd=ROOT, env=environ,
-                         capture_output=True, text=True, check=True, timeout=120)
+    out = subprocess.run(
+        [sys.executable, "-c", PROBE, mode],
+        cwd=ROOT,
+        env=environ,
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=120,
+    )
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
@@ -120,9 +131,15 @@ print(json.dumps({"heap_mb": [h / 2**20 for h in heaps]}))
 
 
 def test_rebuilding_environments_keeps_their_large_blocks_out_of_the_heap():
-    out = subprocess.run([sys.executable, "-c", REBUILD], cwd=ROOT,
-                         env=_environ_without_malloc_settings(),
-                         capture_output=True, text=True, check=True, timeout=600)
+    out = subprocess.run(
+        [sys.executable, "-c", REBUILD],
+        cwd=ROOT,
+        env=_environ_without_malloc_settings(),
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=600,
+    )
     heap_mb = json.loads(out.stdout.strip().splitlines()[-1])["heap_mb"]
     # Each MuJoBan model buffer is 17.5 MB; none of them may end up in the heap.
     assert max(heap_mb) - heap_mb[0] < 10, heap_mb

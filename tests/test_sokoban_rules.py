@@ -19,10 +19,7 @@ def board(*rows: str) -> SokobanState:
 
 
 def test_walking_moves_the_player_only():
-    s = board("#####",
-              "# @ #",
-              "#$ .#",
-              "#####")
+    s = board("#####", "# @ #", "#$ .#", "#####")
     t = s.apply("L")
     assert t.player == (1, 1)
     assert t.boxes == s.boxes
@@ -30,12 +27,7 @@ def test_walking_moves_the_player_only():
 
 
 def test_player_cannot_walk_into_walls():
-    s = board("###",
-              "#@#",
-              "#$#",
-              "#.#",
-              "# #",
-              "###")
+    s = board("###", "#@#", "#$#", "#.#", "# #", "###")
     for move in "ULR":
         assert not s.is_legal(move)
         with pytest.raises(ValueError, match=f"illegal move '{move}'.*wall"):
@@ -44,9 +36,7 @@ def test_player_cannot_walk_into_walls():
 
 
 def test_push_moves_exactly_one_box_one_cell():
-    s = board("######",
-              "#@$ .#",
-              "######")
+    s = board("######", "#@$ .#", "######")
     t = s.apply("R")
     assert t.player == (1, 2)
     assert t.boxes == frozenset({(1, 3)})
@@ -56,28 +46,21 @@ def test_push_moves_exactly_one_box_one_cell():
 
 
 def test_no_pulls():
-    s = board("######",
-              "# $@.#",
-              "######")
+    s = board("######", "# $@.#", "######")
     t = s.apply("R")  # step away from the box
     assert t.boxes == s.boxes
     assert t.player == (1, 4)
 
 
 def test_box_cannot_be_pushed_into_a_wall():
-    s = board("#####",
-              "#@$#.",
-              "#####")
+    s = board("#####", "#@$#.", "#####")
     assert not s.is_legal("R")
     with pytest.raises(ValueError, match=r"'R'.*box at \(1, 2\).*\(1, 3\), a wall"):
         s.apply("R")
 
 
 def test_no_double_box_pushes():
-    s = board("#######",
-              "#@$$ .#",
-              "#    .#",
-              "#######")
+    s = board("#######", "#@$$ .#", "#    .#", "#######")
     assert not s.is_legal("R")
     assert "R" not in s.legal_moves()
     with pytest.raises(ValueError, match=r"blocked by the box at \(1, 3\)"):
@@ -85,12 +68,12 @@ def test_no_double_box_pushes():
 
 
 def test_the_grid_edge_blocks_like_a_wall():
-    s = SokobanState(walls=(), targets={(0, 2)}, boxes={(0, 1)}, player=(0, 0),
-                     height=1, width=3)
+    s = SokobanState(walls=(), targets={(0, 2)}, boxes={(0, 1)}, player=(0, 0), height=1, width=3)
     assert s.legal_moves() == ["R"]
     assert s.apply("R").is_solved()
-    edge = SokobanState(walls=(), targets={(0, 0)}, boxes={(0, 2)}, player=(0, 1),
-                        height=1, width=3)
+    edge = SokobanState(
+        walls=(), targets={(0, 0)}, boxes={(0, 2)}, player=(0, 1), height=1, width=3
+    )
     assert not edge.is_legal("R")  # would push the box off the grid
     assert edge.legal_moves() == ["L"]
 
@@ -104,18 +87,12 @@ def test_unknown_move_letter_is_an_error():
 
 
 def test_legal_moves_are_in_udlr_order():
-    s = board("#####",
-              "#   #",
-              "# @ #",
-              "#$. #",
-              "#####")
+    s = board("#####", "#   #", "# @ #", "#$. #", "#####")
     assert s.legal_moves() == list(MOVES)
 
 
 def test_replay_and_its_errors():
-    s = board("#######",
-              "#@ $ .#",
-              "#######")
+    s = board("#######", "#@ $ .#", "#######")
     assert replay(s, "RRR").is_solved()
     assert replay(s, ["R", "R", "R"]).is_solved()
     assert replay(s, "") == s
@@ -124,10 +101,7 @@ def test_replay_and_its_errors():
 
 
 def test_solved_only_with_every_box_on_a_target():
-    s = board("#######",
-              "#@$*  #",
-              "#   . #",
-              "#######")
+    s = board("#######", "#@$*  #", "#   . #", "#######")
     assert not s.is_solved()
     assert board("####", "#@*#", "####").is_solved()
 
@@ -136,10 +110,7 @@ def test_solved_only_with_every_box_on_a_target():
 
 
 def test_text_roundtrip_and_characters():
-    text = "\n".join(["#######",
-                      "#+ $  #",
-                      "# *.$ #",
-                      "#######"])
+    text = "\n".join(["#######", "#+ $  #", "# *.$ #", "#######"])
     s = SokobanState.from_text(text)
     assert s.player == (1, 1)
     assert s.targets == frozenset({(1, 1), (2, 2), (2, 3)})
@@ -149,13 +120,16 @@ def test_text_roundtrip_and_characters():
     assert SokobanState.from_text("#-_@$.#") == SokobanState.from_text("#  @$.#")
 
 
-@pytest.mark.parametrize("text, message", [
-    ("#@$.x#", "unknown character 'x'"),
-    ("#$.#", "exactly one player"),
-    ("#@@$..#", "exactly one player"),
-    ("#@$$.#", "2 boxes but 1 targets"),
-    ("", "empty board"),
-])
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("#@$.x#", "unknown character 'x'"),
+        ("#$.#", "exactly one player"),
+        ("#@@$..#", "exactly one player"),
+        ("#@$$.#", "2 boxes but 1 targets"),
+        ("", "empty board"),
+    ],
+)
 def test_bad_text_is_rejected(text, message):
     with pytest.raises(ValueError, match=message):
         SokobanState.from_text(text)
@@ -173,8 +147,12 @@ def test_bad_boards_are_rejected():
 def test_from_level_matches_the_boxoban_level():
     level = read_levels(BOXOBAN_DIR / "unfiltered-valid-000.txt")[0]
     s = SokobanState.from_level(level)
-    assert (s.walls, s.targets, s.boxes, s.player) == (level.walls, level.targets,
-                                                       level.boxes, level.player)
+    assert (s.walls, s.targets, s.boxes, s.player) == (
+        level.walls,
+        level.targets,
+        level.boxes,
+        level.player,
+    )
     assert (s.height, s.width) == (level.height, level.width)
     assert s == SokobanState.from_text(level.to_text())
     assert Level.from_text(s.to_text()) == level
@@ -194,8 +172,14 @@ def test_moves_agree_with_a_generator_solution():
 
 def test_equal_by_content_and_hashable():
     a = board("#####", "#@$.#", "#####")
-    b = SokobanState(walls=set(a.walls), targets=list(a.targets), boxes=tuple(a.boxes),
-                     player=[1, 1], height=3, width=5)
+    b = SokobanState(
+        walls=set(a.walls),
+        targets=list(a.targets),
+        boxes=tuple(a.boxes),
+        player=[1, 1],
+        height=3,
+        width=5,
+    )
     assert a == b and hash(a) == hash(b)
     assert len({a, b}) == 1
     # Reaching the same board by different paths gives equal states.
@@ -206,8 +190,8 @@ def test_equal_by_content_and_hashable():
 
 def test_states_differing_in_anything_are_unequal():
     a = board("######", "#@$ .#", "######")
-    assert a != a.apply("R")                      # player and box
-    assert a != a.with_player((1, 3))             # player only
+    assert a != a.apply("R")  # player and box
+    assert a != a.with_player((1, 3))  # player only
     assert a != board("######", "#@$. #", "######")  # targets
     assert a != board("######", "#@$#.#", "######")  # walls
     assert a != "not a state"

@@ -10,31 +10,44 @@ import pytest
 from abstract_planners.base import NoPlanError, Planner, Subgoal
 from abstract_planners.sokoban import SokobanState, replay
 from abstract_planners.sokoban_random import RandomPlanner
-from abstract_planners.sokoban_solver import (SokobanSolverPlanner, SolveResult,
-                                              dead_squares, frozen_deadlock,
-                                              pi_corral_pushes, solve)
+from abstract_planners.sokoban_solver import (
+    SokobanSolverPlanner,
+    SolveResult,
+    dead_squares,
+    frozen_deadlock,
+    pi_corral_pushes,
+    solve,
+)
 from envs.mujoban.generator import generate_level
 from envs.mujoban.levels import BOXOBAN_DIR, read_levels
 
 #: Unsolvable, though no box starts on a dead square or frozen: found by
 #: random play on generated levels and confirmed by exhaustive search.
 UNSOLVABLE_AFTER_SEARCH = [
-    "\n".join(["########",
-               "####  ##",
-               "#### .##",
-               "####  ##",
-               "# *#$ ##",
-               "#   @ ##",
-               "#    *##",
-               "########"]),
-    "\n".join(["########",
-               "#   ####",
-               "#*  ####",
-               "#  #####",
-               "#  #####",
-               "# @# * #",
-               "#.$    #",
-               "########"]),
+    "\n".join(
+        [
+            "########",
+            "####  ##",
+            "#### .##",
+            "####  ##",
+            "# *#$ ##",
+            "#   @ ##",
+            "#    *##",
+            "########",
+        ]
+    ),
+    "\n".join(
+        [
+            "########",
+            "#   ####",
+            "#*  ####",
+            "#  #####",
+            "#  #####",
+            "# @# * #",
+            "#.$    #",
+            "########",
+        ]
+    ),
 ]
 
 
@@ -80,16 +93,23 @@ def check_solution(state: SokobanState, result: SolveResult) -> None:
 
 
 def test_dead_squares_of_a_hand_made_room():
-    s = board("######",
-              "#    #",
-              "# .  #",
-              "#   @#",
-              "#  $ #",
-              "######")
+    s = board("######", "#    #", "# .  #", "#   @#", "#  $ #", "######")
     dead = dead_squares(s)
     # Corners, and the cells along walls without a target, are dead.
-    for cell in [(1, 1), (1, 4), (4, 1), (4, 4), (1, 2), (1, 3), (4, 2), (4, 3),
-                 (2, 1), (3, 1), (2, 4), (3, 4)]:
+    for cell in [
+        (1, 1),
+        (1, 4),
+        (4, 1),
+        (4, 4),
+        (1, 2),
+        (1, 3),
+        (4, 2),
+        (4, 3),
+        (2, 1),
+        (3, 1),
+        (2, 4),
+        (3, 4),
+    ]:
         assert cell in dead, cell
     # Interior cells can be pushed to the target; the target is never dead.
     for cell in [(2, 2), (2, 3), (3, 2), (3, 3)]:
@@ -97,10 +117,7 @@ def test_dead_squares_of_a_hand_made_room():
 
 
 def test_a_wall_cell_next_to_a_target_is_live():
-    s = board("#######",
-              "#.    #",
-              "#  $ @#",
-              "#######")
+    s = board("#######", "#.    #", "#  $ @#", "#######")
     dead = dead_squares(s)
     assert (1, 2) not in dead and (1, 5) in dead  # top row: pushed left onto the target
     assert (2, 2) in dead  # bottom row: no target along it
@@ -108,88 +125,48 @@ def test_a_wall_cell_next_to_a_target_is_live():
 
 
 def test_solver_rejects_a_box_on_a_dead_square_at_once():
-    s = board("######",
-              "#$  .#",
-              "#  @ #",
-              "######")
+    s = board("######", "#$  .#", "#  @ #", "######")
     r = solve(s)
     assert (r.solved, r.reason, r.nodes) == (False, "unsolvable", 0)
 
 
 def test_frozen_box_in_a_corner():
-    s = board("#####",
-              "#$ .#",
-              "# @ #",
-              "#####")
+    s = board("#####", "#$ .#", "# @ #", "#####")
     assert frozen_deadlock(s, (1, 1))
 
 
 def test_box_in_a_corner_on_its_target_is_not_a_deadlock():
-    s = board("#####",
-              "#* .#",
-              "# @$#",
-              "#####")
+    s = board("#####", "#* .#", "# @$#", "#####")
     assert not frozen_deadlock(s, (1, 1))
 
 
 def test_two_boxes_side_by_side_against_a_wall_are_frozen():
-    s = board("########",
-              "#  $$  #",
-              "#  ..@ #",
-              "########")
+    s = board("########", "#  $$  #", "#  ..@ #", "########")
     assert frozen_deadlock(s, (1, 3)) and frozen_deadlock(s, (1, 4))
     # The same pair away from the wall can still move.
-    t = board("########",
-              "#      #",
-              "#  $$ @#",
-              "#  ..  #",
-              "#      #",
-              "########")
+    t = board("########", "#      #", "#  $$ @#", "#  ..  #", "#      #", "########")
     assert not frozen_deadlock(t, (2, 3))
 
 
 def test_a_frozen_pair_is_fine_only_with_both_boxes_on_targets():
-    on_targets = board("#######",
-                       "#  ** #",
-                       "#   @ #",
-                       "#######")
+    on_targets = board("#######", "#  ** #", "#   @ #", "#######")
     assert not frozen_deadlock(on_targets, (1, 3))
-    one_off = board("#######",
-                    "#  *$ #",
-                    "#  .@ #",
-                    "#######")
+    one_off = board("#######", "#  *$ #", "#  .@ #", "#######")
     assert frozen_deadlock(one_off, (1, 3))  # on target, but frozen with an off-target box
 
 
 def test_square_of_four_boxes_is_frozen_in_open_floor():
-    s = board("########",
-              "#      #",
-              "# $$   #",
-              "# $$ @ #",
-              "# .... #",
-              "#      #",
-              "########")
+    s = board("########", "#      #", "# $$   #", "# $$ @ #", "# .... #", "#      #", "########")
     assert frozen_deadlock(s, (2, 2))
 
 
 def test_box_blocked_on_one_axis_only_is_not_frozen():
-    s = board("#######",
-              "# $  .#",
-              "#  @  #",
-              "#######")
+    s = board("#######", "# $  .#", "#  @  #", "#######")
     assert not frozen_deadlock(s, (1, 2))  # can still be pushed sideways
     # Along a wall with no target, both sideways cells are dead: frozen.
-    t = board("#######",
-              "# $   #",
-              "#  @ .#",
-              "#######")
+    t = board("#######", "# $   #", "#  @ .#", "#######")
     assert frozen_deadlock(t, (1, 2))
-    u = board("#####",
-              "# # #",
-              "#.$ #",
-              "#@# #",
-              "#   #",
-              "#####")
+    u = board("#####", "# # #", "#.$ #", "#@# #", "#   #", "#####")
     assert not frozen_deadlock(u, (2, 2))  # walls above and below, free sideways
 
 
@@ -204,12 +181,7 @@ def test_frozen_deadlock_needs_a_box():
 def test_pi_corral_restricts_to_pushes_into_the_corral():
     # The player, on the left, cannot reach the pocket behind the boxes;
     # the only pushes of the barrier boxes are into it.
-    s = board("########",
-              "#   #  #",
-              "# @ $ .#",
-              "#   #. #",
-              "#   $  #",
-              "########")
+    s = board("########", "#   #  #", "# @ $ .#", "#   #. #", "#   $  #", "########")
     pushes = pi_corral_pushes(s)
     assert pushes is not None
     assert set(pushes) <= {((2, 4), "R"), ((4, 4), "R")}
@@ -217,11 +189,7 @@ def test_pi_corral_restricts_to_pushes_into_the_corral():
 
 
 def test_no_corral_when_everything_is_reachable():
-    s = board("#######",
-              "#     #",
-              "# $@. #",
-              "#     #",
-              "#######")
+    s = board("#######", "#     #", "# $@. #", "#     #", "#######")
     assert pi_corral_pushes(s) is None
 
 
@@ -277,9 +245,7 @@ def test_already_solved_state():
 
 
 def test_player_walled_off_from_the_box_is_unsolvable_quickly():
-    s = board("#########",
-              "#@#  $ .#",
-              "#########")
+    s = board("#########", "#@#  $ .#", "#########")
     result = solve(s)
     assert (result.solved, result.reason) == (False, "unsolvable")
     assert result.nodes <= 1 and result.moves == ()
@@ -303,8 +269,7 @@ def test_node_budget():
 
 def test_time_budget():
     # A level that needs thousands of expansions, with a microscopic time limit.
-    hard = SokobanState.from_level(
-        read_levels(BOXOBAN_DIR / "unfiltered-valid-000.txt")[859])
+    hard = SokobanState.from_level(read_levels(BOXOBAN_DIR / "unfiltered-valid-000.txt")[859])
     result = solve(hard, time_limit=1e-6)
     assert (result.solved, result.reason) == (False, "budget")
 
@@ -346,15 +311,10 @@ def test_solver_planner_follows_and_caches_its_plan():
 
 
 def test_solver_planner_replans_off_its_plan():
-    state = board("#########",
-                  "#       #",
-                  "# $   . #",
-                  "#   @   #",
-                  "#########")
+    state = board("#########", "#       #", "# $   . #", "#   @   #", "#########")
     planner = SokobanSolverPlanner()
     step = planner.plan(state)
-    detour = next(m for m in state.legal_moves()
-                  if m != step.action and not state.is_push(m))
+    detour = next(m for m in state.legal_moves() if m != step.action and not state.is_push(m))
     off = state.apply(detour)
     again = planner.plan(off)
     assert again.info["cached"] is False
@@ -372,8 +332,9 @@ def test_solver_planner_next_push():
         moves = sub.action
         assert isinstance(moves, tuple) and moves
         before_push = replay(s, moves[:-1])
-        assert all(not t for t in [replay(s, moves[:k]).is_push(moves[k])
-                                   for k in range(len(moves) - 1)])
+        assert all(
+            not t for t in [replay(s, moves[:k]).is_push(moves[k]) for k in range(len(moves) - 1)]
+        )
         assert before_push.is_push(moves[-1])
         assert sub.state == before_push.apply(moves[-1])
         assert replay(sub.state, sub.plan).is_solved()
@@ -384,9 +345,7 @@ def test_solver_planner_next_push():
 
 def test_solver_planner_errors():
     planner = SokobanSolverPlanner()
-    unsolvable = board("#########",
-                       "#@#  $ .#",
-                       "#########")
+    unsolvable = board("#########", "#@#  $ .#", "#########")
     with pytest.raises(NoPlanError, match="unsolvable") as caught:
         planner.plan(unsolvable)
     assert caught.value.reason == "unsolvable"
@@ -435,12 +394,7 @@ def run_random(planner: RandomPlanner, state: SokobanState, n: int = 60) -> list
 
 
 def test_random_planner_is_reproducible_by_seed():
-    state = board("########",
-                  "#      #",
-                  "#  $   #",
-                  "#   @  #",
-                  "#  .   #",
-                  "########")
+    state = board("########", "#      #", "#  $   #", "#   @  #", "#  .   #", "########")
     a = run_random(RandomPlanner(seed=3), state)
     assert a == run_random(RandomPlanner(seed=3), state)
     assert a != run_random(RandomPlanner(seed=4), state)
@@ -453,11 +407,7 @@ def test_random_planner_is_reproducible_by_seed():
 
 
 def test_random_planner_errors():
-    stuck = board("#####",
-                  "#@$$#",
-                  "#####",
-                  "#..##",
-                  "#####")
+    stuck = board("#####", "#@$$#", "#####", "#..##", "#####")
     assert stuck.legal_moves() == []
     with pytest.raises(ValueError, match="no legal move"):
         RandomPlanner(seed=0).plan(stuck)

@@ -45,6 +45,7 @@ def test_the_time_planner_follows_its_plan_and_reports_deadlocks():
     assert planner.plan(subgoal.state).info["cached"]
     dead = SokobanState.from_text("#######\n#$    #\n# @  .#\n#     #\n#######")
     from abstract_planners.base import NoPlanError
+
     with pytest.raises(NoPlanError) as err:
         planner.next_push(dead)
     assert err.value.reason == "unsolvable"

@@ -11,17 +11,31 @@ import torch
 
 from hier_agents import run as run_lib
 from hier_agents import train as train_cli
-from hier_agents.baselines.impala.learner import (TrainConfig, load_checkpoint,
-                                                  net_from_checkpoint, train)
+from hier_agents.baselines.impala.learner import (
+    TrainConfig,
+    load_checkpoint,
+    net_from_checkpoint,
+    train,
+)
 
-TINY = dict(env="mujoban/level1", unroll_length=5, batch_size=2, actors=1, envs_per_actor=2,
-            cameras=False, checkpoint_every_s=1e9, log_every_s=0.0, progress=False)
+TINY = dict(
+    env="mujoban/level1",
+    unroll_length=5,
+    batch_size=2,
+    actors=1,
+    envs_per_actor=2,
+    cameras=False,
+    checkpoint_every_s=1e9,
+    log_every_s=0.0,
+    progress=False,
+)
 
 
 def test_a_tiny_run_updates_logs_and_checkpoints(tmp_path):
     own = time.process_time()
-    counters = train(TrainConfig(condition="expert-planner", steps=30, logdir=str(tmp_path),
-                                 **TINY))
+    counters = train(
+        TrainConfig(condition="expert-planner", steps=30, logdir=str(tmp_path), **TINY)
+    )
     own = time.process_time() - own
     # 30 frames at 2 unrolls x 5 steps per update: 3 updates.
     assert counters["updates"] == 3 and counters["frames"] == 30
@@ -59,8 +73,10 @@ def test_a_resumed_run_continues_from_its_step_count(tmp_path):
     second = load_checkpoint(tmp_path)
     assert any(not torch.equal(first["model"][k], second["model"][k]) for k in first["model"])
     # A finished run is not run again; another condition in the same logdir is refused.
-    assert train(TrainConfig(condition="vanilla", steps=40, logdir=str(tmp_path),
-                             **TINY))["updates"] == 4
+    assert (
+        train(TrainConfig(condition="vanilla", steps=40, logdir=str(tmp_path), **TINY))["updates"]
+        == 4
+    )
     with pytest.raises(ValueError, match="condition"):
         train(TrainConfig(condition="expert-planner", steps=60, logdir=str(tmp_path), **TINY))
 
@@ -68,23 +84,49 @@ def test_a_resumed_run_continues_from_its_step_count(tmp_path):
 @pytest.mark.slow
 def test_ray_actors_feed_the_learner(tmp_path):
     import ray  # a hard dependency: imported, never skipped
+
     try:
-        counters = train(TrainConfig(condition="random-planner", steps=40, backend="ray",
-                                     logdir=str(tmp_path), **dict(TINY, actors=2)))
+        counters = train(
+            TrainConfig(
+                condition="random-planner",
+                steps=40,
+                backend="ray",
+                logdir=str(tmp_path),
+                **dict(TINY, actors=2),
+            )
+        )
     finally:
         ray.shutdown()
     assert counters["updates"] == 4 and counters["frames"] == 40
 
 
 def test_the_checkpoint_plays_through_hier_agents_run(tmp_path, capsys):
-    train(TrainConfig(condition="expert-planner", steps=10, logdir=str(tmp_path / "run"),
-                      **TINY))
+    train(TrainConfig(condition="expert-planner", steps=10, logdir=str(tmp_path / "run"), **TINY))
     out = tmp_path / "eval.json"
-    assert run_lib.main(["mujoban/level1", "--agent", f"checkpoint:{tmp_path / 'run'}",
-                         "--episodes", "1", "--json", str(out)]) == 0
+    assert (
+        run_lib.main(
+            [
+                "mujoban/level1",
+                "--agent",
+                f"checkpoint:{tmp_path / 'run'}",
+                "--episodes",
+                "1",
+                "--json",
+                str(out),
+            ]
+        )
+        == 0
+    )
     summary = json.loads(out.read_text())
-    for key in ("env", "episodes", "success_rate", "mean_return", "mean_steps",
-                "subgoal_success_rate", "wall_s"):
+    for key in (
+        "env",
+        "episodes",
+        "success_rate",
+        "mean_return",
+        "mean_steps",
+        "subgoal_success_rate",
+        "wall_s",
+    ):
         assert key in summary, key
     assert summary["training_frames"] == 10 and summary["condition"] == "expert-planner"
     assert "checkpoint:" in capsys.readouterr().out
@@ -101,17 +143,32 @@ def test_a_state_input_run_trains_resumes_only_as_state_and_plays(tmp_path):
     with pytest.raises(ValueError, match="state"):
         train(TrainConfig(condition="vanilla", steps=20, logdir=str(logdir), state=False, **TINY))
     out = tmp_path / "eval.json"
-    assert run_lib.main(["mujoban/level1", "--agent", f"checkpoint:{logdir}",
-                         "--episodes", "1", "--json", str(out)]) == 0
+    assert (
+        run_lib.main(
+            [
+                "mujoban/level1",
+                "--agent",
+                f"checkpoint:{logdir}",
+                "--episodes",
+                "1",
+                "--json",
+                str(out),
+            ]
+        )
+        == 0
+    )
     assert json.loads(out.read_text())["training_frames"] == 10
 
 
-@pytest.mark.parametrize("argv, message", [
-    (["mujoban/level1", "--condition", "cheater"], "vanilla"),
-    (["mujoban/nope"], "mujoban/level1"),
-    (["mujoban/level1", "--backend", "mpi"], "ray"),
-    (["mujoban/level1", "--frames", "0"], "--frames"),
-])
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["mujoban/level1", "--condition", "cheater"], "vanilla"),
+        (["mujoban/nope"], "mujoban/level1"),
+        (["mujoban/level1", "--backend", "mpi"], "ray"),
+        (["mujoban/level1", "--frames", "0"], "--frames"),
+    ],
+)
 def test_train_cli_rejects_bad_arguments(argv, message, capsys):
     with pytest.raises(SystemExit) as exc:
         train_cli.main(argv)
@@ -144,13 +201,20 @@ def _toy_unrolls(net, rng, T=8, B=16):
     zeros = np.zeros((T, B), np.float32)
     unrolls = []
     for i in range(B):
-        unrolls.append({"obs": {"proprio": x[:, i]}, "first": first[:, i],
-                        "actions": actions[:, i], "log_probs": log_probs[:, i],
-                        "rewards_env": rewards[:, i].astype(np.float32),
-                        "discounts_env": zeros[:, i], "rewards_abs": zeros[:, i],
-                        "discounts_abs": zeros[:, i],
-                        "state": [s[i].numpy().copy() for s in net.initial_state(B)],
-                        "stream": (0, i)})
+        unrolls.append(
+            {
+                "obs": {"proprio": x[:, i]},
+                "first": first[:, i],
+                "actions": actions[:, i],
+                "log_probs": log_probs[:, i],
+                "rewards_env": rewards[:, i].astype(np.float32),
+                "discounts_env": zeros[:, i],
+                "rewards_abs": zeros[:, i],
+                "discounts_abs": zeros[:, i],
+                "state": [s[i].numpy().copy() for s in net.initial_state(B)],
+                "stream": (0, i),
+            }
+        )
     return unrolls, float(rewards.mean())
 
 
@@ -161,8 +225,9 @@ def test_the_learner_improves_the_return_of_a_tiny_task():
 
     torch.manual_seed(0)
     rng = np.random.default_rng(0)
-    spec = InputSpec(images=(), proprio_dim=2, planner_shape=None, planner_action_dim=0,
-                     action_dim=2)
+    spec = InputSpec(
+        images=(), proprio_dim=2, planner_shape=None, planner_action_dim=0, action_dim=2
+    )
     net = ImpalaNet(spec, two_values=False)
     optimizer = torch.optim.RMSprop(net.parameters(), lr=1e-3, eps=1e-5)
     config = TrainConfig(env="mujoban/level1", entropy_cost=0.0)
@@ -179,14 +244,16 @@ def test_the_learner_improves_the_return_of_a_tiny_task():
     assert end > start + 0.1, (start, end)
 
 
-@pytest.mark.parametrize("name, condition, cameras", [
-    ("mujoban/level1", "vanilla", True),
-    ("mujoban/level1", "expert-planner", False),
-    ("mujoxo/mixture", "random-planner", True),
-    ("mujogo/7x7", "expert-planner", False),
-])
-def test_every_environment_observation_goes_through_the_network(name, condition, cameras,
-                                                                request):
+@pytest.mark.parametrize(
+    "name, condition, cameras",
+    [
+        ("mujoban/level1", "vanilla", True),
+        ("mujoban/level1", "expert-planner", False),
+        ("mujoxo/mixture", "random-planner", True),
+        ("mujogo/7x7", "expert-planner", False),
+    ],
+)
+def test_every_environment_observation_goes_through_the_network(name, condition, cameras, request):
     from hier_agents.baselines.impala.agent_env import AgentEnv
     from hier_agents.baselines.impala.network import ImpalaNet
 
@@ -195,15 +262,21 @@ def test_every_environment_observation_goes_through_the_network(name, condition,
     with AgentEnv(name, condition, seed=0, cameras=cameras) as env:
         net = ImpalaNet(env.input_spec, two_values=condition != "vanilla")
         obs = env.reset()
-        assert set(obs) == ({"proprio"} | {n for n, _ in env.input_spec.images}
-                            | ({"planner"} if env.input_spec.planner_shape else set())
-                            | ({"planner_action"} if env.input_spec.planner_action_dim else set()))
-        out, _ = net({k: torch.as_tensor(v)[None, None] for k, v in obs.items()},
-                     torch.ones(1, 1, dtype=torch.bool))
+        assert set(obs) == (
+            {"proprio"}
+            | {n for n, _ in env.input_spec.images}
+            | ({"planner"} if env.input_spec.planner_shape else set())
+            | ({"planner_action"} if env.input_spec.planner_action_dim else set())
+        )
+        out, _ = net(
+            {k: torch.as_tensor(v)[None, None] for k, v in obs.items()},
+            torch.ones(1, 1, dtype=torch.bool),
+        )
         assert out.mean.shape == (1, 1, env.input_spec.action_dim)
         assert (out.value_abs is None) == (condition == "vanilla")
-        action, _, _ = net.act({k: v[None] for k, v in obs.items()}, np.ones(1, bool),
-                               net.initial_state(1))
+        action, _, _ = net.act(
+            {k: v[None] for k, v in obs.items()}, np.ones(1, bool), net.initial_state(1)
+        )
         result = env.step(action[0])
         assert set(result.obs) == set(obs)
 
@@ -219,14 +292,39 @@ def test_ctrl_c_saves_a_checkpoint_and_the_run_resumes_from_it(tmp_path):
     import time
 
     logdir = tmp_path / "run"
-    cmd = [sys.executable, "-m", "hier_agents.train", "mujoban/level1", "--condition", "vanilla",
-           "--frames", "100000000", "--unroll-length", "5", "--batch-size", "2", "--actors", "1",
-           "--observations", "proprio",
-           "--envs-per-actor", "2", "--log-every", "0", "--logdir", str(logdir),
-           "--no-progress"]
-    proc = subprocess.Popen(cmd, start_new_session=True, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True,
-                            cwd=os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    cmd = [
+        sys.executable,
+        "-m",
+        "hier_agents.train",
+        "mujoban/level1",
+        "--condition",
+        "vanilla",
+        "--frames",
+        "100000000",
+        "--unroll-length",
+        "5",
+        "--batch-size",
+        "2",
+        "--actors",
+        "1",
+        "--observations",
+        "proprio",
+        "--envs-per-actor",
+        "2",
+        "--log-every",
+        "0",
+        "--logdir",
+        str(logdir),
+        "--no-progress",
+    ]
+    proc = subprocess.Popen(
+        cmd,
+        start_new_session=True,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
+    )
     try:
         progress = logdir / "scalars.jsonl"
         for _ in range(600):  # the first update (start-up takes a few seconds)
@@ -246,8 +344,9 @@ def test_ctrl_c_saves_a_checkpoint_and_the_run_resumes_from_it(tmp_path):
     assert saved["frames"] == 10 * saved["updates"]
     logged = [json.loads(line)["frames"] for line in open(logdir / "scalars.jsonl")]
     assert logged[-1] == saved["frames"]
-    counters = train(TrainConfig(condition="vanilla", steps=saved["frames"] + 10,
-                                 logdir=str(logdir), **TINY))
+    counters = train(
+        TrainConfig(condition="vanilla", steps=saved["frames"] + 10, logdir=str(logdir), **TINY)
+    )
     assert counters["frames"] == saved["frames"] + 10
     assert counters["updates"] == saved["updates"] + 1
 
@@ -260,15 +359,35 @@ def test_kept_checkpoints_give_a_learning_curve(tmp_path, capsys):
 
     run_dir = tmp_path / "run"
     config = dict(TINY, checkpoint_every_s=0.0)  # a checkpoint after every update
-    train(TrainConfig(condition="expert-planner", steps=20, logdir=str(run_dir),
-                      keep_checkpoints=True, **config))
+    train(
+        TrainConfig(
+            condition="expert-planner",
+            steps=20,
+            logdir=str(run_dir),
+            keep_checkpoints=True,
+            **config,
+        )
+    )
     kept = sorted(p.name for p in (run_dir / "checkpoints").glob("*.pt"))
     assert kept == ["frames-10.pt", "frames-20.pt"]
     root = Path(__file__).resolve().parents[1]
     out = tmp_path / "curve.json"
-    subprocess.run([sys.executable, str(root / "benchmarks" / "learning_curve.py"), str(run_dir),
-                    "--every-frames", "10", "--eval-episodes", "1", "--json", str(out)],
-                   check=True, capture_output=True, cwd=root)
+    subprocess.run(
+        [
+            sys.executable,
+            str(root / "benchmarks" / "learning_curve.py"),
+            str(run_dir),
+            "--every-frames",
+            "10",
+            "--eval-episodes",
+            "1",
+            "--json",
+            str(out),
+        ],
+        check=True,
+        capture_output=True,
+        cwd=root,
+    )
     curve = json.loads(out.read_text())["runs"][0]
     assert curve["condition"] == "expert-planner"
     assert [r["frames"] for r in curve["training"]] == [10, 20]
@@ -278,14 +397,19 @@ def test_kept_checkpoints_give_a_learning_curve(tmp_path, capsys):
 
 def test_random_agents_play_through_hier_agents_run(tmp_path, capsys):
     out = tmp_path / "random.json"
-    assert run_lib.main(["mujoban/level1", "--agent", "random:10", "--episodes", "2",
-                         "--json", str(out)]) == 0
+    assert (
+        run_lib.main(
+            ["mujoban/level1", "--agent", "random:10", "--episodes", "2", "--json", str(out)]
+        )
+        == 0
+    )
     summary = json.loads(out.read_text())
     assert summary["agent"] == "random:10" and summary["episodes"] == 2
     assert summary["subgoal_success_rate"] is None
     assert [r["steps"] for r in summary["rows"]] == [
-        r["steps"] for r in run_lib.run("mujoban/level1", 2, agent="random:10",
-                                        progress=False)["rows"]]  # seeded
+        r["steps"]
+        for r in run_lib.run("mujoban/level1", 2, agent="random:10", progress=False)["rows"]
+    ]  # seeded
     assert "held 10 steps" in capsys.readouterr().out
     for bad in ("random:0", "random:x", "randomly"):
         with pytest.raises(SystemExit):
@@ -318,10 +442,17 @@ def test_a_killed_actor_is_replaced_and_a_failing_one_stops_the_learner(capfd):
     finally:
         actors.close()
     err = capfd.readouterr().err
-    assert ("hier_agents: a worker process died (killed by SIGKILL); running actor 1's unroll"
-            in err and f"again in a new process (retry 1 of {WORKER_RETRIES})" in err), err
-    bad = LocalActors(TrainConfig("mujoban/level1", envs_per_actor=1, cameras=False,
-                                  env_overrides={"no_such_option": 1}), 1, net)
+    assert (
+        "hier_agents: a worker process died (killed by SIGKILL); running actor 1's unroll" in err
+        and f"again in a new process (retry 1 of {WORKER_RETRIES})" in err
+    ), err
+    bad = LocalActors(
+        TrainConfig(
+            "mujoban/level1", envs_per_actor=1, cameras=False, env_overrides={"no_such_option": 1}
+        ),
+        1,
+        net,
+    )
     try:
         with pytest.raises(RuntimeError, match="(?s)actor 0 failed.*no_such_option"):
             bad.get(timeout=300)
@@ -337,10 +468,27 @@ def test_learner_speed_benchmark_writes_its_row(tmp_path):
 
     root = Path(__file__).resolve().parents[1]
     out = tmp_path / "speed.json"
-    subprocess.run([sys.executable, str(root / "benchmarks" / "learner_speed.py"),
-                    "--frames", "10000", "--actors", "1", "--envs-per-actor", "2",
-                    "--batch-size", "2", "--bare-steps", "200", "--json", str(out)],
-                   check=True, capture_output=True, cwd=root)
+    subprocess.run(
+        [
+            sys.executable,
+            str(root / "benchmarks" / "learner_speed.py"),
+            "--frames",
+            "10000",
+            "--actors",
+            "1",
+            "--envs-per-actor",
+            "2",
+            "--batch-size",
+            "2",
+            "--bare-steps",
+            "200",
+            "--json",
+            str(out),
+        ],
+        check=True,
+        capture_output=True,
+        cwd=root,
+    )
     row = json.loads(out.read_text())
     assert row["env"] == "mujoban/level1" and row["actors"] == 1
     assert row["frames"] >= 10000 and row["updates"] == row["frames"] // 200
@@ -348,4 +496,5 @@ def test_learner_speed_benchmark_writes_its_row(tmp_path):
         assert row[key] > 0, key
     assert row["ratio"] == pytest.approx(row["learner_frames_per_s"] / row["env_steps_per_s"])
     assert row["ratio_to_parallel"] == pytest.approx(
-        row["learner_frames_per_s"] / row["parallel_env_steps_per_s"])
+        row["learner_frames_per_s"] / row["parallel_env_steps_per_s"]
+    )

@@ -10,9 +10,15 @@ import numpy as np
 import pytest
 import torch
 
-from abstract_planners.learned_options import (SHIPPED, OptionPolicyNet, OptionPolicyPlanner,
-                                               encode_state, load_option_policy, policy_input,
-                                               save_option_policy)
+from abstract_planners.learned_options import (
+    SHIPPED,
+    OptionPolicyNet,
+    OptionPolicyPlanner,
+    encode_state,
+    load_option_policy,
+    policy_input,
+    save_option_policy,
+)
 from abstract_planners.sokoban import MOVES, SokobanState
 from envs.mujoban import generator
 from hier_agents.learning import train_options
@@ -52,10 +58,28 @@ def _random_policy(path, seed: int = 0):
 def tiny_run(tmp_path_factory):
     """A few PPO updates: an abstract warm start, then OptionEnv (camera, learned ball)."""
     logdir = tmp_path_factory.mktemp("options_run")
-    code = train_options.main(["mujoban/level1", "--option-steps", "32", "--envs", "1",
-                               "--rollout", "16", "--sync", "--abstract-steps", "256",
-                               "--abstract-envs", "4",
-                               "--seed", "3", "--eval-episodes", "0", "--logdir", str(logdir)])
+    code = train_options.main(
+        [
+            "mujoban/level1",
+            "--option-steps",
+            "32",
+            "--envs",
+            "1",
+            "--rollout",
+            "16",
+            "--sync",
+            "--abstract-steps",
+            "256",
+            "--abstract-envs",
+            "4",
+            "--seed",
+            "3",
+            "--eval-episodes",
+            "0",
+            "--logdir",
+            str(logdir),
+        ]
+    )
     assert code == 0
     return logdir
 
@@ -84,9 +108,16 @@ def test_tiny_run_writes_a_checkpoint_and_a_summary_with_its_counts(tiny_run):
 
 def test_the_trained_policy_plays_a_level1_episode_as_a_planner(tiny_run):
     from hier_agents.run import run
+
     for path in (tiny_run, tiny_run / "option_policy.pt", tiny_run / "checkpoint.pt"):
-        summary = run("mujoban/level1", 1, seed=5, planner=f"learned:{path}",
-                      skill="learned-ball", progress=False)
+        summary = run(
+            "mujoban/level1",
+            1,
+            seed=5,
+            planner=f"learned:{path}",
+            skill="learned-ball",
+            progress=False,
+        )
         assert summary["planner"] == f"learned:{path}"
         assert summary["episodes"] == 1 and "error" not in summary["rows"][0]
         assert summary["subgoals"]["issued"] >= 1
@@ -94,13 +125,34 @@ def test_the_trained_policy_plays_a_level1_episode_as_a_planner(tiny_run):
 
 def test_resume_continues_counting_frames_and_cpu(tiny_run, tmp_path):
     import shutil
+
     logdir = tmp_path / "resumed"
     shutil.copytree(tiny_run, logdir)
     before = json.loads((logdir / "summary.json").read_text())
     # The default AsyncVectorEnv (one worker process) this time.
-    assert train_options.main(["mujoban/level1", "--option-steps", "48", "--envs", "1", "--rollout",
-                               "16", "--abstract-steps", "256", "--resume", "--seed", "3",
-                               "--eval-episodes", "0", "--logdir", str(logdir)]) == 0
+    assert (
+        train_options.main(
+            [
+                "mujoban/level1",
+                "--option-steps",
+                "48",
+                "--envs",
+                "1",
+                "--rollout",
+                "16",
+                "--abstract-steps",
+                "256",
+                "--resume",
+                "--seed",
+                "3",
+                "--eval-episodes",
+                "0",
+                "--logdir",
+                str(logdir),
+            ]
+        )
+        == 0
+    )
     after = json.loads((logdir / "summary.json").read_text())
     assert after["option_steps"] == 48 and after["abstract_steps"] == 256
     assert after["control_frames"] > before["control_frames"]
@@ -127,8 +179,10 @@ def test_the_planner_only_ever_proposes_legal_moves(tmp_path):
 def test_sampling_is_seeded_and_greedy_is_deterministic(tmp_path):
     path = _random_policy(tmp_path / "policy.pt")
     states = _random_states(30, seed=2)
-    a, b = OptionPolicyPlanner(path, greedy=False, seed=4), OptionPolicyPlanner(
-        path, greedy=False, seed=4)
+    a, b = (
+        OptionPolicyPlanner(path, greedy=False, seed=4),
+        OptionPolicyPlanner(path, greedy=False, seed=4),
+    )
     assert [a.plan(s).action for s in states] == [b.plan(s).action for s in states]
     g = OptionPolicyPlanner(path)
     assert [g.plan(s).action for s in states] == [g.plan(s).action for s in states]
@@ -154,11 +208,13 @@ def test_bad_checkpoints_fail_with_clear_errors(tmp_path):
     with pytest.raises(ValueError, match="do not fit"):
         OptionPolicyPlanner(broken)
     from envs import load
+
     env = load("mujoban/level1", top_camera=None, egocentric_camera=None)
     try:
         with pytest.raises(FileNotFoundError, match="missing.pt"):
-            make_agent("mujoban/level1", env.description(),
-                       planner=f"learned:{tmp_path / 'missing.pt'}")
+            make_agent(
+                "mujoban/level1", env.description(), planner=f"learned:{tmp_path / 'missing.pt'}"
+            )
         with pytest.raises(ValueError, match="learned:PATH"):
             make_agent("mujoban/level1", env.description(), planner="learnt")
     finally:
@@ -192,8 +248,9 @@ def test_the_shipped_policy_loads_and_is_small():
 
 def test_the_planner_encodes_states_as_option_env_does():
     for state in _random_states(20, seed=3):
-        np.testing.assert_array_equal(encode_state(state, (10, 10)),
-                                      encode_sokoban(state, (10, 10)))
+        np.testing.assert_array_equal(
+            encode_state(state, (10, 10)), encode_sokoban(state, (10, 10))
+        )
 
 
 def test_policy_input_is_centred_on_the_player_with_walls_off_the_grid():
@@ -230,6 +287,7 @@ def test_shaping_potential_rewards_pushing_towards_a_pad():
 
 def test_dead_cells_and_pruned_pushes():
     from abstract_planners.learned_options import dead_push_mask, live_cells
+
     state = SokobanState.from_text("######\n#    #\n# @$.#\n#    #\n######")
     live = live_cells(state)
     # Only the pad's row: from anywhere else no push reaches it (walls behind).
@@ -248,6 +306,7 @@ def test_dead_cells_and_pruned_pushes():
 
 def test_pruning_follows_the_checkpoint_and_never_proposes_dead_pushes(tmp_path):
     from abstract_planners.learned_options import live_cells
+
     path = _random_policy(tmp_path / "policy.pt")
     assert not OptionPolicyPlanner(path).prune_dead
     data = torch.load(path, weights_only=True)
@@ -260,8 +319,14 @@ def test_pruning_follows_the_checkpoint_and_never_proposes_dead_pushes(tmp_path)
         (move,) = subgoal.action
         assert state.is_legal(move)
         new_boxes = subgoal.state.boxes - state.boxes
-        alternatives = [m for m in MOVES if state.is_legal(m) and not (
-            state.is_push(m) and not (state.apply(m).boxes - state.boxes) <= live_cells(state))]
+        alternatives = [
+            m
+            for m in MOVES
+            if state.is_legal(m)
+            and not (
+                state.is_push(m) and not (state.apply(m).boxes - state.boxes) <= live_cells(state)
+            )
+        ]
         if new_boxes and alternatives:
             assert new_boxes <= live_cells(state)
 
@@ -276,9 +341,13 @@ def test_help_shows_every_default_and_the_option_steps_budget(capsys):
 
 def test_the_shaped_wrapper_adds_the_semi_mdp_potential_difference():
     env = train_options.AbstractOptionEnv("mujoban/level1", seed=0, duration=18, gamma=0.9)
-    shaped = train_options.Shaped(train_options.AbstractOptionEnv("mujoban/level1", seed=0,
-                                                                  duration=18, gamma=0.9),
-                                  1.0, 0.1, "walk", gamma=0.9)
+    shaped = train_options.Shaped(
+        train_options.AbstractOptionEnv("mujoban/level1", seed=0, duration=18, gamma=0.9),
+        1.0,
+        0.1,
+        "walk",
+        gamma=0.9,
+    )
     _, info = env.reset(seed=4)
     _, shaped_info = shaped.reset(seed=4)
     before = shaped_info["potential"]
@@ -286,4 +355,4 @@ def test_the_shaped_wrapper_adds_the_semi_mdp_potential_difference():
     _, reward, terminated, _, _ = env.step(move)
     _, shaped_reward, _, _, after_info = shaped.step(move)
     after = 0.0 if terminated else after_info["potential"]
-    assert shaped_reward == pytest.approx(reward + 0.9 ** 18 * after - before)
+    assert shaped_reward == pytest.approx(reward + 0.9**18 * after - before)

@@ -21,6 +21,7 @@ def test_shipped_checkpoint_loads():
 def test_shipped_checkpoint_solves_a_level1_episode():
     """Observation-only: the camera estimator behind the boundary."""
     from hier_agents.run import run
+
     summary = run("mujoban/level1", 1, seed=0, skill="learned-ball", progress=False)
     assert summary["privileged"] is False
     assert summary["rows"][0]["solved"], summary["rows"][0]
@@ -29,6 +30,7 @@ def test_shipped_checkpoint_solves_a_level1_episode():
 def test_numpy_policy_matches_torch():
     agent = Agent(12, 2)
     from skills.learned.ball import NumpyPolicy
+
     numpy_policy = NumpyPolicy(agent.actor.state_dict())
     x = np.random.default_rng(0).normal(size=(5, 12)).astype(np.float32)
     with torch.no_grad():
@@ -43,6 +45,7 @@ def test_teacher_mode_is_the_scripted_skill():
     from abstract_planners.sokoban_solver import SokobanSolverPlanner
     from hier_agents.estimators import OracleEstimator
     from skills.ball import BallSkill
+
     actions = []
     for skill in (BallSkill(), LearnedBallSkill("teacher")):
         env = envs.load("mujoban/level2", seed=4, **envs.no_cameras("mujoban/level2"))
@@ -63,9 +66,27 @@ def test_teacher_mode_is_the_scripted_skill():
 
 @pytest.mark.slow
 def test_cli_trains_checkpoints_and_resumes(tmp_path, capsys):
-    args = ["ball", "--frames", "400", "--bc-frames", "100", "--dagger-frames", "100",
-            "--rollout", "50", "--envs", "2", "--save-every", "1",
-            "--logdir", str(tmp_path), "--eval-episodes", "2", "--seed", "1"]
+    args = [
+        "ball",
+        "--frames",
+        "400",
+        "--bc-frames",
+        "100",
+        "--dagger-frames",
+        "100",
+        "--rollout",
+        "50",
+        "--envs",
+        "2",
+        "--save-every",
+        "1",
+        "--logdir",
+        str(tmp_path),
+        "--eval-episodes",
+        "2",
+        "--seed",
+        "1",
+    ]
     assert main(args) == 0
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["frames"] == 400 and summary["bc_frames"] == 200
@@ -96,15 +117,30 @@ def test_a_resumed_run_continues_bit_identically(tmp_path):
     trainer runs; tests/test_rundir.py checks the convention quickly). One
     critic-only iteration, which neither budget caps, so both runs have the
     same schedule."""
-    common = ["ball", "--bc-frames", "100", "--dagger-frames", "100", "--rollout", "50",
-              "--envs", "2", "--save-every", "1", "--eval-episodes", "0", "--seed", "2",
-              "--critic-warmup", "1"]
+    common = [
+        "ball",
+        "--bc-frames",
+        "100",
+        "--dagger-frames",
+        "100",
+        "--rollout",
+        "50",
+        "--envs",
+        "2",
+        "--save-every",
+        "1",
+        "--eval-episodes",
+        "0",
+        "--seed",
+        "2",
+        "--critic-warmup",
+        "1",
+    ]
     assert main(common + ["--frames", "500", "--logdir", str(tmp_path / "straight")]) == 0
     assert main(common + ["--frames", "400", "--logdir", str(tmp_path / "split")]) == 0
     torch.manual_seed(12345)  # the resumed run must restore every random state itself
     np.random.seed(12345)
-    assert main(common + ["--frames", "500", "--logdir", str(tmp_path / "split"),
-                          "--resume"]) == 0
+    assert main(common + ["--frames", "500", "--logdir", str(tmp_path / "split"), "--resume"]) == 0
     a = torch.load(tmp_path / "straight" / "checkpoint.pt", weights_only=False)
     b = torch.load(tmp_path / "split" / "checkpoint.pt", weights_only=False)
     assert a["state"]["frames"] == b["state"]["frames"] == 500

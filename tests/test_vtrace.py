@@ -7,13 +7,18 @@ import pytest
 import torch
 
 from hier_agents.baselines.impala.agent_env import InputSpec
-from hier_agents.baselines.impala.network import (ImpalaNet, NetOutput, gaussian_entropy,
-                                                  gaussian_log_prob)
+from hier_agents.baselines.impala.network import (
+    ImpalaNet,
+    NetOutput,
+    gaussian_entropy,
+    gaussian_log_prob,
+)
 from hier_agents.baselines.impala.vtrace import impala_loss, vtrace
 
 
-def reference_vtrace(log_rhos, discounts, rewards, values, bootstrap, clip_rho, clip_pg_rho,
-                     clip_c):
+def reference_vtrace(
+    log_rhos, discounts, rewards, values, bootstrap, clip_rho, clip_pg_rho, clip_c
+):
     """The definition, term by term, with plain loops (float64 numpy).
 
     v_s = V(x_s) + sum_{t=s}^{T-1} (prod_{i=s}^{t-1} gamma_i c_i) rhobar_t
@@ -60,8 +65,12 @@ def test_vtrace_matches_its_definition(clips):
     # The inputs exercise both sides of the clips and terminations.
     assert (rhos > max(clips)).any() and (rhos < min(clips)).any()
     assert (discounts == 0).any()
-    result = vtrace(*(torch.tensor(x, dtype=torch.float32) for x in inputs), clip_rho=clip_rho,
-                    clip_pg_rho=clip_pg_rho, clip_c=clip_c)
+    result = vtrace(
+        *(torch.tensor(x, dtype=torch.float32) for x in inputs),
+        clip_rho=clip_rho,
+        clip_pg_rho=clip_pg_rho,
+        clip_c=clip_c,
+    )
     vs, pg = reference_vtrace(*inputs, clip_rho, clip_pg_rho, clip_c)
     np.testing.assert_allclose(result.vs.numpy(), vs, rtol=1e-5, atol=1e-5)
     np.testing.assert_allclose(result.pg_advantages.numpy(), pg, rtol=1e-5, atol=1e-5)
@@ -70,8 +79,10 @@ def test_vtrace_matches_its_definition(clips):
 def test_on_policy_vtrace_is_the_bootstrapped_n_step_return():
     _, discounts, rewards, values, bootstrap = random_inputs(T=9, B=4, seed=3)
     T, B = values.shape
-    result = vtrace(torch.zeros(T, B), *(torch.tensor(x, dtype=torch.float32)
-                                         for x in (discounts, rewards, values, bootstrap)))
+    result = vtrace(
+        torch.zeros(T, B),
+        *(torch.tensor(x, dtype=torch.float32) for x in (discounts, rewards, values, bootstrap)),
+    )
     returns = np.zeros((T, B))
     for b in range(B):
         for s in range(T):
@@ -82,13 +93,18 @@ def test_on_policy_vtrace_is_the_bootstrapped_n_step_return():
             returns[s, b] = ret + scale * bootstrap[b]
     np.testing.assert_allclose(result.vs.numpy(), returns, rtol=1e-5, atol=1e-5)
     next_returns = np.concatenate([returns[1:], bootstrap[None]], axis=0)
-    np.testing.assert_allclose(result.pg_advantages.numpy(),
-                               rewards + discounts * next_returns - values, rtol=1e-5, atol=1e-5)
+    np.testing.assert_allclose(
+        result.pg_advantages.numpy(),
+        rewards + discounts * next_returns - values,
+        rtol=1e-5,
+        atol=1e-5,
+    )
 
 
 def test_vtrace_passes_no_gradient():
     log_rhos, discounts, rewards, values, bootstrap = (
-        torch.tensor(x, dtype=torch.float32, requires_grad=True) for x in random_inputs())
+        torch.tensor(x, dtype=torch.float32, requires_grad=True) for x in random_inputs()
+    )
     result = vtrace(log_rhos, discounts, rewards, values, bootstrap)
     assert not result.vs.requires_grad and not result.pg_advantages.requires_grad
 
@@ -103,22 +119,36 @@ def synthetic(T=6, B=4, A=2, seed=0):
     def leaf(*shape, scale=1.0):
         return (scale * torch.randn(*shape, generator=g)).requires_grad_()
 
-    out = NetOutput(mean=leaf(T, B, A, scale=0.5),
-                    std=(0.4 + 0.5 * torch.rand(T, B, A, generator=g)).requires_grad_(),
-                    value_env=leaf(T, B), value_abs=leaf(T, B))
+    out = NetOutput(
+        mean=leaf(T, B, A, scale=0.5),
+        std=(0.4 + 0.5 * torch.rand(T, B, A, generator=g)).requires_grad_(),
+        value_env=leaf(T, B),
+        value_abs=leaf(T, B),
+    )
     bootstrap = NetOutput(None, None, torch.randn(B, generator=g), torch.randn(B, generator=g))
-    batch = dict(actions=torch.randn(T, B, A, generator=g),
-                 behaviour_log_probs=torch.randn(T, B, generator=g) - 2.0,
-                 rewards_env=torch.randn(T, B, generator=g),
-                 discounts_env=0.99 * (torch.rand(T, B, generator=g) > 0.2).float(),
-                 rewards_abs=(torch.rand(T, B, generator=g) > 0.7).float(),
-                 discounts_abs=0.9 * (torch.rand(T, B, generator=g) > 0.3).float())
+    batch = dict(
+        actions=torch.randn(T, B, A, generator=g),
+        behaviour_log_probs=torch.randn(T, B, generator=g) - 2.0,
+        rewards_env=torch.randn(T, B, generator=g),
+        discounts_env=0.99 * (torch.rand(T, B, generator=g) > 0.2).float(),
+        rewards_abs=(torch.rand(T, B, generator=g) > 0.7).float(),
+        discounts_abs=0.9 * (torch.rand(T, B, generator=g) > 0.3).float(),
+    )
     return out, bootstrap, batch
 
 
 def _loss(out, bootstrap, b, **kw):
-    return impala_loss(out, bootstrap, b["actions"], b["behaviour_log_probs"], b["rewards_env"],
-                       b["discounts_env"], b["rewards_abs"], b["discounts_abs"], **kw)
+    return impala_loss(
+        out,
+        bootstrap,
+        b["actions"],
+        b["behaviour_log_probs"],
+        b["rewards_env"],
+        b["discounts_env"],
+        b["rewards_abs"],
+        b["discounts_abs"],
+        **kw,
+    )
 
 
 def test_single_head_loss_is_the_usual_impala_loss():
@@ -127,11 +157,18 @@ def test_single_head_loss_is_the_usual_impala_loss():
     baseline_cost, entropy_cost = 0.7, 0.01
     loss, stats = _loss(out, bootstrap, b, baseline_cost=baseline_cost, entropy_cost=entropy_cost)
     log_probs = gaussian_log_prob(out.mean, out.std, b["actions"])
-    targets = vtrace(log_probs - b["behaviour_log_probs"], b["discounts_env"], b["rewards_env"],
-                     out.value_env, bootstrap.value_env)
-    expected = (-(log_probs * targets.pg_advantages).mean()
-                + 0.5 * baseline_cost * ((targets.vs - out.value_env) ** 2).mean()
-                - entropy_cost * gaussian_entropy(out.std).mean())
+    targets = vtrace(
+        log_probs - b["behaviour_log_probs"],
+        b["discounts_env"],
+        b["rewards_env"],
+        out.value_env,
+        bootstrap.value_env,
+    )
+    expected = (
+        -(log_probs * targets.pg_advantages).mean()
+        + 0.5 * baseline_cost * ((targets.vs - out.value_env) ** 2).mean()
+        - entropy_cost * gaussian_entropy(out.std).mean()
+    )
     torch.testing.assert_close(loss, expected)
     assert "baseline_loss_abs" not in stats
     assert stats["loss"] == pytest.approx(float(expected.detach()), rel=1e-5)
@@ -150,17 +187,33 @@ def test_two_head_loss_sums_both_policy_terms_and_both_baselines():
     env_only, _ = _loss(out._replace(value_abs=None), bootstrap, b, entropy_cost=entropy_cost)
     abs_out = out._replace(value_env=out.value_abs, value_abs=None)
     abs_boot = bootstrap._replace(value_env=bootstrap.value_abs)
-    abs_only, _ = impala_loss(abs_out, abs_boot, b["actions"], b["behaviour_log_probs"],
-                              b["rewards_abs"], b["discounts_abs"], entropy_cost=entropy_cost)
+    abs_only, _ = impala_loss(
+        abs_out,
+        abs_boot,
+        b["actions"],
+        b["behaviour_log_probs"],
+        b["rewards_abs"],
+        b["discounts_abs"],
+        entropy_cost=entropy_cost,
+    )
     entropy_term = -entropy_cost * gaussian_entropy(out.std).mean()
     torch.testing.assert_close(two, env_only + abs_only - entropy_term)
-    assert {"baseline_loss_env", "baseline_loss_abs", "advantage_env", "advantage_abs", "rho",
-            "entropy", "std", "pg_loss"} <= set(stats)
+    assert {
+        "baseline_loss_env",
+        "baseline_loss_abs",
+        "advantage_env",
+        "advantage_abs",
+        "rho",
+        "entropy",
+        "std",
+        "pg_loss",
+    } <= set(stats)
     assert all(isinstance(v, float) for v in stats.values())
     # Same gradients too.
     grads_two = torch.autograd.grad(two, [out.mean, out.std, out.value_env, out.value_abs])
-    grads_sum = torch.autograd.grad(env_only + abs_only - entropy_term,
-                                    [out.mean, out.std, out.value_env, out.value_abs])
+    grads_sum = torch.autograd.grad(
+        env_only + abs_only - entropy_term, [out.mean, out.std, out.value_env, out.value_abs]
+    )
     for g1, g2 in zip(grads_two, grads_sum):
         torch.testing.assert_close(g1, g2)
 
@@ -168,15 +221,22 @@ def test_two_head_loss_sums_both_policy_terms_and_both_baselines():
 @pytest.mark.parametrize("two_values", [False, True])
 def test_gradients_reach_every_network_parameter(two_values):
     torch.manual_seed(0)
-    spec = InputSpec(images=(("cam", (3, 16, 16)),), proprio_dim=5, planner_shape=(4, 3, 3),
-                     planner_action_dim=4, action_dim=2)
+    spec = InputSpec(
+        images=(("cam", (3, 16, 16)),),
+        proprio_dim=5,
+        planner_shape=(4, 3, 3),
+        planner_action_dim=4,
+        action_dim=2,
+    )
     net = ImpalaNet(spec, two_values=two_values)
     T, B = 4, 3
     g = torch.Generator().manual_seed(0)
-    obs = {"cam": torch.randint(0, 256, (T + 1, B, 3, 16, 16), generator=g, dtype=torch.uint8),
-           "proprio": torch.randn(T + 1, B, 5, generator=g),
-           "planner": torch.rand(T + 1, B, 4, 3, 3, generator=g),
-           "planner_action": torch.eye(4)[torch.randint(0, 4, (T + 1, B), generator=g)]}
+    obs = {
+        "cam": torch.randint(0, 256, (T + 1, B, 3, 16, 16), generator=g, dtype=torch.uint8),
+        "proprio": torch.randn(T + 1, B, 5, generator=g),
+        "planner": torch.rand(T + 1, B, 4, 3, 3, generator=g),
+        "planner_action": torch.eye(4)[torch.randint(0, 4, (T + 1, B), generator=g)],
+    }
     first = torch.zeros(T + 1, B, dtype=torch.bool)
     first[0] = True
     out, _ = net(obs, first, net.initial_state(B))

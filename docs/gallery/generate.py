@@ -64,8 +64,7 @@ FRAME_EVERY = 0.3
 #: How long (ms) the animation holds its last frame.
 LAST_FRAME_MS = 1000
 #: The families' titles in the index, in its order; other prefixes follow, as they are.
-FAMILIES = {"mujoban": "MuJoBan", "mujoxo": "MuJoXO", "mujogo": "MuJoGo",
-            "mujoboard": "MuJoBoard"}
+FAMILIES = {"mujoban": "MuJoBan", "mujoxo": "MuJoXO", "mujogo": "MuJoGo", "mujoboard": "MuJoBoard"}
 #: Thumbnails per row of the index.
 COLUMNS = 3
 
@@ -78,6 +77,7 @@ def slug(name: str) -> str:
 def animation_format() -> str:
     """``"webp"`` where Pillow writes (animated) WebP, else ``"gif"``."""
     from PIL import features
+
     return "webp" if features.check("webp") else "gif"
 
 
@@ -94,8 +94,10 @@ def select(patterns: Sequence[str] | None) -> list[str]:
     for pattern in patterns:
         matched = fnmatch.filter(names, pattern)
         if not matched:
-            raise UsageError(f"--only {pattern!r} matches no environment"
-                             f"{close_hint(pattern, names)}; known: {', '.join(names)}")
+            raise UsageError(
+                f"--only {pattern!r} matches no environment"
+                f"{close_hint(pattern, names)}; known: {', '.join(names)}"
+            )
         chosen.update(matched)
     return sorted(chosen)
 
@@ -104,8 +106,10 @@ def description_of(name: str) -> str:
     """The registry's description of ``name``; `UsageError` naming it when it has none."""
     text = envs.describe(name).strip()
     if not text:
-        raise UsageError(f"{name}: registered without a description (give its "
-                         f"envs.registry.EnvEntry a description); no card written")
+        raise UsageError(
+            f"{name}: registered without a description (give its "
+            f"envs.registry.EnvEntry a description); no card written"
+        )
     return text
 
 
@@ -146,8 +150,10 @@ def _action_names(env, spec) -> list[str] | None:
 def _rule(env, name: str, attribute: str) -> str:
     text = getattr(env.task, attribute, None)
     if not isinstance(text, str) or not text.strip():
-        raise UsageError(f"{name}: its task ({type(env.task).__name__}) states no {attribute} "
-                         f"(a class attribute or property the card reads)")
+        raise UsageError(
+            f"{name}: its task ({type(env.task).__name__}) states no {attribute} "
+            f"(a class attribute or property the card reads)"
+        )
     return text.strip()
 
 
@@ -161,79 +167,127 @@ def card_text(name: str, env, animation: str | None) -> str:
     stem = slug(name)
     task = env.task
     camera = task.main_camera
-    lines = [f"# {name}", "", description, "",
-             f"![{name}: the {camera} after reset](img/{stem}.png)", ""]
+    lines = [
+        f"# {name}",
+        "",
+        description,
+        "",
+        f"![{name}: the {camera} after reset](img/{stem}.png)",
+        "",
+    ]
     if animation is not None:
         steps = int(round(ANIMATION_SECONDS / env.control_timestep))
         speed = FRAME_EVERY * ANIMATION_FPS
-        lines += [f"![The modular agent playing {name}](img/{animation})", "",
-                  f"*Picture: the `{camera}` camera after reset (seed 0), "
-                  f"{PICTURE_SIZE[1]}x{PICTURE_SIZE[0]}. Animation: the default modular agent, "
-                  f'`Player(Play("{name}", seed=0)).play(0)`, its first '
-                  f"{_number(ANIMATION_SECONDS)} s of play at most ({steps} control steps; the "
-                  f"episode is cut there for the animation only), a frame every "
-                  f"{_number(FRAME_EVERY)} s shown at {ANIMATION_FPS} fps "
-                  f"({_number(speed)}x real time), the last one held "
-                  f"{_number(LAST_FRAME_MS / 1000)} s.*", ""]
+        lines += [
+            f"![The modular agent playing {name}](img/{animation})",
+            "",
+            f"*Picture: the `{camera}` camera after reset (seed 0), "
+            f"{PICTURE_SIZE[1]}x{PICTURE_SIZE[0]}. Animation: the default modular agent, "
+            f'`Player(Play("{name}", seed=0)).play(0)`, its first '
+            f"{_number(ANIMATION_SECONDS)} s of play at most ({steps} control steps; the "
+            f"episode is cut there for the animation only), a frame every "
+            f"{_number(FRAME_EVERY)} s shown at {ANIMATION_FPS} fps "
+            f"({_number(speed)}x real time), the last one held "
+            f"{_number(LAST_FRAME_MS / 1000)} s.*",
+            "",
+        ]
     else:
-        lines += [f"*Picture: the `{camera}` camera after reset (seed 0), "
-                  f"{PICTURE_SIZE[1]}x{PICTURE_SIZE[0]}.*", ""]
+        lines += [
+            f"*Picture: the `{camera}` camera after reset (seed 0), "
+            f"{PICTURE_SIZE[1]}x{PICTURE_SIZE[0]}.*",
+            "",
+        ]
 
-    lines += ["## Make it", "", "```python", "import envs", "",
-              f'env = envs.load("{name}", seed=0)  # a dm_env.Environment', "",
-              "import gymnasium", "",
-              f'gym_env = gymnasium.make("{name}")  # the same, as gymnasium', "```", ""]
+    lines += [
+        "## Make it",
+        "",
+        "```python",
+        "import envs",
+        "",
+        f'env = envs.load("{name}", seed=0)  # a dm_env.Environment',
+        "",
+        "import gymnasium",
+        "",
+        f'gym_env = gymnasium.make("{name}")  # the same, as gymnasium',
+        "```",
+        "",
+    ]
     if entry.kwargs:
         fixed = ", ".join(f"`{k}={v!r}`" for k, v in sorted(entry.kwargs.items()))
-        lines += [f"The name fixes {fixed} (`{entry.factory.__module__}."
-                  f"{entry.factory.__name__}`).", ""]
+        lines += [
+            f"The name fixes {fixed} (`{entry.factory.__module__}.{entry.factory.__name__}`).",
+            "",
+        ]
     else:
         lines += [f"Built by `{entry.factory.__module__}.{entry.factory.__name__}`.", ""]
 
     privileged = env.privileged_observations
-    lines += ["## Observations", "", "| key | shape | dtype | privileged |",
-              "|---|---|---|---|"]
+    lines += ["## Observations", "", "| key | shape | dtype | privileged |", "|---|---|---|---|"]
     for key, spec in sorted(env.observation_spec().items()):
-        lines.append(f"| `{key}` | {tuple(spec.shape)} | {np.dtype(spec.dtype).name} | "
-                     f"{'yes' if key in privileged else 'no'} |")
-    lines += ["", "Privileged keys are ground truth from the simulator or the referee, not "
-              "sensor readings: `gymnasium.make` leaves them out of its default observation "
-              "(`obs=\"sensors\"`), and the modular agent does not see them.", ""]
+        lines.append(
+            f"| `{key}` | {tuple(spec.shape)} | {np.dtype(spec.dtype).name} | "
+            f"{'yes' if key in privileged else 'no'} |"
+        )
+    lines += [
+        "",
+        "Privileged keys are ground truth from the simulator or the referee, not "
+        "sensor readings: `gymnasium.make` leaves them out of its default observation "
+        '(`obs="sensors"`), and the modular agent does not see them.',
+        "",
+    ]
 
     action = env.action_spec()
     shape = tuple(action.shape)
     names = _action_names(env, action)
-    bounds = ("bounds per component below" if names is not None else
-              f"bounds [{_bounds(action.minimum, shape)}, {_bounds(action.maximum, shape)}]")
+    bounds = (
+        "bounds per component below"
+        if names is not None
+        else f"bounds [{_bounds(action.minimum, shape)}, {_bounds(action.maximum, shape)}]"
+    )
     lines += ["## Actions", "", f"Shape {shape}, {np.dtype(action.dtype).name}, {bounds}.", ""]
     if names is not None:
         low = np.broadcast_to(np.asarray(action.minimum, float), shape).ravel()
         high = np.broadcast_to(np.asarray(action.maximum, float), shape).ravel()
         lines += ["| component | drives | min | max |", "|---|---|---|---|"]
-        lines += [f"| {i} | `{n}` | {_number(low[i])} | {_number(high[i])} |"
-                  for i, n in enumerate(names)]
+        lines += [
+            f"| {i} | `{n}` | {_number(low[i])} | {_number(high[i])} |" for i, n in enumerate(names)
+        ]
         lines.append("")
 
     public = env.description()
     timestep = float(public.control_timestep)
     limit = int(public.time_limit_steps)
-    lines += ["## Episode", "",
-              f"- Control timestep: {_number(timestep)} s per `env.step`.",
-              f"- Time limit: {limit} control steps ({_number(limit * timestep)} s).",
-              f"- Reward: {_rule(env, name, 'reward_rule')}",
-              f"- Success: {_rule(env, name, 'success_rule')}", ""]
+    lines += [
+        "## Episode",
+        "",
+        f"- Control timestep: {_number(timestep)} s per `env.step`.",
+        f"- Time limit: {limit} control steps ({_number(limit * timestep)} s).",
+        f"- Reward: {_rule(env, name, 'reward_rule')}",
+        f"- Success: {_rule(env, name, 'success_rule')}",
+        "",
+    ]
 
     params = inspect.signature(entry.factory).parameters
-    lines += ["## Options", "",
-              f'Overrides of `envs.load("{name}", **options)` (also keywords of '
-              "`gymnasium.make`), with their defaults:", "",
-              "| option | default |", "|---|---|"]
+    lines += [
+        "## Options",
+        "",
+        f'Overrides of `envs.load("{name}", **options)` (also keywords of '
+        "`gymnasium.make`), with their defaults:",
+        "",
+        "| option | default |",
+        "|---|---|",
+    ]
     for option in envs.overrides(name):
         default = params[option].default
         shown = "required" if default is inspect.Parameter.empty else _code(default)
         lines.append(f"| `{option}` | {shown} |")
-    lines += ["", "---", "", "*Generated by `python docs/gallery/generate.py`; "
-              "do not edit by hand.*", ""]
+    lines += [
+        "",
+        "---",
+        "",
+        "*Generated by `python docs/gallery/generate.py`; do not edit by hand.*",
+        "",
+    ]
     return "\n".join(lines)
 
 
@@ -243,25 +297,32 @@ def index_text(names: Sequence[str]) -> str:
     for name in names:
         groups.setdefault(name.split("/", 1)[0], []).append(name)
     order = [f for f in FAMILIES if f in groups] + sorted(set(groups) - set(FAMILIES))
-    lines = ["# Environment gallery", "",
-             f"{plural(len(names), 'registered environment')} (`envs.names()`), one card each: "
-             "its picture and an animation of the modular agent playing it, the observation "
-             "and action specs, reward, success rule, time limit, privileged keys and every "
-             "option with its default.", ""]
+    lines = [
+        "# Environment gallery",
+        "",
+        f"{plural(len(names), 'registered environment')} (`envs.names()`), one card each: "
+        "its picture and an animation of the modular agent playing it, the observation "
+        "and action specs, reward, success rule, time limit, privileged keys and every "
+        "option with its default.",
+        "",
+    ]
     for family in order:
         members = groups[family]
-        lines += [f"## {FAMILIES.get(family, family)}", "",
-                  "| " + " | ".join([""] * COLUMNS) + " |",
-                  "|" + "---|" * COLUMNS]
+        lines += [
+            f"## {FAMILIES.get(family, family)}",
+            "",
+            "| " + " | ".join([""] * COLUMNS) + " |",
+            "|" + "---|" * COLUMNS,
+        ]
         for start in range(0, len(members), COLUMNS):
-            row = members[start:start + COLUMNS]
-            cells = [f"[![{n}](img/{slug(n)}.png)]({slug(n)}.md)<br>[`{n}`]({slug(n)}.md)"
-                     for n in row]
+            row = members[start : start + COLUMNS]
+            cells = [
+                f"[![{n}](img/{slug(n)}.png)]({slug(n)}.md)<br>[`{n}`]({slug(n)}.md)" for n in row
+            ]
             cells += [""] * (COLUMNS - len(cells))
             lines.append("| " + " | ".join(cells) + " |")
         lines.append("")
-    lines += ["---", "", "*Generated by `python docs/gallery/generate.py` from the registry.*",
-              ""]
+    lines += ["---", "", "*Generated by `python docs/gallery/generate.py` from the registry.*", ""]
     return "\n".join(lines)
 
 
@@ -275,17 +336,21 @@ def make_picture(name: str, env, path: Path) -> None:
       UsageError: the frame could not be rendered, or shows one flat colour.
     """
     from PIL import Image
+
     height, width = PICTURE_SIZE
     try:
         env.reset()
         frame = env.render(env.task.main_camera, height, width)
     except Exception as exc:  # any rendering failure is this environment's
-        raise UsageError(f"{name}: its picture could not be made "
-                         f"({type(exc).__name__}: {exc})") from exc
+        raise UsageError(
+            f"{name}: its picture could not be made ({type(exc).__name__}: {exc})"
+        ) from exc
     frame = np.asarray(frame)
     if frame.shape != (height, width, 3) or frame.min() == frame.max():
-        raise UsageError(f"{name}: its picture could not be made (the frame is "
-                         f"{'blank' if frame.size else 'empty'}, shape {frame.shape})")
+        raise UsageError(
+            f"{name}: its picture could not be made (the frame is "
+            f"{'blank' if frame.size else 'empty'}, shape {frame.shape})"
+        )
     _write(path, lambda tmp: Image.fromarray(frame).save(tmp, format="PNG", optimize=True))
 
 
@@ -314,8 +379,10 @@ class _Frames(list):
 
 def _shrink(frame):
     from PIL import Image
-    return Image.fromarray(np.asarray(frame)).resize((ANIMATION_SIZE, ANIMATION_SIZE),
-                                                     Image.Resampling.LANCZOS)
+
+    return Image.fromarray(np.asarray(frame)).resize(
+        (ANIMATION_SIZE, ANIMATION_SIZE), Image.Resampling.LANCZOS
+    )
 
 
 def make_animation(name: str, path: Path) -> str | None:
@@ -328,11 +395,14 @@ def make_animation(name: str, path: Path) -> str | None:
       UsageError: the player could not be built or the episode gave no frame.
     """
     from hier_agents.agents import Play, Player
+
     try:
         player = Player(Play(name, seed=0))
     except Exception as exc:
-        raise UsageError(f"{name}: its animation could not be made: the modular agent "
-                         f"could not be built ({type(exc).__name__}: {exc})") from exc
+        raise UsageError(
+            f"{name}: its animation could not be made: the modular agent "
+            f"could not be built ({type(exc).__name__}: {exc})"
+        ) from exc
     try:
         every = max(1, int(round(FRAME_EVERY / player.env.control_timestep)))
         limit = int(round(ANIMATION_SECONDS / player.env.control_timestep))
@@ -343,15 +413,21 @@ def make_animation(name: str, path: Path) -> str | None:
     finally:
         player.close()
     if len(frames) < 2:
-        raise UsageError(f"{name}: its animation could not be made: the episode gave no frame "
-                         f"({row.get('error', 'no error')})")
+        raise UsageError(
+            f"{name}: its animation could not be made: the episode gave no frame "
+            f"({row.get('error', 'no error')})"
+        )
     durations = [1000 // ANIMATION_FPS] * (len(frames) - 1) + [LAST_FRAME_MS]
 
     def write(tmp: str) -> None:
-        options = ({"format": "WEBP", "quality": 70, "method": 6}
-                   if path.suffix == ".webp" else {"format": "GIF", "optimize": True})
-        frames[0].save(tmp, save_all=True, append_images=frames[1:], duration=durations,
-                       loop=0, **options)
+        options = (
+            {"format": "WEBP", "quality": 70, "method": 6}
+            if path.suffix == ".webp"
+            else {"format": "GIF", "optimize": True}
+        )
+        frames[0].save(
+            tmp, save_all=True, append_images=frames[1:], duration=durations, loop=0, **options
+        )
 
     _write(path, write)
     error = row.get("error")
@@ -433,22 +509,35 @@ def check(names: Sequence[str], out: Path, every: bool = True) -> list[str]:
         problems.append(f"{index} is missing or out of date")
     if every:
         cards = {f"{slug(n)}.md" for n in envs.names()} | {"index.md"}
-        problems += [f"{path}: a card of no registered environment"
-                     for path in sorted(out.glob("*.md")) if path.name not in cards]
+        problems += [
+            f"{path}: a card of no registered environment"
+            for path in sorted(out.glob("*.md"))
+            if path.name not in cards
+        ]
     return problems
 
 
 def build_parser() -> Parser:
     parser = Parser(PROG, description="\n\n".join(__doc__.split("\n\n")[:2]))
-    parser.add_argument("--only", action="append", metavar="GLOB",
-                        help="only the environments matching this shell pattern (repeatable), "
-                             "e.g. 'mujoxo/*'; the index is always rewritten")
-    parser.add_argument("--check", action="store_true",
-                        help="render nothing; fail unless every card and picture exists and "
-                             "the cards and the index are what the generator writes now")
-    parser.add_argument("--no-animation", action="store_true",
-                        help="skip the animations (the agent's episodes); a card shows the "
-                             "animation already there, if any")
+    parser.add_argument(
+        "--only",
+        action="append",
+        metavar="GLOB",
+        help="only the environments matching this shell pattern (repeatable), "
+        "e.g. 'mujoxo/*'; the index is always rewritten",
+    )
+    parser.add_argument(
+        "--check",
+        action="store_true",
+        help="render nothing; fail unless every card and picture exists and "
+        "the cards and the index are what the generator writes now",
+    )
+    parser.add_argument(
+        "--no-animation",
+        action="store_true",
+        help="skip the animations (the agent's episodes); a card shows the "
+        "animation already there, if any",
+    )
     parser.add_argument("--out", type=Path, default=HERE, help="the gallery's folder")
     return parser
 
@@ -460,19 +549,25 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.check:
         problems = check(names, out, every=not args.only)
         if problems:
-            shown = "; ".join(problems[:5]) + (f"; and {len(problems) - 5} more"
-                                               if len(problems) > 5 else "")
-            raise UsageError(f"the gallery in {out} is not current "
-                             f"({plural(len(problems), 'problem')}): {shown}; run {PROG}")
+            shown = "; ".join(problems[:5]) + (
+                f"; and {len(problems) - 5} more" if len(problems) > 5 else ""
+            )
+            raise UsageError(
+                f"the gallery in {out} is not current "
+                f"({plural(len(problems), 'problem')}): {shown}; run {PROG}"
+            )
         print(f"{plural(len(names), 'card')} and the index are current in {out}")
         return 0
     if out.exists() and not out.is_dir():
         raise UsageError(f"--out {str(out)!r} is a file; give a folder")
     start = time.perf_counter()
-    generate(names, out, animation=not args.no_animation,
-             log=lambda line: print(line, file=sys.stderr, flush=True))
-    print(f"{plural(len(names), 'card')} written to {out} "
-          f"({time.perf_counter() - start:.0f} s)")
+    generate(
+        names,
+        out,
+        animation=not args.no_animation,
+        log=lambda line: print(line, file=sys.stderr, flush=True),
+    )
+    print(f"{plural(len(names), 'card')} written to {out} ({time.perf_counter() - start:.0f} s)")
     return 0
 
 

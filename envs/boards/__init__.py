@@ -35,23 +35,41 @@ from envs.registry import EnvEntry, register
 
 
 def _check_epsilon(epsilon) -> float:
-    if (not isinstance(epsilon, numbers.Real) or isinstance(epsilon, bool)
-            or not 0.0 <= float(epsilon) <= 1.0):
+    if (
+        not isinstance(epsilon, numbers.Real)
+        or isinstance(epsilon, bool)
+        or not 0.0 <= float(epsilon) <= 1.0
+    ):
         raise ValueError(f"epsilon must be a number in [0, 1], got {epsilon!r}")
     return float(epsilon)
 
 
 def _check_level(level) -> int:
-    if (not isinstance(level, numbers.Integral) or isinstance(level, bool)
-            or not 1 <= int(level) <= 10):
+    if (
+        not isinstance(level, numbers.Integral)
+        or isinstance(level, bool)
+        or not 1 <= int(level) <= 10
+    ):
         raise ValueError(f"level (GNU Go strength) must be an integer in 1..10, got {level!r}")
     return int(level)
 
 
-def _check_board_common(*, seed, front_camera, front_camera_2, arm_reset, time_limit,
-                        control_timestep, physics_timestep, piece_noise, render_size,
-                        multisamples, shadows, raise_on_physics_error,
-                        lazy_cameras) -> None:
+def _check_board_common(
+    *,
+    seed,
+    front_camera,
+    front_camera_2,
+    arm_reset,
+    time_limit,
+    control_timestep,
+    physics_timestep,
+    piece_noise,
+    render_size,
+    multisamples,
+    shadows,
+    raise_on_physics_error,
+    lazy_cameras,
+) -> None:
     _config.check_common(seed, render_size, raise_on_physics_error, lazy_cameras)
     _config.check_int("multisamples", multisamples, 0, 16)
     _config.check_bool("shadows", shadows)
@@ -63,32 +81,69 @@ def _check_board_common(*, seed, front_camera, front_camera_2, arm_reset, time_l
         _config.check_real("piece_noise", piece_noise, low=0.0, high=1.0)
 
 
-def check_mujoxo(*, epsilon: float = 0.25, agent_player=0, seed=None, front_camera=(84, 84),
-                 front_camera_2=None, arm_reset=True,
-                 time_limit=30.0, control_timestep=0.05, physics_timestep=0.002,
-                 piece_noise=None, render_size=(256, 256), multisamples=0, shadows=False,
-                 raise_on_physics_error=True,
-                 lazy_cameras=False) -> None:
+def check_mujoxo(
+    *,
+    epsilon: float = 0.25,
+    agent_player=0,
+    seed=None,
+    front_camera=(84, 84),
+    front_camera_2=None,
+    arm_reset=True,
+    time_limit=30.0,
+    control_timestep=0.05,
+    physics_timestep=0.002,
+    piece_noise=None,
+    render_size=(256, 256),
+    multisamples=0,
+    shadows=False,
+    raise_on_physics_error=True,
+    lazy_cameras=False,
+) -> None:
     """Checks `make_mujoxo`'s arguments without building anything (`envs._config`)."""
     _check_epsilon(epsilon)
     check_agent_player(agent_player)
-    _check_board_common(seed=seed, front_camera=front_camera, front_camera_2=front_camera_2,
-                        arm_reset=arm_reset,
-                        time_limit=time_limit, control_timestep=control_timestep,
-                        physics_timestep=physics_timestep, piece_noise=piece_noise,
-                        render_size=render_size, multisamples=multisamples, shadows=shadows,
-                        raise_on_physics_error=raise_on_physics_error,
-                        lazy_cameras=lazy_cameras)
+    _check_board_common(
+        seed=seed,
+        front_camera=front_camera,
+        front_camera_2=front_camera_2,
+        arm_reset=arm_reset,
+        time_limit=time_limit,
+        control_timestep=control_timestep,
+        physics_timestep=physics_timestep,
+        piece_noise=piece_noise,
+        render_size=render_size,
+        multisamples=multisamples,
+        shadows=shadows,
+        raise_on_physics_error=raise_on_physics_error,
+        lazy_cameras=lazy_cameras,
+    )
 
 
-def check_mujogo(*, board_size=7, level=10, epsilon=0.0, komi=5.5, agent_player=0, seed=None,
-                 front_camera=(84, 84), front_camera_2=None, arm_reset=True, time_limit=45.0,
-                 control_timestep=0.05, physics_timestep=0.002, registering="fingers",
-                 allow_double_pass=False,
-                 piece_noise=None, gnugo_timeout=10.0, gnugo_command=None,
-                 render_size=(256, 256), multisamples=0, shadows=False,
-                 raise_on_physics_error=True,
-                 lazy_cameras=False) -> None:
+def check_mujogo(
+    *,
+    board_size=7,
+    level=10,
+    epsilon=0.0,
+    komi=5.5,
+    agent_player=0,
+    seed=None,
+    front_camera=(84, 84),
+    front_camera_2=None,
+    arm_reset=True,
+    time_limit=45.0,
+    control_timestep=0.05,
+    physics_timestep=0.002,
+    registering="fingers",
+    allow_double_pass=False,
+    piece_noise=None,
+    gnugo_timeout=10.0,
+    gnugo_command=None,
+    render_size=(256, 256),
+    multisamples=0,
+    shadows=False,
+    raise_on_physics_error=True,
+    lazy_cameras=False,
+) -> None:
     """Checks `make_mujogo`'s arguments without building anything or starting
     GNU Go (`envs._config`)."""
     _config.check_int("board_size", board_size, 5, 19)
@@ -96,37 +151,63 @@ def check_mujogo(*, board_size=7, level=10, epsilon=0.0, komi=5.5, agent_player=
     _check_epsilon(epsilon)
     check_agent_player(agent_player)
     _config.check_real("komi", komi, low=-1000.0, high=1000.0)
-    _check_board_common(seed=seed, front_camera=front_camera, front_camera_2=front_camera_2,
-                        arm_reset=arm_reset,
-                        time_limit=time_limit, control_timestep=control_timestep,
-                        physics_timestep=physics_timestep, piece_noise=piece_noise,
-                        render_size=render_size, multisamples=multisamples, shadows=shadows,
-                        raise_on_physics_error=raise_on_physics_error,
-                        lazy_cameras=lazy_cameras)
+    _check_board_common(
+        seed=seed,
+        front_camera=front_camera,
+        front_camera_2=front_camera_2,
+        arm_reset=arm_reset,
+        time_limit=time_limit,
+        control_timestep=control_timestep,
+        physics_timestep=physics_timestep,
+        piece_noise=piece_noise,
+        render_size=render_size,
+        multisamples=multisamples,
+        shadows=shadows,
+        raise_on_physics_error=raise_on_physics_error,
+        lazy_cameras=lazy_cameras,
+    )
     _config.check_choice("registering", registering, ("arm", "fingers", "fingertips"))
     _config.check_bool("allow_double_pass", allow_double_pass)
     _config.check_real("gnugo_timeout", gnugo_timeout, low=0.0, low_open=True, high=86_400.0)
     if gnugo_command is not None:
         words = gnugo_command.split() if isinstance(gnugo_command, str) else gnugo_command
-        if isinstance(words, (bytes, numbers.Number)) or not hasattr(words, "__iter__") or \
-                isinstance(words, dict):
-            raise TypeError(f"gnugo_command must be a command line (a str or a list of str), "
-                            f"got {_config._show(gnugo_command)}")
+        if (
+            isinstance(words, (bytes, numbers.Number))
+            or not hasattr(words, "__iter__")
+            or isinstance(words, dict)
+        ):
+            raise TypeError(
+                f"gnugo_command must be a command line (a str or a list of str), "
+                f"got {_config._show(gnugo_command)}"
+            )
         words = list(words)
         if not words or not all(isinstance(w, str) and w and "\0" not in w for w in words):
-            raise ValueError(f"gnugo_command must be a non-empty list of non-empty str, "
-                             f"got {_config._show(gnugo_command)}")
+            raise ValueError(
+                f"gnugo_command must be a non-empty list of non-empty str, "
+                f"got {_config._show(gnugo_command)}"
+            )
         if shutil.which(words[0]) is None:
             raise ValueError(f"gnugo_command: executable {words[0]!r} not found")
 
 
-def make_mujoxo(*, epsilon: float = 0.25, agent_player=0, seed: int | None = None,
-                front_camera=(84, 84),
-                front_camera_2=None, arm_reset: bool = True, time_limit: float = 30.0,
-                control_timestep: float = 0.05, physics_timestep: float = 0.002,
-                piece_noise: float | None = None, render_size=(256, 256),
-                multisamples: int = 0, shadows: bool = False,
-                raise_on_physics_error: bool = True, lazy_cameras: bool = False) -> Environment:
+def make_mujoxo(
+    *,
+    epsilon: float = 0.25,
+    agent_player=0,
+    seed: int | None = None,
+    front_camera=(84, 84),
+    front_camera_2=None,
+    arm_reset: bool = True,
+    time_limit: float = 30.0,
+    control_timestep: float = 0.05,
+    physics_timestep: float = 0.002,
+    piece_noise: float | None = None,
+    render_size=(256, 256),
+    multisamples: int = 0,
+    shadows: bool = False,
+    raise_on_physics_error: bool = True,
+    lazy_cameras: bool = False,
+) -> Environment:
     """MuJoXO: tic-tac-toe against minimax mixed with random moves at rate ``epsilon``.
 
     Any contact pressing a square's touch sensor registers a move. Rewards at
@@ -144,35 +225,71 @@ def make_mujoxo(*, epsilon: float = 0.25, agent_player=0, seed: int | None = Non
     frames with 4 samples and shadows (``multisamples=4, shadows=True``),
     at many times the cost per frame (README, "Looks of the board games").
     """
-    check_mujoxo(epsilon=epsilon, agent_player=agent_player, seed=seed,
-                 front_camera=front_camera,
-                 front_camera_2=front_camera_2, arm_reset=arm_reset,
-                 time_limit=time_limit, control_timestep=control_timestep,
-                 physics_timestep=physics_timestep, piece_noise=piece_noise,
-                 render_size=render_size, multisamples=multisamples, shadows=shadows,
-                 raise_on_physics_error=raise_on_physics_error, lazy_cameras=lazy_cameras)
+    check_mujoxo(
+        epsilon=epsilon,
+        agent_player=agent_player,
+        seed=seed,
+        front_camera=front_camera,
+        front_camera_2=front_camera_2,
+        arm_reset=arm_reset,
+        time_limit=time_limit,
+        control_timestep=control_timestep,
+        physics_timestep=physics_timestep,
+        piece_noise=piece_noise,
+        render_size=render_size,
+        multisamples=multisamples,
+        shadows=shadows,
+        raise_on_physics_error=raise_on_physics_error,
+        lazy_cameras=lazy_cameras,
+    )
     epsilon = _check_epsilon(epsilon)
     opponent = EpsilonGreedy(MinimaxPlanner(), epsilon)
-    task = BoardTask(BoardGame("tic_tac_toe", 3, draw_reward=0.5), opponent, registering="arm",
-                     arm_reset=arm_reset, front_camera=front_camera,
-                     front_camera_2=front_camera_2, time_limit=time_limit,
-                     piece_noise=piece_noise, control_timestep=control_timestep,
-                     physics_timestep=physics_timestep, render_size=render_size,
-                     multisamples=multisamples, shadows=shadows, agent_player=agent_player)
-    return Environment(task, seed=seed, raise_on_physics_error=raise_on_physics_error,
-                       lazy_cameras=lazy_cameras)
+    task = BoardTask(
+        BoardGame("tic_tac_toe", 3, draw_reward=0.5),
+        opponent,
+        registering="arm",
+        arm_reset=arm_reset,
+        front_camera=front_camera,
+        front_camera_2=front_camera_2,
+        time_limit=time_limit,
+        piece_noise=piece_noise,
+        control_timestep=control_timestep,
+        physics_timestep=physics_timestep,
+        render_size=render_size,
+        multisamples=multisamples,
+        shadows=shadows,
+        agent_player=agent_player,
+    )
+    return Environment(
+        task, seed=seed, raise_on_physics_error=raise_on_physics_error, lazy_cameras=lazy_cameras
+    )
 
 
-def make_mujogo(*, board_size: int = 7, level: int = 10, epsilon: float = 0.0,
-                komi: float = 5.5, agent_player=0, seed: int | None = None,
-                front_camera=(84, 84),
-                front_camera_2=None, arm_reset: bool = True, time_limit: float = 45.0,
-                control_timestep: float = 0.05, physics_timestep: float = 0.002,
-                registering: str = "fingers", allow_double_pass: bool = False,
-                piece_noise: float | None = None,
-                gnugo_timeout: float = 10.0, gnugo_command=None, render_size=(256, 256),
-                multisamples: int = 0, shadows: bool = False,
-                raise_on_physics_error: bool = True, lazy_cameras: bool = False) -> Environment:
+def make_mujogo(
+    *,
+    board_size: int = 7,
+    level: int = 10,
+    epsilon: float = 0.0,
+    komi: float = 5.5,
+    agent_player=0,
+    seed: int | None = None,
+    front_camera=(84, 84),
+    front_camera_2=None,
+    arm_reset: bool = True,
+    time_limit: float = 45.0,
+    control_timestep: float = 0.05,
+    physics_timestep: float = 0.002,
+    registering: str = "fingers",
+    allow_double_pass: bool = False,
+    piece_noise: float | None = None,
+    gnugo_timeout: float = 10.0,
+    gnugo_command=None,
+    render_size=(256, 256),
+    multisamples: int = 0,
+    shadows: bool = False,
+    raise_on_physics_error: bool = True,
+    lazy_cameras: bool = False,
+) -> Environment:
     """MuJoGo: Go (Tromp-Taylor, komi 5.5) against GNU Go at ``level``, random at ``epsilon``.
 
     A press registers only if a finger geom (knuckle or tip; ``registering=
@@ -188,55 +305,124 @@ def make_mujogo(*, board_size: int = 7, level: int = 10, epsilon: float = 0.0,
     paper's; 1: white; ``"random"``), ``front_camera_2``, ``multisamples``,
     ``shadows``: as in `make_mujoxo`.
     """
-    check_mujogo(board_size=board_size, level=level, epsilon=epsilon, komi=komi,
-                 agent_player=agent_player, seed=seed,
-                 front_camera=front_camera, front_camera_2=front_camera_2, arm_reset=arm_reset,
-                 time_limit=time_limit, control_timestep=control_timestep,
-                 physics_timestep=physics_timestep, registering=registering,
-                 allow_double_pass=allow_double_pass,
-                 piece_noise=piece_noise, gnugo_timeout=gnugo_timeout,
-                 gnugo_command=gnugo_command, render_size=render_size,
-                 multisamples=multisamples, shadows=shadows,
-                 raise_on_physics_error=raise_on_physics_error, lazy_cameras=lazy_cameras)
+    check_mujogo(
+        board_size=board_size,
+        level=level,
+        epsilon=epsilon,
+        komi=komi,
+        agent_player=agent_player,
+        seed=seed,
+        front_camera=front_camera,
+        front_camera_2=front_camera_2,
+        arm_reset=arm_reset,
+        time_limit=time_limit,
+        control_timestep=control_timestep,
+        physics_timestep=physics_timestep,
+        registering=registering,
+        allow_double_pass=allow_double_pass,
+        piece_noise=piece_noise,
+        gnugo_timeout=gnugo_timeout,
+        gnugo_command=gnugo_command,
+        render_size=render_size,
+        multisamples=multisamples,
+        shadows=shadows,
+        raise_on_physics_error=raise_on_physics_error,
+        lazy_cameras=lazy_cameras,
+    )
     game = BoardGame("go", board_size, komi=float(komi), draw_reward=0.0)
     epsilon = _check_epsilon(epsilon)
     level = _check_level(level)
-    opponent = EpsilonGreedy(GnuGoPlanner(level, board_size=int(board_size), komi=float(komi),
-                                          timeout=gnugo_timeout, command=gnugo_command),
-                             epsilon)
+    opponent = EpsilonGreedy(
+        GnuGoPlanner(
+            level,
+            board_size=int(board_size),
+            komi=float(komi),
+            timeout=gnugo_timeout,
+            command=gnugo_command,
+        ),
+        epsilon,
+    )
     try:
-        task = BoardTask(game, opponent, registering=registering, arm_reset=arm_reset,
-                         front_camera=front_camera, front_camera_2=front_camera_2,
-                         time_limit=time_limit, timeout_is_loss=True,
-                         allow_double_pass=allow_double_pass, piece_noise=piece_noise,
-                         control_timestep=control_timestep, physics_timestep=physics_timestep,
-                         render_size=render_size, multisamples=multisamples, shadows=shadows,
-                         agent_player=agent_player)
-        return Environment(task, seed=seed, raise_on_physics_error=raise_on_physics_error,
-                       lazy_cameras=lazy_cameras)
+        task = BoardTask(
+            game,
+            opponent,
+            registering=registering,
+            arm_reset=arm_reset,
+            front_camera=front_camera,
+            front_camera_2=front_camera_2,
+            time_limit=time_limit,
+            timeout_is_loss=True,
+            allow_double_pass=allow_double_pass,
+            piece_noise=piece_noise,
+            control_timestep=control_timestep,
+            physics_timestep=physics_timestep,
+            render_size=render_size,
+            multisamples=multisamples,
+            shadows=shadows,
+            agent_player=agent_player,
+        )
+        return Environment(
+            task,
+            seed=seed,
+            raise_on_physics_error=raise_on_physics_error,
+            lazy_cameras=lazy_cameras,
+        )
     except BaseException:
         opponent.close()
         raise
 
 
 def _register() -> None:
-    for name, eps, text in (("mixture", 0.25, "random moves at rate 0.25 (the paper's)"),
-                            ("optimal", 0.0, "always optimal"), ("random", 1.0, "always random")):
-        register(EnvEntry(f"mujoxo/{name}", make_mujoxo, {"epsilon": eps},
-                          f"MuJoXO, tic-tac-toe with a Jaco arm; minimax opponent {text}",
-                          validate=check_mujoxo))
-    register(EnvEntry("mujogo/7x7", make_mujogo, {"board_size": 7},
-                      "MuJoGo, 7x7 Go with a Jaco arm against GNU Go level 10 (the paper's)",
-                      validate=check_mujogo))
-    register(EnvEntry("mujogo/7x7-mixture", make_mujogo, {"board_size": 7, "epsilon": 0.2},
-                      "MuJoGo 7x7, GNU Go level 10 with random moves at rate 0.2",
-                      validate=check_mujogo))
-    register(EnvEntry("mujogo/7x7-eval", make_mujogo, {"board_size": 7, "time_limit": 60.0},
-                      "MuJoGo 7x7 with the paper's 60 s evaluation time limit",
-                      validate=check_mujogo))
-    register(EnvEntry("mujogo/9x9", make_mujogo, {"board_size": 9},
-                      "MuJoGo, 9x9 Go against GNU Go level 10",
-                      validate=check_mujogo))
+    for name, eps, text in (
+        ("mixture", 0.25, "random moves at rate 0.25 (the paper's)"),
+        ("optimal", 0.0, "always optimal"),
+        ("random", 1.0, "always random"),
+    ):
+        register(
+            EnvEntry(
+                f"mujoxo/{name}",
+                make_mujoxo,
+                {"epsilon": eps},
+                f"MuJoXO, tic-tac-toe with a Jaco arm; minimax opponent {text}",
+                validate=check_mujoxo,
+            )
+        )
+    register(
+        EnvEntry(
+            "mujogo/7x7",
+            make_mujogo,
+            {"board_size": 7},
+            "MuJoGo, 7x7 Go with a Jaco arm against GNU Go level 10 (the paper's)",
+            validate=check_mujogo,
+        )
+    )
+    register(
+        EnvEntry(
+            "mujogo/7x7-mixture",
+            make_mujogo,
+            {"board_size": 7, "epsilon": 0.2},
+            "MuJoGo 7x7, GNU Go level 10 with random moves at rate 0.2",
+            validate=check_mujogo,
+        )
+    )
+    register(
+        EnvEntry(
+            "mujogo/7x7-eval",
+            make_mujogo,
+            {"board_size": 7, "time_limit": 60.0},
+            "MuJoGo 7x7 with the paper's 60 s evaluation time limit",
+            validate=check_mujogo,
+        )
+    )
+    register(
+        EnvEntry(
+            "mujogo/9x9",
+            make_mujogo,
+            {"board_size": 9},
+            "MuJoGo, 9x9 Go against GNU Go level 10",
+            validate=check_mujogo,
+        )
+    )
 
 
 _register()

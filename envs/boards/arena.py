@@ -93,12 +93,20 @@ class BoardArena(composer.Arena):
       shadows: the light casts shadows (the original's does).
     """
 
-    def _build(self, game=None, offscreen_size=(256, 256), physics_timestep=0.002,
-               multisamples=0, shadows=False, name="board_arena"):
+    def _build(
+        self,
+        game=None,
+        offscreen_size=(256, 256),
+        physics_timestep=0.002,
+        multisamples=0,
+        shadows=False,
+        name="board_arena",
+    ):
         # composer's base arena: timestep 2 ms, elliptic cones, noslip 5.
         super()._build(name=name)
         if game is None:
             from envs.boards.games import BoardGame
+
             game = BoardGame("go", GO_REFERENCE_SIZE)
         root = self._mjcf_root
         self.game = game
@@ -109,9 +117,13 @@ class BoardArena(composer.Arena):
         if game.name == "tic_tac_toe":
             spacing = 2 * SQUARE_HALF
             self.centre = (0.0, 0.0)
-        else:   # the 7x7 Go board's extent (7 x 0.10 m) for every board
-            spacing = 2 * SQUARE_HALF * GO_REFERENCE_SIZE / max(
-                games_lib.layout_width(game), games_lib.layout_depth(game))
+        else:  # the 7x7 Go board's extent (7 x 0.10 m) for every board
+            spacing = (
+                2
+                * SQUARE_HALF
+                * GO_REFERENCE_SIZE
+                / max(games_lib.layout_width(game), games_lib.layout_depth(game))
+            )
             self.centre = (0.0, GO_Y_OFFSET)
         self.spacing = spacing
         #: Distance between rows (a hex board's rows are closer).
@@ -141,26 +153,47 @@ class BoardArena(composer.Arena):
         self.piece_radius, self.piece_half_height = radius, piece_half_height
         self.colours = rules.colours
         self.pieces = [
-            root.worldbody.add("geom", name=f"piece_{a}", type="cylinder",
-                               size=(radius, piece_half_height), pos=(0, 0, -1),
-                               group=HIDDEN_GROUP, contype=0, conaffinity=0,
-                               rgba=self.colours[0])
-            for a in range(game.num_points)]
+            root.worldbody.add(
+                "geom",
+                name=f"piece_{a}",
+                type="cylinder",
+                size=(radius, piece_half_height),
+                pos=(0, 0, -1),
+                group=HIDDEN_GROUP,
+                contype=0,
+                conaffinity=0,
+                rgba=self.colours[0],
+            )
+            for a in range(game.num_points)
+        ]
         self.selection = None
         if rules.input == "move":
             self.selection = root.worldbody.add(
-                "geom", name="selection", type="cylinder", size=(0.95 * half, 0.001),
-                pos=(0, 0, -1), group=HIDDEN_GROUP, contype=0, conaffinity=0,
-                rgba=SELECTION_RGBA)
+                "geom",
+                name="selection",
+                type="cylinder",
+                size=(0.95 * half, 0.001),
+                pos=(0, 0, -1),
+                group=HIDDEN_GROUP,
+                contype=0,
+                conaffinity=0,
+                rgba=SELECTION_RGBA,
+            )
         # The original's front camera, facing the arm and the board (fovy 45).
         self.front_camera = root.worldbody.add(
-            "camera", name="front_camera", pos=(0.0, -0.6, 0.75),
-            xyaxes=(1.0, 0.0, 0.0, 0.0, 0.7, 0.75))
+            "camera",
+            name="front_camera",
+            pos=(0.0, -0.6, 0.75),
+            xyaxes=(1.0, 0.0, 0.0, 0.0, 0.7, 0.75),
+        )
         # The original code's second view, higher and steeper so that a 7x7
         # Go board fits (its ``front_2``); observed only when asked for.
         self.front_camera_2 = root.worldbody.add(
-            "camera", name="front_camera_2", pos=(0.0, -0.65, 0.85),
-            xyaxes=(1.0, 0.0, 0.0, 0.0, 0.85, 0.6))
+            "camera",
+            name="front_camera_2",
+            pos=(0.0, -0.65, 0.85),
+            xyaxes=(1.0, 0.0, 0.0, 0.0, 0.85, 0.6),
+        )
 
     def _add_scene(self, offscreen_size, physics_timestep, multisamples, shadows) -> None:
         """Physics and rendering options, the sky, the ground and the light.
@@ -173,18 +206,54 @@ class BoardArena(composer.Arena):
         root.visual.__getattr__("global").offwidth = int(offscreen_size[1])
 
         # The original's sky, ground and light.
-        root.asset.add("texture", type="skybox", builtin="gradient", rgb1=(0.4, 0.6, 0.8),
-                       rgb2=(0.0, 0.0, 0.0), width=100, height=100)
-        ground_tex = root.asset.add("texture", name="groundplane", type="2d", builtin="checker",
-                                    rgb1=(0.2, 0.3, 0.4), rgb2=(0.1, 0.2, 0.3), width=300,
-                                    height=300, mark="edge", markrgb=(0.8, 0.8, 0.8))
-        ground_mat = root.asset.add("material", name="groundplane", texture=ground_tex,
-                                    texrepeat=(5, 5), texuniform=True, reflectance=0.2)
+        root.asset.add(
+            "texture",
+            type="skybox",
+            builtin="gradient",
+            rgb1=(0.4, 0.6, 0.8),
+            rgb2=(0.0, 0.0, 0.0),
+            width=100,
+            height=100,
+        )
+        ground_tex = root.asset.add(
+            "texture",
+            name="groundplane",
+            type="2d",
+            builtin="checker",
+            rgb1=(0.2, 0.3, 0.4),
+            rgb2=(0.1, 0.2, 0.3),
+            width=300,
+            height=300,
+            mark="edge",
+            markrgb=(0.8, 0.8, 0.8),
+        )
+        ground_mat = root.asset.add(
+            "material",
+            name="groundplane",
+            texture=ground_tex,
+            texrepeat=(5, 5),
+            texuniform=True,
+            reflectance=0.2,
+        )
         self.floor = root.worldbody.add(
-            "geom", name="ground", type="plane", material=ground_mat, size=(1, 1, 0.1),
-            friction=(0.4,), solimp=(0.95, 0.99, 0.001), solref=(0.002, 1))
-        root.worldbody.add("light", pos=(0, 0, 1.5), dir=(0, 0, -1), diffuse=(0.7, 0.7, 0.7),
-                           specular=(0.3, 0.3, 0.3), directional=False, castshadow=bool(shadows))
+            "geom",
+            name="ground",
+            type="plane",
+            material=ground_mat,
+            size=(1, 1, 0.1),
+            friction=(0.4,),
+            solimp=(0.95, 0.99, 0.001),
+            solref=(0.002, 1),
+        )
+        root.worldbody.add(
+            "light",
+            pos=(0, 0, 1.5),
+            dir=(0, 0, -1),
+            diffuse=(0.7, 0.7, 0.7),
+            specular=(0.3, 0.3, 0.3),
+            directional=False,
+            castshadow=bool(shadows),
+        )
         root.statistic.center = (0.0, 0.0, 0.0)
 
     def _add_points(self):
@@ -203,9 +272,14 @@ class BoardArena(composer.Arena):
         site_size = (self.pad_half, self.pad_half, 0.5 * SQUARE_HALF_HEIGHT)
         look = game.rules.look
         if look == "wood":
-            board.add("geom", name="goboard", type="box",
-                      size=(self.half_board, self.half_depth, SQUARE_HALF_HEIGHT),
-                      pos=(cx, cy, SQUARE_HALF_HEIGHT), rgba=(0.85, 0.65, 0.35, 1))
+            board.add(
+                "geom",
+                name="goboard",
+                type="box",
+                size=(self.half_board, self.half_depth, SQUARE_HALF_HEIGHT),
+                pos=(cx, cy, SQUARE_HALF_HEIGHT),
+                rgba=(0.85, 0.65, 0.35, 1),
+            )
         self.squares, self.sensor_sites, self.touch_sensors = [], [], []
         self.point_xy = np.zeros((game.num_points, 2))
         for a in range(game.num_points):
@@ -218,11 +292,25 @@ class BoardArena(composer.Arena):
                 style = dict(material=tile)
             else:
                 style = dict(material=dark if row % 2 == col % 2 else light)
-            self.squares.append(board.add("geom", name=f"square_{a}", type="box", size=box,
-                                          pos=(x, y, SQUARE_HALF_HEIGHT), **style))
-            site = board.add("site", name=f"sensor_{a}", type="box", size=site_size,
-                             pos=(x, y, BOARD_TOP), material=sensor_mat,
-                             group=composer.SENSOR_SITES_GROUP)
+            self.squares.append(
+                board.add(
+                    "geom",
+                    name=f"square_{a}",
+                    type="box",
+                    size=box,
+                    pos=(x, y, SQUARE_HALF_HEIGHT),
+                    **style,
+                )
+            )
+            site = board.add(
+                "site",
+                name=f"sensor_{a}",
+                type="box",
+                size=site_size,
+                pos=(x, y, BOARD_TOP),
+                material=sensor_mat,
+                group=composer.SENSOR_SITES_GROUP,
+            )
             self.sensor_sites.append(site)
         return board, sensor_mat
 
@@ -230,12 +318,24 @@ class BoardArena(composer.Arena):
         """Go's pass area: a hidden geom and its sensor site around the board."""
         cx, cy = self.centre
         pass_size = (2 * self.half_board, self.half_depth, 0.5 * SQUARE_HALF_HEIGHT)
-        self.pass_geom = board.add("geom", name="pass", type="box", size=pass_size,
-                                   pos=(cx, cy, 0.0), rgba=(0, 1, 0, 0),
-                                   group=HIDDEN_GROUP)
-        self.pass_site = board.add("site", name="pass", type="box", size=pass_size,
-                                   pos=(cx, cy, 0.0), material=sensor_mat,
-                                   group=composer.SENSOR_SITES_GROUP)
+        self.pass_geom = board.add(
+            "geom",
+            name="pass",
+            type="box",
+            size=pass_size,
+            pos=(cx, cy, 0.0),
+            rgba=(0, 1, 0, 0),
+            group=HIDDEN_GROUP,
+        )
+        self.pass_site = board.add(
+            "site",
+            name="pass",
+            type="box",
+            size=pass_size,
+            pos=(cx, cy, 0.0),
+            material=sensor_mat,
+            group=composer.SENSOR_SITES_GROUP,
+        )
 
     def _add_lines(self, board, between: bool = False) -> None:
         """Render-only lines on a square board: through the points (the
@@ -249,22 +349,38 @@ class BoardArena(composer.Arena):
         extent_y = 0.5 * (rows - 1) * self.row_spacing
         for k in range(rows):
             y = cy + (k - (rows - 1) / 2) * self.row_spacing
-            board.add("geom", name=f"line_x_{k}", type="box", pos=(cx, y, z),
-                      size=(extent_x + line_half, line_half, 0.0005), rgba=line_rgba,
-                      contype=0, conaffinity=0)
+            board.add(
+                "geom",
+                name=f"line_x_{k}",
+                type="box",
+                pos=(cx, y, z),
+                size=(extent_x + line_half, line_half, 0.0005),
+                rgba=line_rgba,
+                contype=0,
+                conaffinity=0,
+            )
         for k in range(cols):
             x = cx + (k - (cols - 1) / 2) * self.spacing
-            board.add("geom", name=f"line_y_{k}", type="box", pos=(x, cy, z),
-                      size=(line_half, extent_y + line_half, 0.0005), rgba=line_rgba,
-                      contype=0, conaffinity=0)
+            board.add(
+                "geom",
+                name=f"line_y_{k}",
+                type="box",
+                pos=(x, cy, z),
+                size=(line_half, extent_y + line_half, 0.0005),
+                rgba=line_rgba,
+                contype=0,
+                conaffinity=0,
+            )
 
     def point_position(self, action: int) -> tuple[float, float]:
         """World (x, y) of board point ``action``."""
         row, col = divmod(int(action), self.cols)
         cx, cy = self.centre
         shift = 0.5 * row - 0.5 * games_lib.hex_offset(self.rows) if self.hex else 0.0
-        return (cx + (col + shift - (self.cols - 1) / 2) * self.spacing,
-                cy + (row - (self.rows - 1) / 2) * self.row_spacing)
+        return (
+            cx + (col + shift - (self.cols - 1) / 2) * self.spacing,
+            cy + (row - (self.rows - 1) / 2) * self.row_spacing,
+        )
 
     def attach_arm(self, arm):
         """Attaches the arm's base at `ARM_OFFSET`."""

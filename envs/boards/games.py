@@ -170,20 +170,27 @@ class BoardGame:
     def __post_init__(self):
         rules = GAMES.get(self.name)
         if rules is None:
-            raise ValueError(f"unknown board game {self.name!r}; known: "
-                             + ", ".join(repr(n) for n in GAMES))
+            raise ValueError(
+                f"unknown board game {self.name!r}; known: " + ", ".join(repr(n) for n in GAMES)
+            )
         size = self.size
         if isinstance(size, (tuple, list)) and len(size) == 2:
             rows, cols = size
         else:
             rows = cols = size
         if rules.sizes:
-            ok = all(isinstance(v, numbers.Integral) and not isinstance(v, bool)
-                     for v in (rows, cols)) and (int(rows), int(cols)) in rules.sizes
+            ok = (
+                all(
+                    isinstance(v, numbers.Integral) and not isinstance(v, bool)
+                    for v in (rows, cols)
+                )
+                and (int(rows), int(cols)) in rules.sizes
+            )
             if not ok:
                 shown = ", ".join(f"{r}x{c}" for r, c in rules.sizes)
-                raise ValueError(f"{self.name} is played on {shown} boards, got "
-                                 f"board_size={self.size!r}")
+                raise ValueError(
+                    f"{self.name} is played on {shown} boards, got board_size={self.size!r}"
+                )
         else:
             if rows != cols:
                 raise ValueError(f"{self.name} is played on square boards, got {self.size!r}")
@@ -199,8 +206,7 @@ class BoardGame:
     def from_description(description) -> "BoardGame":
         """The game a task's public description (`envs.description.BoardDescription`)
         names, built once per (game, size, komi) in a process."""
-        return _from_description(description.game, description.board_size,
-                                 float(description.komi))
+        return _from_description(description.game, description.board_size, float(description.komi))
 
     # -- the OpenSpiel game ---------------------------------------------------
 
@@ -248,8 +254,9 @@ class BoardGame:
         if not self.rules.king_planes:
             return np.zeros(self.num_points, bool)
         # numpy's stubs type ``any(axis=0)`` as a bool or an array; it is an array here.
-        return cast(np.ndarray,
-                    (self._tensor(state)[list(self.rules.king_planes)] > 0.5).any(axis=0))
+        return cast(
+            np.ndarray, (self._tensor(state)[list(self.rules.king_planes)] > 0.5).any(axis=0)
+        )
 
     def owners(self, state, agent: int = AGENT) -> np.ndarray:
         """(num_points,) int8: -1 empty, 0 the agent's piece, 1 the opponent's."""
@@ -276,7 +283,7 @@ class BoardGame:
             return 1.0
         if value < 0:
             return 0.0
-        assert self.draw_reward is not None     # `__post_init__` sets the rules' by default
+        assert self.draw_reward is not None  # `__post_init__` sets the rules' by default
         return self.draw_reward
 
     # -- touches ------------------------------------------------------------
@@ -304,19 +311,23 @@ class BoardGame:
         mover = state.current_player()
         before = self.players(state) == mover
         out: dict[int, tuple[int, int]] = {}
-        seen: dict[tuple[int, int], int] = {}       # (from, to) -> the action moving so
+        seen: dict[tuple[int, int], int] = {}  # (from, to) -> the action moving so
         for action in state.legal_actions():
             after = self.players(state.child(action)) == mover
             lost = np.flatnonzero(before & ~after)
             gained = np.flatnonzero(after & ~before)
             if len(lost) != 1 or len(gained) != 1:
-                raise ValueError(f"{self.name}: action {state.action_to_string(mover, action)} "
-                                 f"does not move one piece ({len(lost)} lost, "
-                                 f"{len(gained)} gained)")
+                raise ValueError(
+                    f"{self.name}: action {state.action_to_string(mover, action)} "
+                    f"does not move one piece ({len(lost)} lost, "
+                    f"{len(gained)} gained)"
+                )
             pair = (int(lost[0]), int(gained[0]))
             if pair in seen:
-                raise ValueError(f"{self.name}: actions {seen[pair]} and {action} both move "
-                                 f"{pair[0]} -> {pair[1]}")
+                raise ValueError(
+                    f"{self.name}: actions {seen[pair]} and {action} both move "
+                    f"{pair[0]} -> {pair[1]}"
+                )
             seen[pair] = action
             out[int(action)] = pair
         return out
@@ -347,7 +358,7 @@ class BoardGame:
                 if src == selected:
                     act[dst] = action
             if 0 <= selected < self.num_points:
-                select[selected] = False      # pressing it again changes nothing
+                select[selected] = False  # pressing it again changes nothing
         return act, select
 
     def touch_effect(self, state, zone: int, selected: int = -1) -> tuple[str, int] | None:
@@ -383,48 +394,129 @@ class BoardGame:
         return self.move_points(state)[action]
 
 
-
 @functools.lru_cache(maxsize=32)
 def _from_description(name: str, board_size, komi: float) -> BoardGame:
     return BoardGame(name, board_size, komi=komi)
 
+
 # -- the games ------------------------------------------------------------------
 
-register_game("tic_tac_toe", GameRules(
-    "tic_tac_toe", owner_planes=((2,), (1,)), sizes=((3, 3),), colours=RED_BLUE,
-    description="tic-tac-toe"))
-register_game("go", GameRules(
-    "go", owner_planes=((0,), (1,)), min_size=GO_SIZES[0], max_size=GO_SIZES[1],
-    params=lambda r, c: {"board_size": r}, pass_zones=True, look="wood",
-    colours=BLACK_WHITE, draw_reward=0.0, description="Go, Tromp-Taylor"))
-register_game("connect_four", GameRules(
-    "connect_four", input="column", sizes=((6, 7),),
-    params=lambda r, c: {"rows": r, "columns": c}, look="plain", colours=RED_BLUE,
-    description="connect four: a touch anywhere on a column drops a piece in it"))
-register_game("hex", GameRules(
-    "hex", min_size=5, max_size=11, layout="hex", look="plain", colours=RED_BLUE,
-    params=lambda r, c: {"board_size": r, "num_rows": r, "num_cols": c,
-                         "plain_obs_tensor": True},
-    description="hex: red joins the far and near edges, blue the left and right"))
-register_game("othello", GameRules(
-    "othello", owner_planes=((1,), (2,)), sizes=((8, 8),), auto_pass=True,
-    look="plain", colours=BLACK_WHITE,
-    description="othello: flips shown, a forced pass is played by the referee"))
-register_game("gomoku", GameRules(
-    "gomoku", min_size=7, max_size=15, params=lambda r, c: {"size": r, "connect": 5},
-    look="wood", colours=BLACK_WHITE, description="gomoku: five in a row"))
-register_game("breakthrough", GameRules(
-    "breakthrough", input="move", min_size=5, max_size=8,
-    params=lambda r, c: {"rows": r, "columns": c}, colours=RED_BLUE,
-    description="breakthrough: touch a piece, then where it goes"))
-register_game("checkers", GameRules(
-    "checkers", input="move", owner_planes=((0, 1), (2, 3)), king_planes=(1, 3),
-    sizes=((8, 8),), params=lambda r, c: {"rows": r, "columns": c}, colours=RED_BLUE,
-    description="checkers: touch a piece, then where it goes; each jump is a move"))
-register_game("clobber", GameRules(
-    "clobber", input="move", sizes=((5, 6), (6, 6), (7, 7), (8, 8)),
-    params=lambda r, c: {"rows": r, "columns": c}, look="plain",
-    colours=RED_BLUE, description="clobber: touch a piece, then the adjacent piece it takes"))
+register_game(
+    "tic_tac_toe",
+    GameRules(
+        "tic_tac_toe",
+        owner_planes=((2,), (1,)),
+        sizes=((3, 3),),
+        colours=RED_BLUE,
+        description="tic-tac-toe",
+    ),
+)
+register_game(
+    "go",
+    GameRules(
+        "go",
+        owner_planes=((0,), (1,)),
+        min_size=GO_SIZES[0],
+        max_size=GO_SIZES[1],
+        params=lambda r, c: {"board_size": r},
+        pass_zones=True,
+        look="wood",
+        colours=BLACK_WHITE,
+        draw_reward=0.0,
+        description="Go, Tromp-Taylor",
+    ),
+)
+register_game(
+    "connect_four",
+    GameRules(
+        "connect_four",
+        input="column",
+        sizes=((6, 7),),
+        params=lambda r, c: {"rows": r, "columns": c},
+        look="plain",
+        colours=RED_BLUE,
+        description="connect four: a touch anywhere on a column drops a piece in it",
+    ),
+)
+register_game(
+    "hex",
+    GameRules(
+        "hex",
+        min_size=5,
+        max_size=11,
+        layout="hex",
+        look="plain",
+        colours=RED_BLUE,
+        params=lambda r, c: {
+            "board_size": r,
+            "num_rows": r,
+            "num_cols": c,
+            "plain_obs_tensor": True,
+        },
+        description="hex: red joins the far and near edges, blue the left and right",
+    ),
+)
+register_game(
+    "othello",
+    GameRules(
+        "othello",
+        owner_planes=((1,), (2,)),
+        sizes=((8, 8),),
+        auto_pass=True,
+        look="plain",
+        colours=BLACK_WHITE,
+        description="othello: flips shown, a forced pass is played by the referee",
+    ),
+)
+register_game(
+    "gomoku",
+    GameRules(
+        "gomoku",
+        min_size=7,
+        max_size=15,
+        params=lambda r, c: {"size": r, "connect": 5},
+        look="wood",
+        colours=BLACK_WHITE,
+        description="gomoku: five in a row",
+    ),
+)
+register_game(
+    "breakthrough",
+    GameRules(
+        "breakthrough",
+        input="move",
+        min_size=5,
+        max_size=8,
+        params=lambda r, c: {"rows": r, "columns": c},
+        colours=RED_BLUE,
+        description="breakthrough: touch a piece, then where it goes",
+    ),
+)
+register_game(
+    "checkers",
+    GameRules(
+        "checkers",
+        input="move",
+        owner_planes=((0, 1), (2, 3)),
+        king_planes=(1, 3),
+        sizes=((8, 8),),
+        params=lambda r, c: {"rows": r, "columns": c},
+        colours=RED_BLUE,
+        description="checkers: touch a piece, then where it goes; each jump is a move",
+    ),
+)
+register_game(
+    "clobber",
+    GameRules(
+        "clobber",
+        input="move",
+        sizes=((5, 6), (6, 6), (7, 7), (8, 8)),
+        params=lambda r, c: {"rows": r, "columns": c},
+        look="plain",
+        colours=RED_BLUE,
+        description="clobber: touch a piece, then the adjacent piece it takes",
+    ),
+)
 
 
 def hex_offset(rows: int) -> float:

@@ -49,32 +49,56 @@ def default_time_limit(game: BoardGame) -> float:
     return float(min(max(SECONDS_PER_MOVE * math.ceil(longest / 2), low), high))
 
 
-def check_mujoboard(*, game, board_size=None, opponent="mcts:100", epsilon=0.0, agent_player=0,
-                    seed=None, front_camera=(84, 84), front_camera_2=None, arm_reset=True,
-                    time_limit=None, control_timestep=0.05, physics_timestep=0.002,
-                    registering="fingers", half_move_timeout=HALF_MOVE_TIMEOUT,
-                    piece_noise=None, render_size=(256, 256), multisamples=0, shadows=False,
-                    raise_on_physics_error=True, lazy_cameras=False) -> BoardGame:
+def check_mujoboard(
+    *,
+    game,
+    board_size=None,
+    opponent="mcts:100",
+    epsilon=0.0,
+    agent_player=0,
+    seed=None,
+    front_camera=(84, 84),
+    front_camera_2=None,
+    arm_reset=True,
+    time_limit=None,
+    control_timestep=0.05,
+    physics_timestep=0.002,
+    registering="fingers",
+    half_move_timeout=HALF_MOVE_TIMEOUT,
+    piece_noise=None,
+    render_size=(256, 256),
+    multisamples=0,
+    shadows=False,
+    raise_on_physics_error=True,
+    lazy_cameras=False,
+) -> BoardGame:
     """Checks `make_mujoboard`'s arguments without building the physics;
     returns the `BoardGame`."""
     if game not in GAMES:
-        raise ValueError(f"unknown board game {game!r}; known: "
-                         + ", ".join(repr(n) for n in GAMES))
+        raise ValueError(
+            f"unknown board game {game!r}; known: " + ", ".join(repr(n) for n in GAMES)
+        )
     board = BoardGame(game, board_size if board_size is not None else _first_size(game))
-    make_bot(opponent)           # raises for a bad name
+    make_bot(opponent)  # raises for a bad name
     _config.check_real("epsilon", epsilon, low=0.0, high=1.0)
     check_agent_player(agent_player)
-    _check_board_common(seed=seed, front_camera=front_camera, front_camera_2=front_camera_2,
-                        arm_reset=arm_reset,
-                        time_limit=time_limit if time_limit is not None else 60.0,
-                        control_timestep=control_timestep, physics_timestep=physics_timestep,
-                        piece_noise=piece_noise, render_size=render_size,
-                        multisamples=multisamples, shadows=shadows,
-                        raise_on_physics_error=raise_on_physics_error,
-                        lazy_cameras=lazy_cameras)
+    _check_board_common(
+        seed=seed,
+        front_camera=front_camera,
+        front_camera_2=front_camera_2,
+        arm_reset=arm_reset,
+        time_limit=time_limit if time_limit is not None else 60.0,
+        control_timestep=control_timestep,
+        physics_timestep=physics_timestep,
+        piece_noise=piece_noise,
+        render_size=render_size,
+        multisamples=multisamples,
+        shadows=shadows,
+        raise_on_physics_error=raise_on_physics_error,
+        lazy_cameras=lazy_cameras,
+    )
     _config.check_choice("registering", registering, ("arm", "fingers", "fingertips"))
-    _config.check_real("half_move_timeout", half_move_timeout, low=0.0, low_open=True,
-                       high=3600.0)
+    _config.check_real("half_move_timeout", half_move_timeout, low=0.0, low_open=True, high=3600.0)
     return board
 
 
@@ -83,15 +107,29 @@ def _first_size(game: str):
     return rules.sizes[0] if rules.sizes else max(rules.min_size, 7)
 
 
-def make_mujoboard(*, game: str, board_size=None, opponent: str = "mcts:100",
-                   epsilon: float = 0.0, agent_player=0, seed: int | None = None,
-                   front_camera=(84, 84), front_camera_2=None, arm_reset: bool = True,
-                   time_limit: float | None = None, control_timestep: float = 0.05,
-                   physics_timestep: float = 0.002, registering: str = "fingers",
-                   half_move_timeout: float = HALF_MOVE_TIMEOUT, piece_noise=None,
-                   render_size=(256, 256), multisamples: int = 0, shadows: bool = False,
-                   raise_on_physics_error: bool = True,
-                   lazy_cameras: bool = False) -> Environment:
+def make_mujoboard(
+    *,
+    game: str,
+    board_size=None,
+    opponent: str = "mcts:100",
+    epsilon: float = 0.0,
+    agent_player=0,
+    seed: int | None = None,
+    front_camera=(84, 84),
+    front_camera_2=None,
+    arm_reset: bool = True,
+    time_limit: float | None = None,
+    control_timestep: float = 0.05,
+    physics_timestep: float = 0.002,
+    registering: str = "fingers",
+    half_move_timeout: float = HALF_MOVE_TIMEOUT,
+    piece_noise=None,
+    render_size=(256, 256),
+    multisamples: int = 0,
+    shadows: bool = False,
+    raise_on_physics_error: bool = True,
+    lazy_cameras: bool = False,
+) -> Environment:
     """A registered OpenSpiel game (``game``, `envs.boards.games.GAMES`) on a
     ``board_size`` board (an int or ``(rows, cols)``; None: the game's
     first size) against the bot ``opponent`` at random-move rate
@@ -102,25 +140,50 @@ def make_mujoboard(*, game: str, board_size=None, opponent: str = "mcts:100",
       ValueError: an unknown game or bot, or a bad value (named).
     """
     board = check_mujoboard(
-        game=game, board_size=board_size, opponent=opponent, epsilon=epsilon,
-        agent_player=agent_player, seed=seed, front_camera=front_camera,
-        front_camera_2=front_camera_2, arm_reset=arm_reset, time_limit=time_limit,
-        control_timestep=control_timestep, physics_timestep=physics_timestep,
-        registering=registering, half_move_timeout=half_move_timeout,
-        piece_noise=piece_noise, render_size=render_size, multisamples=multisamples,
-        shadows=shadows, raise_on_physics_error=raise_on_physics_error,
-        lazy_cameras=lazy_cameras)
+        game=game,
+        board_size=board_size,
+        opponent=opponent,
+        epsilon=epsilon,
+        agent_player=agent_player,
+        seed=seed,
+        front_camera=front_camera,
+        front_camera_2=front_camera_2,
+        arm_reset=arm_reset,
+        time_limit=time_limit,
+        control_timestep=control_timestep,
+        physics_timestep=physics_timestep,
+        registering=registering,
+        half_move_timeout=half_move_timeout,
+        piece_noise=piece_noise,
+        render_size=render_size,
+        multisamples=multisamples,
+        shadows=shadows,
+        raise_on_physics_error=raise_on_physics_error,
+        lazy_cameras=lazy_cameras,
+    )
     if time_limit is None:
         time_limit = default_time_limit(board)
     bot = EpsilonGreedy(make_bot(opponent), float(epsilon))
-    task = BoardTask(board, bot, registering=registering, arm_reset=arm_reset,
-                     front_camera=front_camera, front_camera_2=front_camera_2,
-                     time_limit=time_limit, piece_noise=piece_noise,
-                     control_timestep=control_timestep, physics_timestep=physics_timestep,
-                     render_size=render_size, multisamples=multisamples, shadows=shadows,
-                     agent_player=agent_player, half_move_timeout=half_move_timeout)
-    return Environment(task, seed=seed, raise_on_physics_error=raise_on_physics_error,
-                       lazy_cameras=lazy_cameras)
+    task = BoardTask(
+        board,
+        bot,
+        registering=registering,
+        arm_reset=arm_reset,
+        front_camera=front_camera,
+        front_camera_2=front_camera_2,
+        time_limit=time_limit,
+        piece_noise=piece_noise,
+        control_timestep=control_timestep,
+        physics_timestep=physics_timestep,
+        render_size=render_size,
+        multisamples=multisamples,
+        shadows=shadows,
+        agent_player=agent_player,
+        half_move_timeout=half_move_timeout,
+    )
+    return Environment(
+        task, seed=seed, raise_on_physics_error=raise_on_physics_error, lazy_cameras=lazy_cameras
+    )
 
 
 #: Registered names: (name, game, board size).
@@ -139,12 +202,18 @@ def register_mujoboard(name: str, game: str, board_size, description: str = "") 
     """Registers ``mujoboard/<name>`` with `envs.load` and gymnasium: ``game``
     on a ``board_size`` board, every `make_mujoboard` argument overridable."""
     rules = GAMES[game]
-    BoardGame(game, board_size)          # raises for a size the game does not allow
-    register(EnvEntry(f"mujoboard/{name}", make_mujoboard,
-                      {"game": game, "board_size": board_size},
-                      description or f"MuJoBoard, {rules.description} with a Jaco arm, "
-                                     f"against OpenSpiel MCTS (100 simulations)",
-                      validate=check_mujoboard))
+    BoardGame(game, board_size)  # raises for a size the game does not allow
+    register(
+        EnvEntry(
+            f"mujoboard/{name}",
+            make_mujoboard,
+            {"game": game, "board_size": board_size},
+            description
+            or f"MuJoBoard, {rules.description} with a Jaco arm, "
+            f"against OpenSpiel MCTS (100 simulations)",
+            validate=check_mujoboard,
+        )
+    )
 
 
 def _register() -> None:

@@ -63,9 +63,17 @@ from dm_env import specs
 from abstract_planners.base import Planner
 from envs.boards import arena as arena_lib
 from envs.boards.games import AGENT, BoardGame  # noqa: F401  (AGENT: re-export)
+
 # The task's parts by concern; their public names stay importable from here.
-from envs.boards.task_arm import (_REJECTION_SAMPLES, DOWN_QUAT, HOME_ARM_QPOS,  # noqa: F401
-                                  TCP_HIGH, TCP_LOW, ArmPoseMixin, _quat_mul)
+from envs.boards.task_arm import (
+    _REJECTION_SAMPLES,  # noqa: F401
+    DOWN_QUAT,  # noqa: F401
+    HOME_ARM_QPOS,  # noqa: F401
+    TCP_HIGH,  # noqa: F401
+    TCP_LOW,  # noqa: F401
+    ArmPoseMixin,
+    _quat_mul,  # noqa: F401
+)
 from envs.boards.task_observations import ObservationsMixin
 from envs.boards.task_record import HALF_MOVE_TIMEOUT, PIECE_NOISE, GameRecordMixin
 from envs.core import PhysicsTask
@@ -122,28 +130,46 @@ class BoardTask(GameRecordMixin, ArmPoseMixin, ObservationsMixin, PhysicsTask):
     privileged_observations = frozenset({"board_state", "move_history"})
     state_observations = ("board_state",)
 
-    def __init__(self, game: BoardGame, opponent: Planner, *, registering="arm",
-                 arm_reset=True, front_camera=(84, 84), front_camera_2=None, time_limit=30.0,
-                 timeout_is_loss=False, piece_noise=None, allow_double_pass=False,
-                 control_timestep=0.05, physics_timestep=0.002, render_size=(256, 256),
-                 multisamples=0, shadows=False, agent_player=AGENT,
-                 half_move_timeout=HALF_MOVE_TIMEOUT):
+    def __init__(
+        self,
+        game: BoardGame,
+        opponent: Planner,
+        *,
+        registering="arm",
+        arm_reset=True,
+        front_camera=(84, 84),
+        front_camera_2=None,
+        time_limit=30.0,
+        timeout_is_loss=False,
+        piece_noise=None,
+        allow_double_pass=False,
+        control_timestep=0.05,
+        physics_timestep=0.002,
+        render_size=(256, 256),
+        multisamples=0,
+        shadows=False,
+        agent_player=AGENT,
+        half_move_timeout=HALF_MOVE_TIMEOUT,
+    ):
         if registering not in ("arm", "fingers", "fingertips"):
-            raise ValueError(f"registering must be 'arm', 'fingers' or 'fingertips', "
-                             f"got {registering!r}")
+            raise ValueError(
+                f"registering must be 'arm', 'fingers' or 'fingertips', got {registering!r}"
+            )
         if time_limit <= 0:
             raise ValueError(f"time_limit must be positive seconds, got {time_limit}")
         check_agent_player(agent_player)
         if not half_move_timeout > 0:
-            raise ValueError(f"half_move_timeout must be positive seconds, got "
-                             f"{half_move_timeout!r}")
+            raise ValueError(
+                f"half_move_timeout must be positive seconds, got {half_move_timeout!r}"
+            )
         if piece_noise is None:
             piece_noise = PIECE_NOISE.get(game.name, PIECE_NOISE["go"])
         if not 0 <= piece_noise <= 1:
             raise ValueError(f"piece_noise must be in [0, 1], got {piece_noise}")
         if not isinstance(opponent, Planner):
-            raise TypeError(f"opponent must be an abstract_planners Planner, got "
-                            f"{type(opponent).__name__}")
+            raise TypeError(
+                f"opponent must be an abstract_planners Planner, got {type(opponent).__name__}"
+            )
         self.game = game
         self.opponent = opponent
         self._spiel_game = game.load()
@@ -160,9 +186,13 @@ class BoardTask(GameRecordMixin, ArmPoseMixin, ObservationsMixin, PhysicsTask):
         if game.rules.input == "move":
             self.privileged_observations = self.privileged_observations | {"selected_point"}
         self._agent = AGENT if agent_player == "random" else int(agent_player)
-        self._arena = arena_lib.BoardArena(game=game, offscreen_size=offscreen,
-                                           physics_timestep=physics_timestep,
-                                           multisamples=multisamples, shadows=shadows)
+        self._arena = arena_lib.BoardArena(
+            game=game,
+            offscreen_size=offscreen,
+            physics_timestep=physics_timestep,
+            multisamples=multisamples,
+            shadows=shadows,
+        )
         self._multisamples = int(multisamples)
         self._arm = kinova.JacoArm(name="arm")
         self._hand = kinova.JacoHand(name="hand")  # tool centre point: the grip site
@@ -240,8 +270,9 @@ class BoardTask(GameRecordMixin, ArmPoseMixin, ObservationsMixin, PhysicsTask):
         self._num_squares = self.game.num_points
         self._has_pass = arena.pass_geom is not None
         self._piece_ids = np.array([bind(p).element_id for p in arena.pieces])
-        self._selection_id = (bind(arena.selection).element_id
-                              if arena.selection is not None else None)
+        self._selection_id = (
+            bind(arena.selection).element_id if arena.selection is not None else None
+        )
         self._point_xy = arena.point_xy
         joints = list(self._arm.joints) + list(self._hand.joints)
         self._joint_qpos = np.array([bind(j).qposadr for j in joints]).ravel()
@@ -269,8 +300,9 @@ class BoardTask(GameRecordMixin, ArmPoseMixin, ObservationsMixin, PhysicsTask):
     def action_spec(self, physics):
         ranges = self._model.actuator_ctrlrange[self._act_ids]
         names = ",".join(a.name for a in list(self._arm.actuators) + list(self._hand.actuators))
-        return specs.BoundedArray((len(self._act_ids),), np.float64, ranges[:, 0], ranges[:, 1],
-                                  name=names)
+        return specs.BoundedArray(
+            (len(self._act_ids),), np.float64, ranges[:, 0], ranges[:, 1], name=names
+        )
 
     def truncated_discount(self) -> float:
         return 0.0 if self._timeout_is_loss else 1.0
@@ -292,7 +324,7 @@ class BoardTask(GameRecordMixin, ArmPoseMixin, ObservationsMixin, PhysicsTask):
         m = self._model
         m.geom_group[self._piece_ids] = arena_lib.HIDDEN_GROUP
         m.geom_size[self._piece_ids, 1] = self._arena.piece_half_height
-        self._show_pieces()                   # the initial pieces (othello, move games)
+        self._show_pieces()  # the initial pieces (othello, move games)
         self._reward = 0.0
         self._game_over = False
         self._resigned = False
@@ -303,7 +335,7 @@ class BoardTask(GameRecordMixin, ArmPoseMixin, ObservationsMixin, PhysicsTask):
         self._set_selected(-1)
         self.moves_registered = 0
         self.ik_failures = 0
-        self._others_turn(random_state)       # the opponent's first move, if it has it
+        self._others_turn(random_state)  # the opponent's first move, if it has it
         self._place_arm(random_state)
 
     def before_step(self, physics, action, random_state):
@@ -358,14 +390,20 @@ class BoardTask(GameRecordMixin, ArmPoseMixin, ObservationsMixin, PhysicsTask):
     @property
     def reward_rule(self) -> str:
         """The reward rule in a sentence (the environment gallery's cards show it)."""
-        return (f"0 until the game ends; then 1 for a win (an opponent's resignation included), "
-                f"{self.game.draw_reward:g} for a draw, 0 for a loss.")
+        return (
+            f"0 until the game ends; then 1 for a win (an opponent's resignation included), "
+            f"{self.game.draw_reward:g} for a draw, 0 for a loss."
+        )
 
     @property
     def success_rule(self) -> str:
         """The success rule and how the episode ends, in a sentence."""
-        timeout = ("a game still running is a loss (reward 0, discount 0)"
-                   if self._timeout_is_loss else "a game still running is truncated (discount 1)"
-                   ", not a win")
-        return (f"A win. The episode terminates (discount 0) when the game ends; at the time "
-                f"limit {timeout}.")
+        timeout = (
+            "a game still running is a loss (reward 0, discount 0)"
+            if self._timeout_is_loss
+            else "a game still running is truncated (discount 1), not a win"
+        )
+        return (
+            f"A win. The episode terminates (discount 0) when the game ends; at the time "
+            f"limit {timeout}."
+        )

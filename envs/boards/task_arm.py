@@ -33,10 +33,14 @@ def _quat_mul(a, b):
     """Hamilton product ``a * b`` of quaternions (w, x, y, z)."""
     w1, x1, y1, z1 = a
     w2, x2, y2, z2 = b
-    return np.array([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
-                     w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-                     w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
-                     w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2])
+    return np.array(
+        [
+            w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
+            w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+            w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
+            w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
+        ]
+    )
 
 
 class ArmPoseMixin:
@@ -88,8 +92,9 @@ class ArmPoseMixin:
         touching = contact.dist[:ncon] <= 0
         arm, hand = self._is_arm[g], self._is_hand[g]
         robot = arm | hand
-        relevant = ((arm[:, 0] & robot[:, 1]) | (robot[:, 0] & arm[:, 1])
-                    | (robot[:, 0] != robot[:, 1]))
+        relevant = (
+            (arm[:, 0] & robot[:, 1]) | (robot[:, 0] & arm[:, 1]) | (robot[:, 0] != robot[:, 1])
+        )
         return bool(np.any(relevant & touching))
 
     def _ik_problem(self, site: str, *, orientation_cost: float, fingers=None):
@@ -110,8 +115,11 @@ class ArmPoseMixin:
         if self._tcp_ik is None:
             self._tcp_ik = self._ik_problem(self._tcp_name, orientation_cost=1.0)
         config, frame, posture, home = self._tcp_ik
-        frame.set_target(mink.SE3.from_rotation_and_translation(mink.SO3(np.asarray(quat)),
-                                                                 np.asarray(target, float)))
+        frame.set_target(
+            mink.SE3.from_rotation_and_translation(
+                mink.SO3(np.asarray(quat)), np.asarray(target, float)
+            )
+        )
         q = home.copy()
         q[self._joint_qpos[6:]] = self._data.qpos[self._joint_qpos[6:]]
         config.update(q)
@@ -137,8 +145,9 @@ class ArmPoseMixin:
         """
         target = np.asarray(target, dtype=np.float64)
         if self._ik is None:
-            problem = self._ik_problem(self._pinch_name, orientation_cost=0.05,
-                                       fingers=self._finger_range[:, 0])
+            problem = self._ik_problem(
+                self._pinch_name, orientation_cost=0.05, fingers=self._finger_range[:, 0]
+            )
             self._ik = (*problem, [mink.ConfigurationLimit(self._model)])
         config, frame, posture, home, limits = self._ik
         frame.set_target(mink.SE3.from_rotation_and_translation(mink.SO3(DOWN_QUAT), target))
@@ -147,8 +156,9 @@ class ArmPoseMixin:
         for start in (home, current):
             config.update(start)
             for _ in range(150):
-                velocity = mink.solve_ik(config, [frame, posture], 0.05, "daqp", damping=1e-3,
-                                         limits=limits)
+                velocity = mink.solve_ik(
+                    config, [frame, posture], 0.05, "daqp", damping=1e-3, limits=limits
+                )
                 config.integrate_inplace(velocity, 0.05)
                 if np.linalg.norm(frame.compute_error(config)[:3]) < 2e-3:
                     return config.q[self._joint_qpos[:6]].copy()

@@ -23,7 +23,7 @@ class ObservationsMixin:
 
     # Set by `BoardTask`.
     _arena: arena_lib.BoardArena
-    _data: Any              # mujoco.MjData (mujoco has no type stubs)
+    _data: Any  # mujoco.MjData (mujoco has no type stubs)
     _pinch_site: int
 
     def description(self):
@@ -37,6 +37,7 @@ class ObservationsMixin:
         from dm_control import mjcf
 
         from envs.description import ArmDescription, BoardDescription, CameraDescription
+
         arena = self._arena
         # The arm's own model: a fresh arm and hand mounted as in the arena.
         root = mjcf.RootElement(model="jaco")
@@ -49,12 +50,15 @@ class ObservationsMixin:
         joints = list(arm.joints) + list(hand.joints)
         spec = self._model.actuator_ctrlrange[self._act_ids]
         arm_desc = ArmDescription(
-            xml=xml, assets=assets, joint_names=tuple(j.full_identifier for j in joints),
+            xml=xml,
+            assets=assets,
+            joint_names=tuple(j.full_identifier for j in joints),
             pinch_site=hand.pinch_site.full_identifier,
             tool_center_point=hand.tool_center_point.full_identifier,
             base_position=tuple(float(v) for v in arena_lib.ARM_OFFSET),
             action_minimum=tuple(float(v) for v in spec[:, 0]),
-            action_maximum=tuple(float(v) for v in spec[:, 1]))
+            action_maximum=tuple(float(v) for v in spec[:, 1]),
+        )
         game = self.game
         cx, cy = arena.centre
         zones = {}
@@ -64,33 +68,55 @@ class ObservationsMixin:
             # part outside the board on each side is what a robot can touch.
             for side, sign in (("left", -1.0), ("right", 1.0)):
                 # (the pass geom is centred at z = 0: its top is at its half-height)
-                zones[side] = {"centre": (cx + sign * 0.5 * (arena.half_board + size[0]), cy,
-                                          size[2]),
-                               "half": (0.5 * (size[0] - arena.half_board), size[1])}
+                zones[side] = {
+                    "centre": (cx + sign * 0.5 * (arena.half_board + size[0]), cy, size[2]),
+                    "half": (0.5 * (size[0] - arena.half_board), size[1]),
+                }
         front, front_2 = (
             CameraDescription(
-                name, tuple(float(v) for v in cam.pos), tuple(float(v) for v in cam.xyaxes),
+                name,
+                tuple(float(v) for v in cam.pos),
+                tuple(float(v) for v in cam.xyaxes),
                 float(cam.fovy or 45.0),
                 (self._cameras[name].height, self._cameras[name].width)
-                if name in self._cameras else None, multisamples=self._multisamples)
-            for name, cam in (("front_camera", arena.front_camera),
-                              ("front_camera_2", arena.front_camera_2)))
+                if name in self._cameras
+                else None,
+                multisamples=self._multisamples,
+            )
+            for name, cam in (
+                ("front_camera", arena.front_camera),
+                ("front_camera_2", arena.front_camera_2),
+            )
+        )
         return BoardDescription(
-            game=game.name, board_size=game.size, komi=float(game.komi),
-            num_points=game.num_points, pass_action=game.pass_action,
-            point_positions=tuple(tuple(float(v) for v in self.point_position(a))
-                                  for a in range(game.num_points)),
-            pad_half=float(arena.pad_half), pass_zones=zones,
-            board_centre=(float(cx), float(cy)), board_half=float(arena.half_board),
-            registering=self._registering, control_timestep=float(self.control_timestep),
-            time_limit_steps=int(self.time_limit_steps), arm=arm_desc, front_camera=front,
+            game=game.name,
+            board_size=game.size,
+            komi=float(game.komi),
+            num_points=game.num_points,
+            pass_action=game.pass_action,
+            point_positions=tuple(
+                tuple(float(v) for v in self.point_position(a)) for a in range(game.num_points)
+            ),
+            pad_half=float(arena.pad_half),
+            pass_zones=zones,
+            board_centre=(float(cx), float(cy)),
+            board_half=float(arena.half_board),
+            registering=self._registering,
+            control_timestep=float(self.control_timestep),
+            time_limit_steps=int(self.time_limit_steps),
+            arm=arm_desc,
+            front_camera=front,
             front_camera_2=front_2,
-            rows=game.rows, cols=game.cols, input=game.rules.input,
+            rows=game.rows,
+            cols=game.cols,
+            input=game.rules.input,
             agent_player=self.agent_player,
             allow_double_pass=self._allow_double_pass or game.pass_action is None,
             piece_radius=float(arena.piece_radius),
-            piece_spread=float(max(self._piece_noise, float(game.rules.input == "point"))
-                               * arena.pad_half))
+            piece_spread=float(
+                max(self._piece_noise, float(game.rules.input == "point")) * arena.pad_half
+            ),
+        )
 
     # -- observations -------------------------------------------------------
 
@@ -102,16 +128,22 @@ class ObservationsMixin:
             "arm/joints_torque": specs.Array((dof,), np.float64, "arm/joints_torque"),
             "arm/pinch_site_pos": specs.Array((3,), np.float64, "arm/pinch_site_pos"),
             "arm/pinch_site_rmat": specs.Array((9,), np.float64, "arm/pinch_site_rmat"),
-            "board_state": specs.Array((game.rows, game.cols, game.num_planes), bool,
-                                       "board_state"),
-            "move_history": specs.BoundedArray((self._max_moves,), np.int32, -1,
-                                               self._spiel_game.num_distinct_actions() - 1,
-                                               "move_history"),
+            "board_state": specs.Array(
+                (game.rows, game.cols, game.num_planes), bool, "board_state"
+            ),
+            "move_history": specs.BoundedArray(
+                (self._max_moves,),
+                np.int32,
+                -1,
+                self._spiel_game.num_distinct_actions() - 1,
+                "move_history",
+            ),
             "agent_player": specs.BoundedArray((1,), np.int32, 0, 1, "agent_player"),
         }
         if game.rules.input == "move":
-            spec["selected_point"] = specs.BoundedArray((1,), np.int32, -1, game.num_points - 1,
-                                                        "selected_point")
+            spec["selected_point"] = specs.BoundedArray(
+                (1,), np.int32, -1, game.num_points - 1, "selected_point"
+            )
         return spec
 
     def observe(self, physics):
@@ -146,8 +178,13 @@ class ObservationsMixin:
             raise ValueError("this game has no pass areas")
         cx, cy = arena.centre
         sign = -1.0 if side == "left" else 1.0
-        return np.array([cx + sign * (arena.half_board + 0.05), cy + 0.75 * arena.half_board,
-                         0.5 * arena_lib.SQUARE_HALF_HEIGHT])
+        return np.array(
+            [
+                cx + sign * (arena.half_board + 0.05),
+                cy + 0.75 * arena.half_board,
+                0.5 * arena_lib.SQUARE_HALF_HEIGHT,
+            ]
+        )
 
     def pinch_site_position(self) -> np.ndarray:
         return self._data.site_xpos[self._pinch_site].copy()

@@ -57,7 +57,7 @@ class GameRecordMixin:
     _steps: int
     _stale: int
     # Kept here (see the module docstring).
-    state: Any          # the OpenSpiel state (pyspiel has no type stubs)
+    state: Any  # the OpenSpiel state (pyspiel has no type stubs)
     moves_registered: int
     _moves: list[int]
     _history: np.ndarray
@@ -77,20 +77,35 @@ class GameRecordMixin:
         if arena.pass_geom is not None:
             zones.append((arena.pass_geom, arena.pass_site))
         # One sensor per finger: a knuckle body's subtree holds its tip too.
-        pattern = re.compile(r"b_finger_\d+$" if self._registering == "fingers"
-                             else r"b_finger_tip_\d+$")
-        finger_bodies = [b for b in self._hand.mjcf_model.find_all("body")
-                         if b.name and pattern.match(b.name)]
+        pattern = re.compile(
+            r"b_finger_\d+$" if self._registering == "fingers" else r"b_finger_tip_\d+$"
+        )
+        finger_bodies = [
+            b for b in self._hand.mjcf_model.find_all("body") if b.name and pattern.match(b.name)
+        ]
         for k, (geom, site) in enumerate(zones):
-            self._touch_sensors.append(sensor.add("touch", name=f"touch_{k}", site=site,
-                                                  nsample=nsample))
-            self._pos_sensors.append(sensor.add("contact", name=f"contact_{k}", geom1=geom,
-                                                data="found pos", nsample=nsample))
+            self._touch_sensors.append(
+                sensor.add("touch", name=f"touch_{k}", site=site, nsample=nsample)
+            )
+            self._pos_sensors.append(
+                sensor.add(
+                    "contact", name=f"contact_{k}", geom1=geom, data="found pos", nsample=nsample
+                )
+            )
             if self._registering != "arm":
-                self._finger_sensors.append([
-                    sensor.add("contact", name=f"finger_{k}_{j}", geom1=geom, subtree2=body,
-                               data="found", nsample=nsample)
-                    for j, body in enumerate(finger_bodies)])
+                self._finger_sensors.append(
+                    [
+                        sensor.add(
+                            "contact",
+                            name=f"finger_{k}_{j}",
+                            geom1=geom,
+                            subtree2=body,
+                            data="found",
+                            nsample=nsample,
+                        )
+                        for j, body in enumerate(finger_bodies)
+                    ]
+                )
 
     def registered_touch(self, pressure: np.ndarray, order: np.ndarray):
         """The first substep's touch that does something: ``("move", action,
@@ -233,8 +248,11 @@ class GameRecordMixin:
                     x, y = piece_xy
                 else:
                     px, py = self._point_xy[point]
-                    noise = (rng.uniform(-1, 1, 2) * self._piece_noise * half
-                             if rng is not None else (0.0, 0.0))
+                    noise = (
+                        rng.uniform(-1, 1, 2) * self._piece_noise * half
+                        if rng is not None
+                        else (0.0, 0.0)
+                    )
                     x, y = px + noise[0], py + noise[1]
             else:
                 x, y = m.geom_pos[geom, :2]

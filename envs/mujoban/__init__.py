@@ -24,14 +24,28 @@ from envs.mujoban.task import Mujoban
 from envs.registry import EnvEntry, register
 
 
-def make(*, difficulty: int | None = None, pegs: bool = False, seed: int | None = None,
-         levels: str | os.PathLike | None = None, level_order: str = "sequential",
-         grid_shape=sources.ARENA_SHAPE, top_camera=(96, 96), egocentric_camera=(96, 96),
-         randomize_appearance: bool = True, time_limit: float = 45.0,
-         control_timestep: float = 0.05, physics_timestep: float = 0.001,
-         pad_tolerance: float = 0.1, noslip_iterations: int = 5, sleep: bool = False,
-         render_size=(256, 256), multisamples: int = 4,
-         raise_on_physics_error: bool = True, lazy_cameras: bool = False) -> Environment:
+def make(
+    *,
+    difficulty: int | None = None,
+    pegs: bool = False,
+    seed: int | None = None,
+    levels: str | os.PathLike | None = None,
+    level_order: str = "sequential",
+    grid_shape=sources.ARENA_SHAPE,
+    top_camera=(96, 96),
+    egocentric_camera=(96, 96),
+    randomize_appearance: bool = True,
+    time_limit: float = 45.0,
+    control_timestep: float = 0.05,
+    physics_timestep: float = 0.001,
+    pad_tolerance: float = 0.1,
+    noslip_iterations: int = 5,
+    sleep: bool = False,
+    render_size=(256, 256),
+    multisamples: int = 4,
+    raise_on_physics_error: bool = True,
+    lazy_cameras: bool = False,
+) -> Environment:
     """Builds a MuJoBan environment.
 
     The defaults are the original task (physics_planning_games' MuJoBan, with
@@ -74,32 +88,76 @@ def make(*, difficulty: int | None = None, pegs: bool = False, seed: int | None 
         episode ends with discount 0).
     """
     source = check_config(
-        difficulty=difficulty, pegs=pegs, seed=seed, levels=levels, level_order=level_order,
-        grid_shape=grid_shape, top_camera=top_camera, egocentric_camera=egocentric_camera,
-        randomize_appearance=randomize_appearance, time_limit=time_limit,
-        control_timestep=control_timestep, physics_timestep=physics_timestep,
-        pad_tolerance=pad_tolerance, noslip_iterations=noslip_iterations, sleep=sleep,
-        render_size=render_size, raise_on_physics_error=raise_on_physics_error,
-        lazy_cameras=lazy_cameras, multisamples=multisamples)
+        difficulty=difficulty,
+        pegs=pegs,
+        seed=seed,
+        levels=levels,
+        level_order=level_order,
+        grid_shape=grid_shape,
+        top_camera=top_camera,
+        egocentric_camera=egocentric_camera,
+        randomize_appearance=randomize_appearance,
+        time_limit=time_limit,
+        control_timestep=control_timestep,
+        physics_timestep=physics_timestep,
+        pad_tolerance=pad_tolerance,
+        noslip_iterations=noslip_iterations,
+        sleep=sleep,
+        render_size=render_size,
+        raise_on_physics_error=raise_on_physics_error,
+        lazy_cameras=lazy_cameras,
+        multisamples=multisamples,
+    )
     if source is None:
-        source = (sources.CurriculumLevels() if difficulty is None
-                  else sources.GeneratedLevels(difficulty))
-    task = Mujoban(source, grid_shape=grid_shape, max_boxes=source.max_boxes, pegs=pegs,
-                   top_camera=top_camera, egocentric_camera=egocentric_camera,
-                   randomize_appearance=randomize_appearance, time_limit=time_limit,
-                   control_timestep=control_timestep, physics_timestep=physics_timestep,
-                   pad_tolerance=pad_tolerance, noslip_iterations=noslip_iterations,
-                   sleep=sleep, render_size=render_size, multisamples=multisamples)
-    return Environment(task, seed=seed, raise_on_physics_error=raise_on_physics_error,
-                       lazy_cameras=lazy_cameras)
+        source = (
+            sources.CurriculumLevels()
+            if difficulty is None
+            else sources.GeneratedLevels(difficulty)
+        )
+    task = Mujoban(
+        source,
+        grid_shape=grid_shape,
+        max_boxes=source.max_boxes,
+        pegs=pegs,
+        top_camera=top_camera,
+        egocentric_camera=egocentric_camera,
+        randomize_appearance=randomize_appearance,
+        time_limit=time_limit,
+        control_timestep=control_timestep,
+        physics_timestep=physics_timestep,
+        pad_tolerance=pad_tolerance,
+        noslip_iterations=noslip_iterations,
+        sleep=sleep,
+        render_size=render_size,
+        multisamples=multisamples,
+    )
+    return Environment(
+        task, seed=seed, raise_on_physics_error=raise_on_physics_error, lazy_cameras=lazy_cameras
+    )
 
 
-def check_config(*, difficulty=None, pegs=False, seed=None, levels=None,
-                 level_order="sequential", grid_shape=sources.ARENA_SHAPE, top_camera=(96, 96),
-                 egocentric_camera=(96, 96), randomize_appearance=True, time_limit=45.0,
-                 control_timestep=0.05, physics_timestep=0.001, pad_tolerance=0.1,
-                 noslip_iterations=5, sleep=False, render_size=(256, 256),
-                 raise_on_physics_error=True, lazy_cameras=False, multisamples=4):
+def check_config(
+    *,
+    difficulty=None,
+    pegs=False,
+    seed=None,
+    levels=None,
+    level_order="sequential",
+    grid_shape=sources.ARENA_SHAPE,
+    top_camera=(96, 96),
+    egocentric_camera=(96, 96),
+    randomize_appearance=True,
+    time_limit=45.0,
+    control_timestep=0.05,
+    physics_timestep=0.001,
+    pad_tolerance=0.1,
+    noslip_iterations=5,
+    sleep=False,
+    render_size=(256, 256),
+    raise_on_physics_error=True,
+    lazy_cameras=False,
+    multisamples=4,
+):
     """Checks `make`'s arguments without building anything (`envs._config`).
 
     Returns the `sources.FileLevels` of ``levels`` (read and checked against
@@ -136,8 +194,10 @@ def check_config(*, difficulty=None, pegs=False, seed=None, levels=None,
     else:
         needed = sources.GeneratedLevels(int(difficulty)).max_shape
     if needed is not None and (grid[0] < needed[0] or grid[1] < needed[1]):
-        raise ValueError(f"grid_shape {_config._show(grid_shape)} is smaller than the "
-                         f"{needed[0]}x{needed[1]} levels of this environment")
+        raise ValueError(
+            f"grid_shape {_config._show(grid_shape)} is smaller than the "
+            f"{needed[0]}x{needed[1]} levels of this environment"
+        )
     return source
 
 
@@ -159,7 +219,11 @@ def _check_file_fits(source: sources.FileLevels, grid_shape: tuple[int, int]) ->
         raise LevelError(
             f"level is {level.height}x{level.width}, larger than the arena's "
             f"{grid_shape[0]}x{grid_shape[1]} (pass grid_shape=(rows, cols) to enlarge it)",
-            path=str(source.path), index=index, line=line, column=column)
+            path=str(source.path),
+            index=index,
+            line=line,
+            column=column,
+        )
 
 
 def _first_row_lines(path) -> list[int]:
@@ -181,15 +245,24 @@ def _register() -> None:
         suffix = "-pegs" if pegs else ""
         peg_text = " with grid pegs" if pegs else ""
         for difficulty in range(1, 6):
-            register(EnvEntry(
-                f"mujoban/level{difficulty}{suffix}", make,
-                {"difficulty": difficulty, "pegs": pegs},
-                f"MuJoBan, generated difficulty-{difficulty} levels{peg_text}",
-                validate=check_config))
-        register(EnvEntry(
-            f"mujoban/curriculum{suffix}", make, {"difficulty": None, "pegs": pegs},
-            f"MuJoBan, the paper's 5-level training curriculum{peg_text}",
-            validate=check_config))
+            register(
+                EnvEntry(
+                    f"mujoban/level{difficulty}{suffix}",
+                    make,
+                    {"difficulty": difficulty, "pegs": pegs},
+                    f"MuJoBan, generated difficulty-{difficulty} levels{peg_text}",
+                    validate=check_config,
+                )
+            )
+        register(
+            EnvEntry(
+                f"mujoban/curriculum{suffix}",
+                make,
+                {"difficulty": None, "pegs": pegs},
+                f"MuJoBan, the paper's 5-level training curriculum{peg_text}",
+                validate=check_config,
+            )
+        )
 
 
 _register()

@@ -99,9 +99,19 @@ def _peg_mesh(centres: np.ndarray, radius: float, height: float, sides: int = 8)
 class MujobanArena(composer.Arena):
     """The maze arena. See the module docstring for what changes per episode."""
 
-    def _build(self, grid_shape=(10, 10), max_boxes=4, cell_size=1.0, pegs=False,
-               offscreen_size=(256, 256), wall_slabs=32, noslip_iterations=5,
-               sleep=False, multisamples=MULTISAMPLES, name="mujoban"):
+    def _build(
+        self,
+        grid_shape=(10, 10),
+        max_boxes=4,
+        cell_size=1.0,
+        pegs=False,
+        offscreen_size=(256, 256),
+        wall_slabs=32,
+        noslip_iterations=5,
+        sleep=False,
+        multisamples=MULTISAMPLES,
+        name="mujoban",
+    ):
         self._mjcf_root = mjcf.RootElement(model=name)
         height, width = grid_shape
         self.grid_shape = (int(height), int(width))
@@ -124,11 +134,16 @@ class MujobanArena(composer.Arena):
         self._set_visual(offscreen_size, multisamples)
         self._add_textures_and_floor()
         maze_size = max(height, width) * cell_size
-        fovy = float(np.rad2deg(2 * np.arctan2(TOP_CAMERA_PADDING * maze_size / 2,
-                                               TOP_CAMERA_DISTANCE)))
+        fovy = float(
+            np.rad2deg(2 * np.arctan2(TOP_CAMERA_PADDING * maze_size / 2, TOP_CAMERA_DISTANCE))
+        )
         self.top_camera = root.worldbody.add(
-            "camera", name="top_camera", pos=(0, 0, TOP_CAMERA_DISTANCE),
-            xyaxes=(1, 0, 0, 0, 1, 0), fovy=fovy)
+            "camera",
+            name="top_camera",
+            pos=(0, 0, TOP_CAMERA_DISTANCE),
+            xyaxes=(1, 0, 0, 0, 1, 0),
+            fovy=fovy,
+        )
 
         self._add_cells(wall_slabs)
         self.pegs = []
@@ -155,31 +170,49 @@ class MujobanArena(composer.Arena):
         root, cell_size = self._mjcf_root, self.cell_size
         height, width = self.grid_shape
         sky = labmaze_assets.get_sky_texture_paths(SKY_STYLE)
-        root.asset.add("texture", name="skybox", type="skybox", fileleft=sky.left,
-                       fileright=sky.right, fileup=sky.up, filedown=sky.down,
-                       filefront=sky.front, fileback=sky.back)
+        root.asset.add(
+            "texture",
+            name="skybox",
+            type="skybox",
+            fileleft=sky.left,
+            fileright=sky.right,
+            fileup=sky.up,
+            filedown=sky.down,
+            filefront=sky.front,
+            fileback=sky.back,
+        )
         # Every texture of the style is compiled in (uploaded to the GL
         # context once); an episode only re-points the materials' texture ids.
         self.wall_textures = [
             root.asset.add("texture", name=f"wall_{key}", type="2d", file=path)
-            for key, path in sorted(labmaze_assets.get_wall_texture_paths(TEXTURE_STYLE).items())]
+            for key, path in sorted(labmaze_assets.get_wall_texture_paths(TEXTURE_STYLE).items())
+        ]
         self.floor_textures = [
             root.asset.add("texture", name=f"floor_{key}", type="2d", file=path)
-            for key, path in sorted(labmaze_assets.get_floor_texture_paths(TEXTURE_STYLE).items())]
+            for key, path in sorted(labmaze_assets.get_floor_texture_paths(TEXTURE_STYLE).items())
+        ]
         # Textures are stretched over each geom face (texuniform off) and
         # repeated once per cell: ``texrepeat`` is the face's size in cells.
         self.wall_cell_material = root.asset.add(
-            "material", name="wall_cell", texture=self.wall_textures[0], texrepeat=(1, 1))
+            "material", name="wall_cell", texture=self.wall_textures[0], texrepeat=(1, 1)
+        )
         half_w, half_h = width * cell_size / 2, height * cell_size / 2
         self.floor_material = root.asset.add(
-            "material", name="floor", texture=self.floor_textures[0],
-            texrepeat=(width, height))
+            "material", name="floor", texture=self.floor_textures[0], texrepeat=(width, height)
+        )
         self.floor = root.worldbody.add(
-            "geom", name="floor", type="plane", size=(half_w, half_h, 0.5),
-            material=self.floor_material, contype=FLOOR_BIT, conaffinity=WALKER_BIT,
+            "geom",
+            name="floor",
+            type="plane",
+            size=(half_w, half_h, 0.5),
+            material=self.floor_material,
+            contype=FLOOR_BIT,
+            conaffinity=WALKER_BIT,
             # MuJoCo's default geom friction, as dm_control's maze floor; the
             # boxes touch the floor only through the task's contact pairs.
-            condim=3, friction=(1.0, 0.005, 0.0001))
+            condim=3,
+            friction=(1.0, 0.005, 0.0001),
+        )
 
     def _add_cells(self, wall_slabs) -> None:
         """Per cell a hidden collision box (a wall when the level says so), a
@@ -192,14 +225,23 @@ class MujobanArena(composer.Arena):
             row = []
             for c in range(width):
                 x, y = self.cell_centre(r, c)
-                row.append(root.worldbody.add(
-                    "geom", name=f"wall_{r}_{c}", type="box", size=(hc, hc, WALL_HEIGHT / 2),
-                    pos=(x, y, WALL_HEIGHT / 2), group=HIDDEN_GROUP,
-                    material=self.wall_cell_material,
-                    # Compiled as colliding so that MuJoCo puts them in the
-                    # world body's collision tree; the task switches the
-                    # non-wall cells off per level.
-                    contype=WALKER_BIT, conaffinity=WALKER_BIT | BOX_BIT, condim=3))
+                row.append(
+                    root.worldbody.add(
+                        "geom",
+                        name=f"wall_{r}_{c}",
+                        type="box",
+                        size=(hc, hc, WALL_HEIGHT / 2),
+                        pos=(x, y, WALL_HEIGHT / 2),
+                        group=HIDDEN_GROUP,
+                        material=self.wall_cell_material,
+                        # Compiled as colliding so that MuJoCo puts them in the
+                        # world body's collision tree; the task switches the
+                        # non-wall cells off per level.
+                        contype=WALKER_BIT,
+                        conaffinity=WALKER_BIT | BOX_BIT,
+                        condim=3,
+                    )
+                )
             self.wall_cells.append(row)
         # Render-only wall slabs. Real Boxoban levels need at most 19 (10 on
         # average); a level that needs more than the pool is drawn with its
@@ -209,19 +251,36 @@ class MujobanArena(composer.Arena):
         num_slabs = min(int(wall_slabs), height * width)
         self.slab_materials = [
             root.asset.add("material", name=f"wall_slab_{i}", texture=self.wall_textures[0])
-            for i in range(num_slabs)]
+            for i in range(num_slabs)
+        ]
         self.wall_slabs = [
-            root.worldbody.add("geom", name=f"wall_slab_{i}", type="box",
-                               size=(hc, hc, WALL_HEIGHT / 2), pos=(0, 0, -10),
-                               group=HIDDEN_GROUP, contype=0, conaffinity=0,
-                               material=self.slab_materials[i])
-            for i in range(num_slabs)]
+            root.worldbody.add(
+                "geom",
+                name=f"wall_slab_{i}",
+                type="box",
+                size=(hc, hc, WALL_HEIGHT / 2),
+                pos=(0, 0, -10),
+                group=HIDDEN_GROUP,
+                contype=0,
+                conaffinity=0,
+                material=self.slab_materials[i],
+            )
+            for i in range(num_slabs)
+        ]
         self.pads = [
-            root.worldbody.add("geom", name=f"pad_{i}", type="box",
-                               size=(0.5 * cell_size, 0.5 * cell_size, 0.004),
-                               pos=(0, 0, -10), group=HIDDEN_GROUP, contype=0, conaffinity=0,
-                               rgba=PAD_RGBA)
-            for i in range(self.max_boxes)]
+            root.worldbody.add(
+                "geom",
+                name=f"pad_{i}",
+                type="box",
+                size=(0.5 * cell_size, 0.5 * cell_size, 0.004),
+                pos=(0, 0, -10),
+                group=HIDDEN_GROUP,
+                contype=0,
+                conaffinity=0,
+                rgba=PAD_RGBA,
+            )
+            for i in range(self.max_boxes)
+        ]
 
     def _add_pegs(self) -> None:
         """Pegs at the inner grid corners: hidden collision boxes turned 45
@@ -235,23 +294,39 @@ class MujobanArena(composer.Arena):
                 x, y = x - hc, y + hc  # top-left corner of cell (r, c)
                 centres.append((x, y))
                 half = PEG_RADIUS / np.sqrt(2)
-                self.pegs.append(root.worldbody.add(
-                    "geom", name=f"peg_{r}_{c}", type="box",
-                    size=(half, half, PEG_HEIGHT / 2), pos=(x, y, PEG_HEIGHT / 2),
-                    quat=(np.cos(np.pi / 8), 0, 0, np.sin(np.pi / 8)),
-                    group=HIDDEN_GROUP, rgba=(0, 0, 0, 0),
-                    contype=0, conaffinity=WALKER_BIT | BOX_BIT, condim=3))
+                self.pegs.append(
+                    root.worldbody.add(
+                        "geom",
+                        name=f"peg_{r}_{c}",
+                        type="box",
+                        size=(half, half, PEG_HEIGHT / 2),
+                        pos=(x, y, PEG_HEIGHT / 2),
+                        quat=(np.cos(np.pi / 8), 0, 0, np.sin(np.pi / 8)),
+                        group=HIDDEN_GROUP,
+                        rgba=(0, 0, 0, 0),
+                        contype=0,
+                        conaffinity=WALKER_BIT | BOX_BIT,
+                        condim=3,
+                    )
+                )
         # Four sides with corners on the grid lines: the turned square.
         vert, face = _peg_mesh(np.asarray(centres), PEG_RADIUS, PEG_HEIGHT, sides=4)
         root.asset.add("mesh", name="pegs_mesh", vertex=vert, face=face)
-        root.worldbody.add("geom", name="pegs_visual", type="mesh", mesh="pegs_mesh",
-                           contype=0, conaffinity=0, rgba=PEG_RGBA,
-                           mass=0, density=0)
+        root.worldbody.add(
+            "geom",
+            name="pegs_visual",
+            type="mesh",
+            mesh="pegs_mesh",
+            contype=0,
+            conaffinity=0,
+            rgba=PEG_RGBA,
+            mass=0,
+            density=0,
+        )
 
     def cell_centre(self, row: int, col: int) -> tuple[float, float]:
         height, width = self.grid_shape
-        return ((col - (width - 1) / 2) * self.cell_size,
-                ((height - 1) / 2 - row) * self.cell_size)
+        return ((col - (width - 1) / 2) * self.cell_size, ((height - 1) / 2 - row) * self.cell_size)
 
     @property
     def mjcf_model(self):

@@ -39,10 +39,19 @@ from typing import Literal, Sequence, overload
 import numpy as np
 
 # Steps 2-5 (reverse play, the level); the names stay importable from here.
-from envs.mujoban.generator_reverse_play import (_LETTERS, _PLACEMENTS,  # noqa: F401
-                                                 _PULL_PROB, _STEPS_PER_CELL, _WALKS,
-                                                 _best_reverse_play, _distance, _Found,
-                                                 _reverse_walk, _shorten, _to_level)
+from envs.mujoban.generator_reverse_play import (
+    _LETTERS,  # noqa: F401
+    _PLACEMENTS,  # noqa: F401
+    _PULL_PROB,  # noqa: F401
+    _STEPS_PER_CELL,  # noqa: F401
+    _WALKS,  # noqa: F401
+    _best_reverse_play,
+    _distance,  # noqa: F401
+    _Found,  # noqa: F401
+    _reverse_walk,  # noqa: F401
+    _shorten,  # noqa: F401
+    _to_level,
+)
 from envs.mujoban.levels import Level
 
 __all__ = [
@@ -104,8 +113,7 @@ def difficulty(level: int) -> Difficulty:
       ValueError: if ``level`` is not an integer in 1..5.
     """
     if not _is_int(level) or not 1 <= level <= len(DIFFICULTIES):
-        raise ValueError(f"difficulty must be an integer in 1..{len(DIFFICULTIES)}, "
-                         f"got {level!r}")
+        raise ValueError(f"difficulty must be an integer in 1..{len(DIFFICULTIES)}, got {level!r}")
     return DIFFICULTIES[int(level) - 1]
 
 
@@ -119,26 +127,46 @@ def max_boxes(size: int) -> int:
 
 
 @overload
-def generate_level(level_or_size: int, num_boxes: int | None = None, *,
-                   seed: int | None = None, rng: np.random.Generator | None = None,
-                   return_solution: Literal[False] = False) -> Level: ...
+def generate_level(
+    level_or_size: int,
+    num_boxes: int | None = None,
+    *,
+    seed: int | None = None,
+    rng: np.random.Generator | None = None,
+    return_solution: Literal[False] = False,
+) -> Level: ...
 
 
 @overload
-def generate_level(level_or_size: int, num_boxes: int | None = None, *,
-                   seed: int | None = None, rng: np.random.Generator | None = None,
-                   return_solution: Literal[True]) -> tuple[Level, list[str]]: ...
+def generate_level(
+    level_or_size: int,
+    num_boxes: int | None = None,
+    *,
+    seed: int | None = None,
+    rng: np.random.Generator | None = None,
+    return_solution: Literal[True],
+) -> tuple[Level, list[str]]: ...
 
 
 @overload
-def generate_level(level_or_size: int, num_boxes: int | None = None, *,
-                   seed: int | None = None, rng: np.random.Generator | None = None,
-                   return_solution: bool = False) -> Level | tuple[Level, list[str]]: ...
+def generate_level(
+    level_or_size: int,
+    num_boxes: int | None = None,
+    *,
+    seed: int | None = None,
+    rng: np.random.Generator | None = None,
+    return_solution: bool = False,
+) -> Level | tuple[Level, list[str]]: ...
 
 
-def generate_level(level_or_size: int, num_boxes: int | None = None, *,
-                   seed: int | None = None, rng: np.random.Generator | None = None,
-                   return_solution: bool = False) -> Level | tuple[Level, list[str]]:
+def generate_level(
+    level_or_size: int,
+    num_boxes: int | None = None,
+    *,
+    seed: int | None = None,
+    rng: np.random.Generator | None = None,
+    return_solution: bool = False,
+) -> Level | tuple[Level, list[str]]:
     """A random solvable Sokoban level made by reverse play (see module docstring).
 
     Call either ``generate_level(difficulty)`` with a paper difficulty 1..5, or
@@ -172,11 +200,14 @@ def generate_level(level_or_size: int, num_boxes: int | None = None, *,
         if found is not None:
             level, solution = _to_level(floor, size, found)
             return (level, solution) if return_solution else level
-    raise RuntimeError(f"could not generate a {size}x{size} level with {boxes} boxes in "
-                       f"{_MAX_ROOMS} rooms; try fewer boxes or a larger size")
+    raise RuntimeError(
+        f"could not generate a {size}x{size} level with {boxes} boxes in "
+        f"{_MAX_ROOMS} rooms; try fewer boxes or a larger size"
+    )
 
 
 # -- arguments -----------------------------------------------------------------
+
 
 def _is_int(value) -> bool:
     return isinstance(value, numbers.Integral) and not isinstance(value, bool)
@@ -188,12 +219,15 @@ def _resolve_shape(level_or_size: int, num_boxes: int | None) -> tuple[int, int]
         spec = difficulty(level_or_size)
         return spec.size, spec.num_boxes
     if not _is_int(level_or_size) or level_or_size < MIN_SIZE:
-        raise ValueError(f"size must be an integer >= {MIN_SIZE} (outer walls included), "
-                         f"got {level_or_size!r}")
+        raise ValueError(
+            f"size must be an integer >= {MIN_SIZE} (outer walls included), got {level_or_size!r}"
+        )
     size = int(level_or_size)
     if not _is_int(num_boxes) or not 1 <= num_boxes <= max_boxes(size):
-        raise ValueError(f"num_boxes must be an integer in 1..{max_boxes(size)} for a "
-                         f"{size}x{size} room, got {num_boxes!r}")
+        raise ValueError(
+            f"num_boxes must be an integer in 1..{max_boxes(size)} for a "
+            f"{size}x{size} room, got {num_boxes!r}"
+        )
     return size, int(num_boxes)
 
 
@@ -208,6 +242,7 @@ def _make_rng(seed: int | None, rng: np.random.Generator | None) -> np.random.Ge
 
 
 # -- step 1: the room ------------------------------------------------------------
+
 
 def _carve_room(size: int, num_boxes: int, rng: np.random.Generator) -> bytearray | None:
     """A room as a flat ``size*size`` bytearray (1 = floor), or None if too small.
@@ -258,6 +293,7 @@ def _walk_step(r: int, c: int, direction: int, size: int, spin: int) -> tuple[in
 
 # -- curriculum ---------------------------------------------------------------------
 
+
 class Curriculum:
     """The paper's training curriculum: a difficulty drawn by ratio, then a level.
 
@@ -298,8 +334,9 @@ def _check_ratios(ratios: Sequence[float]) -> tuple[float, ...]:
     except (TypeError, ValueError):
         raise ValueError(f"ratios must be {len(DIFFICULTIES)} numbers, got {ratios!r}") from None
     if len(values) != len(DIFFICULTIES):
-        raise ValueError(f"ratios must have {len(DIFFICULTIES)} entries (one per "
-                         f"difficulty), got {len(values)}")
+        raise ValueError(
+            f"ratios must have {len(DIFFICULTIES)} entries (one per difficulty), got {len(values)}"
+        )
     if not all(np.isfinite(p) and p >= 0 for p in values):
         raise ValueError(f"ratios must be non-negative, got {values}")
     if abs(sum(values) - 1.0) > 1e-6:

@@ -44,8 +44,9 @@ class _Found:
     moves: list[int]
 
 
-def _best_reverse_play(floor: bytearray, size: int, num_boxes: int,
-                       rng: np.random.Generator) -> _Found | None:
+def _best_reverse_play(
+    floor: bytearray, size: int, num_boxes: int, rng: np.random.Generator
+) -> _Found | None:
     """The best state over several placements and walks, or None."""
     cells = np.flatnonzero(np.frombuffer(bytes(floor), dtype=np.uint8))
     steps = _STEPS_PER_CELL * len(cells)
@@ -60,8 +61,14 @@ def _best_reverse_play(floor: bytearray, size: int, num_boxes: int,
     return best
 
 
-def _reverse_walk(floor: bytearray, size: int, targets: tuple[int, ...], player: int,
-                  steps: int, rng: np.random.Generator) -> _Found | None:
+def _reverse_walk(
+    floor: bytearray,
+    size: int,
+    targets: tuple[int, ...],
+    player: int,
+    steps: int,
+    rng: np.random.Generator,
+) -> _Found | None:
     """One random walk of reverse play from the solved state.
 
     Returns the walk's best state (see `_Found.rank`) among those with a
@@ -87,8 +94,9 @@ def _reverse_walk(floor: bytearray, size: int, targets: tuple[int, ...], player:
             where[player] = box
             boxes[box] = player
             on_target += (player in target_set) - (behind in target_set)
-            displacement += (_distance(player, targets[box], size)
-                             - _distance(behind, targets[box], size))
+            displacement += _distance(player, targets[box], size) - _distance(
+                behind, targets[box], size
+            )
             swaps += box != last
             last = box
         player = ahead
@@ -111,20 +119,27 @@ def _distance(a: int, b: int, size: int) -> int:
 
 # -- step 5: the level -------------------------------------------------------------
 
+
 def _to_level(floor: bytearray, size: int, found: _Found) -> tuple[Level, list[str]]:
     """The `Level` of a reverse-play state and its forward solution."""
     cell = lambda i: divmod(i, size)  # noqa: E731
     walls = frozenset(cell(i) for i in range(size * size) if not floor[i])
-    level = Level(walls=walls, targets=frozenset(map(cell, found.targets)),
-                  boxes=frozenset(map(cell, found.boxes)), player=cell(found.player),
-                  height=size, width=size)
+    level = Level(
+        walls=walls,
+        targets=frozenset(map(cell, found.targets)),
+        boxes=frozenset(map(cell, found.boxes)),
+        player=cell(found.player),
+        height=size,
+        width=size,
+    )
     forward = [d ^ 1 for d in reversed(found.moves)]
     solution = _shorten(forward, size, found.boxes, found.player, set(found.targets))
     return level, [_LETTERS[d] for d in solution]
 
 
-def _shorten(moves: list[int], size: int, boxes: tuple[int, ...], player: int,
-             targets: set[int]) -> list[int]:
+def _shorten(
+    moves: list[int], size: int, boxes: tuple[int, ...], player: int, targets: set[int]
+) -> list[int]:
     """A forward solution without its detours.
 
     Replays ``moves`` (known to end solved), cutting out every loop that
@@ -145,9 +160,9 @@ def _shorten(moves: list[int], size: int, boxes: tuple[int, ...], player: int,
         player = ahead
         state = (player, frozenset(box_set))
         if state in seen:  # a loop: forget everything since the first visit
-            for dropped in states[seen[state] + 1:]:
+            for dropped in states[seen[state] + 1 :]:
                 del seen[dropped]
-            del states[seen[state] + 1:], kept[seen[state]:]
+            del states[seen[state] + 1 :], kept[seen[state] :]
         else:
             kept.append(d)
             states.append(state)

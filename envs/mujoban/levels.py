@@ -57,11 +57,24 @@ import numpy as np
 from physics_planning.cli import UsageError
 
 # The character grammar of level text; its names stay importable from here.
-from envs.mujoban.levels_text import (_CANONICAL, _VALID_TEXT, BOX,  # noqa: F401
-                                      BOX_ON_TARGET, FLOOR, FLOOR_ALIASES, PLAYER,
-                                      PLAYER_ON_TARGET, TARGET, WALL, _blocks,
-                                      _check_characters, _check_rectangular, _collect,
-                                      _index_from_name, _split_rows)
+from envs.mujoban.levels_text import (
+    _CANONICAL,  # noqa: F401
+    _VALID_TEXT,  # noqa: F401
+    BOX,  # noqa: F401
+    BOX_ON_TARGET,
+    FLOOR,
+    FLOOR_ALIASES,  # noqa: F401
+    PLAYER,
+    PLAYER_ON_TARGET,
+    TARGET,
+    WALL,
+    _blocks,
+    _check_characters,
+    _check_rectangular,
+    _collect,
+    _index_from_name,
+    _split_rows,
+)
 
 __all__ = [
     "BOXOBAN_DIR",
@@ -96,9 +109,15 @@ class LevelError(UsageError):
       column: 1-based column number, if known.
     """
 
-    def __init__(self, reason: str, *, path: str | os.PathLike | None = None,
-                 index: int | None = None, line: int | None = None,
-                 column: int | None = None) -> None:
+    def __init__(
+        self,
+        reason: str,
+        *,
+        path: str | os.PathLike | None = None,
+        index: int | None = None,
+        line: int | None = None,
+        column: int | None = None,
+    ) -> None:
         self.reason = reason
         self.path = None if path is None else os.fspath(path)
         self.index = index
@@ -124,8 +143,7 @@ class LevelError(UsageError):
 
     def __reduce__(self):
         # Keyword-only arguments need help to survive pickling (multiprocessing).
-        return (_rebuild_level_error,
-                (self.reason, self.path, self.index, self.line, self.column))
+        return (_rebuild_level_error, (self.reason, self.path, self.index, self.line, self.column))
 
 
 def _rebuild_level_error(reason, path, index, line, column) -> LevelError:
@@ -185,13 +203,18 @@ class Level:
     def _validate(self) -> None:
         if self.height < 1 or self.width < 1:
             raise self._error(f"level must be at least 1x1, got {self.height}x{self.width}")
-        groups = (("wall", self.walls), ("target", self.targets), ("box", self.boxes),
-                  ("player", (self.player,)))
+        groups = (
+            ("wall", self.walls),
+            ("target", self.targets),
+            ("box", self.boxes),
+            ("player", (self.player,)),
+        )
         for kind, cells in groups:
             for r, c in sorted(cells):
                 if not (0 <= r < self.height and 0 <= c < self.width):
-                    raise self._error(f"{kind} at {(r, c)} is outside the "
-                                      f"{self.height}x{self.width} grid")
+                    raise self._error(
+                        f"{kind} at {(r, c)} is outside the {self.height}x{self.width} grid"
+                    )
         for kind, cells in groups[1:]:
             on_wall = sorted(set(cells) & self.walls)
             if on_wall:
@@ -201,15 +224,20 @@ class Level:
         if not self.boxes:
             raise self._error("level has no box")
         if len(self.boxes) != len(self.targets):
-            raise self._error(f"level has {len(self.boxes)} boxes but "
-                              f"{len(self.targets)} targets")
+            raise self._error(f"level has {len(self.boxes)} boxes but {len(self.targets)} targets")
 
     # -- text ----------------------------------------------------------------
 
     @classmethod
-    def from_text(cls, text: str, *, path: str | os.PathLike | None = None,
-                  index: int | None = None, first_line: int = 1,
-                  name: str | None = None) -> Level:
+    def from_text(
+        cls,
+        text: str,
+        *,
+        path: str | os.PathLike | None = None,
+        index: int | None = None,
+        first_line: int = 1,
+        name: str | None = None,
+    ) -> Level:
         """Parse one level written one row per line (see the module docstring).
 
         Args:
@@ -239,17 +267,26 @@ class Level:
             raise error("no player ('@' or '+')", first_line)
         if len(players) > 1:
             (r, c) = players[1]
-            raise error(f"more than one player (the first is at line "
-                        f"{first_line + players[0][0]}, column {players[0][1] + 1})",
-                        first_line + r, c + 1)
+            raise error(
+                f"more than one player (the first is at line "
+                f"{first_line + players[0][0]}, column {players[0][1] + 1})",
+                first_line + r,
+                c + 1,
+            )
         if not boxes:
             raise error("level has no box", first_line)
         if len(boxes) != len(targets):
-            raise error(f"level has {len(boxes)} boxes but {len(targets)} targets",
-                        first_line)
-        return cls(walls=frozenset(walls), targets=frozenset(targets),
-                   boxes=frozenset(boxes), player=players[0], height=len(rows),
-                   width=len(rows[0]), name=name, path=path)
+            raise error(f"level has {len(boxes)} boxes but {len(targets)} targets", first_line)
+        return cls(
+            walls=frozenset(walls),
+            targets=frozenset(targets),
+            boxes=frozenset(boxes),
+            player=players[0],
+            height=len(rows),
+            width=len(rows[0]),
+            name=name,
+            path=path,
+        )
 
     def to_text(self) -> str:
         """The level's rows joined by newlines (no trailing newline).
@@ -290,16 +327,23 @@ class Level:
           LevelError: if the level is larger than (height, width).
         """
         if self.height > height or self.width > width:
-            raise self._error(f"level is {self.height}x{self.width}, larger than the "
-                              f"arena's {height}x{width}")
+            raise self._error(
+                f"level is {self.height}x{self.width}, larger than the arena's {height}x{width}"
+            )
         dr, dc = (height - self.height) // 2, (width - self.width) // 2
         shift = lambda cells: frozenset((r + dr, c + dc) for r, c in cells)  # noqa: E731
-        inside = {(r, c) for r in range(dr, dr + self.height)
-                  for c in range(dc, dc + self.width)}
+        inside = {(r, c) for r in range(dr, dr + self.height) for c in range(dc, dc + self.width)}
         border = {(r, c) for r in range(height) for c in range(width)} - inside
-        return Level(walls=shift(self.walls) | border, targets=shift(self.targets),
-                     boxes=shift(self.boxes), player=(self.player[0] + dr, self.player[1] + dc),
-                     height=height, width=width, name=self.name, path=self.path)
+        return Level(
+            walls=shift(self.walls) | border,
+            targets=shift(self.targets),
+            boxes=shift(self.boxes),
+            player=(self.player[0] + dr, self.player[1] + dc),
+            height=height,
+            width=width,
+            name=self.name,
+            path=self.path,
+        )
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -312,6 +356,7 @@ class Level:
 
 
 # -- files ---------------------------------------------------------------------
+
 
 def parse_levels(text: str, path: str | os.PathLike | None = None) -> list[Level]:
     """All levels of a multi-level text (Boxoban layout, see module docstring).
@@ -328,9 +373,15 @@ def parse_levels(text: str, path: str | os.PathLike | None = None) -> list[Level
     levels = []
     for position, (name, start, rows) in enumerate(_blocks(text)):
         index = _index_from_name(name)
-        levels.append(Level.from_text("\n".join(rows), path=path,
-                                      index=position if index is None else index,
-                                      first_line=start, name=name))
+        levels.append(
+            Level.from_text(
+                "\n".join(rows),
+                path=path,
+                index=position if index is None else index,
+                first_line=start,
+                name=name,
+            )
+        )
     return levels
 
 
@@ -371,8 +422,10 @@ def write_levels(levels: Iterable[Level], path_or_textio: str | os.PathLike | IO
     for i, level in enumerate(levels):
         name = str(i) if level.name is None else level.name
         if "\n" in name or "\r" in name or name != name.strip():
-            raise ValueError(f"level {i}: name {name!r} cannot be written as a '; name' "
-                             f"header (line break or surrounding whitespace)")
+            raise ValueError(
+                f"level {i}: name {name!r} cannot be written as a '; name' "
+                f"header (line break or surrounding whitespace)"
+            )
         chunks.append(f"; {name}\n{_writable_rows(level)}\n\n")
     text = "".join(chunks)
     if hasattr(path_or_textio, "write"):

@@ -34,8 +34,9 @@ def _check_characters(rows: list[str], first_line: int, error) -> None:
     for r, row in enumerate(rows):
         for c, char in enumerate(row):
             if char not in allowed:
-                raise error(f"unknown character {char!r} (valid: {_VALID_TEXT})",
-                            first_line + r, c + 1)
+                raise error(
+                    f"unknown character {char!r} (valid: {_VALID_TEXT})", first_line + r, c + 1
+                )
 
 
 def _check_rectangular(rows: list[str], first_line: int, error) -> None:
@@ -46,9 +47,12 @@ def _check_rectangular(rows: list[str], first_line: int, error) -> None:
     for r, row in enumerate(rows):
         if len(row) != expected:
             kind = "shorter" if len(row) < expected else "longer"
-            raise error(f"ragged rows: this row has {len(row)} characters, {kind} than "
-                        f"the level's {expected}", first_line + r,
-                        min(len(row), expected) + 1)
+            raise error(
+                f"ragged rows: this row has {len(row)} characters, {kind} than "
+                f"the level's {expected}",
+                first_line + r,
+                min(len(row), expected) + 1,
+            )
 
 
 def _collect(rows: list[str]):

@@ -28,16 +28,25 @@ class Box(composer.Entity):
     larger of the two geoms' values).
     """
 
-    def _build(self, half_size=BOX_HALF_SIZE, half_height=BOX_HALF_HEIGHT, mass=BOX_MASS,
-               name="box"):
+    def _build(
+        self, half_size=BOX_HALF_SIZE, half_height=BOX_HALF_HEIGHT, mass=BOX_MASS, name="box"
+    ):
         self._mjcf_root = mjcf.RootElement(model=name)
         self.half_size = half_size
         self.half_height = half_height
         self.body = self._mjcf_root.worldbody.add("body", name="body")
         self.geom = self.body.add(
-            "geom", name="geom", type="box", size=(half_size, half_size, half_height),
-            mass=mass, rgba=BOX_RGBA, contype=BOX_BIT, conaffinity=WALKER_BIT | BOX_BIT,
-            condim=3, friction=(1.0, 0.005, 0.0001))
+            "geom",
+            name="geom",
+            type="box",
+            size=(half_size, half_size, half_height),
+            mass=mass,
+            rgba=BOX_RGBA,
+            contype=BOX_BIT,
+            conaffinity=WALKER_BIT | BOX_BIT,
+            condim=3,
+            friction=(1.0, 0.005, 0.0001),
+        )
 
     @property
     def mjcf_model(self):

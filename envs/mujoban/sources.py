@@ -72,8 +72,10 @@ class FileLevels:
             raise LevelError("the file holds no level", path=str(self.path))
         if not 0 <= self.start < len(self.levels):
             raise ValueError(f"start must be in [0, {len(self.levels) - 1}], got {self.start}")
-        self.max_shape = (max(lvl.height for lvl in self.levels),
-                          max(lvl.width for lvl in self.levels))
+        self.max_shape = (
+            max(lvl.height for lvl in self.levels),
+            max(lvl.width for lvl in self.levels),
+        )
         self.max_boxes = max(len(lvl.boxes) for lvl in self.levels)
         self._next = self.start
 
@@ -102,8 +104,10 @@ class FixedLevels:
         for lvl in self.levels:
             if not isinstance(lvl, Level):
                 raise TypeError(f"expected Level objects, got {type(lvl).__name__}")
-        self.max_shape = (max(lvl.height for lvl in self.levels),
-                          max(lvl.width for lvl in self.levels))
+        self.max_shape = (
+            max(lvl.height for lvl in self.levels),
+            max(lvl.width for lvl in self.levels),
+        )
         self.max_boxes = max(len(lvl.boxes) for lvl in self.levels)
         self._next = 0
 

@@ -56,14 +56,29 @@ from envs.core import PhysicsTask
 from envs.mujoban import arena as arena_lib
 from envs.mujoban.levels import Level, LevelError  # noqa: F401  (LevelError: re-export)
 from envs.mujoban.props import BOX_FLOOR_FRICTION, Box
+
 # The task's parts by concern; their public names stay importable from here.
 from envs.mujoban.task_layout import _PARKED_Z, LayoutMixin  # noqa: F401
-from envs.mujoban.task_looks import (_TEXROLE_RGB, BALL_RADIUS, EAR_RGBA,  # noqa: F401
-                                     LooksMixin)
-from envs.mujoban.task_observations import (_CHANNEL_WEIGHTS, _COLOUR_TABLE,  # noqa: F401
-                                            BOX, ENTITY_CHANNELS, PIXEL_COLOURS, PLAYER,
-                                            TARGET, WALL, ObservationsMixin, _as_slice,
-                                            _build_colour_table, entity_layer_to_pixels)
+from envs.mujoban.task_looks import (
+    _TEXROLE_RGB,  # noqa: F401
+    BALL_RADIUS,  # noqa: F401
+    EAR_RGBA,  # noqa: F401
+    LooksMixin,
+)
+from envs.mujoban.task_observations import (
+    _CHANNEL_WEIGHTS,  # noqa: F401
+    _COLOUR_TABLE,  # noqa: F401
+    BOX,  # noqa: F401
+    ENTITY_CHANNELS,  # noqa: F401
+    PIXEL_COLOURS,  # noqa: F401
+    PLAYER,  # noqa: F401
+    TARGET,  # noqa: F401
+    WALL,  # noqa: F401
+    ObservationsMixin,
+    _as_slice,  # noqa: F401
+    _build_colour_table,  # noqa: F401
+    entity_layer_to_pixels,  # noqa: F401
+)
 from envs.rendering import CameraConfig
 
 LevelSource = Callable[[np.random.Generator], Level]
@@ -127,18 +142,38 @@ class Mujoban(ObservationsMixin, LooksMixin, LayoutMixin, PhysicsTask):
     state_observations = ("full_entity_layer",)
     #: The reward and the success rule in a sentence each (the module
     #: docstring has the details; the environment gallery's cards show these).
-    reward_rule = ("+1 at the control step a box comes to cover a target pad, -1 when a box "
-                   "leaves one, 0 otherwise; +10 more at the step every pad is covered.")
-    success_rule = ("Solved when every pad is covered by a box: the episode then terminates "
-                    "(discount 0). It also terminates if the walker dies (never for the "
-                    "rolling ball); at the time limit it is truncated (discount 1), unsolved.")
+    reward_rule = (
+        "+1 at the control step a box comes to cover a target pad, -1 when a box "
+        "leaves one, 0 otherwise; +10 more at the step every pad is covered."
+    )
+    success_rule = (
+        "Solved when every pad is covered by a box: the episode then terminates "
+        "(discount 0). It also terminates if the walker dies (never for the "
+        "rolling ball); at the time limit it is truncated (discount 1), unsolved."
+    )
 
-    def __init__(self, level_source: LevelSource, *, grid_shape=(10, 10), max_boxes=4,
-                 pegs=False, top_camera=(96, 96), egocentric_camera=(96, 96),
-                 randomize_appearance=True, control_timestep=0.05, physics_timestep=0.001,
-                 time_limit=45.0, pad_tolerance=0.1, cell_size=1.0, render_size=(256, 256),
-                 wall_slabs=32, walker=None, noslip_iterations=5, sleep=False,
-                 multisamples=arena_lib.MULTISAMPLES):
+    def __init__(
+        self,
+        level_source: LevelSource,
+        *,
+        grid_shape=(10, 10),
+        max_boxes=4,
+        pegs=False,
+        top_camera=(96, 96),
+        egocentric_camera=(96, 96),
+        randomize_appearance=True,
+        control_timestep=0.05,
+        physics_timestep=0.001,
+        time_limit=45.0,
+        pad_tolerance=0.1,
+        cell_size=1.0,
+        render_size=(256, 256),
+        wall_slabs=32,
+        walker=None,
+        noslip_iterations=5,
+        sleep=False,
+        multisamples=arena_lib.MULTISAMPLES,
+    ):
         if not callable(level_source):
             raise TypeError("level_source must be callable as level_source(rng) -> Level")
         grid_shape = tuple(int(v) for v in grid_shape)
@@ -152,10 +187,14 @@ class Mujoban(ObservationsMixin, LooksMixin, LayoutMixin, PhysicsTask):
             raise ValueError(f"time_limit must be positive seconds, got {time_limit}")
         if not isinstance(sleep, bool):
             raise TypeError(f"sleep must be True or False, got {sleep!r}")
-        if (not isinstance(noslip_iterations, numbers.Integral)
-                or isinstance(noslip_iterations, bool) or noslip_iterations < 0):
-            raise ValueError(f"noslip_iterations must be an integer >= 0, "
-                             f"got {noslip_iterations!r}")
+        if (
+            not isinstance(noslip_iterations, numbers.Integral)
+            or isinstance(noslip_iterations, bool)
+            or noslip_iterations < 0
+        ):
+            raise ValueError(
+                f"noslip_iterations must be an integer >= 0, got {noslip_iterations!r}"
+            )
         self._level_source = level_source
         self._randomize_appearance = bool(randomize_appearance)
         self._pad_tolerance = float(pad_tolerance) * cell_size
@@ -164,11 +203,19 @@ class Mujoban(ObservationsMixin, LooksMixin, LayoutMixin, PhysicsTask):
         sizes = [tuple(s) for s in (top_camera, egocentric_camera, render_size) if s]
         offscreen = (max(s[0] for s in sizes), max(s[1] for s in sizes))
         self._arena = arena_lib.MujobanArena(
-            grid_shape=grid_shape, max_boxes=max_boxes, cell_size=cell_size, pegs=pegs,
-            offscreen_size=offscreen, wall_slabs=wall_slabs, noslip_iterations=noslip_iterations,
-            sleep=sleep, multisamples=multisamples)
+            grid_shape=grid_shape,
+            max_boxes=max_boxes,
+            cell_size=cell_size,
+            pegs=pegs,
+            offscreen_size=offscreen,
+            wall_slabs=wall_slabs,
+            noslip_iterations=noslip_iterations,
+            sleep=sleep,
+            multisamples=multisamples,
+        )
         self._walker = walker or jumping_ball.RollingBallWithHead(
-            name="walker", add_ears=True, camera_height=0.25)
+            name="walker", add_ears=True, camera_height=0.25
+        )
         self._add_walker_touch_sensor()
         self._walker.create_root_joints(self._arena.attach(self._walker))
 
@@ -179,12 +226,26 @@ class Mujoban(ObservationsMixin, LooksMixin, LayoutMixin, PhysicsTask):
             box = Box(name=f"box_{i}")
             frame = self._arena.attach(box)
             frame.pos = (0, 0, box.half_height)  # resting on the floor at qpos z = 0
-            joints = [frame.add("joint", name=f"box_{i}_{axis}", type="slide", axis=vec,
-                                frictionloss=0.0, damping=0.0, armature=0.0)
-                      for axis, vec in (("x", (1, 0, 0)), ("y", (0, 1, 0)), ("z", (0, 0, 1)))]
+            joints = [
+                frame.add(
+                    "joint",
+                    name=f"box_{i}_{axis}",
+                    type="slide",
+                    axis=vec,
+                    frictionloss=0.0,
+                    damping=0.0,
+                    armature=0.0,
+                )
+                for axis, vec in (("x", (1, 0, 0)), ("y", (0, 1, 0)), ("z", (0, 0, 1)))
+            ]
             self._arena.mjcf_model.contact.add(
-                "pair", name=f"box_{i}_floor", geom1=box.geom, geom2=self._arena.floor,
-                condim=6, friction=(sliding, sliding, torsional, rolling, rolling))
+                "pair",
+                name=f"box_{i}_floor",
+                geom1=box.geom,
+                geom2=self._arena.floor,
+                condim=6,
+                friction=(sliding, sliding, torsional, rolling, rolling),
+            )
             self._boxes.append(box)
             self._box_joints.append(joints)
 
@@ -193,7 +254,8 @@ class Mujoban(ObservationsMixin, LooksMixin, LayoutMixin, PhysicsTask):
             self._cameras["top_camera"] = CameraConfig("top_camera", *top_camera)
         if egocentric_camera:
             self._cameras["walker/egocentric_camera"] = CameraConfig(
-                self._walker.egocentric_camera.full_identifier, *egocentric_camera)
+                self._walker.egocentric_camera.full_identifier, *egocentric_camera
+            )
 
         self.set_timesteps(control_timestep=control_timestep, physics_timestep=physics_timestep)
         self.time_limit_steps = int(round(time_limit / control_timestep))
@@ -241,8 +303,9 @@ class Mujoban(ObservationsMixin, LooksMixin, LayoutMixin, PhysicsTask):
         self._slab_ids = np.array([bind(g).element_id for g in arena.wall_slabs])
         self._pad_ids = np.array([bind(g).element_id for g in arena.pads])
         self._floor_mat = bind(arena.floor_material).element_id
-        self._wall_mats = np.array([bind(m).element_id for m in
-                                    [arena.wall_cell_material, *arena.slab_materials]])
+        self._wall_mats = np.array(
+            [bind(m).element_id for m in [arena.wall_cell_material, *arena.slab_materials]]
+        )
         self._slab_mats = self._wall_mats[1:]
         self._floor_tex_ids = [bind(t).element_id for t in arena.floor_textures]
         self._wall_tex_ids = [bind(t).element_id for t in arena.wall_textures]
@@ -264,8 +327,13 @@ class Mujoban(ObservationsMixin, LooksMixin, LayoutMixin, PhysicsTask):
         self._qpos, self._qvel, self._qfrc_actuator = d.qpos, d.qvel, d.qfrc_actuator
         self._xpos, self._xmat, self._sensordata, self._ctrl = d.xpos, d.xmat, d.sensordata, d.ctrl
         # Constants of world -> cell rounding, for the per-step estimate.
-        self._rounding = (1.0 / self.cell_size, (width - 1) / 2, (height - 1) / 2,
-                          height - 1, width - 1)
+        self._rounding = (
+            1.0 / self.cell_size,
+            (width - 1) / 2,
+            (height - 1) / 2,
+            height - 1,
+            width - 1,
+        )
         self._static_layer = np.zeros((height, width, 4), bool)
         self._targets: list[tuple[int, int]] = []
         self._target_xy: list[tuple[float, float]] = []
@@ -346,8 +414,10 @@ class Mujoban(ObservationsMixin, LooksMixin, LayoutMixin, PhysicsTask):
             if covered != previous or any(covered):  # the covering box may change
                 self._paint_pads()
             # The paper's estimate: boxes first, then the walker unless it overlaps a box.
-            box_cells = tuple((min(max(round(cy - y * inv), 0), rmax),
-                               min(max(round(x * inv + cx), 0), cmax)) for x, y in boxes)
+            box_cells = tuple(
+                (min(max(round(cy - y * inv), 0), rmax), min(max(round(x * inv + cx), 0), cmax))
+                for x, y in boxes
+            )
         self._solved = all(self._covered)
         self._reward = float(entered - left) + (10.0 if self._solved else 0.0)
 
@@ -373,8 +443,9 @@ class Mujoban(ObservationsMixin, LooksMixin, LayoutMixin, PhysicsTask):
     def action_spec(self, physics):
         ranges = self._model.actuator_ctrlrange[self._act_ids]
         names = ",".join(a.name for a in self._walker.actuators)
-        return specs.BoundedArray((len(self._act_ids),), np.float64, ranges[:, 0], ranges[:, 1],
-                                  name=names)
+        return specs.BoundedArray(
+            (len(self._act_ids),), np.float64, ranges[:, 0], ranges[:, 1], name=names
+        )
 
     # -- rules: state of the pads ------------------------------------------
 
@@ -408,5 +479,7 @@ class Mujoban(ObservationsMixin, LooksMixin, LayoutMixin, PhysicsTask):
 
     def _pads_covered(self, boxes) -> tuple[bool, ...]:
         tol = self._pad_tolerance
-        return tuple(any(abs(tx - bx) <= tol and abs(ty - by) <= tol for bx, by in boxes)
-                     for tx, ty in self._target_xy)
+        return tuple(
+            any(abs(tx - bx) <= tol and abs(ty - by) <= tol for bx, by in boxes)
+            for tx, ty in self._target_xy
+        )

@@ -26,16 +26,17 @@ class LayoutMixin:
 
     # Set by `Mujoban` (its arena and compiled-model indices).
     _arena: arena_lib.MujobanArena
-    _model: Any             # mujoco.MjModel (mujoco has no type stubs)
+    _model: Any  # mujoco.MjModel (mujoco has no type stubs)
     _boxes: list
     _wall_ids: np.ndarray
     _slab_ids: np.ndarray
     _slab_mats: np.ndarray
     _box_qpos_list: list[tuple[int, ...]]
     _pad_ids: np.ndarray
-    level: Level | None     # the level loaded (None before the first episode)
+    level: Level | None  # the level loaded (None before the first episode)
 
-    if TYPE_CHECKING:       # `Mujoban`'s properties
+    if TYPE_CHECKING:  # `Mujoban`'s properties
+
         @property
         def grid_shape(self) -> tuple[int, int]: ...
 
@@ -45,11 +46,19 @@ class LayoutMixin:
     def _set_level(self, level: Level) -> None:
         height, width = self.grid_shape
         if level.height > height or level.width > width:
-            raise LevelError(f"level is {level.height}x{level.width}, larger than the arena's "
-                             f"{height}x{width} (raise grid_shape)", path=None, index=None)
+            raise LevelError(
+                f"level is {level.height}x{level.width}, larger than the arena's "
+                f"{height}x{width} (raise grid_shape)",
+                path=None,
+                index=None,
+            )
         if len(level.boxes) > len(self._boxes):
-            raise LevelError(f"level has {len(level.boxes)} boxes, the arena holds at most "
-                             f"{len(self._boxes)} (raise max_boxes)", path=None, index=None)
+            raise LevelError(
+                f"level has {len(level.boxes)} boxes, the arena holds at most "
+                f"{len(self._boxes)} (raise max_boxes)",
+                path=None,
+                index=None,
+            )
         if (level.height, level.width) != (height, width):
             level = level.padded(height, width)
         self.level = level
@@ -59,8 +68,9 @@ class LayoutMixin:
             walls[r, c] = True
         ids = self._wall_ids.ravel()
         m.geom_contype[ids] = np.where(walls.ravel(), arena_lib.WALKER_BIT, 0)
-        m.geom_conaffinity[ids] = np.where(walls.ravel(),
-                                           arena_lib.WALKER_BIT | arena_lib.BOX_BIT, 0)
+        m.geom_conaffinity[ids] = np.where(
+            walls.ravel(), arena_lib.WALKER_BIT | arena_lib.BOX_BIT, 0
+        )
         cell = self.cell_size
         rects = arena_lib.wall_rectangles(walls)
         self._walls_drawn_per_cell = len(rects) > len(self._slab_ids)
@@ -75,8 +85,11 @@ class LayoutMixin:
                 x0, y0 = self._arena.cell_centre(r0, c0)
                 x1, y1 = self._arena.cell_centre(r1 - 1, c1 - 1)
                 m.geom_pos[slab] = ((x0 + x1) / 2, (y0 + y1) / 2, arena_lib.WALL_HEIGHT / 2)
-                m.geom_size[slab] = ((c1 - c0) * cell / 2, (r1 - r0) * cell / 2,
-                                     arena_lib.WALL_HEIGHT / 2)
+                m.geom_size[slab] = (
+                    (c1 - c0) * cell / 2,
+                    (r1 - r0) * cell / 2,
+                    arena_lib.WALL_HEIGHT / 2,
+                )
                 m.mat_texrepeat[self._slab_mats[k]] = (c1 - c0, r1 - r0)
                 m.geom_group[slab] = 0
             else:

@@ -32,7 +32,7 @@ class LooksMixin:
 
     # Set by `Mujoban` (its arena, compiled-model indices and episode state).
     _arena: arena_lib.MujobanArena
-    _model: Any             # mujoco.MjModel (mujoco has no type stubs)
+    _model: Any  # mujoco.MjModel (mujoco has no type stubs)
     _wall_mats: np.ndarray
     _wall_tex_ids: list[int]
     _floor_mat: int
@@ -48,27 +48,44 @@ class LooksMixin:
     def description(self):
         """The public `envs.description.MujobanDescription` of this task."""
         from envs.description import CameraDescription, MujobanDescription, MujobanLooks
+
         arena = self._arena
         cam = arena.top_camera
         top = CameraDescription(
-            "top_camera", tuple(float(v) for v in cam.pos), tuple(float(v) for v in cam.xyaxes),
-            float(cam.fovy), (self._cameras["top_camera"].height, self._cameras["top_camera"].width)
-            if "top_camera" in self._cameras else None, multisamples=arena.multisamples)
+            "top_camera",
+            tuple(float(v) for v in cam.pos),
+            tuple(float(v) for v in cam.xyaxes),
+            float(cam.fovy),
+            (self._cameras["top_camera"].height, self._cameras["top_camera"].width)
+            if "top_camera" in self._cameras
+            else None,
+            multisamples=arena.multisamples,
+        )
         box = self._boxes[0]
         return MujobanDescription(
-            grid_shape=tuple(arena.grid_shape), cell_size=float(arena.cell_size),
-            pegs=bool(arena.pegs), max_boxes=len(self._boxes),
+            grid_shape=tuple(arena.grid_shape),
+            cell_size=float(arena.cell_size),
+            pegs=bool(arena.pegs),
+            max_boxes=len(self._boxes),
             control_timestep=float(self.control_timestep),
             time_limit_steps=int(self.time_limit_steps),
             pad_tolerance=self._pad_tolerance / arena.cell_size,
-            box_half=float(box.half_size), box_half_height=float(box.half_height),
-            ball_radius=BALL_RADIUS, peg_radius=arena_lib.PEG_RADIUS, top_camera=top,
+            box_half=float(box.half_size),
+            box_half_height=float(box.half_height),
+            ball_radius=BALL_RADIUS,
+            peg_radius=arena_lib.PEG_RADIUS,
+            top_camera=top,
             looks=MujobanLooks(
-                box=arena_lib.BOX_RGBA, box_on_pad=arena_lib.BOX_ON_PAD_RGBA,
-                pad=arena_lib.PAD_RGBA, pad_covered=arena_lib.PAD_COVERED_RGBA,
-                right_ear=EAR_RGBA[0], left_ear=EAR_RGBA[1],
+                box=arena_lib.BOX_RGBA,
+                box_on_pad=arena_lib.BOX_ON_PAD_RGBA,
+                pad=arena_lib.PAD_RGBA,
+                pad_covered=arena_lib.PAD_COVERED_RGBA,
+                right_ear=EAR_RGBA[0],
+                left_ear=EAR_RGBA[1],
                 headlight_ambient=arena_lib.HEADLIGHT_AMBIENT,
-                headlight_diffuse=arena_lib.HEADLIGHT_DIFFUSE))
+                headlight_diffuse=arena_lib.HEADLIGHT_DIFFUSE,
+            ),
+        )
 
     def render_markers(self):
         """Render-only discs over the pegs (none without pegs): a peg is 0.1 m
@@ -78,9 +95,12 @@ class LooksMixin:
         markers = getattr(self, "_peg_markers", None)
         if markers is None:
             markers = tuple(
-                Marker((float(p.pos[0]), float(p.pos[1]), arena_lib.PEG_HEIGHT),
-                       PEG_MARKER_SCALE * arena_lib.PEG_RADIUS)
-                for p in self._arena.pegs)
+                Marker(
+                    (float(p.pos[0]), float(p.pos[1]), arena_lib.PEG_HEIGHT),
+                    PEG_MARKER_SCALE * arena_lib.PEG_RADIUS,
+                )
+                for p in self._arena.pegs
+            )
             self._peg_markers = markers
         return markers
 
@@ -90,21 +110,26 @@ class LooksMixin:
         names such as ``("yellow", "blue_team")`` (see `appearances`)."""
         m = self._model
         walls, floors = self.appearances()
-        return (walls[self._wall_tex_ids.index(int(m.mat_texid[self._wall_mats[0], _TEXROLE_RGB]))],
-                floors[self._floor_tex_ids.index(int(m.mat_texid[self._floor_mat, _TEXROLE_RGB]))])
+        return (
+            walls[self._wall_tex_ids.index(int(m.mat_texid[self._wall_mats[0], _TEXROLE_RGB]))],
+            floors[self._floor_tex_ids.index(int(m.mat_texid[self._floor_mat, _TEXROLE_RGB]))],
+        )
 
     def _draw_appearance(self, rng: np.random.Generator) -> None:
         """Draws one labmaze texture for the walls and one for the floor from
         ``rng`` (the original draws them from numpy's global generator)."""
         walls, floors = self.appearances()
-        self.set_appearance(walls[int(rng.integers(len(walls)))],
-                            floors[int(rng.integers(len(floors)))])
+        self.set_appearance(
+            walls[int(rng.integers(len(walls)))], floors[int(rng.integers(len(floors)))]
+        )
 
     def appearances(self) -> tuple[tuple[str, ...], tuple[str, ...]]:
         """The wall and floor texture names an episode may draw."""
         arena = self._arena
-        return (tuple(t.name.removeprefix("wall_") for t in arena.wall_textures),
-                tuple(t.name.removeprefix("floor_") for t in arena.floor_textures))
+        return (
+            tuple(t.name.removeprefix("wall_") for t in arena.wall_textures),
+            tuple(t.name.removeprefix("floor_") for t in arena.floor_textures),
+        )
 
     def set_appearance(self, wall: str, floor: str) -> None:
         """Shows the walls with texture ``wall`` and the floor with ``floor``
@@ -129,6 +154,9 @@ class LooksMixin:
             rgba[self._pad_ids[k]] = arena_lib.PAD_COVERED_RGBA if covered else arena_lib.PAD_RGBA
             if covered:
                 tx, ty = self._target_xy[k]
-                i = next(i for i, (bx, by) in enumerate(boxes)
-                         if abs(tx - bx) <= tol and abs(ty - by) <= tol)
+                i = next(
+                    i
+                    for i, (bx, by) in enumerate(boxes)
+                    if abs(tx - bx) <= tol and abs(ty - by) <= tol
+                )
                 rgba[self._box_geom_ids[i]] = arena_lib.BOX_ON_PAD_RGBA

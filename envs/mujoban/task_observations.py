@@ -39,8 +39,11 @@ PIXEL_COLOURS = {
 def _as_slice(index: np.ndarray):
     """``index`` as an equivalent slice when it is a run of step +1 or -1."""
     ints = [int(i) for i in index]
-    if len(ints) >= 2 and all(b - a == ints[1] - ints[0] for a, b in zip(ints, ints[1:])) \
-            and abs(ints[1] - ints[0]) == 1:
+    if (
+        len(ints) >= 2
+        and all(b - a == ints[1] - ints[0] for a, b in zip(ints, ints[1:]))
+        and abs(ints[1] - ints[0]) == 1
+    ):
         stop = ints[-1] + (ints[1] - ints[0])
         return slice(ints[0], None if stop < 0 else stop, ints[1] - ints[0])
     return np.asarray(ints)
@@ -52,7 +55,7 @@ class ObservationsMixin:
     # Set by `Mujoban` (its parts, compiled-model indices and episode state).
     _arena: arena_lib.MujobanArena
     _walker: legacy_base.Walker
-    _data: Any              # mujoco.MjData (mujoco has no type stubs)
+    _data: Any  # mujoco.MjData (mujoco has no type stubs)
     _qpos: np.ndarray
     _box_qpos: np.ndarray
     _num_boxes: int
@@ -63,8 +66,14 @@ class ObservationsMixin:
     def _add_walker_touch_sensor(self) -> None:
         model = self._walker.mjcf_model
         shell_body = model.find("geom", "shell").parent
-        site = shell_body.add("site", name="touch_site", type="sphere", size=(0.21,),
-                              group=arena_lib.HIDDEN_GROUP, rgba=(0, 0, 0, 0))
+        site = shell_body.add(
+            "site",
+            name="touch_site",
+            type="sphere",
+            size=(0.21,),
+            group=arena_lib.HIDDEN_GROUP,
+            rgba=(0, 0, 0, 0),
+        )
         model.sensor.add("touch", name="sensor_touch", site=site)
 
     def _bind_walker(self, bind) -> None:
@@ -80,9 +89,10 @@ class ObservationsMixin:
         self._steer_qpos = int(bind(walker_model.find("joint", "steer")).qposadr)
         actuators = self._walker.actuators
         self._act_ids = np.array([bind(a).element_id for a in actuators])
-        act_joints = [walker_model.find("joint",
-                                        a.joint.name if hasattr(a.joint, "name") else a.joint)
-                      for a in actuators]
+        act_joints = [
+            walker_model.find("joint", a.joint.name if hasattr(a.joint, "name") else a.joint)
+            for a in actuators
+        ]
         # Slices where the addresses are consecutive: a view and a copy are
         # cheaper than fancy indexing, and observe() runs every step.
         self._act_qpos = _as_slice(np.array([bind(j).qposadr for j in act_joints]).ravel())
@@ -122,8 +132,9 @@ class ObservationsMixin:
         for name, sl in self._sensor_slices.items():
             spec[name] = specs.Array((sl.stop - sl.start,), np.float64, name)
         spec["full_entity_layer"] = specs.Array((height, width, 4), bool, "full_entity_layer")
-        spec["pixel_layer"] = specs.BoundedArray((height, width, 3), np.uint8, 0, 255,
-                                                 "pixel_layer")
+        spec["pixel_layer"] = specs.BoundedArray(
+            (height, width, 3), np.uint8, 0, 255, "pixel_layer"
+        )
         return spec
 
     def observe(self, physics):

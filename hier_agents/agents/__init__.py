@@ -16,5 +16,17 @@ from hier_agents.agents.base import Agent, AgentKind, AgentSetup
 from hier_agents.agents.registry import KINDS, forms, kind_of, register, resolve
 from hier_agents.agents.runner import Play, Player, make_player, play_episode
 
-__all__ = ["KINDS", "Agent", "AgentKind", "AgentSetup", "Play", "Player", "forms", "kind_of",
-           "make_player", "play_episode", "register", "resolve"]
+__all__ = [
+    "KINDS",
+    "Agent",
+    "AgentKind",
+    "AgentSetup",
+    "Play",
+    "Player",
+    "forms",
+    "kind_of",
+    "make_player",
+    "play_episode",
+    "register",
+    "resolve",
+]

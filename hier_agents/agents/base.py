@@ -138,8 +138,11 @@ class AgentKind:
     def job_inputs(self, env_name: str, arg, options: dict) -> dict:
         """What decides an evaluation job's result on ``env_name`` (`hier_agents.compare`
         hashes it into the job's key), JSON-able: ``{"kind": NAME, ...}``."""
-        return {"kind": self.name, **({"arg": self.form(arg)} if arg is not None else {}),
-                **options}
+        return {
+            "kind": self.name,
+            **({"arg": self.form(arg)} if arg is not None else {}),
+            **options,
+        }
 
     def from_job_inputs(self, inputs: dict) -> tuple[object, dict]:
         """(arg, options) of `job_inputs`'s dict."""

@@ -36,26 +36,40 @@ def checkpoint_setup(env_name: str, path: str, stochastic: bool = False) -> Agen
     ckpt = load_checkpoint(path)
     config = ckpt["config"]
     if family(config["env"]) != family(env_name):
-        raise UsageError(f"checkpoint {path} was trained on {config['env']!r}, a "
-                         f"{family(config['env'])} environment; cannot play {env_name!r}")
+        raise UsageError(
+            f"checkpoint {path} was trained on {config['env']!r}, a "
+            f"{family(config['env'])} environment; cannot play {env_name!r}"
+        )
     size = int(config["image_size"])
-    overrides = {name: ((size, size) if config["cameras"] else None)
-                 for name in envs.overrides(env_name) if name.endswith("_camera")}
+    overrides = {
+        name: ((size, size) if config["cameras"] else None)
+        for name in envs.overrides(env_name)
+        if name.endswith("_camera")
+    }
     overrides.update(config.get("env_overrides", {}))
     from hier_agents.baselines.impala.learner import net_from_checkpoint
+
     _, spec = net_from_checkpoint(ckpt)
     observations, privileged = observed(config, spec)
-    summary = {"condition": config["condition"] + (" (sampled)" if stochastic else ""),
-               "trained_env": config["env"],
-               "training_frames": int(ckpt["counters"].get("frames", 0)),
-               "training_updates": int(ckpt["counters"].get("updates", 0)),
-               "observations": observations, "privileged": privileged}
+    summary = {
+        "condition": config["condition"] + (" (sampled)" if stochastic else ""),
+        "trained_env": config["env"],
+        "training_frames": int(ckpt["counters"].get("frames", 0)),
+        "training_updates": int(ckpt["counters"].get("updates", 0)),
+        "observations": observations,
+        "privileged": privileged,
+    }
 
     def build(view, seed, simulator):
         return CheckpointAgent(ckpt, view, seed, simulator, stochastic=stochastic)
 
-    return AgentSetup(overrides, "simulator" if privileged else "observations", summary, build,
-                      fixed=frozenset(name for name in overrides if name.endswith("_camera")))
+    return AgentSetup(
+        overrides,
+        "simulator" if privileged else "observations",
+        summary,
+        build,
+        fixed=frozenset(name for name in overrides if name.endswith("_camera")),
+    )
 
 
 class CheckpointAgent:
@@ -79,8 +93,9 @@ class CheckpointAgent:
     scene = None
     gave_up = None
 
-    def __init__(self, ckpt: dict, view, seed: int | None, simulator=None, *,
-                 stochastic: bool = False):
+    def __init__(
+        self, ckpt: dict, view, seed: int | None, simulator=None, *, stochastic: bool = False
+    ):
         import torch
 
         from hier_agents.baselines.impala.inputs import ActionMap, AgentInputs, make_auxiliary
@@ -91,15 +106,23 @@ class CheckpointAgent:
         torch.set_num_threads(1)
         description = view.description()
         planner, estimator = make_auxiliary(config["condition"], description, seed, simulator)
-        self.inputs = AgentInputs(description, view.observation_spec(), view.action_spec(),
-                                  config["condition"], state=config.get("state", False),
-                                  task=None if simulator is None else simulator.task,
-                                  planner=planner, estimator=estimator, t_abs=config["t_abs"],
-                                  abs_reward=config["abs_reward"])
+        self.inputs = AgentInputs(
+            description,
+            view.observation_spec(),
+            view.action_spec(),
+            config["condition"],
+            state=config.get("state", False),
+            task=None if simulator is None else simulator.task,
+            planner=planner,
+            estimator=estimator,
+            t_abs=config["t_abs"],
+            abs_reward=config["abs_reward"],
+        )
         if self.inputs.spec != spec:
             self.inputs.close()
-            raise UsageError(f"the environment gives inputs {self.inputs.spec}, the checkpoint "
-                             f"expects {spec}")
+            raise UsageError(
+                f"the environment gives inputs {self.inputs.spec}, the checkpoint expects {spec}"
+            )
         self.actions = ActionMap(view.action_spec())
         self.privileged = bool(spec.privileged)
         self.training_frames = int(ckpt["counters"].get("frames", 0))
@@ -126,9 +149,13 @@ class CheckpointAgent:
             self.inputs.after_step(timestep)
         obs = self.inputs.observe(timestep.observation)
         batch = {k: v[None] for k, v in obs.items()}
-        action, _, self._state = self.net.act(batch, self._first, self._state,
-                                              deterministic=not self.stochastic,
-                                              generator=self._generator)
+        action, _, self._state = self.net.act(
+            batch,
+            self._first,
+            self._state,
+            deterministic=not self.stochastic,
+            generator=self._generator,
+        )
         self._first[0] = False
         return self.actions(action[0])
 

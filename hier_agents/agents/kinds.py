@@ -33,6 +33,7 @@ class ModularKind(AgentKind):
 
     def check(self, env_name: str, arg, options: dict) -> None:
         from hier_agents.modular import components
+
         fam = components.family(env_name)
         for part in self.options:
             if options.get(part) is not None:
@@ -40,31 +41,44 @@ class ModularKind(AgentKind):
 
     def setup(self, env_name: str, arg, options: dict) -> AgentSetup:
         from hier_agents.modular import components
+
         fam = components.family(env_name)
         parts = {part: options.get(part) for part in self.options}
         estimator = parts["estimator"]
         privileged = components.is_privileged(fam, estimator)
-        access = ("simulator" if privileged else
-                  "record" if components.reads_record(fam, estimator) else "observations")
+        access = (
+            "simulator"
+            if privileged
+            else "record"
+            if components.reads_record(fam, estimator)
+            else "observations"
+        )
 
         def build(view, seed, simulator):
-            return components.make_agent(env_name, view.description(), seed=seed,
-                                         simulator=simulator, **parts)
+            return components.make_agent(
+                env_name, view.description(), seed=seed, simulator=simulator, **parts
+            )
 
-        summary = {"agent": "modular",
-                   "planner": parts["planner"] or next(iter(components.PLANNERS[fam])),
-                   "skill": parts["skill"] or next(iter(components.SKILLS[fam])),
-                   "estimator": components.estimator_name(fam, estimator),
-                   "privileged": privileged}
+        summary = {
+            "agent": "modular",
+            "planner": parts["planner"] or next(iter(components.PLANNERS[fam])),
+            "skill": parts["skill"] or next(iter(components.SKILLS[fam])),
+            "estimator": components.estimator_name(fam, estimator),
+            "privileged": privileged,
+        }
         return AgentSetup(components.env_overrides(env_name, estimator), access, summary, build)
 
     def describe(self, summary: dict) -> str:
-        who = (f"estimator {summary.get('estimator', '?')}"
-               f"{' (PRIVILEGED: reads the simulator)' if summary.get('privileged') else ''}, "
-               f"planner {summary['planner']}, skill {summary['skill']}")
+        who = (
+            f"estimator {summary.get('estimator', '?')}"
+            f"{' (PRIVILEGED: reads the simulator)' if summary.get('privileged') else ''}, "
+            f"planner {summary['planner']}, skill {summary['skill']}"
+        )
         if summary.get("training_frames"):
-            who += (f" (learned parts trained on "
-                    f"{plural(summary['training_frames'], 'frame', spec=',')})")
+            who += (
+                f" (learned parts trained on "
+                f"{plural(summary['training_frames'], 'frame', spec=',')})"
+            )
         return who
 
     def job_inputs(self, env_name: str, arg, options: dict) -> dict:
@@ -73,6 +87,7 @@ class ModularKind(AgentKind):
         (`hier_agents.modular.components.learned_files`): a retrained part is
         a new job."""
         from hier_agents.modular.components import learned_files
+
         return {"kind": "modular", **options, "learned_files": learned_files(env_name, options)}
 
     def from_job_inputs(self, inputs: dict) -> tuple[object, dict]:
@@ -95,21 +110,24 @@ class CheckpointKind(AgentKind):
 
     def check(self, env_name: str, arg, options: dict) -> None:
         if not Path(arg).exists():
-            raise UsageError(f"--agent checkpoint:{arg}: no checkpoint or run directory at "
-                             f"{arg!r}")
+            raise UsageError(f"--agent checkpoint:{arg}: no checkpoint or run directory at {arg!r}")
         from hier_agents.baselines.impala.learner import load_checkpoint
+
         load_checkpoint(arg)
 
     def setup(self, env_name: str, arg, options: dict) -> AgentSetup:
         from hier_agents.agents.checkpoint import checkpoint_setup
+
         return checkpoint_setup(env_name, arg, bool(options.get("stochastic", False)))
 
     def describe(self, summary: dict) -> str:
         if "condition" not in summary:  # interrupted before a worker reported
             return str(summary["agent"])
-        who = (f"{summary['agent']} ({summary['condition']}, trained "
-               f"{plural(summary['training_frames'], 'frame', spec=',')} on "
-               f"{summary['trained_env']}")
+        who = (
+            f"{summary['agent']} ({summary['condition']}, trained "
+            f"{plural(summary['training_frames'], 'frame', spec=',')} on "
+            f"{summary['trained_env']}"
+        )
         if summary.get("observations"):
             who += f"; reads {', '.join(summary['observations'])}"
         who += ")"
@@ -132,8 +150,10 @@ class RandomKind(AgentKind):
         except ValueError:
             value = 0
         if value < 1:
-            raise UsageError(f"a random agent is 'random' or 'random:HOLD' with HOLD >= 1 "
-                             f"control steps per draw, got 'random:{text}'")
+            raise UsageError(
+                f"a random agent is 'random' or 'random:HOLD' with HOLD >= 1 "
+                f"control steps per draw, got 'random:{text}'"
+            )
         return value
 
     def default(self) -> int:
@@ -148,8 +168,12 @@ class RandomKind(AgentKind):
         def build(view, seed, simulator):
             return RandomAgent(view.action_spec(), hold)
 
-        summary = {"condition": f"uniform random actions, held {plural(hold, 'step')}",
-                   "trained_env": "-", "training_frames": 0, "training_updates": 0}
+        summary = {
+            "condition": f"uniform random actions, held {plural(hold, 'step')}",
+            "trained_env": "-",
+            "training_frames": 0,
+            "training_updates": 0,
+        }
         return AgentSetup(dict(envs.no_cameras(env_name)), "observations", summary, build)
 
     def describe(self, summary: dict) -> str:

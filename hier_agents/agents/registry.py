@@ -24,8 +24,10 @@ def register(kind: AgentKind) -> AgentKind:
     """Makes ``kind`` playable by name everywhere; returns it. ValueError when
     the name is taken or not a plain word."""
     if not kind.name or ":" in kind.name or kind.name in KINDS:
-        raise ValueError(f"cannot register the agent kind {kind.name!r}: empty, with ':' or "
-                         f"taken (registered: {', '.join(KINDS)})")
+        raise ValueError(
+            f"cannot register the agent kind {kind.name!r}: empty, with ':' or "
+            f"taken (registered: {', '.join(KINDS)})"
+        )
     KINDS[kind.name] = kind
     return kind
 
@@ -44,6 +46,7 @@ def _kinds() -> dict[str, AgentKind]:
         from importlib.metadata import entry_points
 
         from hier_agents.agents.kinds import SHIPPED
+
         for shipped in SHIPPED:
             if shipped.name not in KINDS:
                 register(shipped)
@@ -70,8 +73,9 @@ def resolve(spec: str) -> tuple[AgentKind, object]:
     name, sep, text = str(spec).partition(":")
     kind = kinds.get(name)
     if kind is None:
-        raise UsageError(f"unknown agent {spec!r}{close_hint(name, kinds)}; valid: "
-                         f"{', '.join(forms())}")
+        raise UsageError(
+            f"unknown agent {spec!r}{close_hint(name, kinds)}; valid: {', '.join(forms())}"
+        )
     if not sep:
         if kind.arg_required:
             raise UsageError(f"the agent {name!r} needs an argument: {name}:{kind.metavar}")
@@ -84,6 +88,7 @@ def kind_of(spec: str) -> AgentKind:
     kinds = _kinds()
     name = str(spec).partition(":")[0]
     if name not in kinds:
-        raise UsageError(f"unknown agent {spec!r}{close_hint(name, kinds)}; valid: "
-                         f"{', '.join(forms())}")
+        raise UsageError(
+            f"unknown agent {spec!r}{close_hint(name, kinds)}; valid: {', '.join(forms())}"
+        )
     return kinds[name]

@@ -29,8 +29,15 @@ from hier_agents.boundary import PRIVILEGED_OBSERVATIONS, BoundaryEnv
 from hier_agents.modular.agent import OptionStats
 from hier_agents.modular.families import adapter_for
 
-__all__ = ["Play", "Player", "make_player", "play_episode", "play_each", "profile_summary",
-           "counters"]
+__all__ = [
+    "Play",
+    "Player",
+    "make_player",
+    "play_episode",
+    "play_each",
+    "profile_summary",
+    "counters",
+]
 
 
 @dataclass(frozen=True)
@@ -69,8 +76,7 @@ class Player:
         kind, arg = resolve(play.agent)
         setup = kind.setup(play.env_name, arg, dict(play.options))
         # A diverging simulation ends its episode (reward 0) instead of the run.
-        overrides = {**setup.env_overrides, "raise_on_physics_error": False,
-                     **play.env_options}
+        overrides = {**setup.env_overrides, "raise_on_physics_error": False, **play.env_options}
         if play.levels is not None:
             overrides["levels"] = play.levels
         self.play_spec, self.env, self.agent = play, None, None
@@ -82,20 +88,25 @@ class Player:
             # `env` to judge.
             self.view: BoundaryEnv | envs.Environment = self.env
             if setup.access != "simulator":
-                strip = (PRIVILEGED_OBSERVATIONS if setup.access == "record"
-                         else self.env.privileged_observations)
+                strip = (
+                    PRIVILEGED_OBSERVATIONS
+                    if setup.access == "record"
+                    else self.env.privileged_observations
+                )
                 self.view = BoundaryEnv(self.env, strip=strip)
             self.description = self.view.description()
-            self.agent = setup.build(self.view, play.seed,
-                                     self.env if setup.access == "simulator" else None)
+            self.agent = setup.build(
+                self.view, play.seed, self.env if setup.access == "simulator" else None
+            )
         except BaseException:
             self.close()
             raise
         self.info = {**setup.summary, "training_frames": int(self.agent.training_frames)}
 
     def play(self, episode: int, frames=None) -> tuple[dict, dict]:
-        row, stats = play_episode(self.env, self.view, self.agent, self.description, episode,
-                                  self.play_spec.seed, frames)
+        row, stats = play_episode(
+            self.env, self.view, self.agent, self.description, episode, self.play_spec.seed, frames
+        )
         return row, counters(stats)
 
     def close(self) -> None:
@@ -148,16 +159,24 @@ def profile_summary(rows: list[dict]) -> dict:
             seconds[name] = seconds.get(name, 0.0) + value
     wall = sum(row["wall_s"] for row in rows)
     seconds["other"] = max(0.0, wall - sum(seconds.values()))
-    return {"seconds": seconds, "wall_s": wall,
-            "shares": {name: (t / wall if wall > 0 else None) for name, t in seconds.items()}}
+    return {
+        "seconds": seconds,
+        "wall_s": wall,
+        "shares": {name: (t / wall if wall > 0 else None) for name, t in seconds.items()},
+    }
 
 
 def counters(stats: OptionStats) -> dict:
     """An episode's subgoal counters as a JSON-able dict (`OptionStats`'s fields)."""
-    return {"issued": stats.issued, "reached": stats.reached, "failed": stats.failed,
-            "cut_off": stats.cut_off, "unfinished": stats.unfinished,
-            "estimation_failures": stats.estimation_failures,
-            "failures": dict(stats.failures)}
+    return {
+        "issued": stats.issued,
+        "reached": stats.reached,
+        "failed": stats.failed,
+        "cut_off": stats.cut_off,
+        "unfinished": stats.unfinished,
+        "estimation_failures": stats.estimation_failures,
+        "failures": dict(stats.failures),
+    }
 
 
 def play_each(player, play: Play, indices, each) -> None:
@@ -173,6 +192,7 @@ def play_each(player, play: Play, indices, each) -> None:
 
 def _write_video(path, frames, control_timestep: float) -> None:
     import imageio.v2 as imageio
+
     imageio.mimwrite(path, frames, fps=int(round(1 / control_timestep)), macro_block_size=1)
 
 
@@ -221,10 +241,15 @@ def play_episode(env, view, agent, description, episode: int, seed: int, frames=
         reason = f"error: {error}"
     # Counters of an episode whose agent never started are not the last episode's.
     stats = agent.episode_stats if started else OptionStats()
-    row = {"episode": episode, "return": ret, "steps": steps,
-           "wall_s": time.perf_counter() - start,
-           "subgoals_issued": stats.issued, "subgoals_reached": stats.reached,
-           "estimation_failures": stats.estimation_failures}
+    row = {
+        "episode": episode,
+        "return": ret,
+        "steps": steps,
+        "wall_s": time.perf_counter() - start,
+        "subgoals_issued": stats.issued,
+        "subgoals_reached": stats.reached,
+        "estimation_failures": stats.estimation_failures,
+    }
     if judge:
         row["estimates"], row["wrong_estimates"] = estimates, wrong
     row.update(family.score(env.task, timestep, reason))

@@ -15,29 +15,56 @@ PROG = "python -m hier_agents.compare"
 def build_parser() -> cli.Parser:
     import hier_agents.compare as package
 
-    parser = cli.Parser(PROG, description=package.__doc__.split("\n\n")[0],
-                        epilog="examples:\n" + package.__doc__.split("\n\n")[1])
+    parser = cli.Parser(
+        PROG,
+        description=package.__doc__.split("\n\n")[0],
+        epilog="examples:\n" + package.__doc__.split("\n\n")[1],
+    )
     add = parser.add_argument
     add("spec", type=cli.existing_file, help="the experiment's TOML spec")
     add("--backend", default="local", help="local (a pool of processes here) or ray")
-    add("--ray-address", default=None,
+    add(
+        "--ray-address",
+        default=None,
         help="with --backend ray: the cluster to join (auto: the one `ray start` made; "
-             "default: start a local one)")
-    add("--cpus", type=cli.positive_int, default=None,
-        help="CPUs the local pool may use (default: all of this machine's)")
-    add("--retries", type=cli.non_negative_int, default=1,
-        help="times a failed job is run again before it counts as failed")
-    add("--cache", type=Path, default=None,
-        help="the cache and output folder (default: the spec's cache, else "
-             "runs/compare/NAME)")
+        "default: start a local one)",
+    )
+    add(
+        "--cpus",
+        type=cli.positive_int,
+        default=None,
+        help="CPUs the local pool may use (default: all of this machine's)",
+    )
+    add(
+        "--retries",
+        type=cli.non_negative_int,
+        default=1,
+        help="times a failed job is run again before it counts as failed",
+    )
+    add(
+        "--cache",
+        type=Path,
+        default=None,
+        help="the cache and output folder (default: the spec's cache, else runs/compare/NAME)",
+    )
     add("--plan", action="store_true", help="print the jobs and which are cached; run nothing")
-    add("--report-only", action="store_true",
-        help="write the outputs from the cached jobs; run nothing")
-    add("--only", default=None, metavar="KIND",
+    add(
+        "--report-only",
+        action="store_true",
+        help="write the outputs from the cached jobs; run nothing",
+    )
+    add(
+        "--only",
+        default=None,
+        metavar="KIND",
         help="run only the train or only the eval jobs (eval jobs whose training is not "
-             "cached then fail)")
-    add("--iqm", action="store_true",
-        help="table and plot show the interquartile mean over seeds instead of the mean")
+        "cached then fail)",
+    )
+    add(
+        "--iqm",
+        action="store_true",
+        help="table and plot show the interquartile mean over seeds instead of the mean",
+    )
     add("--quiet", action="store_true", help="no line per job")
     return parser
 
@@ -59,8 +86,13 @@ def _main(argv=None) -> int:
     if args.only is not None:
         cli.choice("--only", args.only, ("train", "eval"))
     runnable = [j for j in planned if args.only in (None, j.kind)]
-    say = (lambda text: None) if args.quiet else (
-        lambda text: print(f"{time.strftime('%H:%M:%S')} {text}", file=sys.stderr, flush=True))
+    say = (
+        (lambda text: None)
+        if args.quiet
+        else (
+            lambda text: print(f"{time.strftime('%H:%M:%S')} {text}", file=sys.stderr, flush=True)
+        )
+    )
     if args.plan:
         for job in planned:
             record = jobs_mod.load_record(cache, job.key)
@@ -70,37 +102,57 @@ def _main(argv=None) -> int:
     failure = None
     if not args.report_only:
         try:
-            run_jobs(runnable, cache, backend=args.backend, cpus=args.cpus,
-                     ray_address=args.ray_address, retries=args.retries, progress=say)
+            run_jobs(
+                runnable,
+                cache,
+                backend=args.backend,
+                cpus=args.cpus,
+                ray_address=args.ray_address,
+                retries=args.retries,
+                progress=say,
+            )
         except JobFailed as exc:
             failure = str(exc)
-    records = {j.key: r for j in planned
-               if (r := jobs_mod.load_record(cache, j.key)) is not None}
+    records = {j.key: r for j in planned if (r := jobs_mod.load_record(cache, j.key)) is not None}
     pts = report.points(spec, planned, records)
     costs = report.series_cost(spec, planned, records)
     table = report.format_table(spec, pts, costs, use_iqm=args.iqm)
     print(table)
     missing = sum(1 for j in planned if j.key not in records)
     code_versions = report.code_versions(records)
-    content = {"name": spec.name, "description": spec.description, "spec": spec.raw,
-               "spec_file": str(spec.path), "statistic": "iqm" if args.iqm else "mean",
-               "points": pts, "series_cost": costs, "jobs": len(planned),
-               "jobs_missing": missing, "code_versions": code_versions,
-               "job_keys": [j.key for j in planned if j.kind == "eval"]}
+    content = {
+        "name": spec.name,
+        "description": spec.description,
+        "spec": spec.raw,
+        "spec_file": str(spec.path),
+        "statistic": "iqm" if args.iqm else "mean",
+        "points": pts,
+        "series_cost": costs,
+        "jobs": len(planned),
+        "jobs_missing": missing,
+        "code_versions": code_versions,
+        "job_keys": [j.key for j in planned if j.kind == "eval"],
+    }
     if len(code_versions) > 1:
         versions = ", ".join(f"{c} ({n})" for c, n in code_versions.items())
-        print(f"{PROG}: warning: the job records come from "
-              f"{len(code_versions)} code versions: {versions}; records are "
-              f"cached by their inputs, not the code: delete CACHE/jobs/KEY.json to run a "
-              f"job again", file=sys.stderr)
+        print(
+            f"{PROG}: warning: the job records come from "
+            f"{len(code_versions)} code versions: {versions}; records are "
+            f"cached by their inputs, not the code: delete CACHE/jobs/KEY.json to run a "
+            f"job again",
+            file=sys.stderr,
+        )
     out = Path(cache) / "comparison.json"
     try:
         old = json.loads(out.read_text())
     except (OSError, ValueError):
         old = None
     outputs = [Path(cache) / name for name in ("comparison.txt", "comparison.png")]
-    if (old is not None and all(p.is_file() for p in outputs)
-            and {k: v for k, v in old.items() if k != "provenance"} == content):
+    if (
+        old is not None
+        and all(p.is_file() for p in outputs)
+        and {k: v for k, v in old.items() if k != "provenance"} == content
+    ):
         print(f"{out} is unchanged", file=sys.stderr)
     else:
         outputs[0].parent.mkdir(parents=True, exist_ok=True)

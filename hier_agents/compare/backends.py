@@ -54,8 +54,7 @@ def job_process(job: Job, cache: Path, log: Path) -> tuple[int, float]:
     its exit status and the CPU seconds it and its children used."""
     cache = Path(cache)
     log.parent.mkdir(parents=True, exist_ok=True)
-    with tempfile.NamedTemporaryFile("w", suffix=".json", delete=False,
-                                     dir=log.parent) as f:
+    with tempfile.NamedTemporaryFile("w", suffix=".json", delete=False, dir=log.parent) as f:
         json.dump(job.to_json(), f)
         spec_file = f.name
     env = dict(os.environ)
@@ -63,9 +62,13 @@ def job_process(job: Job, cache: Path, log: Path) -> tuple[int, float]:
     env.setdefault("MUJOCO_GL", "egl")
     try:
         with open(log, "a") as out:
-            proc = subprocess.Popen([sys.executable, "-m", "hier_agents.compare.jobs",
-                                     spec_file, str(cache)], stdout=out, stderr=out, env=env,
-                                    preexec_fn=die_with_parent)
+            proc = subprocess.Popen(
+                [sys.executable, "-m", "hier_agents.compare.jobs", spec_file, str(cache)],
+                stdout=out,
+                stderr=out,
+                env=env,
+                preexec_fn=die_with_parent,
+            )
             _, status, usage = os.wait4(proc.pid, 0)
             proc.returncode = os.waitstatus_to_exitcode(status)
     finally:
@@ -83,12 +86,21 @@ def _ray_task(job_json: dict, cache: str) -> dict:  # pragma: no cover - runs on
     if record is None:
         raise JobFailed(f"{job.describe()} wrote no record")
     import ray
+
     record["ray_node"] = ray.get_runtime_context().get_node_id()
     return record
 
 
-def run_jobs(jobs: list[Job], cache: Path, *, backend: str = "local", cpus: int | None = None,
-             ray_address: str | None = None, retries: int = 1, progress=print) -> dict:
+def run_jobs(
+    jobs: list[Job],
+    cache: Path,
+    *,
+    backend: str = "local",
+    cpus: int | None = None,
+    ray_address: str | None = None,
+    retries: int = 1,
+    progress=print,
+) -> dict:
     """Runs every job not already in the cache; returns key -> record.
 
     Raises:
@@ -111,8 +123,7 @@ def run_jobs(jobs: list[Job], cache: Path, *, backend: str = "local", cpus: int 
         if job.kind != "train":
             continue
         record = load_record(cache, job.key)
-        if record is not None and (job.key not in needed_trains
-                                   or artifacts_present(cache, job)):
+        if record is not None and (job.key not in needed_trains or artifacts_present(cache, job)):
             records[job.key] = record
         else:
             trains.append(job)
@@ -121,8 +132,10 @@ def run_jobs(jobs: list[Job], cache: Path, *, backend: str = "local", cpus: int 
     todo = evals + trains
     total, done = len(todo), 0
     cached = len(jobs) - total
-    progress(f"{len(jobs)} jobs: {cached} in the cache ({cache}), {total} to run"
-             + (f" on {backend}" if total else ""))
+    progress(
+        f"{len(jobs)} jobs: {cached} in the cache ({cache}), {total} to run"
+        + (f" on {backend}" if total else "")
+    )
     if not todo:
         return records
     failed: dict[str, str] = {}
@@ -146,11 +159,21 @@ def run_jobs(jobs: list[Job], cache: Path, *, backend: str = "local", cpus: int 
             progress(f"[{done}/{total}] FAILED {job.describe()}: {error}")
 
     if backend == "ray":
-        _run_ray(todo, cache, cpus, ray_address, retries, ready, blocked, finished, starts,
-                 progress)
+        _run_ray(
+            todo, cache, cpus, ray_address, retries, ready, blocked, finished, starts, progress
+        )
     else:
-        _run_local(todo, cache, cpus or os.cpu_count() or 1, retries, ready, blocked,
-                   finished, starts, progress)
+        _run_local(
+            todo,
+            cache,
+            cpus or os.cpu_count() or 1,
+            retries,
+            ready,
+            blocked,
+            finished,
+            starts,
+            progress,
+        )
     if failed:
         lines = "; ".join(f"{by_key[k].describe()}: {v}" for k, v in failed.items())
         raise JobFailed(f"{len(failed)} of {total} jobs failed: {lines}")
@@ -205,8 +228,10 @@ def _run_local(todo, cache, slots, retries, ready, blocked, finished, starts, pr
                         attempts[key] -= 1
                         pending.insert(0, job)
                 elif attempts[key] <= retries:
-                    progress(f"retrying {job.describe()} (exit status {status}; log "
-                             f"{cache / 'logs' / (key + '.log')})")
+                    progress(
+                        f"retrying {job.describe()} (exit status {status}; log "
+                        f"{cache / 'logs' / (key + '.log')})"
+                    )
                     pending.insert(0, job)
                 else:
                     finished(job, None, f"exit status {status}; log {cache / 'logs' / key}.log")
@@ -230,8 +255,9 @@ def _run_local(todo, cache, slots, retries, ready, blocked, finished, starts, pr
                 lock.wait(timeout=5.0)
 
 
-def _run_ray(todo, cache, cpus, address, retries, ready, blocked, finished, starts,
-             progress) -> None:
+def _run_ray(
+    todo, cache, cpus, address, retries, ready, blocked, finished, starts, progress
+) -> None:
     from hier_agents.cluster import connect, remote
 
     ray = connect(address, num_cpus=cpus)
@@ -240,8 +266,12 @@ def _run_ray(todo, cache, cpus, address, retries, ready, blocked, finished, star
     running: dict[ObjectRef, Job] = {}  # task ref -> its job
     attempts: dict[str, int] = {}
     deaths = Deaths()
-    lost = (ray.exceptions.RayActorError, ray.exceptions.WorkerCrashedError,
-            ray.exceptions.NodeDiedError, ray.exceptions.ObjectLostError)
+    lost = (
+        ray.exceptions.RayActorError,
+        ray.exceptions.WorkerCrashedError,
+        ray.exceptions.NodeDiedError,
+        ray.exceptions.ObjectLostError,
+    )
     while pending or running:
         _skip_blocked(pending, blocked, finished)
         for job in [j for j in pending if ready(j)]:
@@ -249,8 +279,9 @@ def _run_ray(todo, cache, cpus, address, retries, ready, blocked, finished, star
             attempts[job.key] = attempts.get(job.key, 0) + 1
             starts.setdefault(job.key, time.perf_counter())
             progress(f"start  {job.describe()}")
-            ref = task.options(num_cpus=job.cpus, max_retries=0,
-                               retry_exceptions=False).remote(job.to_json(), str(cache))
+            ref = task.options(num_cpus=job.cpus, max_retries=0, retry_exceptions=False).remote(
+                job.to_json(), str(cache)
+            )
             running[ref] = job
         if not running:
             for job in pending:

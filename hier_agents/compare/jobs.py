@@ -55,29 +55,47 @@ class Job:
     def describe(self) -> str:
         i = self.inputs
         if self.kind == "train":
-            return (f"train {self.point['agent']} on {i['env']}, seed {i['seed']}, "
-                    f"{i['frames']:,} frames")
+            return (
+                f"train {self.point['agent']} on {i['env']}, seed {i['seed']}, "
+                f"{i['frames']:,} frames"
+            )
         last = i["first_episode"] + i["episodes"] - 1
         budget = f" at {self.point['budget']:,} frames" if self.point.get("budget") else ""
-        return (f"eval {self.point['agent']}{budget} on {i['env']}, seed {i['seed']}, "
-                f"episodes {i['first_episode']}-{last}")
+        return (
+            f"eval {self.point['agent']}{budget} on {i['env']}, seed {i['seed']}, "
+            f"episodes {i['first_episode']}-{last}"
+        )
 
     def to_json(self) -> dict:
-        return {"kind": self.kind, "inputs": self.inputs, "deps": list(self.deps),
-                "cpus": self.cpus, "point": self.point, "key": self.key}
+        return {
+            "kind": self.kind,
+            "inputs": self.inputs,
+            "deps": list(self.deps),
+            "cpus": self.cpus,
+            "point": self.point,
+            "key": self.key,
+        }
 
     @classmethod
     def from_json(cls, data: dict) -> "Job":
-        return cls(kind=data["kind"], inputs=data["inputs"], deps=tuple(data["deps"]),
-                   cpus=int(data["cpus"]), point=data["point"])
+        return cls(
+            kind=data["kind"],
+            inputs=data["inputs"],
+            deps=tuple(data["deps"]),
+            cpus=int(data["cpus"]),
+            point=data["point"],
+        )
 
 
 def job_key(kind: str, inputs: dict, deps=()) -> str:
     """A stable hash (20 hex digits) of a job's kind, inputs, dependencies'
     keys and `CACHE_VERSION`; equal inputs give equal keys in any process or
     order of dict keys."""
-    text = json.dumps({"version": CACHE_VERSION, "kind": kind, "inputs": inputs,
-                       "deps": list(deps)}, sort_keys=True, separators=(",", ":"))
+    text = json.dumps(
+        {"version": CACHE_VERSION, "kind": kind, "inputs": inputs, "deps": list(deps)},
+        sort_keys=True,
+        separators=(",", ":"),
+    )
     return hashlib.sha256(text.encode()).hexdigest()[:20]
 
 
@@ -93,28 +111,53 @@ def plan(spec) -> list[Job]:
             for seed in agent.seeds:
                 point = {"agent": agent.label, "env": env, "seed": seed}
                 if agent.kind == "train":
-                    inputs = {"env": env, "train": agent.train, "seed": seed,
-                              "frames": max(agent.budgets), "save_at": list(agent.budgets)}
+                    inputs = {
+                        "env": env,
+                        "train": agent.train,
+                        "seed": seed,
+                        "frames": max(agent.budgets),
+                        "save_at": list(agent.budgets),
+                    }
                     actors = int(agent.train.get("actors", 2))
                     train = Job("train", inputs, cpus=min(cpus, actors), point=point)
                     trains.append(train)
-                    targets = [({"kind": "checkpoint", "budget": b,
-                                 "stochastic": agent.stochastic}, (train.key,),
-                                {**point, "budget": b}) for b in agent.budgets]
+                    targets = [
+                        (
+                            {"kind": "checkpoint", "budget": b, "stochastic": agent.stochastic},
+                            (train.key,),
+                            {**point, "budget": b},
+                        )
+                        for b in agent.budgets
+                    ]
                 else:
                     kind, arg = resolve(agent.agent)
                     targets = [(kind.job_inputs(env, arg, agent.options), (), point)]
                 for target, deps, where in targets:
-                    evals.extend(_eval_jobs(env, target, seed, agent.episodes,
-                                            spec.shard_episodes, deps, where))
+                    evals.extend(
+                        _eval_jobs(
+                            env, target, seed, agent.episodes, spec.shard_episodes, deps, where
+                        )
+                    )
     return trains + evals
 
 
 def _eval_jobs(env, target, seed, episodes, shard, deps, point) -> list[Job]:
     """The evaluation jobs of one point: ``episodes`` in shards of ``shard``."""
-    return [Job("eval", {"env": env, "agent": target, "seed": seed, "first_episode": first,
-                         "episodes": min(shard, episodes - first)}, deps=deps, point=point)
-            for first in range(0, episodes, shard)]
+    return [
+        Job(
+            "eval",
+            {
+                "env": env,
+                "agent": target,
+                "seed": seed,
+                "first_episode": first,
+                "episodes": min(shard, episodes - first),
+            },
+            deps=deps,
+            point=point,
+        )
+        for first in range(0, episodes, shard)
+    ]
 
 
 # -- execution ---------------------------------------------------------------------------
@@ -169,21 +212,33 @@ def execute(job: Job, cache: Path) -> dict:
         from hier_agents.compare.spec import train_argv
 
         logdir = train_dir(cache, job.key)
-        planned = {"frames": inputs["frames"], "seed": inputs["seed"], "logdir": str(logdir),
-                   "save_at": list(inputs["save_at"]), "no_progress": True, "log_every": 30.0,
-                   "checkpoint_every": 120.0}
+        planned = {
+            "frames": inputs["frames"],
+            "seed": inputs["seed"],
+            "logdir": str(logdir),
+            "save_at": list(inputs["save_at"]),
+            "no_progress": True,
+            "log_every": 30.0,
+            "checkpoint_every": 120.0,
+        }
         config = TrainConfig.from_options(inputs["env"], {**inputs["train"], **planned})
         counters = train(config)
         counters.pop("last_stats", None)
         missing = [b for b in inputs["save_at"] if not checkpoint_of(cache, job.key, b).is_file()]
         if missing:
-            raise RuntimeError(f"training ended at {counters.get('frames')} frames without "
-                               f"checkpoints at {missing}")
+            raise RuntimeError(
+                f"training ended at {counters.get('frames')} frames without "
+                f"checkpoints at {missing}"
+            )
         # The command that trains the same run, for a reader of the record.
-        argv = train_argv(inputs["env"], inputs["train"], frames=inputs["frames"],
-                          seed=inputs["seed"], logdir=str(logdir),
-                          save_at=inputs["save_at"]) + ["--no-progress", "--log-every", "30",
-                                                           "--checkpoint-every", "120"]
+        argv = train_argv(
+            inputs["env"],
+            inputs["train"],
+            frames=inputs["frames"],
+            seed=inputs["seed"],
+            logdir=str(logdir),
+            save_at=inputs["save_at"],
+        ) + ["--no-progress", "--log-every", "30", "--checkpoint-every", "120"]
         return {"counters": counters, "argv": argv}
     from hier_agents.agents import kind_of
     from hier_agents.run import run
@@ -198,9 +253,15 @@ def execute(job: Job, cache: Path) -> dict:
         kind = kind_of(agent["kind"])
         arg, options = kind.from_job_inputs(agent)
         name = kind.form(arg)
-    summary = run(inputs["env"], inputs["episodes"], inputs["seed"], progress=False,
-                  first_episode=inputs["first_episode"], agent=name,
-                  options={k: v for k, v in options.items() if v not in (None, False)})
+    summary = run(
+        inputs["env"],
+        inputs["episodes"],
+        inputs["seed"],
+        progress=False,
+        first_episode=inputs["first_episode"],
+        agent=name,
+        options={k: v for k, v in options.items() if v not in (None, False)},
+    )
     rows = summary.pop("rows")
     summary.pop("provenance", None)
     return {"rows": rows, "summary": summary}
@@ -208,6 +269,7 @@ def execute(job: Job, cache: Path) -> dict:
 
 def _cpu_seconds() -> float:
     import resource
+
     usage = [resource.getrusage(w) for w in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN)]
     return sum(u.ru_utime + u.ru_stime for u in usage)
 
@@ -226,12 +288,18 @@ def run_job_file(path: str | Path, cache: str | Path) -> int:
         result = execute(job, cache)
     except BaseException as exc:  # reported to the scheduler by the exit status
         import traceback
+
         traceback.print_exc()
         print(f"job {job.key} failed: {type(exc).__name__}: {exc}", file=sys.stderr)
         return 1
-    record = {**job.to_json(), "result": result, "wall_s": time.perf_counter() - start,
-              "cpu_s": _cpu_seconds() - cpu0, "attempts": attempts,
-              "provenance": provenance()}
+    record = {
+        **job.to_json(),
+        "result": result,
+        "wall_s": time.perf_counter() - start,
+        "cpu_s": _cpu_seconds() - cpu0,
+        "attempts": attempts,
+        "provenance": provenance(),
+    }
     store_record(cache, record)
     return 0
 

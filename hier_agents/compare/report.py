@@ -64,23 +64,30 @@ def points(spec, jobs, records) -> list[dict]:
             for budget in budgets:
                 where = (agent.label, env, budget)
                 seeds = grouped.get(where, {})
-                complete = {s: rows for s, rows in seeds.items()
-                            if len(rows) == agent.episodes}
+                complete = {s: rows for s, rows in seeds.items() if len(rows) == agent.episodes}
                 if not complete:
                     continue
                 summary = summaries[where]
-                per_seed = {s: sum(map(_success, rows)) / len(rows)
-                            for s, rows in sorted(complete.items())}
+                per_seed = {
+                    s: sum(map(_success, rows)) / len(rows) for s, rows in sorted(complete.items())
+                }
                 values = list(per_seed.values())
                 wins = sum(sum(map(_success, rows)) for rows in complete.values())
                 episodes = sum(len(rows) for rows in complete.values())
                 observed, privileged = _observations(by_label[agent.label], summary)
-                frames = (int(summary.get("training_frames", budget or 0)) if budget
-                          else int(summary.get("training_frames", 0) or 0))
+                frames = (
+                    int(summary.get("training_frames", budget or 0))
+                    if budget
+                    else int(summary.get("training_frames", 0) or 0)
+                )
                 point = {
-                    "agent": agent.label, "kind": agent.kind, "env": env,
-                    "budget": budget, "training_frames": frames,
-                    "seeds": list(per_seed), "per_seed": [round(v, 6) for v in values],
+                    "agent": agent.label,
+                    "kind": agent.kind,
+                    "env": env,
+                    "budget": budget,
+                    "training_frames": frames,
+                    "seeds": list(per_seed),
+                    "per_seed": [round(v, 6) for v in values],
                     "missing_seeds": sorted(set(agent.seeds) - set(per_seed)),
                     "episodes_per_seed": agent.episodes,
                     "mean": sum(values) / len(values),
@@ -88,9 +95,11 @@ def points(spec, jobs, records) -> list[dict]:
                     "iqm": iqm(values),
                     "iqm_interval": list(bootstrap_interval(values, iqm)),
                     "pooled_wilson_interval": list(wilson_interval(wins, episodes)),
-                    "mean_steps": (sum(r["steps"] for rows in complete.values() for r in rows)
-                                   / episodes),
-                    "observations": observed, "privileged": privileged,
+                    "mean_steps": (
+                        sum(r["steps"] for rows in complete.values() for r in rows) / episodes
+                    ),
+                    "observations": observed,
+                    "privileged": privileged,
                 }
                 if agent.kind == "train":
                     point["condition"] = agent.train.get("condition", "vanilla")
@@ -110,12 +119,22 @@ def series_cost(spec, jobs, records) -> list[dict]:
         if record is None:
             continue
         key = (job.point["agent"], job.point["env"])
-        entry = out.setdefault(key, {"agent": key[0], "env": key[1], "train_cpu_hours": 0.0,
-                                     "eval_cpu_hours": 0.0, "train_jobs": 0, "eval_jobs": 0,
-                                     "cpu_partial_jobs": 0, "cpu_partial_train_jobs": 0,
-                                     "cpu_partial_eval_jobs": 0})
+        entry = out.setdefault(
+            key,
+            {
+                "agent": key[0],
+                "env": key[1],
+                "train_cpu_hours": 0.0,
+                "eval_cpu_hours": 0.0,
+                "train_jobs": 0,
+                "eval_jobs": 0,
+                "cpu_partial_jobs": 0,
+                "cpu_partial_train_jobs": 0,
+                "cpu_partial_eval_jobs": 0,
+            },
+        )
         counters = (record.get("result") or {}).get("counters") or {}
-        if "cpu_s" in counters:           # the training's own count, every attempt
+        if "cpu_s" in counters:  # the training's own count, every attempt
             seconds = float(counters["cpu_s"])
         else:
             seconds = float(record.get("cpu_s", 0.0))
@@ -144,10 +163,14 @@ def _cells(p: dict, cost: dict, stat: str) -> dict:
     lo, hi = p[f"{stat}_interval"]
     c = cost.get((p["agent"], p["env"]), {})
     at_least = ">=" if c.get("cpu_partial_train_jobs") else ""
-    return {"value": f"{100 * p[stat]:.1f}", "interval": f"[{100 * lo:.1f}, {100 * hi:.1f}]",
-            "per_seed": " ".join(f"{100 * v:.0f}" for v in p["per_seed"]),
-            "train_h": (f"{at_least}{c.get('train_cpu_hours', 0.0):.2f}"
-                        if p["kind"] == "train" else "-")}
+    return {
+        "value": f"{100 * p[stat]:.1f}",
+        "interval": f"[{100 * lo:.1f}, {100 * hi:.1f}]",
+        "per_seed": " ".join(f"{100 * v:.0f}" for v in p["per_seed"]),
+        "train_h": (
+            f"{at_least}{c.get('train_cpu_hours', 0.0):.2f}" if p["kind"] == "train" else "-"
+        ),
+    }
 
 
 def format_table(spec, pts: list[dict], costs: list[dict], *, use_iqm: bool = False) -> str:
@@ -160,37 +183,48 @@ def format_table(spec, pts: list[dict], costs: list[dict], *, use_iqm: bool = Fa
         rows = [p for p in pts if p["env"] == env]
         if not rows:
             continue
-        lines.append(f"{env}: success % across seeds ({stat} [95% bootstrap interval over "
-                     f"seeds]; per-seed values)")
-        head = (f"  {'agent':<{width}} {'train frames':>13} {stat + ' %':>7} "
-                f"{'[95% CI]':>14} {'seeds':>5}  {'per seed %':<22} {'train CPU-h':>11}  "
-                f"observations")
+        lines.append(
+            f"{env}: success % across seeds ({stat} [95% bootstrap interval over "
+            f"seeds]; per-seed values)"
+        )
+        head = (
+            f"  {'agent':<{width}} {'train frames':>13} {stat + ' %':>7} "
+            f"{'[95% CI]':>14} {'seeds':>5}  {'per seed %':<22} {'train CPU-h':>11}  "
+            f"observations"
+        )
         lines.append(head)
         lines.append("  " + "-" * (len(head) - 2))
         for p in rows:
             c = _cells(p, cost, stat)
-            lines.append(f"  {p['agent']:<{width}} {p['training_frames']:>13,} "
-                         f"{c['value']:>7} {c['interval']:>14} {len(p['seeds']):>5}  "
-                         f"{c['per_seed']:<22} {c['train_h']:>11}  {p['observations']}")
+            lines.append(
+                f"  {p['agent']:<{width}} {p['training_frames']:>13,} "
+                f"{c['value']:>7} {c['interval']:>14} {len(p['seeds']):>5}  "
+                f"{c['per_seed']:<22} {c['train_h']:>11}  {p['observations']}"
+            )
         lines.append("")
     return "\n".join(lines).rstrip()
 
 
-def format_markdown(envs, pts: list[dict], costs: list[dict], *,
-                    use_iqm: bool = False) -> list[str]:
+def format_markdown(
+    envs, pts: list[dict], costs: list[dict], *, use_iqm: bool = False
+) -> list[str]:
     """The comparison as Markdown lines (the README's table): one row per
     environment and point, in ``envs`` order, with `format_table`'s cells."""
     stat = "iqm" if use_iqm else "mean"
     cost = {(c["agent"], c["env"]): c for c in costs}
-    lines = [f"| environment | agent | training frames | success, {stat} over seeds [95% CI] "
-             f"| per seed | mean steps | training CPU-h (all seeds) | observes |",
-             "| --- | --- | --- | --- | --- | --- | --- | --- |"]
+    lines = [
+        f"| environment | agent | training frames | success, {stat} over seeds [95% CI] "
+        f"| per seed | mean steps | training CPU-h (all seeds) | observes |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- |",
+    ]
     for env in envs:
         for p in (p for p in pts if p["env"] == env):
             c = _cells(p, cost, stat)
-            lines.append(f"| `{env}` | {p['agent']} | {p['training_frames']:,} "
-                         f"| {c['value']}% {c['interval']} | {c['per_seed']} "
-                         f"| {p['mean_steps']:.0f} | {c['train_h']} | {p['observations']} |")
+            lines.append(
+                f"| `{env}` | {p['agent']} | {p['training_frames']:,} "
+                f"| {c['value']}% {c['interval']} | {c['per_seed']} "
+                f"| {p['mean_steps']:.0f} | {c['train_h']} | {p['observations']} |"
+            )
     return lines
 
 
@@ -199,6 +233,7 @@ def plot(spec, pts: list[dict], path: Path, *, use_iqm: bool = False) -> None:
     series' across-seed interval shaded, modular agents as points, random
     agents as grey bands, the legend below the panels."""
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
@@ -206,8 +241,9 @@ def plot(spec, pts: list[dict], path: Path, *, use_iqm: bool = False) -> None:
     env_names = [e for e in spec.envs if any(p["env"] == e for p in pts)]
     if not env_names:
         return
-    fig, axes = plt.subplots(1, len(env_names), figsize=(5.2 * len(env_names), 4.4),
-                             dpi=110, squeeze=False, sharey=True)
+    fig, axes = plt.subplots(
+        1, len(env_names), figsize=(5.2 * len(env_names), 4.4), dpi=110, squeeze=False, sharey=True
+    )
     colours = plt.get_cmap("tab10")
     labels = [a.label for a in spec.agents if a.kind != "random"]
     handles = {}
@@ -217,12 +253,22 @@ def plot(spec, pts: list[dict], path: Path, *, use_iqm: bool = False) -> None:
             lo, hi = p[f"{stat}_interval"]
             ax.axhspan(100 * lo, 100 * hi, color="grey", alpha=0.18, lw=0)
             ax.axhline(100 * p[stat], color="grey", lw=0.8, ls="--")
-            ax.annotate(p["agent"], (1.0, 100 * p[stat]), xycoords=("axes fraction", "data"),
-                        xytext=(-3, 2), textcoords="offset points", ha="right", va="bottom",
-                        fontsize=7, color="dimgrey")
+            ax.annotate(
+                p["agent"],
+                (1.0, 100 * p[stat]),
+                xycoords=("axes fraction", "data"),
+                xytext=(-3, 2),
+                textcoords="offset points",
+                ha="right",
+                va="bottom",
+                fontsize=7,
+                color="dimgrey",
+            )
         for i, label in enumerate(labels):
-            members = sorted((p for p in pts if p["env"] == env and p["agent"] == label),
-                             key=lambda p: p["training_frames"])
+            members = sorted(
+                (p for p in pts if p["env"] == env and p["agent"] == label),
+                key=lambda p: p["training_frames"],
+            )
             if not members:
                 continue
             colour = colours(i % 10)
@@ -235,9 +281,16 @@ def plot(spec, pts: list[dict], path: Path, *, use_iqm: bool = False) -> None:
                 (line,) = ax.plot(x, y, style, marker="o", ms=3.5, lw=1.4, color=colour)
                 ax.fill_between(x, lo, hi, color=colour, alpha=0.18, lw=0)
             else:
-                line = ax.errorbar(x, y, yerr=[[y[0] - lo[0]], [hi[0] - y[0]]], fmt="s",
-                                   ms=5, capsize=3, color=colour,
-                                   mfc="white" if style == "--" else colour)
+                line = ax.errorbar(
+                    x,
+                    y,
+                    yerr=[[y[0] - lo[0]], [hi[0] - y[0]]],
+                    fmt="s",
+                    ms=5,
+                    capsize=3,
+                    color=colour,
+                    mfc="white" if style == "--" else colour,
+                )
             handles[label] = line
         ax.set_title(env, fontsize=10)
         ax.set_xlabel("training frames (control steps)")
@@ -245,16 +298,30 @@ def plot(spec, pts: list[dict], path: Path, *, use_iqm: bool = False) -> None:
         ax.set_ylim(-2, 102)
         ax.grid(alpha=0.3)
     axes[0][0].set_ylabel(f"success % ({stat} over seeds, 95% CI)")
-    names = [n + (" *" if any(p["privileged"] for p in pts if p["agent"] == n) else "")
-             for n in handles]
+    names = [
+        n + (" *" if any(p["privileged"] for p in pts if p["agent"] == n) else "") for n in handles
+    ]
     if handles:
-        fig.legend(list(handles.values()), names, loc="lower center",
-                   ncol=min(3, len(handles)), fontsize=8, frameon=False,
-                   bbox_to_anchor=(0.5, 0.035))
+        fig.legend(
+            list(handles.values()),
+            names,
+            loc="lower center",
+            ncol=min(3, len(handles)),
+            fontsize=8,
+            frameon=False,
+            bbox_to_anchor=(0.5, 0.035),
+        )
     rows = (len(handles) + 2) // 3
-    fig.text(0.5, 0.005, "* privileged inputs (dashed line or hollow marker); grey bands: "
-             "random actions; shading: 95% bootstrap interval over seeds", ha="center",
-             va="bottom", fontsize=7, color="dimgrey")
+    fig.text(
+        0.5,
+        0.005,
+        "* privileged inputs (dashed line or hollow marker); grey bands: "
+        "random actions; shading: 95% bootstrap interval over seeds",
+        ha="center",
+        va="bottom",
+        fontsize=7,
+        color="dimgrey",
+    )
     fig.tight_layout(rect=(0, 0.07 + 0.05 * rows, 1, 1))
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, metadata={"Software": None})

@@ -57,16 +57,34 @@ from physics_planning import cli
 from physics_planning.cli import UsageError
 
 #: Keys of a spec's top level and of an agent table.
-TOP_KEYS = ("name", "description", "cache", "envs", "seeds", "episodes", "shard_episodes",
-            "agent")
-AGENT_KEYS = ("label", "agent", "options", "modular", "train", "budgets", "random", "envs",
-              "seeds", "episodes", "stochastic")
+TOP_KEYS = ("name", "description", "cache", "envs", "seeds", "episodes", "shard_episodes", "agent")
+AGENT_KEYS = (
+    "label",
+    "agent",
+    "options",
+    "modular",
+    "train",
+    "budgets",
+    "random",
+    "envs",
+    "seeds",
+    "episodes",
+    "stochastic",
+)
 #: The keys that say what an agent is (exactly one per agent).
 KIND_KEYS = ("agent", "modular", "train", "random")
 MODULAR_KEYS = ("planner", "skill", "estimator")
 #: ``train`` keys the plan sets itself.
-PLANNED_TRAIN_KEYS = ("frames", "seed", "logdir", "save_at", "no_progress", "backend",
-                      "ray_address", "keep_checkpoints")
+PLANNED_TRAIN_KEYS = (
+    "frames",
+    "seed",
+    "logdir",
+    "save_at",
+    "no_progress",
+    "backend",
+    "ray_address",
+    "keep_checkpoints",
+)
 
 
 @dataclass(frozen=True)
@@ -121,14 +139,17 @@ def _where(path, agent=None) -> str:
 def _unknown(keys, allowed, where: str) -> None:
     for key in keys:
         if key not in allowed:
-            raise UsageError(f"{where}: unknown key {key!r}{cli.close_hint(key, allowed)}; "
-                             f"allowed: {', '.join(allowed)}")
+            raise UsageError(
+                f"{where}: unknown key {key!r}{cli.close_hint(key, allowed)}; "
+                f"allowed: {', '.join(allowed)}"
+            )
 
 
 def _ints(value, what: str, where: str, minimum: int) -> tuple:
     values = value if isinstance(value, list) else [value]
-    if not values or any(isinstance(v, bool) or not isinstance(v, int) or v < minimum
-                         for v in values):
+    if not values or any(
+        isinstance(v, bool) or not isinstance(v, int) or v < minimum for v in values
+    ):
         raise UsageError(f"{where}: {what} must be integers >= {minimum} (a list), got {value!r}")
     if len(set(values)) != len(values):
         raise UsageError(f"{where}: {what} repeats a value: {value!r}")
@@ -143,6 +164,7 @@ def _int(value, what: str, where: str, minimum: int) -> int:
 
 def _envs(value, where: str) -> tuple:
     import envs as registry
+
     if isinstance(value, str):
         value = [value]
     if not isinstance(value, list) or not value:
@@ -155,8 +177,15 @@ def _envs(value, where: str) -> tuple:
     return tuple(value)
 
 
-def train_argv(env: str, train: dict, *, frames: int | None = None, seed: int | None = None,
-               logdir: str | None = None, save_at=()) -> list[str]:
+def train_argv(
+    env: str,
+    train: dict,
+    *,
+    frames: int | None = None,
+    seed: int | None = None,
+    logdir: str | None = None,
+    save_at=(),
+) -> list[str]:
     """The ``python -m hier_agents.train`` arguments of a ``train`` table
     (``True`` values become bare flags, ``False`` ones are left out), plus the
     planned ``frames``, ``seed``, ``logdir`` and ``save_at``."""
@@ -186,16 +215,21 @@ def _check_train(env: str, train: dict, budgets: tuple, where: str) -> None:
 
     for key in train:
         if key in PLANNED_TRAIN_KEYS:
-            raise UsageError(f"{where}: train.{key} is set by the plan (budgets, seeds, the "
-                             f"cache), not by the spec")
+            raise UsageError(
+                f"{where}: train.{key} is set by the plan (budgets, seeds, the "
+                f"cache), not by the spec"
+            )
         if key not in OPTIONS:
             valid = sorted(set(OPTIONS) - set(PLANNED_TRAIN_KEYS))
-            raise UsageError(f"{where}: the train table is not valid python -m "
-                             f"hier_agents.train flags: unknown key {key!r}"
-                             f"{cli.close_hint(key, valid)}; valid: {', '.join(valid)}")
+            raise UsageError(
+                f"{where}: the train table is not valid python -m "
+                f"hier_agents.train flags: unknown key {key!r}"
+                f"{cli.close_hint(key, valid)}; valid: {', '.join(valid)}"
+            )
     try:
-        TrainConfig.from_options(env, {**train, "frames": max(budgets), "seed": 0,
-                                       "save_at": list(budgets)})
+        TrainConfig.from_options(
+            env, {**train, "frames": max(budgets), "seed": 0, "save_at": list(budgets)}
+        )
     except UsageError as exc:
         raise UsageError(f"{where}: {exc}") from None
 
@@ -220,9 +254,11 @@ def load(path: str | Path) -> Spec:
     name = raw.get("name")
     if not isinstance(name, str) or not name or "/" in name:
         raise UsageError(f"{where}: name must be a non-empty string without '/', got {name!r}")
-    defaults = {"envs": _envs(raw["envs"], where) if "envs" in raw else None,
-                "seeds": _ints(raw.get("seeds", [0]), "seeds", where, 0),
-                "episodes": _int(raw.get("episodes", 100), "episodes", where, 1)}
+    defaults = {
+        "envs": _envs(raw["envs"], where) if "envs" in raw else None,
+        "seeds": _ints(raw.get("seeds", [0]), "seeds", where, 0),
+        "episodes": _int(raw.get("episodes", 100), "episodes", where, 1),
+    }
     shard = _int(raw.get("shard_episodes", 50), "shard_episodes", where, 1)
     tables = raw.get("agent")
     if not isinstance(tables, list) or not tables:
@@ -238,8 +274,15 @@ def load(path: str | Path) -> Spec:
     if cache is not None and not isinstance(cache, str):
         raise UsageError(f"{where}: cache must be a path (a string)")
     cache_path = (path.parent / cache) if cache else Path("runs") / "compare" / name
-    return Spec(name=name, description=str(raw.get("description", "")), path=path,
-                cache=cache_path, shard_episodes=shard, agents=tuple(agents), raw=raw)
+    return Spec(
+        name=name,
+        description=str(raw.get("description", "")),
+        path=path,
+        cache=cache_path,
+        shard_episodes=shard,
+        agents=tuple(agents),
+        raw=raw,
+    )
 
 
 def _agent(path: Path, i: int, table, defaults: dict) -> Agent:
@@ -255,23 +298,29 @@ def _agent(path: Path, i: int, table, defaults: dict) -> Agent:
     _unknown(table, AGENT_KEYS, at)
     kinds = [k for k in KIND_KEYS if k in table]
     if len(kinds) != 1:
-        raise UsageError(f"{at}: give exactly one of {', '.join(KIND_KEYS)}; got "
-                         f"{', '.join(kinds) or 'none'}")
+        raise UsageError(
+            f"{at}: give exactly one of {', '.join(KIND_KEYS)}; got {', '.join(kinds) or 'none'}"
+        )
     envs = _envs(table["envs"], at) if "envs" in table else defaults["envs"]
     if envs is None:
         raise UsageError(f"{at}: no envs (give envs at the top or in the agent)")
-    common = dict(label=label, envs=envs,
-                  seeds=_ints(table["seeds"], "seeds", at, 0) if "seeds" in table
-                  else defaults["seeds"],
-                  episodes=(_int(table["episodes"], "episodes", at, 1) if "episodes" in table
-                            else defaults["episodes"]))
+    common = dict(
+        label=label,
+        envs=envs,
+        seeds=_ints(table["seeds"], "seeds", at, 0) if "seeds" in table else defaults["seeds"],
+        episodes=(
+            _int(table["episodes"], "episodes", at, 1)
+            if "episodes" in table
+            else defaults["episodes"]
+        ),
+    )
     for key in ("budgets", "stochastic"):
         if key in table and kinds[0] != "train":
             raise UsageError(f"{at}: {key} applies to train agents only")
     if kinds[0] == "train":
         return _train_agent(table, at, common)
     if "options" in table and kinds[0] != "agent":
-        raise UsageError(f"{at}: options go with agent = \"NAME[:ARG]\"")
+        raise UsageError(f'{at}: options go with agent = "NAME[:ARG]"')
     if kinds[0] == "modular":
         if not isinstance(table["modular"], dict):
             raise UsageError(f"{at}: modular must be a table of planner/skill/estimator")
@@ -316,5 +365,4 @@ def _train_agent(table: dict, at: str, common: dict) -> Agent:
     stochastic = table.get("stochastic", False)
     if not isinstance(stochastic, bool):
         raise UsageError(f"{at}: stochastic must be true or false")
-    return Agent(kind="train", train=dict(train), budgets=budgets, stochastic=stochastic,
-                 **common)
+    return Agent(kind="train", train=dict(train), budgets=budgets, stochastic=stochastic, **common)

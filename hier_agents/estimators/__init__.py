@@ -16,5 +16,12 @@ from hier_agents.estimators.camera import CameraEstimator
 from hier_agents.estimators.grid import rounded_state
 from hier_agents.estimators.mujoban import EntityLayerEstimator, OracleEstimator
 
-__all__ = ["Estimator", "EstimationError", "BoardEstimator", "CameraEstimator", "OracleEstimator",
-           "EntityLayerEstimator", "rounded_state"]
+__all__ = [
+    "Estimator",
+    "EstimationError",
+    "BoardEstimator",
+    "CameraEstimator",
+    "OracleEstimator",
+    "EntityLayerEstimator",
+    "rounded_state",
+]

@@ -27,6 +27,7 @@ class ArmSilhouette:
     def __init__(self, arm, camera, shape) -> None:
         import mujoco
         from scipy.spatial import ConvexHull
+
         self._mujoco = mujoco
         self._hull2d = ConvexHull
         self.model = arm.model()
@@ -50,11 +51,12 @@ class ArmSilhouette:
     def _geom_points(m, g) -> np.ndarray | None:
         """Points (geom frame) whose convex hull is the geom (or bounds it)."""
         import mujoco
+
         kind, size = int(m.geom_type[g]), m.geom_size[g]
         if kind == mujoco.mjtGeom.mjGEOM_MESH:
             mesh = int(m.geom_dataid[g])
             start, count = int(m.mesh_vertadr[mesh]), int(m.mesh_vertnum[mesh])
-            return np.array(m.mesh_vert[start:start + count], float)
+            return np.array(m.mesh_vert[start : start + count], float)
         angles = np.linspace(0, 2 * np.pi, 16, endpoint=False)
         ring = np.stack([np.cos(angles), np.sin(angles)], axis=1)
         if kind in (mujoco.mjtGeom.mjGEOM_CYLINDER, mujoco.mjtGeom.mjGEOM_CAPSULE):
@@ -65,9 +67,13 @@ class ArmSilhouette:
             return corners * size
         if kind == mujoco.mjtGeom.mjGEOM_SPHERE:
             r = size[0]
-            return np.concatenate([np.c_[r * ring, np.zeros(16)], np.c_[r * ring[:, :1],
-                                   np.zeros(16), r * ring[:, 1:]],
-                                   np.c_[np.zeros(16), r * ring]])
+            return np.concatenate(
+                [
+                    np.c_[r * ring, np.zeros(16)],
+                    np.c_[r * ring[:, :1], np.zeros(16), r * ring[:, 1:]],
+                    np.c_[np.zeros(16), r * ring],
+                ]
+            )
         return None
 
     def touched_zone(self, qpos, zones) -> int | None:
@@ -97,7 +103,7 @@ class ArmSilhouette:
             px = self.camera.project(world, self.shape)
             try:
                 hull = self._hull2d(px[:, ::-1])
-            except Exception:       # a degenerate projection (edge-on): skip it
+            except Exception:  # a degenerate projection (edge-on): skip it
                 continue
             out.append(px[hull.vertices])
         return out
@@ -115,12 +121,12 @@ class ArmSilhouette:
             near = np.flatnonzero(np.all((centres >= low) & (centres <= high), axis=1))
             if not len(near):
                 continue
-            a = poly[:, ::-1]                     # (col, row), counter-clockwise
+            a = poly[:, ::-1]  # (col, row), counter-clockwise
             b = np.roll(a, -1, axis=0)
             edge = b - a
             normal = np.stack([edge[:, 1], -edge[:, 0]], axis=1)
             normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-9)
             rel = centres[near][:, None, ::-1] - a[None]
-            dist = (rel * normal[None]).sum(-1).max(axis=1)   # outward normals of a CCW hull
+            dist = (rel * normal[None]).sum(-1).max(axis=1)  # outward normals of a CCW hull
             hidden[near] |= dist < radius[near]
         return hidden

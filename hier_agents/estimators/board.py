@@ -56,7 +56,11 @@ class BoardEstimator(Estimator):
             state.apply_action(int(action))
         if not np.array_equal(game.board_planes(state, agent), obs["board_state"]):
             raise EstimationError("move_history and board_state disagree")
-        return ArmScene(state=state, moves=tuple(int(a) for a in played),
-                        qpos=np.array(obs["arm/joints_pos"], float),
-                        qvel=np.array(obs["arm/joints_vel"], float),
-                        selected=scalar(obs, "selected_point", -1), agent=agent)
+        return ArmScene(
+            state=state,
+            moves=tuple(int(a) for a in played),
+            qpos=np.array(obs["arm/joints_pos"], float),
+            qvel=np.array(obs["arm/joints_vel"], float),
+            selected=scalar(obs, "selected_point", -1),
+            agent=agent,
+        )

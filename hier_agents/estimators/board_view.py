@@ -81,7 +81,7 @@ REFERENCE_SHARE = (0.7 / PATCH) ** 2
 HIDDEN_PIECE = 0.6
 MERGED = 1.6
 
-UNSEEN = -2     # a cell not read this frame (hidden or unsure)
+UNSEEN = -2  # a cell not read this frame (hidden or unsure)
 EMPTY_CELL = -1
 
 
@@ -118,7 +118,7 @@ class BoardView:
             # Sub-square centres: the grid runs on evenly from square to square.
             grid = (2 * np.arange(SQUARE_SAMPLES) + 1) / SQUARE_SAMPLES - 1
             offsets = np.array([(x, y) for x in grid for y in grid])
-            share = np.pi * (piece_radius / half) ** 2 / 4.0     # a piece's share of its square
+            share = np.pi * (piece_radius / half) ** 2 / 4.0  # a piece's share of its square
             self.scale, self.hidden_empty = share / REFERENCE_SHARE, HIDDEN_PIECE * share
             reach = 1.0
         else:
@@ -127,13 +127,15 @@ class BoardView:
             self.scale, self.hidden_empty = 1.0, 1.0
             reach = PATCH
         self.occupied, self.empty = OCCUPIED * self.scale, EMPTY * self.scale
-        world = points[:, None, :] + np.c_[reach * half * offsets,
-                                          np.full(len(offsets), PATCH_HEIGHT)][None]
+        world = (
+            points[:, None, :]
+            + np.c_[reach * half * offsets, np.full(len(offsets), PATCH_HEIGHT)][None]
+        )
         if self.square:
             # Each sample's place on the board-wide grid, and a piece's worth of samples.
             step = 2 * half / SQUARE_SAMPLES
             xy = world[..., :2] - world[..., :2].reshape(-1, 2).min(axis=0)
-            self.grid_at = np.rint(xy / step).astype(int)          # (n, k, 2)
+            self.grid_at = np.rint(xy / step).astype(int)  # (n, k, 2)
             self.grid_shape = tuple(self.grid_at.reshape(-1, 2).max(axis=0) + 1)
             self.sample_xy = world[..., :2]
             self.piece_samples = share * len(offsets)
@@ -141,19 +143,22 @@ class BoardView:
         h, w = self.shape
         rows = np.clip(np.floor(px[..., 0]).astype(int), 0, h - 1)
         cols = np.clip(np.floor(px[..., 1]).astype(int), 0, w - 1)
-        self.index = rows * w + cols                     # (n, k) flat pixel of each sample
-        self.sample_px = px                              # (n, k, 2) their (row, col)
+        self.index = rows * w + cols  # (n, k) flat pixel of each sample
+        self.sample_px = px  # (n, k, 2) their (row, col)
         angles = np.linspace(0, 2 * np.pi, 24, endpoint=False)
-        ring = np.concatenate([r * np.stack([np.cos(angles), np.sin(angles)], axis=1)
-                               for r in RING])
+        ring = np.concatenate(
+            [r * np.stack([np.cos(angles), np.sin(angles)], axis=1) for r in RING]
+        )
         world = points[:, None, :] + np.c_[half * ring, np.zeros(len(ring))][None]
         px = camera.project(world, self.shape)
-        self.ring = (np.clip(np.floor(px[..., 0]).astype(int), 0, h - 1) * w
-                     + np.clip(np.floor(px[..., 1]).astype(int), 0, w - 1))
+        self.ring = np.clip(np.floor(px[..., 0]).astype(int), 0, h - 1) * w + np.clip(
+            np.floor(px[..., 1]).astype(int), 0, w - 1
+        )
         self.centres = camera.project(points + [0, 0, PATCH_HEIGHT], self.shape)
         radius = np.maximum(
             np.linalg.norm(px - self.centres[:, None], axis=-1).max(axis=1),
-            np.linalg.norm(self.sample_px - self.centres[:, None], axis=-1).max(axis=1))
+            np.linalg.norm(self.sample_px - self.centres[:, None], axis=-1).max(axis=1),
+        )
         #: Each patch's radius in pixels plus `ARM_MARGIN`: a cell wholly clear of the arm.
         self.radius = radius + ARM_MARGIN
         colours = game.rules.colours
@@ -176,11 +181,15 @@ class BoardView:
         (``cells``, else those with at least `MIN_VISIBLE` of them)."""
         n, k = self.index.shape
         if not self.square:
-            whole = (~self.silhouette.hidden(qpos, self.centres, self.radius)
-                     if cells is None else np.asarray(cells, bool))
+            whole = (
+                ~self.silhouette.hidden(qpos, self.centres, self.radius)
+                if cells is None
+                else np.asarray(cells, bool)
+            )
             return np.repeat(whole[:, None], k, axis=1)
-        shown = ~self.silhouette.hidden(qpos, self.sample_px.reshape(-1, 2),
-                                        ARM_MARGIN + 0.5).reshape(n, k)
+        shown = ~self.silhouette.hidden(
+            qpos, self.sample_px.reshape(-1, 2), ARM_MARGIN + 0.5
+        ).reshape(n, k)
         keep = shown.mean(axis=1) >= MIN_VISIBLE if cells is None else np.asarray(cells, bool)
         return shown & keep[:, None]
 
@@ -188,8 +197,10 @@ class BoardView:
         """(n, k, 3) float RGB of each cell's patch samples in ``frame``."""
         img = np.asarray(frame, float).reshape(-1, 3)
         if img.shape[0] != self.shape[0] * self.shape[1]:
-            raise EstimationError(f"{self.camera.name} frames are {np.asarray(frame).shape[:2]}, "
-                                  f"the description says {self.shape}")
+            raise EstimationError(
+                f"{self.camera.name} frames are {np.asarray(frame).shape[:2]}, "
+                f"the description says {self.shape}"
+            )
         return img[self.index]
 
     def distances(self, px, background):
@@ -198,8 +209,10 @@ class BoardView:
         each player's piece over it (its rgba blended with alpha)."""
         d_bg = np.linalg.norm(px - background, axis=-1)
         alpha = self.piece_alpha.reshape((2,) + (1,) * px.ndim)
-        expected = (alpha * self.piece_rgb.reshape((2,) + (1,) * (px.ndim - 1) + (3,))
-                    + (1 - alpha) * background[None])
+        expected = (
+            alpha * self.piece_rgb.reshape((2,) + (1,) * (px.ndim - 1) + (3,))
+            + (1 - alpha) * background[None]
+        )
         return d_bg, np.linalg.norm(px[None] - expected, axis=-1)
 
     def read(self, frame, qpos, background):
@@ -219,23 +232,29 @@ class BoardView:
         """
         px = self.samples(frame)
         img = np.asarray(frame, float).reshape(-1, 3)
-        selection = (np.linalg.norm(img[self.ring] - self.selection_rgb, axis=-1)
-                     < SELECTION_RADIUS).mean(axis=1)
+        selection = (
+            np.linalg.norm(img[self.ring] - self.selection_rgb, axis=-1) < SELECTION_RADIUS
+        ).mean(axis=1)
         # A selected piece stands on the selection disc, seen through it.
-        background = np.where((selection >= SELECTED)[:, None, None], self.selection_rgb,
-                              background)
+        background = np.where(
+            (selection >= SELECTED)[:, None, None], self.selection_rgb, background
+        )
         d_bg, (d0, d1) = self.distances(px, background)
         # Samples under the arm (within ARM_MARGIN pixels of its outline) are
         # not read; a cell with less than MIN_VISIBLE of its samples left is hidden.
         n, k = self.index.shape
-        covered = self.silhouette.hidden(qpos, self.sample_px.reshape(-1, 2),
-                                         ARM_MARGIN + 0.5).reshape(n, k)
+        covered = self.silhouette.hidden(
+            qpos, self.sample_px.reshape(-1, 2), ARM_MARGIN + 0.5
+        ).reshape(n, k)
         shown = (~covered).sum(axis=1)
         hidden = shown < MIN_VISIBLE * k
         is0 = (d0 < PIECE_RADIUS) & (d0 < d_bg) & (d0 < d1) & ~covered
         is1 = (d1 < PIECE_RADIUS) & (d1 < d_bg) & (d1 <= d0) & ~covered
-        counts = [self._by_centre(is0), self._by_centre(is1)] if self.square else [
-            is0.sum(axis=1), is1.sum(axis=1)]
+        counts = (
+            [self._by_centre(is0), self._by_centre(is1)]
+            if self.square
+            else [is0.sum(axis=1), is1.sum(axis=1)]
+        )
         f0, f1 = (c / np.maximum(shown, 1) for c in counts)
         cells = np.full(len(px), UNSEEN, np.int8)
         cells[(f0 >= self.occupied) & (f0 >= f1)] = 0
@@ -255,7 +274,7 @@ class BoardView:
         grid = np.zeros(self.grid_shape, bool)
         grid[self.grid_at[..., 0][mask], self.grid_at[..., 1][mask]] = True
         labels, count = ndimage.label(grid)
-        of = labels[self.grid_at[..., 0], self.grid_at[..., 1]] * mask     # (n, k); 0: none
+        of = labels[self.grid_at[..., 0], self.grid_at[..., 1]] * mask  # (n, k); 0: none
         counts = np.zeros(len(mask))
         for label in range(1, count + 1):
             members = of == label

@@ -107,11 +107,21 @@ from scipy.optimize import linear_sum_assignment
 from envs.description import MujobanDescription
 from hier_agents.estimators.base import EstimationError, Estimator
 from hier_agents.estimators.camera_boxes import find_boxes
-from hier_agents.estimators.camera_ears import (EAR_HEIGHT, EAR_OFFSET, EAR_RADIUS,  # noqa: F401
-                                                locate_walker)
-from hier_agents.estimators.camera_grid import (QUANTILES as _QUANTILES,  # noqa: F401
-                                                WALL_MATCH, cell_pixel_index, grid_to_world,
-                                                read_targets, read_walls, wall_footprint)
+from hier_agents.estimators.camera_ears import (
+    EAR_HEIGHT,
+    EAR_OFFSET,  # noqa: F401
+    EAR_RADIUS,  # noqa: F401
+    locate_walker,
+)
+from hier_agents.estimators.camera_grid import (
+    QUANTILES as _QUANTILES,  # noqa: F401
+    WALL_MATCH,  # noqa: F401
+    cell_pixel_index,
+    grid_to_world,
+    read_targets,
+    read_walls,
+    wall_footprint,
+)
 from hier_agents.estimators.colours import masks as _masks
 from hier_agents.estimators.grid import rounded_state
 from skills.scene import BallScene, heading_from_orientation, world_velocity
@@ -152,10 +162,18 @@ class CameraEstimator(Estimator):
     #: multisampling, rendered only when it reads a frame.
     env_overrides = {"top_camera": FRAME_SHAPE, "multisamples": 0, "lazy_cameras": True}
 
-    def __init__(self, camera: str = "top_camera", frame_every: int = FRAME_EVERY,
-                 near_every: int = NEAR_EVERY, walker_every: int = WALKER_EVERY) -> None:
-        for label, value in (("frame_every", frame_every), ("near_every", near_every),
-                             ("walker_every", walker_every)):
+    def __init__(
+        self,
+        camera: str = "top_camera",
+        frame_every: int = FRAME_EVERY,
+        near_every: int = NEAR_EVERY,
+        walker_every: int = WALKER_EVERY,
+    ) -> None:
+        for label, value in (
+            ("frame_every", frame_every),
+            ("near_every", near_every),
+            ("walker_every", walker_every),
+        ):
             if not isinstance(value, int) or isinstance(value, bool) or value < 1:
                 raise ValueError(f"{label} must be an integer >= 1, got {value!r}")
         self._camera_key = camera
@@ -180,8 +198,10 @@ class CameraEstimator(Estimator):
 
     def _setup_geometry(self, description, shape) -> None:
         if description.looks is None:
-            raise EstimationError("the task description names no looks (object colours and "
-                                  "light): the camera estimator needs them")
+            raise EstimationError(
+                "the task description names no looks (object colours and "
+                "light): the camera estimator needs them"
+            )
         if self._desc == description and self._shape == shape:
             return
         self._desc, self._shape = description, shape
@@ -191,7 +211,7 @@ class CameraEstimator(Estimator):
         rows, cols = np.mgrid[0:h, 0:w]
         pix = np.stack([rows + 0.5, cols + 0.5], axis=-1).reshape(-1, 2)
         self._grid = {}
-        self._box_z = 2.0 * float(description.box_half_height)   # box tops
+        self._box_z = 2.0 * float(description.box_half_height)  # box tops
         for z in (0.0, self._box_z, EAR_HEIGHT, WALL_HEIGHT):
             xy = cam.unproject(pix, z=z, shape=shape)[:, :2]
             self._grid[z] = description.world_to_grid(xy).reshape(h, w, 2)
@@ -230,20 +250,21 @@ class CameraEstimator(Estimator):
         self._player: tuple[int, int] | None = None
         boxes = self._detect_boxes(frame, masks, self._walker_guess(masks, timestep))
         if len(boxes) != len(self._targets):
-            raise EstimationError(f"reset: {len(boxes)} boxes seen but {len(self._targets)} "
-                                  f"target pads")
+            raise EstimationError(
+                f"reset: {len(boxes)} boxes seen but {len(self._targets)} target pads"
+            )
         cells = [description.world_to_cell(xy) for xy in boxes]
         order = sorted(range(len(boxes)), key=lambda i: cells[i])
         self._num_boxes = len(boxes)
         self._box_xy = np.asarray(boxes, float)[order].reshape(-1, 2)
         self._dt = float(description.control_timestep)
-        self._since = 0          # steps since the last frame read
+        self._since = 0  # steps since the last frame read
         # The last estimate (frame or prediction), with its velocity.
         self._walker_xy: np.ndarray | None = None
         self._velocity: np.ndarray | None = None
         self._box_v = np.zeros_like(self._box_xy)
         self._frame_boxes: np.ndarray | None = None  # boxes at the last frame read
-        self._walker_reads = 0    # frames read since the walker was last located
+        self._walker_reads = 0  # frames read since the walker was last located
 
     def _read_static(self, frame, masks):
         """(walls, targets): frozensets of (row, col) cells read from the
@@ -251,8 +272,9 @@ class CameraEstimator(Estimator):
         shape = self._description.grid_shape
         # Pads (z = 0). A box's top in its on-a-pad colour shows a pad under
         # it too (with multisampling the covered pad's ring is ~1 pixel wide).
-        targets = read_targets(masks["pad"] | masks["box_on_pad"],
-                               self._cell_index(0.0, margin=0.05), shape)
+        targets = read_targets(
+            masks["pad"] | masks["box_on_pad"], self._cell_index(0.0, margin=0.05), shape
+        )
         # Walls: per-cell colour distributions at wall-top height.
         if self._sig_index is None:
             self._sig_index = cell_pixel_index(self._cell_index(WALL_HEIGHT, margin=0.05), shape)
@@ -263,16 +285,23 @@ class CameraEstimator(Estimator):
         ears (z 0.34..0.86 m) and a safety band around walls for boxes."""
         height, width = self._description.grid_shape
         g0 = self._grid[0.0]
-        outside = ((g0[..., 0] < -0.5) | (g0[..., 0] > height - 0.5)
-                   | (g0[..., 1] < -0.5) | (g0[..., 1] > width - 0.5))
+        outside = (
+            (g0[..., 0] < -0.5)
+            | (g0[..., 0] > height - 0.5)
+            | (g0[..., 1] < -0.5)
+            | (g0[..., 1] > width - 0.5)
+        )
         walls = self._wall_grid
-        self._occluder = (wall_footprint(self._grid[WALL_HEIGHT], walls)
-                          | wall_footprint(self._grid[EAR_HEIGHT], walls))
+        self._occluder = wall_footprint(self._grid[WALL_HEIGHT], walls) | wall_footprint(
+            self._grid[EAR_HEIGHT], walls
+        )
         # Box pixels must lie (at box height) in a non-wall cell, away from
         # the walls' footprint by a small band.
-        self._box_allowed = ~(wall_footprint(self._grid[self._box_z], walls, margin=0.04)
-                              | wall_footprint(self._grid[WALL_HEIGHT], walls, margin=0.04)
-                              | outside)
+        self._box_allowed = ~(
+            wall_footprint(self._grid[self._box_z], walls, margin=0.04)
+            | wall_footprint(self._grid[WALL_HEIGHT], walls, margin=0.04)
+            | outside
+        )
         self._box_hidden = ~self._box_allowed
 
     # -- per frame ----------------------------------------------------------
@@ -287,10 +316,16 @@ class CameraEstimator(Estimator):
         """World (x, y) of the walker from its ears' silhouettes
         (`hier_agents.estimators.camera_ears.locate_walker`)."""
         heading = heading_from_orientation(timestep.observation["walker/orientation"])
-        return locate_walker(masks["red_ear"], masks["blue_ear"],
-                             self._occluder | masks["unsure"], self._grid[EAR_HEIGHT],
-                             self._m_per_px[EAR_HEIGHT], heading, self._ear_radius,
-                             self._grid_to_world)
+        return locate_walker(
+            masks["red_ear"],
+            masks["blue_ear"],
+            self._occluder | masks["unsure"],
+            self._grid[EAR_HEIGHT],
+            self._m_per_px[EAR_HEIGHT],
+            heading,
+            self._ear_radius,
+            self._grid_to_world,
+        )
 
     def _grid_to_world(self, g) -> np.ndarray:
         return grid_to_world(self._description, g)
@@ -298,14 +333,22 @@ class CameraEstimator(Estimator):
     def _detect_boxes(self, frame, masks, walker_xy) -> list:
         """World (x, y) of every box seen."""
         desc = self._description
-        px = self._m_per_px[self._box_z] / desc.cell_size          # cells per pixel
+        px = self._m_per_px[self._box_z] / desc.cell_size  # cells per pixel
         # box side (cells) as seen: pixels fully covered by the box's top
         side = 2 * desc.box_half / desc.cell_size - 2 * self._inset * px
-        walker_g = (None if walker_xy is None else desc.world_to_grid(np.asarray(walker_xy)))
+        walker_g = None if walker_xy is None else desc.world_to_grid(np.asarray(walker_xy))
         # What may hide a box's edge: where boxes are not looked for, ears, unsure colours.
         hiding = self._box_hidden | masks["unsure"] | masks["red_ear"] | masks["blue_ear"]
-        found = find_boxes(masks["box"] & self._box_allowed, self._grid[self._box_z], side, px,
-                           walker_g, hiding, self._wall_grid, desc.box_half / desc.cell_size)
+        found = find_boxes(
+            masks["box"] & self._box_allowed,
+            self._grid[self._box_z],
+            side,
+            px,
+            walker_g,
+            hiding,
+            self._wall_grid,
+            desc.box_half / desc.cell_size,
+        )
         return [self._grid_to_world(c) for c in found]
 
     def estimate(self, timestep) -> BallScene:
@@ -315,14 +358,15 @@ class CameraEstimator(Estimator):
             raise EstimationError("estimate called before reset")
         obs = timestep.observation
         heading = heading_from_orientation(obs["walker/orientation"])
-        velocity = np.asarray(world_velocity(obs["walker/orientation"],
-                                             obs["walker/sensors_velocimeter"]), float)
+        velocity = np.asarray(
+            world_velocity(obs["walker/orientation"], obs["walker/sensors_velocimeter"]), float
+        )
         self._since += 1
         dt = self._dt
         if self._walker_xy is None:
             walker = None
         else:  # the velocimeter, integrated (trapezoid)
-            assert self._velocity is not None   # set with every walker estimate
+            assert self._velocity is not None  # set with every walker estimate
             walker = self._walker_xy + 0.5 * (self._velocity + velocity) * dt
         box_v = self._predict_box_velocity(walker, velocity)
         boxes = self._box_xy + box_v * dt
@@ -339,14 +383,20 @@ class CameraEstimator(Estimator):
             self.frames_read += 1
         else:
             self.steps_predicted += 1
-        state, box_cells = rounded_state(self._desc, self._walls, self._targets, boxes, walker,
-                                         self._player)
+        state, box_cells = rounded_state(
+            self._desc, self._walls, self._targets, boxes, walker, self._player
+        )
         self._player = state.player
         self._box_xy, self._box_v = boxes, box_v
         self._walker_xy, self._velocity = np.asarray(walker, float), velocity
-        return BallScene(state=state, walker_xy=self._walker_xy.copy(),
-                         walker_velocity=velocity, heading=float(heading),
-                         box_xy=boxes.copy(), box_cells=tuple(box_cells))
+        return BallScene(
+            state=state,
+            walker_xy=self._walker_xy.copy(),
+            walker_velocity=velocity,
+            heading=float(heading),
+            box_xy=boxes.copy(),
+            box_cells=tuple(box_cells),
+        )
 
     def _frame_due(self, walker, boxes) -> bool:
         """Every ``frame_every``-th step; every ``near_every``-th while a box
@@ -369,8 +419,9 @@ class CameraEstimator(Estimator):
             return box_v
         speed = np.linalg.norm(box_v, axis=1)
         moving = speed > 0
-        box_v[moving] *= (np.maximum(speed[moving] - BOX_DECEL * self._dt, 0.0)
-                          / speed[moving])[:, None]
+        box_v[moving] *= (np.maximum(speed[moving] - BOX_DECEL * self._dt, 0.0) / speed[moving])[
+            :, None
+        ]
         if walker is None:
             return box_v
         desc = self._description
@@ -389,8 +440,9 @@ class CameraEstimator(Estimator):
         walker is located in the frame unless given."""
         frame = np.asarray(obs[self._camera_key])
         if frame.shape[:2] != self._shape:
-            raise EstimationError(f"frame shape {frame.shape[:2]} differs from reset's "
-                                  f"{self._shape}")
+            raise EstimationError(
+                f"frame shape {frame.shape[:2]} differs from reset's {self._shape}"
+            )
         masks = _masks(frame, self._description.looks)
         try:
             if walker is None:

@@ -152,16 +152,19 @@ class BoardCameraEstimator(Estimator):
         self._selected = -1
         # `_search`'s results: (state, score) by the search's inputs.
         self._cache: dict[tuple[object, ...], tuple[Any, tuple[Any, ...]]] = {}
-        self._since, self._qpos = self.frame_every, None      # the first estimate reads
+        self._since, self._qpos = self.frame_every, None  # the first estimate reads
         self._touched = None
         self._vouched = None
         # Each touch zone's centre (x, y) and half-sizes: the points, then the pass areas.
         half = view.half
-        self._zones = [(np.asarray(p[:2], float), np.array([half, half]))
-                       for p in description.point_positions]
+        self._zones = [
+            (np.asarray(p[:2], float), np.array([half, half])) for p in description.point_positions
+        ]
         if description.pass_action is not None:
-            self._zones += [(np.asarray(z["centre"][:2], float), np.asarray(z["half"], float))
-                            for z in description.pass_zones.values()]
+            self._zones += [
+                (np.asarray(z["centre"][:2], float), np.asarray(z["half"], float))
+                for z in description.pass_zones.values()
+            ]
         # The empty board's colours, per patch sample: learnt from the first
         # frame (the cells empty in the game's initial position, unless their
         # colour is far from their parity's median: a piece the opponent has
@@ -170,8 +173,12 @@ class BoardCameraEstimator(Estimator):
         samples = view.samples(obs[CAMERA])
         self._background = np.full(samples.shape, np.nan)
         # Nothing can stand out when the agent moves first: no move was played.
-        self._learn(self._anchor, samples, view.clear(obs["arm/joints_pos"]),
-                    check=not self._settled(self._anchor))
+        self._learn(
+            self._anchor,
+            samples,
+            view.clear(obs["arm/joints_pos"]),
+            check=not self._settled(self._anchor),
+        )
 
     def read(self, timestep):
         """(cells, hidden) of ``timestep``'s frame as `estimate` reads it
@@ -180,8 +187,9 @@ class BoardCameraEstimator(Estimator):
         if self._view is None:
             raise RuntimeError("BoardCameraEstimator.read called before reset")
         obs = timestep.observation
-        cells, hidden, _, _ = self._view.read(obs[CAMERA], obs["arm/joints_pos"],
-                                              self._filled_background())
+        cells, hidden, _, _ = self._view.read(
+            obs[CAMERA], obs["arm/joints_pos"], self._filled_background()
+        )
         return cells, hidden
 
     def _learn(self, state, samples, keep, check: bool = False) -> None:
@@ -205,22 +213,24 @@ class BoardCameraEstimator(Estimator):
             # with all of its parity's.
             pool = group if len(group) >= 3 else np.flatnonzero(new & (view.parity == key[1]))
             if check and len(pool) >= 2:
-                with warnings.catch_warnings():       # a sample no cell of the pool shows
+                with warnings.catch_warnings():  # a sample no cell of the pool shows
                     warnings.simplefilter("ignore", RuntimeWarning)
                     median = np.nanmedian(shown[pool], axis=0)
                 odd = np.linalg.norm(samples[group] - median, axis=-1) > BACKGROUND_SPREAD
                 if len(pool) == 2:
                     # The median is halfway between the two cells: the odd
                     # samples of the one holding a piece lie towards its colour.
-                    d_bg, d_pieces = view.distances(samples[group],
-                                                    np.broadcast_to(median, samples[group].shape))
+                    d_bg, d_pieces = view.distances(
+                        samples[group], np.broadcast_to(median, samples[group].shape)
+                    )
                     odd &= d_pieces.min(axis=0) < d_bg
                 odd = (odd & keep[group]).sum(axis=1) / keep[group].sum(axis=1)
                 group = group[odd <= BACKGROUND_ODD * view.scale]
             elif check:
-                continue          # a lone cell cannot be checked: learnt once confirmed empty
-            self._background[group] = np.where(keep[group][..., None], samples[group],
-                                               self._background[group])
+                continue  # a lone cell cannot be checked: learnt once confirmed empty
+            self._background[group] = np.where(
+                keep[group][..., None], samples[group], self._background[group]
+            )
 
     def _filled_background(self) -> np.ndarray:
         """The background, each sample not learnt borrowed from the same
@@ -251,8 +261,9 @@ class BoardCameraEstimator(Estimator):
                 if not missing.any():
                     break
             else:
-                out[cell][missing] = (np.median(bg[cell][known[cell]], axis=0)
-                                      if known[cell].any() else 0.0)
+                out[cell][missing] = (
+                    np.median(bg[cell][known[cell]], axis=0) if known[cell].any() else 0.0
+                )
         return out
 
     def _settle(self, state) -> None:
@@ -278,22 +289,30 @@ class BoardCameraEstimator(Estimator):
             # played it was under the hand before the jump.
             self._touched = self._view.silhouette.touched_zone(self._qpos, self._zones)
         self._qpos = qpos
-        if (self._since < self.frame_every and not jumped and not timestep.last()
-                and self._belief.history() == self._anchor.history()
-                and self._settled(self._belief)):
-            return self._scene(qpos, obs)          # between frames: as last read
+        if (
+            self._since < self.frame_every
+            and not jumped
+            and not timestep.last()
+            and self._belief.history() == self._anchor.history()
+            and self._settled(self._belief)
+        ):
+            return self._scene(qpos, obs)  # between frames: as last read
         self._since = 0
-        cells, hidden, selection, fractions = self._view.read(obs[CAMERA], qpos,
-                                                              self._filled_background())
+        cells, hidden, selection, fractions = self._view.read(
+            obs[CAMERA], qpos, self._filled_background()
+        )
         seen = cells != UNSEEN
         game = self._game
         players = game.players(self._belief)
         # The episode ended with the game (not at the time limit): the game is over.
         over = timestep.last() and float(timestep.discount or 0.0) == 0.0
-        if (np.any(players[seen] != cells[seen]) or not self._settled(self._belief)
-                or (over and not self._belief.is_terminal()) or self._touched is not None):
-            self._belief = self._explain(cells, np.where(hidden[:, None], np.nan, fractions),
-                                         over)
+        if (
+            np.any(players[seen] != cells[seen])
+            or not self._settled(self._belief)
+            or (over and not self._belief.is_terminal())
+            or self._touched is not None
+        ):
+            self._belief = self._explain(cells, np.where(hidden[:, None], np.nan, fractions), over)
             self._touched = None
             self._vouched = seen & (game.players(self._belief) == cells)
         elif self._belief.history() != self._anchor.history():
@@ -304,18 +323,28 @@ class BoardCameraEstimator(Estimator):
             changed = game.players(self._anchor) != players
             if not np.any(changed & ~self._vouched):
                 self._confirm(self._belief)
-        if self._belief.history() == self._anchor.history() and np.isnan(
-                self._background[..., 0]).any():
-            self._learn(self._anchor, self._view.samples(obs[CAMERA]),
-                        self._view.clear(qpos, cells == EMPTY_CELL))
+        if (
+            self._belief.history() == self._anchor.history()
+            and np.isnan(self._background[..., 0]).any()
+        ):
+            self._learn(
+                self._anchor,
+                self._view.samples(obs[CAMERA]),
+                self._view.clear(qpos, cells == EMPTY_CELL),
+            )
         self._selected = self._selection(selection, hidden)
         return self._scene(qpos, obs)
 
     def _scene(self, qpos, obs) -> ArmScene:
         state = self._belief.clone()
-        return ArmScene(state=state, moves=tuple(int(a) for a in state.history()),
-                        qpos=qpos, qvel=np.array(obs["arm/joints_vel"], float),
-                        selected=self._selected, agent=self._agent)
+        return ArmScene(
+            state=state,
+            moves=tuple(int(a) for a in state.history()),
+            qpos=qpos,
+            qvel=np.array(obs["arm/joints_vel"], float),
+            selected=self._selected,
+            agent=self._agent,
+        )
 
     def _selection(self, selection, hidden) -> int:
         if self._game.rules.input != "move":
@@ -324,7 +353,7 @@ class BoardCameraEstimator(Estimator):
         if selection[best] >= SELECTED:
             return best
         if self._selected >= 0 and hidden[self._selected]:
-            return self._selected                  # under the arm: as last seen
+            return self._selected  # under the arm: as last seen
         return -1
 
     @property
@@ -347,8 +376,7 @@ class BoardCameraEstimator(Estimator):
         else:
             # Nothing near explains the frame: the game ran further ahead
             # while cells were hidden. A deeper, wider search from the last anchor.
-            state, score = self._search(self._anchor, cells, fractions, over,
-                                        DEEP_MOVES, DEEP_BEAM)
+            state, score = self._search(self._anchor, cells, fractions, over, DEEP_MOVES, DEEP_BEAM)
             tried.append((score, 0, state))
         score, back, state = min(tried, key=lambda t: (t[0], t[1]))
         if not score[0] and score[1] == 0 and score[5] == 0:
@@ -361,21 +389,35 @@ class BoardCameraEstimator(Estimator):
         history = state.history()
         while len(self._anchors) > 1:
             before = self._anchor.history()
-            if history[:len(before)] == before:
+            if history[: len(before)] == before:
                 break
             self._anchors.pop()
         self._anchors.append(state.clone())
 
-    def _search(self, anchor, cells, fractions, over: bool = False,
-                max_moves: int = MAX_MOVES, beam: int = BEAM):
+    def _search(
+        self,
+        anchor,
+        cells,
+        fractions,
+        over: bool = False,
+        max_moves: int = MAX_MOVES,
+        beam: int = BEAM,
+    ):
         """(state, score): the best-explaining continuation of ``anchor`` and
         its score (see the module docstring).
         ``fractions`` (n, 2): each visible cell's share of each piece colour
         (NaN under the arm); with ``over`` (the episode ended with the game)
         only a finished game is accepted, if one is found."""
-        key = (tuple(anchor.history()), max_moves, beam, cells.tobytes(), self._touched,
-               self._selected,
-               np.round(np.nan_to_num(fractions, nan=-1.0) * 20).astype(np.int8).tobytes(), over)
+        key = (
+            tuple(anchor.history()),
+            max_moves,
+            beam,
+            cells.tobytes(),
+            self._touched,
+            self._selected,
+            np.round(np.nan_to_num(fractions, nan=-1.0) * 20).astype(np.int8).tobytes(),
+            over,
+        )
         if key in self._cache:
             state, score = self._cache[key]
             return state.clone(), score
@@ -394,7 +436,7 @@ class BoardCameraEstimator(Estimator):
             if best is not None and _confirmed(best[0]) and not best[0][4]:
                 break
             frontier = self._beam(children, beam)
-        if best is None:      # nothing settled within reach: keep the estimate, unconfirmed
+        if best is None:  # nothing settled within reach: keep the estimate, unconfirmed
             result = (self._belief.clone(), (True, len(cells), 0.0, 0, 1, len(cells)))
         else:
             result = (best[2], best[0])
@@ -416,7 +458,7 @@ class BoardCameraEstimator(Estimator):
         seen = cells != UNSEEN
         base = game.players(anchor)
         shares = fractions[visible]
-        played = None             # the action the touch before an arm reset played
+        played = None  # the action the touch before an arm reset played
         if self._touched is not None and anchor.current_player() == self._agent:
             zone = min(self._touched, game.num_zones - 1)
             action = game.zone_effects(anchor, self._selected)[0][zone]
@@ -430,8 +472,9 @@ class BoardCameraEstimator(Estimator):
             pieces = np.stack([players[visible] == 0, players[visible] == 1], axis=1)
             soft = round(float(np.abs(shares - pieces).sum()), 3)
             history = state.history()
-            miss = played is not None and (len(history) <= start_len
-                                           or history[start_len] != played)
+            miss = played is not None and (
+                len(history) <= start_len or history[start_len] != played
+            )
             blind = int(np.count_nonzero((players != base) & ~seen))
             common = min(len(history), len(believed))
             rewrite = history[:common] != believed[:common]

@@ -18,8 +18,7 @@ HIDDEN_SHARE = 0.5
 _STEPS = ((1, 0), (-1, 0), (0, 1), (0, -1))
 
 
-def find_boxes(box_mask, grid, side, px, walker_g, hiding=None, walls=None,
-               half=None) -> list:
+def find_boxes(box_mask, grid, side, px, walker_g, hiding=None, walls=None, half=None) -> list:
     """Grid (row, col) centres of the boxes in ``box_mask`` ((h, w) bool:
     box-coloured pixels where a box may be), ``grid`` the (h, w, 2) grid
     coordinates of each pixel at box-top height, ``side`` a box's side as
@@ -34,7 +33,7 @@ def find_boxes(box_mask, grid, side, px, walker_g, hiding=None, walls=None,
     labels, n = ndimage.label(box_mask)
     if n == 0:
         return []
-    area1 = (side / px) ** 2                             # pixels per box
+    area1 = (side / px) ** 2  # pixels per box
     objs = ndimage.find_objects(labels)
     found = []
     for k, sl in enumerate(objs, start=1):
@@ -42,20 +41,21 @@ def find_boxes(box_mask, grid, side, px, walker_g, hiding=None, walls=None,
         area = comp.sum()
         if area < 0.12 * area1:
             continue
-        g = grid[sl][comp]                                # (n, 2) grid coords
+        g = grid[sl][comp]  # (n, 2) grid coords
         count = max(1, int(round(area / (0.93 * area1))))
         if count == 1:
             hidden = limits = None
-            near = (slice(max(sl[0].start - 1, 0), sl[0].stop + 1),
-                    slice(max(sl[1].start - 1, 0), sl[1].stop + 1))
-            if hiding is not None and hiding[near].any():   # an edge may be hidden
+            near = (
+                slice(max(sl[0].start - 1, 0), sl[0].stop + 1),
+                slice(max(sl[1].start - 1, 0), sl[1].stop + 1),
+            )
+            if hiding is not None and hiding[near].any():  # an edge may be hidden
                 hidden = hidden_edges(sl, hiding, grid)
                 if walls is not None and hidden.any():
                     limits = wall_limits(g.mean(axis=0), walls, half)
             found.append(box_centre(g, side, px, walker_g, hidden, limits))
         else:
-            found.extend(box_centre(pts, side, px, walker_g)
-                         for pts in split_points(g, count))
+            found.extend(box_centre(pts, side, px, walker_g) for pts in split_points(g, count))
     return found
 
 
@@ -72,12 +72,16 @@ def hidden_edges(sl, hiding, grid) -> np.ndarray:
     r0, r1, c0, c1 = sl[0].start, sl[0].stop, sl[1].start, sl[1].stop
     rc, cc = (r0 + r1) // 2, (c0 + c1) // 2
     out = np.zeros((2, 2), bool)
-    for r, c, dr, dc in ((r0 - 1, None, -1, 0), (r1, None, 1, 0),
-                         (None, c0 - 1, 0, -1), (None, c1, 0, 1)):
+    for r, c, dr, dc in (
+        (r0 - 1, None, -1, 0),
+        (r1, None, 1, 0),
+        (None, c0 - 1, 0, -1),
+        (None, c1, 0, 1),
+    ):
         if r is not None:
             hidden = not 0 <= r < h or hiding[r, c0:c1].mean() >= HIDDEN_SHARE
         else:
-            assert c is not None                # each side gives its row or its column
+            assert c is not None  # each side gives its row or its column
             hidden = not 0 <= c < w or hiding[r0:r1, c].mean() >= HIDDEN_SHARE
         if hidden:
             step = grid[min(max(rc + dr, 0), h - 1), min(max(cc + dc, 0), w - 1)] - grid[rc, cc]
@@ -99,8 +103,9 @@ def split_points(points, k):
     for _ in range(10):
         d = np.stack([np.sum((points - c) ** 2, 1) for c in centres], 1)
         lab = np.argmin(d, 1)
-        new = np.asarray([points[lab == j].mean(0) if np.any(lab == j) else centres[j]
-                          for j in range(k)])
+        new = np.asarray(
+            [points[lab == j].mean(0) if np.any(lab == j) else centres[j] for j in range(k)]
+        )
         if np.allclose(new, centres):
             break
         centres = new
@@ -146,8 +151,7 @@ def box_centre(pts, side, px, walker_g, hidden=None, limits=None):
         v = pts[:, axis]
         vmin, vmax = v.min(), v.max()
         cut_lo, cut_hi = (False, False) if hidden is None else map(bool, hidden[axis])
-        if (not (cut_lo or cut_hi) and walker_g is not None
-                and vmax - vmin + px < side - 1.2 * px):
+        if not (cut_lo or cut_hi) and walker_g is not None and vmax - vmin + px < side - 1.2 * px:
             near_lo = abs(walker_g[axis] - vmin) < abs(walker_g[axis] - vmax)
             cut_lo, cut_hi = near_lo, not near_lo
         lo = vmax - side / 2 if cut_lo else max(vmin - px + side / 2, vmax - side / 2)
@@ -155,7 +159,6 @@ def box_centre(pts, side, px, walker_g, hidden=None, limits=None):
         mid = 0.5 * (lo + hi) if lo <= hi else 0.5 * (vmin + vmax)
         if limits is not None:
             lo, hi = max(lo, limits[axis, 0]), min(hi, limits[axis, 1])
-            mid = 0.5 * (lo + hi) if lo <= hi else min(max(mid, limits[axis, 0]),
-                                                        limits[axis, 1])
+            mid = 0.5 * (lo + hi) if lo <= hi else min(max(mid, limits[axis, 0]), limits[axis, 1])
         centre[axis] = mid
     return centre

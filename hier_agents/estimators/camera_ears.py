@@ -42,12 +42,12 @@ def locate_walker(red, blue, occluder, grid, m_per_px, heading, radius, to_world
     """
     ears = red | blue
     n = int(ears.sum())
-    px_area = m_per_px ** 2
-    full = (2 * np.pi * EAR_RADIUS ** 2) / px_area
+    px_area = m_per_px**2
+    full = (2 * np.pi * EAR_RADIUS**2) / px_area
     if n < 0.1 * full:
         raise EstimationError(f"walker not found: {n} ear pixels (expected ~{full:.0f})")
     rows, cols = np.nonzero(ears)
-    obs_g = grid[rows, cols].mean(axis=0)            # grid coords (row, col)
+    obs_g = grid[rows, cols].mean(axis=0)  # grid coords (row, col)
     centre = to_world(obs_g)
     lateral = np.array([np.sin(heading), -np.cos(heading)])
     # Refine against the wall occlusion (only when walls are near).
@@ -64,8 +64,9 @@ def locate_walker(red, blue, occluder, grid, m_per_px, heading, radius, to_world
         centre = fit_ears(centre, lateral, red_w, blue_w, occ, world, radius)
     step = m_per_px
     for span, n in MATCH_PASSES:
-        centre = match_ears(centre, lateral, red_w, blue_w, occ, world, radius,
-                            np.linspace(-span, span, n) * step)
+        centre = match_ears(
+            centre, lateral, red_w, blue_w, occ, world, radius, np.linspace(-span, span, n) * step
+        )
     return centre
 
 
@@ -79,33 +80,39 @@ def match_ears(centre, lateral, red, blue, occ, world, radius, offsets):
     compared: within the largest shift of an ear's outline or of the line
     between the ears (the others add the same count to every candidate)."""
     vis = ~occ
-    pts = world[vis]                                   # (n, 2)
+    pts = world[vis]  # (n, 2)
     shift = float(np.max(np.abs(offsets))) * np.sqrt(2.0) + 1e-9
     dr0 = np.linalg.norm(pts - (np.asarray(centre) + EAR_OFFSET * lateral), axis=1)
     db0 = np.linalg.norm(pts - (np.asarray(centre) - EAR_OFFSET * lateral), axis=1)
-    near = ((np.abs(dr0 - radius) <= shift) | (np.abs(db0 - radius) <= shift)
-            | (np.abs(dr0 - db0) <= 2 * shift))
+    near = (
+        (np.abs(dr0 - radius) <= shift)
+        | (np.abs(db0 - radius) <= shift)
+        | (np.abs(dr0 - db0) <= 2 * shift)
+    )
     vis[vis] = near
     pts = pts[near]
     obs_r, obs_b = red[vis], blue[vis]
     # Candidate centres form a grid (x offset i, y offset j), so a squared
     # distance splits into an x term of i and a y term of j: computed per
     # axis and added, bit for bit the direct sums.
-    cx = (centre[0] + offsets) + EAR_OFFSET * lateral[0]     # red ear x per i
+    cx = (centre[0] + offsets) + EAR_OFFSET * lateral[0]  # red ear x per i
     cy = (centre[1] + offsets) + EAR_OFFSET * lateral[1]
-    bx = (centre[0] + offsets) - EAR_OFFSET * lateral[0]     # blue ear
+    bx = (centre[0] + offsets) - EAR_OFFSET * lateral[0]  # blue ear
     by = (centre[1] + offsets) - EAR_OFFSET * lateral[1]
     k = len(offsets)
-    dr = ((pts[None, :, 0] - cx[:, None]) ** 2)[:, None, :] \
-        + ((pts[None, :, 1] - cy[:, None]) ** 2)[None, :, :]
-    db = ((pts[None, :, 0] - bx[:, None]) ** 2)[:, None, :] \
-        + ((pts[None, :, 1] - by[:, None]) ** 2)[None, :, :]
+    dr = ((pts[None, :, 0] - cx[:, None]) ** 2)[:, None, :] + (
+        (pts[None, :, 1] - cy[:, None]) ** 2
+    )[None, :, :]
+    db = ((pts[None, :, 0] - bx[:, None]) ** 2)[:, None, :] + (
+        (pts[None, :, 1] - by[:, None]) ** 2
+    )[None, :, :]
     dr, db = dr.reshape(k * k, -1), db.reshape(k * k, -1)
-    r2 = radius ** 2
+    r2 = radius**2
     pred_r = (dr <= r2) & (dr <= db)
     pred_b = (db <= r2) & (db < dr)
-    miss = (np.count_nonzero(pred_r != obs_r[None], axis=1)
-            + np.count_nonzero(pred_b != obs_b[None], axis=1))
+    miss = np.count_nonzero(pred_r != obs_r[None], axis=1) + np.count_nonzero(
+        pred_b != obs_b[None], axis=1
+    )
     dx, dy = np.meshgrid(offsets, offsets, indexing="ij")
     cands = np.asarray(centre)[None, :] + np.stack([dx.ravel(), dy.ravel()], 1)
     best = cands[miss == miss.min()]
@@ -121,16 +128,20 @@ def fit_ears(centre, lateral, red, blue, occ, world, radius):
     points, signs = [], []
     for ear, other, sign in ((red, blue, 1.0), (blue, red, -1.0)):
         for dr, dc in ((1, 0), (-1, 0), (0, 1), (0, -1)):
-            inner = ear[max(-dr, 0):ear.shape[0] - max(dr, 0),
-                        max(-dc, 0):ear.shape[1] - max(dc, 0)]
-            sl = (slice(max(dr, 0), ear.shape[0] + min(dr, 0)),
-                  slice(max(dc, 0), ear.shape[1] + min(dc, 0)))
+            inner = ear[
+                max(-dr, 0) : ear.shape[0] - max(dr, 0), max(-dc, 0) : ear.shape[1] - max(dc, 0)
+            ]
+            sl = (
+                slice(max(dr, 0), ear.shape[0] + min(dr, 0)),
+                slice(max(dc, 0), ear.shape[1] + min(dc, 0)),
+            )
             outer_ok = ~ear[sl] & ~other[sl] & ~occ[sl]
             hit = inner & outer_ok
             if not hit.any():
                 continue
-            pin = world[max(-dr, 0):ear.shape[0] - max(dr, 0),
-                        max(-dc, 0):ear.shape[1] - max(dc, 0)][hit]
+            pin = world[
+                max(-dr, 0) : ear.shape[0] - max(dr, 0), max(-dc, 0) : ear.shape[1] - max(dc, 0)
+            ][hit]
             pout = world[sl][hit]
             points.append(0.5 * (pin + pout))
             signs.append(np.full(len(pin), sign))

@@ -23,8 +23,17 @@ from scipy import ndimage
 
 from hier_agents.estimators.base import EstimationError
 
-__all__ = ["WALL_MATCH", "QUANTILES", "cell_pixel_index", "read_targets", "read_walls",
-           "signatures", "foreign_fraction", "wall_footprint", "grid_to_world"]
+__all__ = [
+    "WALL_MATCH",
+    "QUANTILES",
+    "cell_pixel_index",
+    "read_targets",
+    "read_walls",
+    "signatures",
+    "foreign_fraction",
+    "wall_footprint",
+    "grid_to_world",
+]
 
 #: Quantiles (percent) of a cell's colours compared between cells, and the
 #: largest mean absolute difference (0..255 units) of a wall match. With the
@@ -69,8 +78,10 @@ def read_walls(frame, index, targets, grid_shape) -> frozenset:
     np.fill_diagonal(pair, np.inf)
     unmatched = int(np.sum(pair.min(1) >= WALL_MATCH))
     if unmatched > len(ring_sigs) // 10:
-        raise EstimationError(f"reset: {unmatched} of the grid's {len(ring_sigs)} outer "
-                              f"cells do not look like the others (no wall border?)")
+        raise EstimationError(
+            f"reset: {unmatched} of the grid's {len(ring_sigs)} outer "
+            f"cells do not look like the others (no wall border?)"
+        )
     dist = np.abs(sig[:, :, None, :] - ring_sigs[None, None, :, :]).mean(-1).min(-1)
     walls = (dist < WALL_MATCH) & (foreign_fraction(frame, index, ring, grid_shape) < 0.02)
     walls[0, :] = walls[-1, :] = walls[:, 0] = walls[:, -1] = True
@@ -102,14 +113,14 @@ def foreign_fraction(frame, index, ring, grid_shape) -> np.ndarray:
     order, starts = index
     q = frame.reshape(-1, 3)[order] // 4
     code = (q[:, 0].astype(np.int32) * 64 + q[:, 1]) * 64 + q[:, 2]
-    seen = np.zeros(64 ** 3, np.uint8)
+    seen = np.zeros(64**3, np.uint8)
     for k in np.flatnonzero(ring.ravel()):
-        seen[code[starts[k]:starts[k + 1]]] = 1
+        seen[code[starts[k] : starts[k + 1]]] = 1
     seen = ndimage.maximum_filter(seen.reshape(64, 64, 64), size=5).ravel().astype(bool)
     out = np.zeros(height * width)
     for cell in range(height * width):
         if starts[cell + 1] > starts[cell]:
-            out[cell] = 1.0 - seen[code[starts[cell]:starts[cell + 1]]].mean()
+            out[cell] = 1.0 - seen[code[starts[cell] : starts[cell + 1]]].mean()
     return out.reshape(height, width)
 
 
@@ -121,7 +132,7 @@ def signatures(frame, index, grid_shape) -> np.ndarray:
     pixels = frame.reshape(-1, 3)[order].astype(np.float32)
     out = np.zeros((height * width, 3 * len(QUANTILES)), np.float32)
     for k in range(height * width):
-        px = pixels[starts[k]:starts[k + 1]]
+        px = pixels[starts[k] : starts[k + 1]]
         if len(px):
             out[k] = np.percentile(px, QUANTILES, axis=0).T.ravel()
     return out.reshape(height, width, -1)

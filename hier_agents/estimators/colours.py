@@ -31,8 +31,7 @@ SHADE_SLACK = 0.01
 
 #: Colour classes of `colour_table`.
 _NONE, _BOX, _BOX_ON_PAD, _PAD, _PAD_COVERED, _RED_EAR, _BLUE_EAR = range(7)
-_FLATS = ((_BOX, "box"), (_BOX_ON_PAD, "box_on_pad"), (_PAD, "pad"),
-          (_PAD_COVERED, "pad_covered"))
+_FLATS = ((_BOX, "box"), (_BOX_ON_PAD, "box_on_pad"), (_PAD, "pad"), (_PAD_COVERED, "pad_covered"))
 
 
 @functools.lru_cache(maxsize=8)
@@ -115,7 +114,7 @@ def masks(frame: np.ndarray, looks) -> dict:
     are not looked for (treated as hidden). Walls and floors are textured
     and drawn per episode; none of their texels comes near these colours."""
     table, confusable = colour_table(looks)
-    code = frame[..., 0].astype(np.int32)       # 24-bit colour, built in place
+    code = frame[..., 0].astype(np.int32)  # 24-bit colour, built in place
     code <<= 8
     code |= frame[..., 1]
     code <<= 8
@@ -126,6 +125,11 @@ def masks(frame: np.ndarray, looks) -> dict:
         unsure = dilate3(unsure)
         cls = np.where(unsure & (cls >= _RED_EAR), _NONE, cls)
     box_on_pad = cls == _BOX_ON_PAD
-    return dict(red_ear=cls == _RED_EAR, blue_ear=cls == _BLUE_EAR,
-                pad=(cls == _PAD) | (cls == _PAD_COVERED), box_on_pad=box_on_pad,
-                box=(cls == _BOX) | box_on_pad, unsure=unsure)
+    return dict(
+        red_ear=cls == _RED_EAR,
+        blue_ear=cls == _BLUE_EAR,
+        pad=(cls == _PAD) | (cls == _PAD_COVERED),
+        box_on_pad=box_on_pad,
+        box=(cls == _BOX) | box_on_pad,
+        unsure=unsure,
+    )

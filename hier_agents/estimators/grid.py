@@ -23,8 +23,9 @@ def cells_of(mask: np.ndarray) -> frozenset:
     return frozenset((int(r), int(c)) for r, c in zip(*np.nonzero(mask)))
 
 
-def rounded_state(description, walls: frozenset, targets: frozenset, box_xy,
-                  walker_xy, previous_player=None) -> tuple[SokobanState, tuple]:
+def rounded_state(
+    description, walls: frozenset, targets: frozenset, box_xy, walker_xy, previous_player=None
+) -> tuple[SokobanState, tuple]:
     """(state, box cells in ``box_xy`` order) by the paper's rounding rule.
 
     Raises:
@@ -41,13 +42,20 @@ def rounded_state(description, walls: frozenset, targets: frozenset, box_xy,
     player = description.world_to_cell(walker_xy)
     if player in box_cells or player in walls:
         if previous_player is None:
-            raise EstimationError(f"the walker rounds onto cell {player} (a box or a wall) "
-                                  f"before any estimate")
+            raise EstimationError(
+                f"the walker rounds onto cell {player} (a box or a wall) before any estimate"
+            )
         player = previous_player
     height, width = description.grid_shape
     try:
-        state = SokobanState(walls=walls, targets=targets, boxes=frozenset(box_cells),
-                             player=player, height=height, width=width)
+        state = SokobanState(
+            walls=walls,
+            targets=targets,
+            boxes=frozenset(box_cells),
+            player=player,
+            height=height,
+            width=width,
+        )
     except ValueError as exc:  # e.g. a box now where the walker's kept cell was
         raise EstimationError(f"no consistent grid: {exc}") from None
     return state, box_cells

@@ -21,8 +21,6 @@ from skills.scene import BallScene
 __all__ = ["OracleEstimator", "EntityLayerEstimator"]
 
 
-
-
 class OracleEstimator(Estimator):
     """The simulator's own positions and the task's abstract cells.
 
@@ -48,11 +46,22 @@ class OracleEstimator(Estimator):
         assert self._static is not None, "estimate called before reset"
         walls, targets, (height, width) = self._static
         box_cells, player = task.abstract_cells
-        state = SokobanState(walls=walls, targets=targets, boxes=frozenset(box_cells),
-                             player=tuple(player), height=height, width=width)
-        return BallScene(state=state, walker_xy=task.walker_position().copy(),
-                         walker_velocity=task.walker_velocity(), heading=task.walker_heading(),
-                         box_xy=task.box_positions(), box_cells=tuple(box_cells))
+        state = SokobanState(
+            walls=walls,
+            targets=targets,
+            boxes=frozenset(box_cells),
+            player=tuple(player),
+            height=height,
+            width=width,
+        )
+        return BallScene(
+            state=state,
+            walker_xy=task.walker_position().copy(),
+            walker_velocity=task.walker_velocity(),
+            heading=task.walker_heading(),
+            box_xy=task.box_positions(),
+            box_cells=tuple(box_cells),
+        )
 
 
 class EntityLayerEstimator(OracleEstimator):
@@ -72,10 +81,20 @@ class EntityLayerEstimator(OracleEstimator):
         if len(players) != 1:
             raise EstimationError(f"the entity layer shows {len(players)} players")
         height, width = layer.shape[:2]
-        state = SokobanState(walls=cells_of(layer[..., 0]), targets=cells_of(layer[..., 1]),
-                             boxes=cells_of(layer[..., 3]), player=next(iter(players)),
-                             height=height, width=width)
+        state = SokobanState(
+            walls=cells_of(layer[..., 0]),
+            targets=cells_of(layer[..., 1]),
+            boxes=cells_of(layer[..., 3]),
+            player=next(iter(players)),
+            height=height,
+            width=width,
+        )
         scene = super().estimate(timestep)
-        return BallScene(state=state, walker_xy=scene.walker_xy,
-                         walker_velocity=scene.walker_velocity, heading=scene.heading,
-                         box_xy=scene.box_xy, box_cells=scene.box_cells)
+        return BallScene(
+            state=state,
+            walker_xy=scene.walker_xy,
+            walker_velocity=scene.walker_velocity,
+            heading=scene.heading,
+            box_xy=scene.box_xy,
+            box_cells=scene.box_cells,
+        )

@@ -17,10 +17,13 @@ until an environment is made.
 import gymnasium as _gymnasium
 
 #: Gymnasium ids of the option environments -> `SkillEnv` keyword arguments.
-OPTION_IDS = {"options/ball-push": {"skill_spec": "ball"},
-              "options/arm-touch": {"skill_spec": "arm"}}
+OPTION_IDS = {
+    "options/ball-push": {"skill_spec": "ball"},
+    "options/arm-touch": {"skill_spec": "arm"},
+}
 
 for _id, _kwargs in OPTION_IDS.items():
     if _id not in _gymnasium.envs.registration.registry:
-        _gymnasium.register(_id, entry_point="hier_agents.learning.skill_env:SkillEnv",
-                            kwargs=_kwargs)
+        _gymnasium.register(
+            _id, entry_point="hier_agents.learning.skill_env:SkillEnv", kwargs=_kwargs
+        )

@@ -21,9 +21,18 @@ import torch
 __all__ = ["collect", "fit", "clone", "warm_start_frames"]
 
 
-def collect(spec, frames: int, seed: int, *, actor=None, noise: float = 0.2,
-            noise_prob: float = 1.0, mix: float = 1.0, estimator: str | None = None,
-            t_abs: int | None = None):
+def collect(
+    spec,
+    frames: int,
+    seed: int,
+    *,
+    actor=None,
+    noise: float = 0.2,
+    noise_prob: float = 1.0,
+    mix: float = 1.0,
+    estimator: str | None = None,
+    t_abs: int | None = None,
+):
     """``frames`` steps of a `SkillEnv` of ``spec``, every observation
     labelled with the teacher's action (``info["expert_action"]``; a step
     without one, where the teacher cannot plan, is not kept).
@@ -36,6 +45,7 @@ def collect(spec, frames: int, seed: int, *, actor=None, noise: float = 0.2,
     recoveries from the states noise leads to). Returns (observations
     [F, obs], labels [F, act], simulated control steps)."""
     from hier_agents.learning.skill_env import SkillEnv
+
     env = SkillEnv(spec, seed=seed, estimator=estimator, t_abs=t_abs)
     rng = np.random.default_rng(seed + 1)
     xs, ys = [], []
@@ -43,7 +53,7 @@ def collect(spec, frames: int, seed: int, *, actor=None, noise: float = 0.2,
         obs, info = env.reset(seed=seed)
         noisy = rng.random() < noise_prob
         shape = env.action_space.shape
-        assert shape is not None                # a Box: gymnasium types Space shapes Optional
+        assert shape is not None  # a Box: gymnasium types Space shapes Optional
         zero = np.zeros(shape, np.float32)
         for _ in range(int(frames)):
             label = info.get("expert_action")  # None where the teacher cannot plan
@@ -79,7 +89,7 @@ def fit(agent, xs, ys, epochs: int, lr: float = 1e-3, log=print) -> float:
         perm = torch.randperm(n)
         total = 0.0
         for k in range(0, n, 256):
-            idx = perm[k:k + 256]
+            idx = perm[k : k + 256]
             loss = ((agent.mean(x[idx]) - y[idx]) ** 2).mean()
             opt.zero_grad()
             loss.backward()
@@ -100,11 +110,23 @@ def warm_start_frames(frames: int, dagger_frames: int, dagger_rounds: int) -> in
     return int(frames) + (int(dagger_rounds) * int(dagger_frames) if dagger_frames > 0 else 0)
 
 
-def clone(agent, spec, *, frames: int, seed: int, dagger_frames: int = 0,
-          dagger_rounds: int = 1, epochs: int = 60, noise: float = 0.2,
-          noise_prob: float = 1.0, dagger_noise: float = 0.1, dagger_noise_prob: float = 1.0,
-          dagger_mix: float = 1.0, estimator: str | None = None,
-          log=print) -> tuple[int, int]:
+def clone(
+    agent,
+    spec,
+    *,
+    frames: int,
+    seed: int,
+    dagger_frames: int = 0,
+    dagger_rounds: int = 1,
+    epochs: int = 60,
+    noise: float = 0.2,
+    noise_prob: float = 1.0,
+    dagger_noise: float = 0.1,
+    dagger_noise_prob: float = 1.0,
+    dagger_mix: float = 1.0,
+    estimator: str | None = None,
+    log=print,
+) -> tuple[int, int]:
     """Behaviour cloning on ``frames`` frames of the teacher (options noisy with
     probability ``noise_prob``, std ``noise``), then ``dagger_rounds`` rounds
     of ``dagger_frames`` frames in which the cloned policy acts (per step with
@@ -113,18 +135,30 @@ def clone(agent, spec, *, frames: int, seed: int, dagger_frames: int = 0,
     labelled by the teacher, refitted on all data so far (`collect`, `fit`).
     Returns (agent frames, simulated control steps); the agent frames are
     `warm_start_frames` of the arguments."""
-    log(f"behaviour cloning: {frames} frames of the {spec.name} skill's teacher "
-        f"(noise {noise} on {noise_prob:.0%} of the options)")
-    xs, ys, sim_steps = collect(spec, frames, seed + 1, noise=noise, noise_prob=noise_prob,
-                                estimator=estimator)
+    log(
+        f"behaviour cloning: {frames} frames of the {spec.name} skill's teacher "
+        f"(noise {noise} on {noise_prob:.0%} of the options)"
+    )
+    xs, ys, sim_steps = collect(
+        spec, frames, seed + 1, noise=noise, noise_prob=noise_prob, estimator=estimator
+    )
     fit(agent, xs, ys, epochs, log=log)
     total = int(frames)
     for r in range(int(dagger_rounds) if dagger_frames > 0 else 0):
-        log(f"DAgger round {r + 1}/{dagger_rounds}: {dagger_frames} frames, the cloned "
-            f"policy acting at {dagger_mix:.0%} of the steps, labelled by the teacher")
-        xd, yd, sim_d = collect(spec, dagger_frames, seed + 3 + 2 * r, actor=agent,
-                                noise=dagger_noise, noise_prob=dagger_noise_prob,
-                                mix=dagger_mix, estimator=estimator)
+        log(
+            f"DAgger round {r + 1}/{dagger_rounds}: {dagger_frames} frames, the cloned "
+            f"policy acting at {dagger_mix:.0%} of the steps, labelled by the teacher"
+        )
+        xd, yd, sim_d = collect(
+            spec,
+            dagger_frames,
+            seed + 3 + 2 * r,
+            actor=agent,
+            noise=dagger_noise,
+            noise_prob=dagger_noise_prob,
+            mix=dagger_mix,
+            estimator=estimator,
+        )
         xs, ys = np.concatenate([xs, xd]), np.concatenate([ys, yd])
         fit(agent, xs, ys, epochs, log=log)
         total += int(dagger_frames)

@@ -51,8 +51,13 @@ import numpy as np
 import envs
 from hier_agents.boundary import BoundaryEnv
 from hier_agents.estimators.base import EstimationError
-from hier_agents.modular.components import (ESTIMATORS, SKILLS, env_overrides, estimator_name,
-                                            is_privileged)
+from hier_agents.modular.components import (
+    ESTIMATORS,
+    SKILLS,
+    env_overrides,
+    estimator_name,
+    is_privileged,
+)
 from hier_agents.modular.families import adapter, encode_sokoban, family
 from hier_agents.modular.options import T_ABS, Outcome, run_option
 
@@ -82,9 +87,18 @@ class OptionEnv(gym.Env):
     #: One action per option (the family adapter's `spaces`).
     action_space: gym.spaces.Discrete
 
-    def __init__(self, env_name: str, *, skill: str | None = None,
-                 estimator: str | None = None, seed: int | None = None, gamma: float = 0.99,
-                 t_abs: int = T_ABS, illegal_penalty: float = 0.0, env_options: dict | None = None):
+    def __init__(
+        self,
+        env_name: str,
+        *,
+        skill: str | None = None,
+        estimator: str | None = None,
+        seed: int | None = None,
+        gamma: float = 0.99,
+        t_abs: int = T_ABS,
+        illegal_penalty: float = 0.0,
+        env_options: dict | None = None,
+    ):
         if not 0.0 < float(gamma) <= 1.0:
             raise ValueError(f"gamma must be in (0, 1], got {gamma!r}")
         if int(t_abs) < 1:
@@ -104,15 +118,19 @@ class OptionEnv(gym.Env):
             self._description = self._view.description()
             pick_skill = SKILLS[self.family]
             if skill is not None and skill not in pick_skill:
-                raise ValueError(f"unknown skill {skill!r} for {self.family}; "
-                                 f"valid: {sorted(pick_skill)}")
+                raise ValueError(
+                    f"unknown skill {skill!r} for {self.family}; valid: {sorted(pick_skill)}"
+                )
             self.skill = (pick_skill[skill] if skill else next(iter(pick_skill.values())))(
-                self._description, seed)
+                self._description, seed
+            )
             self.estimator = ESTIMATORS[self.family][self.estimator_name](
-                self._description, seed, self._env if self.privileged else None)
+                self._description, seed, self._env if self.privileged else None
+            )
             self.adapter = adapter(self.family)
             self.action_space, self.observation_space = self.adapter.spaces(
-                self._description, self._initial_state())
+                self._description, self._initial_state()
+            )
         except Exception:
             self._env.close()
             raise
@@ -187,13 +205,25 @@ class OptionEnv(gym.Env):
     def _run_option(self, subgoal):
         def keep(timestep, scene):  # the last frame that could be estimated
             self._scene = scene
-        result = run_option(self._view, self.estimator, self.skill, subgoal, self._timestep,
-                            adapter=self.adapter, t_abs=self.t_abs, gamma=self.gamma,
-                            scene=self._scene, on_step=keep, description=self._description)
+
+        result = run_option(
+            self._view,
+            self.estimator,
+            self.skill,
+            subgoal,
+            self._timestep,
+            adapter=self.adapter,
+            t_abs=self.t_abs,
+            gamma=self.gamma,
+            scene=self._scene,
+            on_step=keep,
+            description=self._description,
+        )
         self._timestep = result.timestep
         self._steps += result.duration
-        status = {Outcome.REACHED: "success", Outcome.FAILED: "failure"}.get(result.outcome,
-                                                                             "cut off")
+        status = {Outcome.REACHED: "success", Outcome.FAILED: "failure"}.get(
+            result.outcome, "cut off"
+        )
         return result.reward, result.duration, status, result.reason
 
     # -- estimates and observations --------------------------------------------------
@@ -221,8 +251,11 @@ class OptionEnv(gym.Env):
         return self.adapter.observation(self._scene.state, self.observation_space)
 
     def _info(self, *, status, duration) -> dict:
-        info = {"duration": int(duration), "steps": int(self._steps),
-                "action_mask": self.legal_mask()}
+        info = {
+            "duration": int(duration),
+            "steps": int(self._steps),
+            "action_mask": self.legal_mask(),
+        }
         if status is not None:
             info["status"] = status
         return info
@@ -233,5 +266,7 @@ class OptionEnv(gym.Env):
         return self.estimator.estimate(timestep).state
 
     def __repr__(self) -> str:
-        return (f"OptionEnv({self.env_name!r}, skill={type(self.skill).__name__}, "
-                f"estimator={self.estimator_name!r}{', PRIVILEGED' if self.privileged else ''})")
+        return (
+            f"OptionEnv({self.env_name!r}, skill={type(self.skill).__name__}, "
+            f"estimator={self.estimator_name!r}{', PRIVILEGED' if self.privileged else ''})"
+        )

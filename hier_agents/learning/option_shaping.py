@@ -21,8 +21,14 @@ import numpy as np
 
 from abstract_planners.sokoban import MOVES, SokobanState
 
-__all__ = ["ABSTRACT_DURATION", "TIME_LIMIT_STEPS", "potential", "Shaped", "difficulty_of",
-           "AbstractOptionEnv"]
+__all__ = [
+    "ABSTRACT_DURATION",
+    "TIME_LIMIT_STEPS",
+    "potential",
+    "Shaped",
+    "difficulty_of",
+    "AbstractOptionEnv",
+]
 
 #: Control steps per option assumed by the abstract warm start (measured mean, level 1-2).
 ABSTRACT_DURATION = 18
@@ -73,8 +79,9 @@ def _push_distances(state: SokobanState, floor) -> dict:
     return dist
 
 
-def potential(state: SokobanState, box_weight: float, player_weight: float,
-              box_distance: str = "push") -> float:
+def potential(
+    state: SokobanState, box_weight: float, player_weight: float, box_distance: str = "push"
+) -> float:
     """Phi(s) of the module docstring (0 for a solved state)."""
     loose = state.boxes - state.targets
     if not loose:
@@ -89,8 +96,9 @@ def potential(state: SokobanState, box_weight: float, player_weight: float,
     if to_pad is None:
         if len(_PAD_DISTANCES) > 4096:
             _PAD_DISTANCES.clear()
-        to_pad = _PAD_DISTANCES[key] = (_push_distances(state, floor) if box_distance == "push"
-                                        else _bfs(state.targets, floor))
+        to_pad = _PAD_DISTANCES[key] = (
+            _push_distances(state, floor) if box_distance == "push" else _bfs(state.targets, floor)
+        )
     far = height + width
     box_term = sum(to_pad.get(box, far) for box in loose)
     player_term = 0.0
@@ -106,16 +114,23 @@ class Shaped(gym.Wrapper):
     reward (``Phi(s') = 0`` when the episode terminates) and ``info["potential"]``
     (Phi of the estimated abstract state)."""
 
-    def __init__(self, env, box_weight: float, player_weight: float, box_distance: str = "push",
-                 gamma: float = 0.995):
+    def __init__(
+        self,
+        env,
+        box_weight: float,
+        player_weight: float,
+        box_distance: str = "push",
+        gamma: float = 0.995,
+    ):
         super().__init__(env)
         self.weights = (float(box_weight), float(player_weight), box_distance)
         self.gamma = float(gamma)
         self._potential = 0.0
 
     def _with_potential(self, info):
-        info["potential"] = self._potential = potential(self.env.unwrapped.abstract_state,
-                                                        *self.weights)
+        info["potential"] = self._potential = potential(
+            self.env.unwrapped.abstract_state, *self.weights
+        )
         return info
 
     def reset(self, **kwargs):
@@ -133,13 +148,15 @@ class Shaped(gym.Wrapper):
 
 # -- the abstract warm-start environment ---------------------------------------------------
 
+
 def difficulty_of(env_name: str) -> int:
     """``mujoban/level2`` (or ``-pegs``) -> 2."""
     tail = env_name.split("/", 1)[-1]
     if not tail.startswith("level"):
-        raise ValueError(f"the abstract warm start needs generated levels "
-                         f"(mujoban/levelN), got {env_name!r}")
-    return int(tail[len("level"):].split("-")[0])
+        raise ValueError(
+            f"the abstract warm start needs generated levels (mujoban/levelN), got {env_name!r}"
+        )
+    return int(tail[len("level") :].split("-")[0])
 
 
 class AbstractOptionEnv(gym.Env):
@@ -150,9 +167,11 @@ class AbstractOptionEnv(gym.Env):
 
     metadata = {"render_modes": []}
 
-    def __init__(self, env_name: str, seed: int, duration: int = ABSTRACT_DURATION,
-                 gamma: float = 0.995):
+    def __init__(
+        self, env_name: str, seed: int, duration: int = ABSTRACT_DURATION, gamma: float = 0.995
+    ):
         from envs.mujoban.sources import ARENA_SHAPE
+
         self.difficulty = difficulty_of(env_name)
         self.shape = ARENA_SHAPE
         self.duration, self.gamma = int(duration), float(gamma)
@@ -164,6 +183,7 @@ class AbstractOptionEnv(gym.Env):
 
     def reset(self, *, seed=None, options=None):
         from envs.mujoban import generator
+
         super().reset(seed=seed)
         if seed is not None:
             self.rng = np.random.default_rng(seed)
@@ -184,14 +204,16 @@ class AbstractOptionEnv(gym.Env):
         self.abstract_state = new
         self.options += 1
         truncated = not solved and self.options >= self.max_options
-        return self._obs(), float(reward), bool(solved), bool(truncated), \
-            self._info(self.duration)
+        return self._obs(), float(reward), bool(solved), bool(truncated), self._info(self.duration)
 
     def _obs(self):
         from hier_agents.learning.option_env import encode_sokoban
+
         return encode_sokoban(self.abstract_state, self.shape)
 
     def _info(self, duration):
         state = self.abstract_state
-        return {"duration": duration,
-                "action_mask": np.array([state.is_legal(m) for m in MOVES], np.int8)}
+        return {
+            "duration": duration,
+            "action_mask": np.array([state.is_legal(m) for m in MOVES], np.int8),
+        }

@@ -24,21 +24,32 @@ __all__ = ["make_option_env", "make_abstract_env", "make_vector", "WorkerClock",
 def make_option_env(env_name: str, seed: int, args):
     """A thunk building `OptionEnv` (``args``: skill, estimator, gamma, t_abs)
     wrapped in `Shaped` (``args``: shape_box, shape_player, box_distance)."""
+
     def thunk():
         torch.set_num_threads(1)
         from hier_agents.learning.option_env import OptionEnv
-        env = OptionEnv(env_name, skill=args.skill, estimator=args.estimator, seed=seed,
-                        gamma=args.gamma, t_abs=args.t_abs)
+
+        env = OptionEnv(
+            env_name,
+            skill=args.skill,
+            estimator=args.estimator,
+            seed=seed,
+            gamma=args.gamma,
+            t_abs=args.t_abs,
+        )
         return Shaped(env, args.shape_box, args.shape_player, args.box_distance, args.gamma)
+
     return thunk
 
 
 def make_abstract_env(env_name: str, seed: int, args):
     """A thunk building `AbstractOptionEnv` (``args.abstract_duration``,
     ``args.gamma``) wrapped in `Shaped` as `make_option_env`."""
+
     def thunk():
         env = AbstractOptionEnv(env_name, seed, args.abstract_duration, args.gamma)
         return Shaped(env, args.shape_box, args.shape_player, args.box_distance, args.gamma)
+
     return thunk
 
 
@@ -66,8 +77,9 @@ def make_vector(phase: str, names, state, args):
     if phase == "abstract":
         n = args.abstract_envs
         phase_names = [names[k % len(names)] for k in range(n)]
-        thunks = [make_abstract_env(phase_names[k], state["env_seed"] + 500 + k, args)
-                  for k in range(n)]
+        thunks = [
+            make_abstract_env(phase_names[k], state["env_seed"] + 500 + k, args) for k in range(n)
+        ]
         return ppo.make_vector_env(thunks), phase_names, []
     phase_names = [names[k % len(names)] for k in range(args.envs)]
     seed0 = state["env_seed"] + state["updates"]
@@ -78,6 +90,7 @@ def make_vector(phase: str, names, state, args):
     pids = [p.pid for p in vec.processes]
     try:  # the forkserver that forks the workers (imports once) counts too
         from multiprocessing import forkserver
+
         # A private attribute, which typeshed's stubs leave out.
         pids.append(forkserver._forkserver._forkserver_pid)  # type: ignore[attr-defined]
     except Exception:  # noqa: BLE001 - private API: best effort
@@ -94,8 +107,7 @@ class CpuClock:
         self.workers: list[WorkerClock] = []
 
     def now(self) -> float:
-        return self.base + time.process_time() - self.main0 + sum(
-            w.seconds() for w in self.workers)
+        return self.base + time.process_time() - self.main0 + sum(w.seconds() for w in self.workers)
 
     def freeze(self) -> None:
         """Folds the workers' last readings into ``base`` (before they exit)."""

@@ -38,8 +38,13 @@ import numpy as np
 import torch
 from torch import nn
 
-from physics_planning.cli import (UsageError, fraction, non_negative_float, positive_float,
-                                  positive_int)
+from physics_planning.cli import (
+    UsageError,
+    fraction,
+    non_negative_float,
+    positive_float,
+    positive_int,
+)
 
 SAME_STEP = gym.vector.AutoresetMode.SAME_STEP
 
@@ -50,8 +55,9 @@ MASKED_LOGIT = -1e8
 class ActorCritic(Protocol):
     """What PPO needs of a network (an ``nn.Module`` in practice)."""
 
-    def policy_dist(self, obs: torch.Tensor,
-                    mask: torch.Tensor | None) -> torch.distributions.Distribution: ...
+    def policy_dist(
+        self, obs: torch.Tensor, mask: torch.Tensor | None
+    ) -> torch.distributions.Distribution: ...
 
     def value(self, obs: torch.Tensor) -> torch.Tensor: ...
 
@@ -65,8 +71,9 @@ def make_vector_env(thunks, asynchronous: bool = False, context: str | None = No
     return gym.vector.SyncVectorEnv(thunks, autoreset_mode=SAME_STEP)
 
 
-def masked_categorical(logits: torch.Tensor,
-                       mask: torch.Tensor | None = None) -> torch.distributions.Categorical:
+def masked_categorical(
+    logits: torch.Tensor, mask: torch.Tensor | None = None
+) -> torch.distributions.Categorical:
     """Categorical over ``logits [B, A]``; where ``mask [B, A]`` is 0 the logit
     becomes `MASKED_LOGIT` (never sampled, no gradient). A row with no legal
     action is the caller's error (the result is then uniform)."""
@@ -107,23 +114,37 @@ def add_arguments(parser, **defaults) -> None:
     ``parser``; ``defaults`` override `PPOConfig`'s (and ``rollout``, default 128)."""
     base = {**dataclasses.asdict(PPOConfig()), "rollout": 128, **defaults}
     add = parser.add_argument
-    add("--rollout", type=positive_int, default=base["rollout"],
-        help="steps per environment per update")
+    add(
+        "--rollout",
+        type=positive_int,
+        default=base["rollout"],
+        help="steps per environment per update",
+    )
     add("--epochs", type=positive_int, default=base["epochs"], help="PPO epochs per update")
-    add("--minibatches", type=positive_int, default=base["minibatches"],
-        help="minibatches per epoch")
+    add(
+        "--minibatches",
+        type=positive_int,
+        default=base["minibatches"],
+        help="minibatches per epoch",
+    )
     add("--lr", type=positive_float, default=base["lr"], help="Adam learning rate")
-    add("--anneal-lr", action=argparse.BooleanOptionalAction, default=base["anneal_lr"],
-        help="anneal the learning rate linearly over the budget")
+    add(
+        "--anneal-lr",
+        action=argparse.BooleanOptionalAction,
+        default=base["anneal_lr"],
+        help="anneal the learning rate linearly over the budget",
+    )
     add("--gamma", type=fraction, default=base["gamma"], help="discount per control step")
     add("--lam", type=fraction, default=base["lam"], help="GAE lambda")
     add("--clip", type=positive_float, default=base["clip"], help="PPO ratio clip")
-    add("--ent-coef", type=non_negative_float, default=base["ent_coef"],
-        help="entropy bonus")
-    add("--vf-coef", type=non_negative_float, default=base["vf_coef"],
-        help="value-loss weight")
-    add("--max-grad-norm", type=positive_float, default=base["max_grad_norm"],
-        help="gradient-norm clip")
+    add("--ent-coef", type=non_negative_float, default=base["ent_coef"], help="entropy bonus")
+    add("--vf-coef", type=non_negative_float, default=base["vf_coef"], help="value-loss weight")
+    add(
+        "--max-grad-norm",
+        type=positive_float,
+        default=base["max_grad_norm"],
+        help="gradient-norm clip",
+    )
 
 
 def iterations(budget: int, per_iteration: int, what: str, fix: str) -> int:
@@ -151,10 +172,19 @@ def critic_warmup(iterations: int, warmup: int) -> int:
 def config_from_args(args, **fixed) -> PPOConfig:
     """The `PPOConfig` of flags added by `add_arguments` (``fixed``: fields
     without a flag, e.g. ``lr_floor``)."""
-    return PPOConfig(gamma=args.gamma, lam=args.lam, clip=args.clip, epochs=args.epochs,
-                     minibatches=args.minibatches, lr=args.lr, anneal_lr=args.anneal_lr,
-                     vf_coef=args.vf_coef, ent_coef=args.ent_coef,
-                     max_grad_norm=args.max_grad_norm, **fixed)
+    return PPOConfig(
+        gamma=args.gamma,
+        lam=args.lam,
+        clip=args.clip,
+        epochs=args.epochs,
+        minibatches=args.minibatches,
+        lr=args.lr,
+        anneal_lr=args.anneal_lr,
+        vf_coef=args.vf_coef,
+        ent_coef=args.ent_coef,
+        max_grad_norm=args.max_grad_norm,
+        **fixed,
+    )
 
 
 @dataclasses.dataclass
@@ -230,12 +260,19 @@ class RolloutCollector:
       ValueError: the vector env autoresets in another mode.
     """
 
-    def __init__(self, envs, policy: ActorCritic, steps: int,
-                 obs_fn: Callable[[np.ndarray], torch.Tensor] = _as_obs) -> None:
+    def __init__(
+        self,
+        envs,
+        policy: ActorCritic,
+        steps: int,
+        obs_fn: Callable[[np.ndarray], torch.Tensor] = _as_obs,
+    ) -> None:
         mode = envs.metadata.get("autoreset_mode", getattr(envs, "autoreset_mode", None))
         if mode != SAME_STEP:
-            raise ValueError(f"RolloutCollector needs autoreset_mode=SAME_STEP, the vector env "
-                             f"has {mode!r} (use ppo.make_vector_env)")
+            raise ValueError(
+                f"RolloutCollector needs autoreset_mode=SAME_STEP, the vector env "
+                f"has {mode!r} (use ppo.make_vector_env)"
+            )
         self.envs, self.policy, self.steps, self.obs_fn = envs, policy, int(steps), obs_fn
         self.n = envs.num_envs
         # The network's input and action mask after the last step (set by `reset`).
@@ -250,16 +287,31 @@ class RolloutCollector:
 
     @staticmethod
     def _mask_of(info: dict) -> torch.Tensor | None:
-        return None if "action_mask" not in info else torch.as_tensor(
-            np.asarray(info["action_mask"], np.float32))
+        return (
+            None
+            if "action_mask" not in info
+            else torch.as_tensor(np.asarray(info["action_mask"], np.float32))
+        )
 
     def collect(self) -> Rollout:
         """``steps`` steps of every env (calls `reset` first if it never ran)."""
         if self._obs is None:
             self.reset()
-        assert self._obs is not None            # set by `reset`
-        buf: dict[str, list] = {k: [] for k in ("obs", "masks", "actions", "logp", "values",
-                                                 "rewards", "durations", "dones", "bootstrap")}
+        assert self._obs is not None  # set by `reset`
+        buf: dict[str, list] = {
+            k: []
+            for k in (
+                "obs",
+                "masks",
+                "actions",
+                "logp",
+                "values",
+                "rewards",
+                "durations",
+                "dones",
+                "bootstrap",
+            )
+        }
         episodes, info = [], {}
         for _ in range(self.steps):
             with torch.no_grad():
@@ -281,18 +333,30 @@ class RolloutCollector:
             self._len += 1
             self._dur += duration
             for k in np.flatnonzero(done):
-                episodes.append(EpisodeEnd(int(k), bool(terminated[k]), bool(truncated[k]),
-                                           float(self._ret[k]), int(self._len[k]),
-                                           float(self._dur[k]),
-                                           _env_info(info.get("final_info", {}), int(k))))
+                episodes.append(
+                    EpisodeEnd(
+                        int(k),
+                        bool(terminated[k]),
+                        bool(truncated[k]),
+                        float(self._ret[k]),
+                        int(self._len[k]),
+                        float(self._dur[k]),
+                        _env_info(info.get("final_info", {}), int(k)),
+                    )
+                )
                 self._ret[k], self._len[k], self._dur[k] = 0.0, 0, 0.0
             self._obs, self._mask = self.obs_fn(obs), self._mask_of(info)
         with torch.no_grad():
             next_value = self.policy.value(self._obs).reshape(self.n)
-        masks = buf.pop("masks")                # None without action masks; the rest tensors
+        masks = buf.pop("masks")  # None without action masks; the rest tensors
         stack = {k: torch.stack(v) for k, v in buf.items()}
-        return Rollout(**stack, masks=None if masks[0] is None else torch.stack(masks),
-                       next_value=next_value, episodes=episodes, last_info=info)
+        return Rollout(
+            **stack,
+            masks=None if masks[0] is None else torch.stack(masks),
+            next_value=next_value,
+            episodes=episodes,
+            last_info=info,
+        )
 
     def _bootstrap(self, info: dict, terminated, truncated) -> torch.Tensor:
         """V(final observation) of the envs truncated at this step, 0 elsewhere."""
@@ -305,9 +369,15 @@ class RolloutCollector:
         return out
 
 
-def gae(rewards: torch.Tensor, values: torch.Tensor, discounts: torch.Tensor,
-        dones: torch.Tensor, next_value: torch.Tensor, lam: float,
-        bootstrap: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+def gae(
+    rewards: torch.Tensor,
+    values: torch.Tensor,
+    discounts: torch.Tensor,
+    dones: torch.Tensor,
+    next_value: torch.Tensor,
+    lam: float,
+    bootstrap: torch.Tensor | None = None,
+) -> tuple[torch.Tensor, torch.Tensor]:
     """Advantages and returns (``[T, N]`` each) of time-major ``[T, N]`` inputs:
     ``delta_t = r_t + discounts_t * (V_t+1 * (1 - dones_t) + bootstrap_t) - V_t``,
     ``A_t = delta_t + discounts_t * lam * (1 - dones_t) * A_t+1``; ``discounts_t``
@@ -330,8 +400,15 @@ def gae(rewards: torch.Tensor, values: torch.Tensor, discounts: torch.Tensor,
 def advantages(rollout: Rollout, gamma: float, lam: float) -> tuple[torch.Tensor, torch.Tensor]:
     """`gae` of a rollout, step t discounted by ``gamma ** durations[t]``."""
     discounts = torch.pow(torch.as_tensor(gamma, dtype=torch.float32), rollout.durations)
-    return gae(rollout.rewards, rollout.values, discounts, rollout.dones, rollout.next_value,
-               lam, rollout.bootstrap)
+    return gae(
+        rollout.rewards,
+        rollout.values,
+        discounts,
+        rollout.dones,
+        rollout.next_value,
+        lam,
+        rollout.bootstrap,
+    )
 
 
 @overload
@@ -350,9 +427,15 @@ def _flat(x: torch.Tensor | None, steps_envs: int) -> torch.Tensor | None:
     return None if x is None else x.reshape(steps_envs, *x.shape[2:])
 
 
-def ppo_update(policy: ActorCritic, optimizer: torch.optim.Optimizer, rollout: Rollout,
-               adv: torch.Tensor, returns: torch.Tensor, cfg: PPOConfig,
-               actor: bool = True) -> dict:
+def ppo_update(
+    policy: ActorCritic,
+    optimizer: torch.optim.Optimizer,
+    rollout: Rollout,
+    adv: torch.Tensor,
+    returns: torch.Tensor,
+    cfg: PPOConfig,
+    actor: bool = True,
+) -> dict:
     """``cfg.epochs`` passes of ``cfg.minibatches`` shuffled minibatches
     (torch's global RNG) over the rollout; loss = clipped surrogate + vf_coef
     * 0.5 (V - return)^2 - ent_coef * entropy. ``actor`` False: the value loss
@@ -364,12 +447,13 @@ def ppo_update(policy: ActorCritic, optimizer: torch.optim.Optimizer, rollout: R
     adv, returns = adv.reshape(n), returns.reshape(n)
     params = [p for group in optimizer.param_groups for p in group["params"]]
     size = max(1, n // cfg.minibatches)
-    stats: dict[str, list] = {k: [] for k in ("policy_loss", "value_loss", "entropy",
-                                              "approx_kl", "clip_frac")}
+    stats: dict[str, list] = {
+        k: [] for k in ("policy_loss", "value_loss", "entropy", "approx_kl", "clip_frac")
+    }
     for _ in range(cfg.epochs):
         order = torch.randperm(n)
         for start in range(0, n, size):
-            idx = order[start:start + size]
+            idx = order[start : start + size]
             dist = policy.policy_dist(obs[idx], None if masks is None else masks[idx])
             ratio = (dist.log_prob(actions[idx]) - logp_old[idx]).exp()
             a = adv[idx]
@@ -403,8 +487,13 @@ def set_lr(optimizer: torch.optim.Optimizer, cfg: PPOConfig, fraction_left: floa
     return lr
 
 
-def iteration(collector: RolloutCollector, optimizer: torch.optim.Optimizer, cfg: PPOConfig,
-              fraction_left: float = 1.0, actor: bool = True) -> tuple[Rollout, dict]:
+def iteration(
+    collector: RolloutCollector,
+    optimizer: torch.optim.Optimizer,
+    cfg: PPOConfig,
+    fraction_left: float = 1.0,
+    actor: bool = True,
+) -> tuple[Rollout, dict]:
     """One PPO iteration of ``collector.policy``: LR, rollout, GAE, update.
     Returns the rollout and the update's statistics (plus ``lr``)."""
     lr = set_lr(optimizer, cfg, fraction_left)

@@ -53,6 +53,7 @@ KEPT = "checkpoints"
 
 # -- files and random states -----------------------------------------------------------------
 
+
 def atomic_save(obj, path: str | Path) -> None:
     """``torch.save(obj)`` to ``path`` atomically (no partial file, ever)."""
     atomic_write(Path(path), lambda tmp: torch.save(obj, tmp))
@@ -67,21 +68,28 @@ def rng_state() -> dict:
     """torch, numpy (global) and python ``random`` states, as tensors and
     python primitives (loadable with ``weights_only=True``)."""
     legacy = np.random.get_state()
-    assert isinstance(legacy, tuple)            # the global generator is a legacy MT19937
+    assert isinstance(legacy, tuple)  # the global generator is a legacy MT19937
     _, keys, pos, has_gauss, cached = legacy
     version, internal, gauss = random.getstate()
-    return {"torch": torch.get_rng_state(),
-            "numpy": {"keys": torch.as_tensor(keys.astype(np.int64)), "pos": int(pos),
-                      "has_gauss": int(has_gauss), "cached": float(cached)},
-            "python": [version, list(internal), gauss]}
+    return {
+        "torch": torch.get_rng_state(),
+        "numpy": {
+            "keys": torch.as_tensor(keys.astype(np.int64)),
+            "pos": int(pos),
+            "has_gauss": int(has_gauss),
+            "cached": float(cached),
+        },
+        "python": [version, list(internal), gauss],
+    }
 
 
 def set_rng_state(state: dict) -> None:
     """Restores what `rng_state` returned."""
     torch.set_rng_state(state["torch"])
     n = state["numpy"]
-    np.random.set_state(("MT19937", n["keys"].numpy().astype(np.uint32), n["pos"],
-                         n["has_gauss"], n["cached"]))
+    np.random.set_state(
+        ("MT19937", n["keys"].numpy().astype(np.uint32), n["pos"], n["has_gauss"], n["cached"])
+    )
     version, internal, gauss = state["python"]
     random.setstate((version, tuple(internal), gauss))
 
@@ -99,6 +107,7 @@ def jsonable(config: dict) -> dict:
 
 
 # -- progress ------------------------------------------------------------------------------
+
 
 class _SimpleBar:
     """A minimal stand-in for tqdm: one stderr line every few seconds."""
@@ -120,18 +129,29 @@ class _SimpleBar:
         pass
 
 
-def progress_bar(total: int | None, initial: int = 0, desc: str = "", unit: str = "it",
-                 disable: bool = False):
+def progress_bar(
+    total: int | None, initial: int = 0, desc: str = "", unit: str = "it", disable: bool = False
+):
     """A progress bar on stderr: tqdm when installed, else `_SimpleBar`."""
     try:
         from tqdm import tqdm
     except ImportError:  # pragma: no cover - tqdm is installed here
         return _SimpleBar(total, initial, desc, unit, disable)
-    return tqdm(total=total, initial=initial, desc=desc, unit=unit, file=sys.stderr,
-                disable=disable, dynamic_ncols=True, mininterval=2, smoothing=0.1)
+    return tqdm(
+        total=total,
+        initial=initial,
+        desc=desc,
+        unit=unit,
+        file=sys.stderr,
+        disable=disable,
+        dynamic_ncols=True,
+        mininterval=2,
+        smoothing=0.1,
+    )
 
 
 # -- the run directory ---------------------------------------------------------------------
+
 
 class RunDir:
     """The run directory ``path`` of a trainer with configuration ``config``
@@ -158,19 +178,31 @@ class RunDir:
         ``fixed`` key differs from the saved run's (the message names it).
     """
 
-    def __init__(self, path: str | Path, config: dict, *, resume: bool | None = False,
-                 fixed=(), trainer: str = "", tensorboard: bool = True) -> None:
+    def __init__(
+        self,
+        path: str | Path,
+        config: dict,
+        *,
+        resume: bool | None = False,
+        fixed=(),
+        trainer: str = "",
+        tensorboard: bool = True,
+    ) -> None:
         self.path = Path(path)
         if self.path.exists() and not self.path.is_dir():
             raise UsageError(f"the run directory {str(self.path)!r} is a file; give a folder")
         self.checkpoint_path = self.path / CHECKPOINT
         found = self.checkpoint_path.is_file()
         if resume is True and not found:
-            raise UsageError(f"nothing to resume: no {CHECKPOINT} in {str(self.path)!r} "
-                             f"(drop --resume to start a run there)")
+            raise UsageError(
+                f"nothing to resume: no {CHECKPOINT} in {str(self.path)!r} "
+                f"(drop --resume to start a run there)"
+            )
         if resume is False and found:
-            raise UsageError(f"{str(self.path)!r} already holds a run ({CHECKPOINT}); "
-                             f"continue it with --resume or choose another directory")
+            raise UsageError(
+                f"{str(self.path)!r} already holds a run ({CHECKPOINT}); "
+                f"continue it with --resume or choose another directory"
+            )
         self.resumed = found and resume is not False
         config = jsonable({**config, "trainer": trainer} if trainer else config)
         if self.resumed:
@@ -185,10 +217,12 @@ class RunDir:
         if tensorboard:
             try:
                 from torch.utils.tensorboard import SummaryWriter
+
                 self._tb = SummaryWriter(str(self.path))
             except ImportError:  # pragma: no cover - tensorboard is a dependency
-                print(f"tensorboard is not installed: scalars go to {SCALARS} only",
-                      file=sys.stderr)
+                print(
+                    f"tensorboard is not installed: scalars go to {SCALARS} only", file=sys.stderr
+                )
         self.stop_requested = False
         self.bar = None
 
@@ -197,16 +231,21 @@ class RunDir:
         where = str(self.path)
         made_by = saved.get("trainer")
         if trainer and made_by and made_by != trainer:
-            raise UsageError(f"{where!r} holds a run of {made_by}, not of {trainer}; choose "
-                             f"another directory")
+            raise UsageError(
+                f"{where!r} holds a run of {made_by}, not of {trainer}; choose another directory"
+            )
         if trainer and not made_by and fixed and fixed[0] not in saved:
-            raise UsageError(f"{where!r} holds a checkpoint that is not a run of {trainer} "
-                             f"(its config has no {fixed[0]!r}); choose another directory")
+            raise UsageError(
+                f"{where!r} holds a checkpoint that is not a run of {trainer} "
+                f"(its config has no {fixed[0]!r}); choose another directory"
+            )
         for key in fixed:
             if key in saved and saved[key] != config.get(key):
-                raise UsageError(f"{where!r} holds a run trained with {key}={saved[key]!r}, "
-                                 f"not {config.get(key)!r}; choose another directory or "
-                                 f"the same {key}")
+                raise UsageError(
+                    f"{where!r} holds a run trained with {key}={saved[key]!r}, "
+                    f"not {config.get(key)!r}; choose another directory or "
+                    f"the same {key}"
+                )
 
     def _saved_config(self) -> dict:
         """The saved run's configuration: ``config.json``, else (a run from
@@ -221,11 +260,15 @@ class RunDir:
                 saved = torch.load(self.checkpoint_path, map_location="cpu", weights_only=False)
                 saved = saved.get("config") if isinstance(saved, dict) else None
         except Exception as exc:  # noqa: BLE001 - whatever is wrong with the files, it is the input
-            raise UsageError(f"{str(self.path)!r} holds a {CHECKPOINT} whose run cannot be "
-                             f"read ({type(exc).__name__}); choose another directory") from None
+            raise UsageError(
+                f"{str(self.path)!r} holds a {CHECKPOINT} whose run cannot be "
+                f"read ({type(exc).__name__}); choose another directory"
+            ) from None
         if not isinstance(saved, dict):
-            raise UsageError(f"{str(self.path)!r} holds a {CHECKPOINT} without a run "
-                             f"configuration; choose another directory")
+            raise UsageError(
+                f"{str(self.path)!r} holds a {CHECKPOINT} without a run "
+                f"configuration; choose another directory"
+            )
         return dict(saved)
 
     def record(self, **fields) -> None:
@@ -254,8 +297,9 @@ class RunDir:
         if keep is not None:
             kept = self.path / KEPT
             kept.mkdir(exist_ok=True)
-            atomic_write(kept / f"{keep}.pt",
-                         lambda tmp: shutil.copyfile(self.checkpoint_path, tmp))
+            atomic_write(
+                kept / f"{keep}.pt", lambda tmp: shutil.copyfile(self.checkpoint_path, tmp)
+            )
         return self.checkpoint_path
 
     # scalars and progress
@@ -267,12 +311,21 @@ class RunDir:
         self._jsonl.flush()
         if self._tb is not None:
             for key, value in scalars.items():
-                if isinstance(value, (int, float, np.number)) and not isinstance(value, bool) \
-                        and math.isfinite(value):
+                if (
+                    isinstance(value, (int, float, np.number))
+                    and not isinstance(value, bool)
+                    and math.isfinite(value)
+                ):
                     self._tb.add_scalar(tb_prefix + key, value, step)
 
-    def progress(self, total: int | None, initial: int = 0, desc: str = "", unit: str = "it",
-                 disable: bool = False):
+    def progress(
+        self,
+        total: int | None,
+        initial: int = 0,
+        desc: str = "",
+        unit: str = "it",
+        disable: bool = False,
+    ):
         """Opens (and returns) the run's progress bar; `close` closes it."""
         if self.bar is not None:
             self.bar.close()
@@ -294,8 +347,11 @@ class RunDir:
             if self.stop_requested and signum == signal.SIGINT:
                 raise KeyboardInterrupt
             self.stop_requested = True
-            print(f"\n{signal.Signals(signum).name}: stopping after this update "
-                  f"(Ctrl-C again to abort)", file=sys.stderr)
+            print(
+                f"\n{signal.Signals(signum).name}: stopping after this update "
+                f"(Ctrl-C again to abort)",
+                file=sys.stderr,
+            )
 
         previous = {s: signal.signal(s, handler) for s in signals}
         try:

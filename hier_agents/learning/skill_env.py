@@ -45,8 +45,7 @@ import numpy as np
 from gymnasium import spaces
 
 from hier_agents.estimators.base import EstimationError
-from hier_agents.learning.skill_spec import (OptionStart, SceneSource, SkillSpec,
-                                             spec as spec_named)
+from hier_agents.learning.skill_spec import OptionStart, SceneSource, SkillSpec, spec as spec_named
 from hier_agents.modular.families import adapter_for
 from hier_agents.modular.options import Outcome, OptionRunner
 
@@ -66,23 +65,31 @@ class SkillEnv(gymnasium.Env):
 
     metadata = {"render_modes": []}
 
-    def __init__(self, skill_spec: SkillSpec | str, *, estimator: str | None = None,
-                 t_abs: int | None = None, heldout: bool = False, seed: int | None = None):
+    def __init__(
+        self,
+        skill_spec: SkillSpec | str,
+        *,
+        estimator: str | None = None,
+        t_abs: int | None = None,
+        heldout: bool = False,
+        seed: int | None = None,
+    ):
         super().__init__()
         self.spec_ = spec_named(skill_spec) if isinstance(skill_spec, str) else skill_spec
         spec = self.spec_
         self.estimator_name = estimator or spec.estimators[0]
         if self.estimator_name not in spec.estimators:
-            raise ValueError(f"estimator must be one of {list(spec.estimators)} for the "
-                             f"{spec.name} skill, got {estimator!r}")
+            raise ValueError(
+                f"estimator must be one of {list(spec.estimators)} for the "
+                f"{spec.name} skill, got {estimator!r}"
+            )
         #: True when the scene estimate reads the simulator.
         self.privileged = spec.is_privileged(self.estimator_name)
         self.t_abs = int(t_abs if t_abs is not None else spec.t_abs)
         self.heldout = bool(heldout)
         self.skill = spec.make_skill(None)
         bound = spec.feature_bound
-        self.observation_space = spaces.Box(-bound, bound, (len(self.skill.FEATURES),),
-                                            np.float32)
+        self.observation_space = spaces.Box(-bound, bound, (len(self.skill.FEATURES),), np.float32)
         self.action_space = spaces.Box(-1.0, 1.0, (self.skill.ACTION_DIM,), np.float32)
         self._runner = OptionRunner(self.skill, t_abs=self.t_abs)
         self._seed = seed
@@ -111,7 +118,7 @@ class SkillEnv(gymnasium.Env):
             if self._source is not None:
                 self._source.close()
             make = self.spec_.heldout if self.heldout else self.spec_.scenes
-            self._source = make(int(self._rng.integers(2 ** 31)), self.estimator_name)
+            self._source = make(int(self._rng.integers(2**31)), self.estimator_name)
         for _ in range(100):
             if self._start_option():
                 break
@@ -159,8 +166,9 @@ class SkillEnv(gymnasium.Env):
         terminated = result is not None and result.outcome in (Outcome.REACHED, Outcome.FAILED)
         truncated = result is not None and not terminated
         if result is not None:
-            self._source.end(result.outcome in (Outcome.REACHED, Outcome.CUT_OFF)
-                             and not timestep.last())
+            self._source.end(
+                result.outcome in (Outcome.REACHED, Outcome.CUT_OFF) and not timestep.last()
+            )
         return self._obs.copy(), float(reward), terminated, truncated, self._info(result)
 
     def _features(self) -> np.ndarray:
@@ -170,11 +178,14 @@ class SkillEnv(gymnasium.Env):
     def _info(self, result) -> dict:
         assert self._start is not None  # only called once an option has started
         teacher = self.skill.teacher_action
-        info = {"status": "running" if result is None else result.outcome.value,
-                "reason": None if result is None else result.reason,
-                "source": self._start.source, "steps": self._runner.duration,
-                "is_success": bool(result is not None and result.reached),
-                "sim_steps": self.sim_steps}
+        info = {
+            "status": "running" if result is None else result.outcome.value,
+            "reason": None if result is None else result.reason,
+            "source": self._start.source,
+            "steps": self._runner.duration,
+            "is_success": bool(result is not None and result.reached),
+            "sim_steps": self.sim_steps,
+        }
         if teacher is not None:
             info["expert_action"] = np.asarray(teacher, np.float32)
         return info

@@ -106,6 +106,7 @@ class SkillSpec:
         if not self.family:
             return False
         from hier_agents.modular.components import is_privileged
+
         return is_privileged(self.family, estimator)
 
     def reward(self, result) -> float:
@@ -114,6 +115,7 @@ class SkillSpec:
         `hier_agents.modular.options.OptionResult`; None while running), the
         success reward if reached or the penalty of the failure's reason."""
         from hier_agents.modular.options import Outcome
+
         reward = self.step_cost
         if result is None:
             return reward
@@ -137,6 +139,7 @@ def _load_shipped() -> None:
     global _shipped_loaded
     if not _shipped_loaded:
         from hier_agents.learning.skills import register_all
+
         shipped: dict[str, SkillSpec] = {}
         register_all(shipped)
         for name, value in shipped.items():

@@ -103,20 +103,38 @@ import numpy as np
 import torch
 from torch import nn
 
-from abstract_planners.learned_options import (OptionPolicyNet, policy_input,
-                                               save_option_policy)
+from abstract_planners.learned_options import OptionPolicyNet, policy_input, save_option_policy
 from abstract_planners.sokoban import MOVES
-from physics_planning.cli import (Parser, UsageError, choice, non_negative_float, non_negative_int,
-                                  plural, positive_float, positive_int, run_main)
+from physics_planning.cli import (
+    Parser,
+    UsageError,
+    choice,
+    non_negative_float,
+    non_negative_int,
+    plural,
+    positive_float,
+    positive_int,
+    run_main,
+)
 from hier_agents.learning import ppo
-from hier_agents.learning.option_shaping import (ABSTRACT_DURATION,  # noqa: F401 (re-exported)
-                                                  TIME_LIMIT_STEPS, AbstractOptionEnv, Shaped,
-                                                  difficulty_of, potential)
+from hier_agents.learning.option_shaping import (
+    ABSTRACT_DURATION,  # noqa: F401 (re-exported)
+    TIME_LIMIT_STEPS,  # noqa: F401
+    AbstractOptionEnv,  # noqa: F401
+    Shaped,  # noqa: F401
+    difficulty_of,  # noqa: F401
+    potential,  # noqa: F401
+)
+
 # (the shaping, the abstract environment and the vector environments live in
 # option_shaping and option_workers; their names stay importable from here)
-from hier_agents.learning.option_workers import (CpuClock, WorkerClock,  # noqa: F401
-                                                 make_abstract_env, make_option_env,
-                                                 make_vector)
+from hier_agents.learning.option_workers import (
+    CpuClock,
+    WorkerClock,  # noqa: F401
+    make_abstract_env,  # noqa: F401
+    make_option_env,  # noqa: F401
+    make_vector,
+)
 from hier_agents.learning.rundir import RunDir, seed_everything
 from hier_agents.modular.options import T_ABS
 from hier_agents.stats import wilson_interval
@@ -132,15 +150,21 @@ def skill_record(skill: str | None) -> dict:
     if skill == "learned-ball":
         try:
             from skills.learned.ball import POLICY_PATH
+
             meta = torch.load(POLICY_PATH, map_location="cpu", weights_only=True).get("meta", {})
-            record.update(checkpoint=str(POLICY_PATH), training_frames=meta.get("frames"),
-                          training_sim_steps=meta.get("sim_steps"), meta=meta)
+            record.update(
+                checkpoint=str(POLICY_PATH),
+                training_frames=meta.get("frames"),
+                training_sim_steps=meta.get("sim_steps"),
+                meta=meta,
+            )
         except Exception as exc:  # noqa: BLE001 - a record, not a requirement
             record["meta_error"] = str(exc)
     return record
 
 
 # -- PPO ---------------------------------------------------------------------------------------
+
 
 class OptionActorCritic(nn.Module):
     """`OptionPolicyNet` as `ppo.ActorCritic` over `policy_input` tensors."""
@@ -165,8 +189,11 @@ def run_phase(phase, vec, names, policy, optimizer, state, args, *, target, run,
     CPU budget is spent or Ctrl-C. ``phase`` is ``"abstract"`` or ``"options"``."""
     count_key = "abstract_steps" if phase == "abstract" else "option_steps"
     collector = ppo.RolloutCollector(
-        vec, policy, args.rollout,
-        obs_fn=lambda obs: torch.as_tensor(policy_input(obs, args.radius)))
+        vec,
+        policy,
+        args.rollout,
+        obs_fn=lambda obs: torch.as_tensor(policy_input(obs, args.radius)),
+    )
     collector.reset(seed=state["env_seed"] + 7919 * state["updates"])
     cfg = ppo_config(args)
     recent = {name: deque(maxlen=100) for name in set(names)}
@@ -174,8 +201,9 @@ def run_phase(phase, vec, names, policy, optimizer, state, args, *, target, run,
     bar = run.progress(target, min(state[count_key], target), desc=phase, unit="option")
     budget = args.cpu_minutes * 60 if args.cpu_minutes else math.inf
     while state[count_key] < target and cpu_now() < budget and not run.stop_requested:
-        rollout, losses = ppo.iteration(collector, optimizer, cfg,
-                                        fraction_left=1.0 - state[count_key] / max(target, 1))
+        rollout, losses = ppo.iteration(
+            collector, optimizer, cfg, fraction_left=1.0 - state[count_key] / max(target, 1)
+        )
         for ep in rollout.episodes:
             recent[names[ep.env]].append(ep.terminated)
             lengths.append(ep.length)
@@ -187,88 +215,152 @@ def run_phase(phase, vec, names, policy, optimizer, state, args, *, target, run,
         state["updates"] += 1
         state["cpu_s"] = cpu_now()
         solved = {name: (float(np.mean(r)) if r else float("nan")) for name, r in recent.items()}
-        row = {"phase": phase, "update": state["updates"], "option_steps": state["option_steps"],
-               "abstract_steps": state["abstract_steps"],
-               "control_frames": state["control_frames"], "cpu_s": round(state["cpu_s"], 1),
-               "episodes": state["episodes"],
-               "mean_episode_options": float(np.mean(lengths)) if lengths else float("nan"),
-               "mean_shaped_reward": float(rollout.rewards.mean()), **losses,
-               **{f"solved/{name}": v for name, v in solved.items()}}
+        row = {
+            "phase": phase,
+            "update": state["updates"],
+            "option_steps": state["option_steps"],
+            "abstract_steps": state["abstract_steps"],
+            "control_frames": state["control_frames"],
+            "cpu_s": round(state["cpu_s"], 1),
+            "episodes": state["episodes"],
+            "mean_episode_options": float(np.mean(lengths)) if lengths else float("nan"),
+            "mean_shaped_reward": float(rollout.rewards.mean()),
+            **losses,
+            **{f"solved/{name}": v for name, v in solved.items()},
+        }
         run.log(state["abstract_steps"] + state["option_steps"], row, tb_prefix=f"{phase}/")
         bar.update(rollout.size)
-        bar.set_postfix({name.split("/")[-1]: f"{v:.2f}" for name, v in solved.items()}
-                        | {"cpu_min": f"{state['cpu_s'] / 60:.1f}"})
+        bar.set_postfix(
+            {name.split("/")[-1]: f"{v:.2f}" for name, v in solved.items()}
+            | {"cpu_min": f"{state['cpu_s'] / 60:.1f}"}
+        )
         if state["updates"] % args.save_every == 0:
             save()
-    state["last_solved"] = {name: (float(np.mean(r)) if r else None)
-                            for name, r in recent.items()}
+    state["last_solved"] = {name: (float(np.mean(r)) if r else None) for name, r in recent.items()}
 
 
 # -- evaluation --------------------------------------------------------------------------------
+
 
 def evaluate(policy_path: Path, env_names, episodes: int, args) -> dict:
     """The greedy policy as the modular agent's planner, ``episodes`` held-out
     episodes per environment (`hier_agents.run`)."""
     from hier_agents.run import run
+
     out = {}
     for name in env_names:
         c0, t0 = time.process_time(), time.perf_counter()
-        summary = run(name, episodes, HELDOUT_SEED, planner=f"learned:{policy_path}",
-                      skill=args.skill, estimator=args.estimator, progress=True)
+        summary = run(
+            name,
+            episodes,
+            HELDOUT_SEED,
+            planner=f"learned:{policy_path}",
+            skill=args.skill,
+            estimator=args.estimator,
+            progress=True,
+        )
         solved = sum(r["solved"] for r in summary["rows"])
         low, high = wilson_interval(solved, episodes)
-        out[name] = {"episodes": episodes, "solved": solved, "success_rate": solved / episodes,
-                     "wilson_95": [low, high], "mean_steps": summary["mean_steps"],
-                     "subgoal_success_rate": summary["subgoal_success_rate"],
-                     "episode_failures": summary["episode_failures"], "seed": HELDOUT_SEED,
-                     "cpu_s": round(time.process_time() - c0, 1),
-                     "wall_s": round(time.perf_counter() - t0, 1)}
-        print(f"{name}: solved {solved}/{episodes} = {100 * solved / episodes:.1f}% "
-              f"[{100 * low:.1f}, {100 * high:.1f}] (95% Wilson), held-out seed {HELDOUT_SEED}")
+        out[name] = {
+            "episodes": episodes,
+            "solved": solved,
+            "success_rate": solved / episodes,
+            "wilson_95": [low, high],
+            "mean_steps": summary["mean_steps"],
+            "subgoal_success_rate": summary["subgoal_success_rate"],
+            "episode_failures": summary["episode_failures"],
+            "seed": HELDOUT_SEED,
+            "cpu_s": round(time.process_time() - c0, 1),
+            "wall_s": round(time.perf_counter() - t0, 1),
+        }
+        print(
+            f"{name}: solved {solved}/{episodes} = {100 * solved / episodes:.1f}% "
+            f"[{100 * low:.1f}, {100 * high:.1f}] (95% Wilson), held-out seed {HELDOUT_SEED}"
+        )
     return out
 
 
 # -- main --------------------------------------------------------------------------------------
+
 
 def parse_args(argv=None):
     """The command line, each value's type and range checked (the parser's
     one-line error); `check_args` checks the rest."""
     p = Parser(PROG, description=__doc__.split("\n\n")[0])
     add = p.add_argument
-    add("env", help="environment(s), comma-separated (e.g. mujoban/level1,mujoban/level2), "
-                    "dealt to the copies in turn")
-    add("--option-steps", type=non_negative_int, required=True,
-        help="option steps on OptionEnv (the training budget; 0: the abstract warm start only)")
-    add("--logdir", type=Path, required=True,
-        help="the run directory (a fresh run refuses one that holds a run)")
+    add(
+        "env",
+        help="environment(s), comma-separated (e.g. mujoban/level1,mujoban/level2), "
+        "dealt to the copies in turn",
+    )
+    add(
+        "--option-steps",
+        type=non_negative_int,
+        required=True,
+        help="option steps on OptionEnv (the training budget; 0: the abstract warm start only)",
+    )
+    add(
+        "--logdir",
+        type=Path,
+        required=True,
+        help="the run directory (a fresh run refuses one that holds a run)",
+    )
     add("--envs", type=positive_int, default=2, help="environment copies (processes)")
     add("--seed", type=non_negative_int, default=0, help="seed of the network, PPO and envs")
     add("--resume", action="store_true", help="continue LOGDIR/checkpoint.pt (required there)")
     add("--skill", default="learned-ball", help="skill name")
     add("--estimator", default=None, help="estimator name (default: camera)")
-    add("--cpu-minutes", type=positive_float, default=None,
-        help="stop training after this many CPU minutes (all processes)")
+    add(
+        "--cpu-minutes",
+        type=positive_float,
+        default=None,
+        help="stop training after this many CPU minutes (all processes)",
+    )
     add("--sync", action="store_true", help="SyncVectorEnv (one process; tests)")
-    add("--abstract-steps", type=non_negative_int, default=0,
-        help="option steps of the abstract warm start (no physics)")
+    add(
+        "--abstract-steps",
+        type=non_negative_int,
+        default=0,
+        help="option steps of the abstract warm start (no physics)",
+    )
     add("--abstract-envs", type=positive_int, default=16, help="abstract env copies")
-    add("--abstract-duration", type=positive_int, default=ABSTRACT_DURATION,
-        help="control steps per abstract option")
-    ppo.add_arguments(p, rollout=64, epochs=4, minibatches=4, lr=5e-4, anneal_lr=True,
-                      gamma=0.995, lam=0.95, clip=0.2, ent_coef=0.01, vf_coef=0.5,
-                      max_grad_norm=0.5)
-    add("--shape-box", type=non_negative_float, default=1.0,
-        help="shaping: box distance weight")
-    add("--shape-player", type=non_negative_float, default=0.1,
-        help="shaping: player distance weight")
-    add("--box-distance", default="walk",
-        help="shaping's box-to-pad distance: walk (walking) or push (pushes; dead cells far)")
+    add(
+        "--abstract-duration",
+        type=positive_int,
+        default=ABSTRACT_DURATION,
+        help="control steps per abstract option",
+    )
+    ppo.add_arguments(
+        p,
+        rollout=64,
+        epochs=4,
+        minibatches=4,
+        lr=5e-4,
+        anneal_lr=True,
+        gamma=0.995,
+        lam=0.95,
+        clip=0.2,
+        ent_coef=0.01,
+        vf_coef=0.5,
+        max_grad_norm=0.5,
+    )
+    add("--shape-box", type=non_negative_float, default=1.0, help="shaping: box distance weight")
+    add(
+        "--shape-player",
+        type=non_negative_float,
+        default=0.1,
+        help="shaping: player distance weight",
+    )
+    add(
+        "--box-distance",
+        default="walk",
+        help="shaping's box-to-pad distance: walk (walking) or push (pushes; dead cells far)",
+    )
     add("--t-abs", type=positive_int, default=T_ABS, help="control steps per option at most")
     add("--radius", type=positive_int, default=6, help="egocentric crop radius (cells)")
     add("--hidden", type=positive_int, default=128, help="network width")
     add("--save-every", type=positive_int, default=10, help="updates between checkpoints")
-    add("--eval-episodes", type=non_negative_int, default=100,
-        help="per environment; 0: skip")
+    add("--eval-episodes", type=non_negative_int, default=100, help="per environment; 0: skip")
     return p.parse_args(argv)
 
 
@@ -295,25 +387,42 @@ def check_args(args) -> list[str]:
     choice("--box-distance", args.box_distance, ("walk", "push"))
     if args.option_steps == 0 and args.abstract_steps == 0:
         raise UsageError("nothing to train: --option-steps and --abstract-steps are both 0")
-    for flag, steps, copies in (("--option-steps", args.option_steps, "--envs"),
-                                ("--abstract-steps", args.abstract_steps, "--abstract-envs")):
+    for flag, steps, copies in (
+        ("--option-steps", args.option_steps, "--envs"),
+        ("--abstract-steps", args.abstract_steps, "--abstract-envs"),
+    ):
         per_update = (args.envs if copies == "--envs" else args.abstract_envs) * args.rollout
-        ppo.iterations(steps, per_update, f"{flag} {steps}",
-                       f"give {flag} 0 or >= {per_update} ({copies} x --rollout)")
+        ppo.iterations(
+            steps,
+            per_update,
+            f"{flag} {steps}",
+            f"give {flag} 0 or >= {per_update} ({copies} x --rollout)",
+        )
     return names
 
 
 def meta(state, args, names, skill) -> dict:
     """The policy file's training record."""
-    return {"trained_with": "hier_agents.learning.train_options", "envs": names,
-            "option_steps": state["option_steps"], "control_frames": state["control_frames"],
-            "abstract_steps": state["abstract_steps"], "updates": state["updates"],
-            "cpu_s": round(state["cpu_s"], 1), "seed": args.seed, "skill": args.skill,
-            "skill_training_frames": skill.get("training_frames"),
-            "estimator": args.estimator or "camera", "gamma": args.gamma,
-            "shaping": {"box": args.shape_box, "player": args.shape_player,
-                        "box_distance": args.box_distance},
-            "commands": state["commands"]}
+    return {
+        "trained_with": "hier_agents.learning.train_options",
+        "envs": names,
+        "option_steps": state["option_steps"],
+        "control_frames": state["control_frames"],
+        "abstract_steps": state["abstract_steps"],
+        "updates": state["updates"],
+        "cpu_s": round(state["cpu_s"], 1),
+        "seed": args.seed,
+        "skill": args.skill,
+        "skill_training_frames": skill.get("training_frames"),
+        "estimator": args.estimator or "camera",
+        "gamma": args.gamma,
+        "shaping": {
+            "box": args.shape_box,
+            "player": args.shape_player,
+            "box_distance": args.box_distance,
+        },
+        "commands": state["commands"],
+    }
 
 
 def train(run: RunDir, args, names, command: str):
@@ -321,17 +430,28 @@ def train(run: RunDir, args, names, command: str):
     seed_everything(args.seed)
     net = OptionPolicyNet(radius=args.radius, hidden=args.hidden)
     optimizer = torch.optim.Adam(net.parameters(), lr=args.lr, eps=1e-5)
-    state = {"option_steps": 0, "control_frames": 0, "abstract_steps": 0, "updates": 0,
-             "episodes": 0, "solved": 0, "cpu_s": 0.0, "wall_s": 0.0,
-             "env_seed": 1000 * (args.seed + 1), "commands": []}
+    state = {
+        "option_steps": 0,
+        "control_frames": 0,
+        "abstract_steps": 0,
+        "updates": 0,
+        "episodes": 0,
+        "solved": 0,
+        "cpu_s": 0.0,
+        "wall_s": 0.0,
+        "env_seed": 1000 * (args.seed + 1),
+        "commands": [],
+    }
     data = run.load()  # after the network is built: its RNG states continue
     if data is not None:
         net.load_state_dict(data["policy"]["state_dict"])
         optimizer.load_state_dict(data["optimizer"])
         state.update(data["state"])
-        print(f"resumed from {run.checkpoint_path}: {plural(state['option_steps'], 'option step')}"
-              f", {plural(state['control_frames'], 'control frame')}, "
-              f"{state['cpu_s'] / 60:.1f} CPU min")
+        print(
+            f"resumed from {run.checkpoint_path}: {plural(state['option_steps'], 'option step')}"
+            f", {plural(state['control_frames'], 'control frame')}, "
+            f"{state['cpu_s'] / 60:.1f} CPU min"
+        )
     state["commands"] = list(state.get("commands", [])) + [command]
     clock, wall0, t0 = CpuClock(state["cpu_s"]), state["wall_s"], time.perf_counter()
     skill = skill_record(args.skill)
@@ -340,9 +460,14 @@ def train(run: RunDir, args, names, command: str):
         state["cpu_s"] = clock.now()
         state["wall_s"] = wall0 + time.perf_counter() - t0
         record = meta(state, args, names, skill)
-        policy = {"format": "option-policy/1", "net": net.config(),
-                  "state_dict": net.state_dict(), "grid_shape": [10, 10],
-                  "moves": "".join(MOVES), "meta": record}
+        policy = {
+            "format": "option-policy/1",
+            "net": net.config(),
+            "state_dict": net.state_dict(),
+            "grid_shape": [10, 10],
+            "moves": "".join(MOVES),
+            "meta": record,
+        }
         run.save({"policy": policy, "optimizer": optimizer.state_dict(), "state": state})
         save_option_policy(net, run.path / "option_policy.pt", grid_shape=(10, 10), meta=record)
 
@@ -357,8 +482,19 @@ def train(run: RunDir, args, names, command: str):
             if pids:
                 clock.workers.append(WorkerClock(pids))
             try:
-                run_phase(phase, vec, phase_names, policy, optimizer, state, args,
-                          target=target, run=run, cpu_now=clock.now, save=save)
+                run_phase(
+                    phase,
+                    vec,
+                    phase_names,
+                    policy,
+                    optimizer,
+                    state,
+                    args,
+                    target=target,
+                    run=run,
+                    cpu_now=clock.now,
+                    save=save,
+                )
             finally:
                 clock.freeze()
                 vec.close()
@@ -370,10 +506,12 @@ def _main(argv) -> int:
     args = parse_args(argv)
     torch.set_num_threads(1)
     names = check_args(args)
-    command = PROG + " " + " ".join(
-        shlex.quote(a) for a in (sys.argv[1:] if argv is None else argv))
-    run = RunDir(args.logdir, vars(args), resume=args.resume, fixed=("radius", "hidden"),
-                 trainer=PROG)
+    command = (
+        PROG + " " + " ".join(shlex.quote(a) for a in (sys.argv[1:] if argv is None else argv))
+    )
+    run = RunDir(
+        args.logdir, vars(args), resume=args.resume, fixed=("radius", "hidden"), trainer=PROG
+    )
     try:
         state, skill = train(run, args, names, command)
     finally:
@@ -382,29 +520,44 @@ def _main(argv) -> int:
     policy_path = args.logdir / "option_policy.pt"
     children = resource.getrusage(resource.RUSAGE_CHILDREN)
     estimator = args.estimator or "camera"
-    summary = {"command": command, "commands": state["commands"], "envs": names,
-               "seed": args.seed, "skill": skill, "estimator": estimator,
-               "privileged": estimator in ("oracle", "entity-layer"),
-               **{k: state[k] for k in ("option_steps", "control_frames", "abstract_steps",
-                                        "updates", "episodes")},
-               "training_solved_rate":
-                   state["solved"] / state["episodes"] if state["episodes"] else None,
-               "last_100_solved": state.get("last_solved"),
-               "cpu_s": round(state["cpu_s"], 1), "cpu_minutes": round(state["cpu_s"] / 60, 2),
-               "wall_s": round(state["wall_s"], 1),
-               "check_rusage_this_run_s": {
-                   "self": round(sum(resource.getrusage(resource.RUSAGE_SELF)[:2]), 1),
-                   "children": round(children.ru_utime + children.ru_stime, 1)},
-               "checkpoint": str(run.checkpoint_path), "policy": str(policy_path),
-               "hyperparameters": run.config, "interrupted": interrupted}
-    print(f"trained {plural(state['option_steps'], 'option step')} = "
-          f"{plural(state['control_frames'], 'control frame')} (+ "
-          f"{plural(state['abstract_steps'], 'abstract step')}) in "
-          f"{state['cpu_s'] / 60:.1f} CPU minutes; policy {policy_path}")
+    summary = {
+        "command": command,
+        "commands": state["commands"],
+        "envs": names,
+        "seed": args.seed,
+        "skill": skill,
+        "estimator": estimator,
+        "privileged": estimator in ("oracle", "entity-layer"),
+        **{
+            k: state[k]
+            for k in ("option_steps", "control_frames", "abstract_steps", "updates", "episodes")
+        },
+        "training_solved_rate": state["solved"] / state["episodes"] if state["episodes"] else None,
+        "last_100_solved": state.get("last_solved"),
+        "cpu_s": round(state["cpu_s"], 1),
+        "cpu_minutes": round(state["cpu_s"] / 60, 2),
+        "wall_s": round(state["wall_s"], 1),
+        "check_rusage_this_run_s": {
+            "self": round(sum(resource.getrusage(resource.RUSAGE_SELF)[:2]), 1),
+            "children": round(children.ru_utime + children.ru_stime, 1),
+        },
+        "checkpoint": str(run.checkpoint_path),
+        "policy": str(policy_path),
+        "hyperparameters": run.config,
+        "interrupted": interrupted,
+    }
+    print(
+        f"trained {plural(state['option_steps'], 'option step')} = "
+        f"{plural(state['control_frames'], 'control frame')} (+ "
+        f"{plural(state['abstract_steps'], 'abstract step')}) in "
+        f"{state['cpu_s'] / 60:.1f} CPU minutes; policy {policy_path}"
+    )
     if args.eval_episodes > 0 and not interrupted:
-        summary["evaluation"] = evaluate(policy_path, list(dict.fromkeys(names)),
-                                         args.eval_episodes, args)
+        summary["evaluation"] = evaluate(
+            policy_path, list(dict.fromkeys(names)), args.eval_episodes, args
+        )
     from hier_agents.provenance import provenance
+
     summary["provenance"] = provenance()
     (args.logdir / "summary.json").write_text(json.dumps(summary, indent=2, default=str) + "\n")
     print(f"wrote {args.logdir / 'summary.json'}")

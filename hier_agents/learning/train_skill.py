@@ -58,9 +58,19 @@ import numpy as np
 import torch
 from torch import nn
 
-from physics_planning.cli import (Parser, UsageError, choice, existing_file, fraction,
-                                  non_negative_float, non_negative_int, output_file, plural,
-                                  positive_int, run_main)
+from physics_planning.cli import (
+    Parser,
+    UsageError,
+    choice,
+    existing_file,
+    fraction,
+    non_negative_float,
+    non_negative_int,
+    output_file,
+    plural,
+    positive_int,
+    run_main,
+)
 from hier_agents.learning import ppo
 from hier_agents.learning.cloning import clone, warm_start_frames
 from hier_agents.learning.rundir import RunDir, seed_everything
@@ -91,8 +101,9 @@ class Agent(nn.Module):
     """Actor (features -> policy action mean) and critic, two hidden layers
     each; a Gaussian policy with a state-independent log-std."""
 
-    def __init__(self, obs_dim: int, action_dim: int, hidden: int = 64,
-                 log_std: float = -0.5) -> None:
+    def __init__(
+        self, obs_dim: int, action_dim: int, hidden: int = 64, log_std: float = -0.5
+    ) -> None:
         super().__init__()
         self.actor = mlp([obs_dim, hidden, hidden, action_dim], 0.01)
         self.critic = mlp([obs_dim, hidden, hidden, 1], 1.0)
@@ -120,18 +131,26 @@ def teacher_policy(obs, info) -> np.ndarray | None:
     return info.get("expert_action")
 
 
-def evaluate(spec, policy, episodes: int, *, seed: int = HELDOUT_SEED,
-             estimator: str | None = None, t_abs: int | None = None,
-             progress: bool = False) -> dict:
+def evaluate(
+    spec,
+    policy,
+    episodes: int,
+    *,
+    seed: int = HELDOUT_SEED,
+    estimator: str | None = None,
+    t_abs: int | None = None,
+    progress: bool = False,
+) -> dict:
     """Option success of ``policy(obs, info) -> policy action`` on
     ``episodes`` held-out options of ``spec``: counts, rate, 95% Wilson
     interval, mean steps of the reached ones, failures by reason kind."""
     env = SkillEnv(spec, estimator=estimator, t_abs=t_abs, heldout=True, seed=seed)
     successes, steps = 0, []
-    reasons: dict[str, int] = {}                # failures by reason kind
+    reasons: dict[str, int] = {}  # failures by reason kind
     bar = None
     if progress:
         from hier_agents.learning.rundir import progress_bar
+
         bar = progress_bar(episodes, desc="eval", unit="option")
     obs, info = env.reset(seed=seed)
     for _ in range(episodes):
@@ -156,11 +175,19 @@ def evaluate(spec, policy, episodes: int, *, seed: int = HELDOUT_SEED,
     privileged = env.privileged
     env.close()
     low, high = wilson_interval(successes, episodes)
-    return {"episodes": episodes, "successes": int(successes),
-            "success": successes / episodes, "wilson_low": low, "wilson_high": high,
-            "mean_steps_success": float(np.mean(steps)) if steps else None,
-            "failures": reasons, "estimator": env.estimator_name, "privileged": privileged,
-            "t_abs": env.t_abs, "seed": seed}
+    return {
+        "episodes": episodes,
+        "successes": int(successes),
+        "success": successes / episodes,
+        "wilson_low": low,
+        "wilson_high": high,
+        "mean_steps_success": float(np.mean(steps)) if steps else None,
+        "failures": reasons,
+        "estimator": env.estimator_name,
+        "privileged": privileged,
+        "t_abs": env.t_abs,
+        "seed": seed,
+    }
 
 
 def print_table(rows: dict) -> None:
@@ -168,49 +195,73 @@ def print_table(rows: dict) -> None:
     for name, r in rows.items():
         steps = "-" if r["mean_steps_success"] is None else f"{r['mean_steps_success']:.0f}"
         fails = ", ".join(f"{k} {v}" for k, v in r["failures"].items())
-        print(f"{name:<26} {r['episodes']:>7} {100 * r['success']:>7.1f}% "
-              f"[{100 * r['wilson_low']:>5.1f}%, {100 * r['wilson_high']:>5.1f}%] {steps:>6}  "
-              f"{fails}")
+        print(
+            f"{name:<26} {r['episodes']:>7} {100 * r['success']:>7.1f}% "
+            f"[{100 * r['wilson_low']:>5.1f}%, {100 * r['wilson_high']:>5.1f}%] {steps:>6}  "
+            f"{fails}"
+        )
 
 
 def _mean_policy(agent: Agent):
     def act(obs, info=None):
         with torch.no_grad():
-            return agent.mean(torch.as_tensor(obs, dtype=torch.float32)[None])[0].clamp(
-                -1, 1).numpy()
+            return (
+                agent.mean(torch.as_tensor(obs, dtype=torch.float32)[None])[0].clamp(-1, 1).numpy()
+            )
+
     return act
 
 
 def evaluate_only(args, spec) -> int:
     """``--evaluate``: a checkpoint against the teacher, on the same scenes."""
     from skills.learned.policy import load_policy
+
     path = spec.checkpoint if args.evaluate is True else Path(args.evaluate)
     skill = spec.make_skill(None)
     policy = load_policy(path, skill.FEATURES)
     kw = dict(estimator=args.estimator, t_abs=args.t_abs, progress=True)
     t0, c0 = time.perf_counter(), time.process_time()
-    rows = {"learned (deterministic)": evaluate(
-                spec, lambda obs, info: np.clip(policy(obs), -1, 1), args.eval_episodes, **kw),
-            "teacher": evaluate(spec, teacher_policy, args.eval_episodes, **kw)}
-    print(f"{path} on {plural(args.eval_episodes, 'held-out option')} of {spec.name} (seed "
-          f"{HELDOUT_SEED}, "
-          f"estimator {rows['teacher']['estimator']}"
-          f"{', PRIVILEGED' if rows['teacher']['privileged'] else ', observation-only'})")
+    rows = {
+        "learned (deterministic)": evaluate(
+            spec, lambda obs, info: np.clip(policy(obs), -1, 1), args.eval_episodes, **kw
+        ),
+        "teacher": evaluate(spec, teacher_policy, args.eval_episodes, **kw),
+    }
+    print(
+        f"{path} on {plural(args.eval_episodes, 'held-out option')} of {spec.name} (seed "
+        f"{HELDOUT_SEED}, "
+        f"estimator {rows['teacher']['estimator']}"
+        f"{', PRIVILEGED' if rows['teacher']['privileged'] else ', observation-only'})"
+    )
     print_table(rows)
     if args.json:
         from hier_agents.provenance import provenance
-        args.json.write_text(json.dumps(
-            {"skill": spec.name, "policy": str(path), "policy_meta": policy.meta, "rows": rows,
-             "wall_s": round(time.perf_counter() - t0, 1),
-             "cpu_s": round(time.process_time() - c0, 1), "provenance": provenance()},
-            indent=2, default=str) + "\n")
+
+        args.json.write_text(
+            json.dumps(
+                {
+                    "skill": spec.name,
+                    "policy": str(path),
+                    "policy_meta": policy.meta,
+                    "rows": rows,
+                    "wall_s": round(time.perf_counter() - t0, 1),
+                    "cpu_s": round(time.process_time() - c0, 1),
+                    "provenance": provenance(),
+                },
+                indent=2,
+                default=str,
+            )
+            + "\n"
+        )
         print(f"wrote {args.json}")
     return 0
 
 
 def _vector_env(spec, args, seed: int):
-    thunks = [(lambda k=k: SkillEnv(spec, seed=seed + k, estimator=args.estimator,
-                                    t_abs=args.t_abs)) for k in range(args.envs)]
+    thunks = [
+        (lambda k=k: SkillEnv(spec, seed=seed + k, estimator=args.estimator, t_abs=args.t_abs))
+        for k in range(args.envs)
+    ]
     return ppo.make_vector_env(thunks, asynchronous=args.async_envs)
 
 
@@ -226,14 +277,20 @@ def budget(args) -> tuple[int, int, int]:
     warm = warm_start_frames(args.bc_frames, args.dagger_frames, args.dagger_rounds)
     per_iter = args.envs * args.rollout
     if args.frames < warm:
-        raise UsageError(f"--frames {args.frames} is less than the warm start's "
-                         f"{plural(warm, 'frame')} (--bc-frames + --dagger-rounds x "
-                         f"--dagger-frames); give --frames >= {warm}")
+        raise UsageError(
+            f"--frames {args.frames} is less than the warm start's "
+            f"{plural(warm, 'frame')} (--bc-frames + --dagger-rounds x "
+            f"--dagger-frames); give --frames >= {warm}"
+        )
     if warm:
-        what = (f"the PPO budget (--frames {args.frames} minus the warm start's {warm}: "
-                f"{plural(args.frames - warm, 'frame')})")
-        fix = (f"give --frames {warm} (the warm start only) or >= {warm + per_iter}, or a "
-               f"smaller --envs x --rollout")
+        what = (
+            f"the PPO budget (--frames {args.frames} minus the warm start's {warm}: "
+            f"{plural(args.frames - warm, 'frame')})"
+        )
+        fix = (
+            f"give --frames {warm} (the warm start only) or >= {warm + per_iter}, or a "
+            f"smaller --envs x --rollout"
+        )
     else:
         what = f"--frames {args.frames}"
         fix = f"give --frames >= {per_iter}, or a smaller --envs x --rollout"
@@ -255,15 +312,21 @@ def _ppo(spec, agent, optimizer, state, run, args, save) -> None:
     collector.reset(seed=args.seed * 1000 + 100 + state["iteration"])
     recent: list = []
     sim_before = np.zeros(args.envs)
-    bar = run.progress(args.frames, initial=min(state["frames"], args.frames), unit="frame",
-                       desc=f"ppo {spec.name}")
+    bar = run.progress(
+        args.frames,
+        initial=min(state["frames"], args.frames),
+        unit="frame",
+        desc=f"ppo {spec.name}",
+    )
     try:
         while state["frames"] + per_iter <= args.frames and not run.stop_requested:
-            critic_only = (state["bc_frames"] > 0 and state["actor_iterations"] == 0
-                           and state["ppo_iterations"] < warmup)
+            critic_only = (
+                state["bc_frames"] > 0
+                and state["actor_iterations"] == 0
+                and state["ppo_iterations"] < warmup
+            )
             left = 1.0 - state["frames"] / max(args.frames, 1)
-            rollout, stats = ppo.iteration(collector, optimizer, cfg, left,
-                                           actor=not critic_only)
+            rollout, stats = ppo.iteration(collector, optimizer, cfg, left, actor=not critic_only)
             sim_now = np.asarray(rollout.last_info.get("sim_steps", sim_before), float)
             state["sim_steps"] += int(np.maximum(sim_now - sim_before, 0).sum())
             sim_before = sim_now
@@ -273,9 +336,17 @@ def _ppo(spec, agent, optimizer, state, run, args, save) -> None:
             state["ppo_iterations"] += 1
             state["actor_iterations"] += 0 if critic_only else 1
             success = float(np.mean(recent)) if recent else float("nan")
-            run.log(state["frames"], {"option_success": success, "options": len(recent),
-                                      "sim_steps": state["sim_steps"], "actor": not critic_only,
-                                      "std": agent.log_std.exp().mean().item(), **stats})
+            run.log(
+                state["frames"],
+                {
+                    "option_success": success,
+                    "options": len(recent),
+                    "sim_steps": state["sim_steps"],
+                    "actor": not critic_only,
+                    "std": agent.log_std.exp().mean().item(),
+                    **stats,
+                },
+            )
             bar.update(per_iter)
             bar.set_postfix(success=f"{success:.2f}")
             if state["iteration"] % args.save_every == 0:
@@ -299,71 +370,128 @@ def train(args, command: str = PROG) -> dict:
     spec = spec_named(args.spec)
     budget(args)
     config = {k: (str(v) if isinstance(v, Path) else v) for k, v in vars(args).items()}
-    run = RunDir(args.logdir, config, resume=args.resume, trainer=PROG,
-                 fixed=("spec", "hidden", "seed", "envs", "rollout"))
+    run = RunDir(
+        args.logdir,
+        config,
+        resume=args.resume,
+        trainer=PROG,
+        fixed=("spec", "hidden", "seed", "envs", "rollout"),
+    )
     probe = spec.make_skill(None)
     seed_everything(args.seed)
     torch.set_num_threads(1)
-    agent = Agent(len(probe.FEATURES), probe.ACTION_DIM, args.hidden,
-                  args.log_std if args.log_std is not None
-                  else (-1.6 if args.bc_frames > 0 else -0.5))
+    agent = Agent(
+        len(probe.FEATURES),
+        probe.ACTION_DIM,
+        args.hidden,
+        args.log_std if args.log_std is not None else (-1.6 if args.bc_frames > 0 else -0.5),
+    )
     optimizer = torch.optim.Adam(agent.parameters(), lr=args.lr, eps=1e-5)
-    state = {"iteration": 0, "ppo_iterations": 0, "actor_iterations": 0, "frames": 0,
-             "sim_steps": 0, "bc_frames": 0, "wall_s": 0.0}
+    state = {
+        "iteration": 0,
+        "ppo_iterations": 0,
+        "actor_iterations": 0,
+        "frames": 0,
+        "sim_steps": 0,
+        "bc_frames": 0,
+        "wall_s": 0.0,
+    }
     saved = run.load()
     if saved is not None:
         agent.load_state_dict(saved["agent"])
         optimizer.load_state_dict(saved["optimizer"])
         state.update(saved["state"])
-        print(f"resumed {args.logdir}: iteration {state['iteration']}, "
-              f"{plural(state['frames'], 'frame')}")
+        print(
+            f"resumed {args.logdir}: iteration {state['iteration']}, "
+            f"{plural(state['frames'], 'frame')}"
+        )
     policy_path = Path(args.logdir) / f"{spec.name}_policy.pt"
     t0, wall0 = time.perf_counter(), state["wall_s"]
 
     def save():
         state["wall_s"] = wall0 + time.perf_counter() - t0
-        run.save({"agent": agent.state_dict(), "optimizer": optimizer.state_dict(),
-                  "state": dict(state)})
-        export_policy(agent, probe.FEATURES, policy_path,
-                      {"frames": state["frames"], "sim_steps": state["sim_steps"],
-                       "bc_frames": state["bc_frames"], "seed": args.seed, "spec": spec.name,
-                       "iteration": state["iteration"], "command": command,
-                       "trained_with": "hier_agents.learning.train_skill"})
+        run.save(
+            {"agent": agent.state_dict(), "optimizer": optimizer.state_dict(), "state": dict(state)}
+        )
+        export_policy(
+            agent,
+            probe.FEATURES,
+            policy_path,
+            {
+                "frames": state["frames"],
+                "sim_steps": state["sim_steps"],
+                "bc_frames": state["bc_frames"],
+                "seed": args.seed,
+                "spec": spec.name,
+                "iteration": state["iteration"],
+                "command": command,
+                "trained_with": "hier_agents.learning.train_skill",
+            },
+        )
 
     with run, run.interruptible():
         if args.bc_frames > 0 and state["bc_frames"] == 0:
-            frames, sim = clone(agent, spec, frames=args.bc_frames, seed=args.seed,
-                                dagger_frames=args.dagger_frames, epochs=args.bc_epochs,
-                                dagger_rounds=args.dagger_rounds, noise=args.bc_noise,
-                                noise_prob=args.bc_noise_prob, dagger_noise=args.dagger_noise,
-                                dagger_noise_prob=args.dagger_noise_prob,
-                                dagger_mix=args.dagger_mix, estimator=args.estimator)
+            frames, sim = clone(
+                agent,
+                spec,
+                frames=args.bc_frames,
+                seed=args.seed,
+                dagger_frames=args.dagger_frames,
+                epochs=args.bc_epochs,
+                dagger_rounds=args.dagger_rounds,
+                noise=args.bc_noise,
+                noise_prob=args.bc_noise_prob,
+                dagger_noise=args.dagger_noise,
+                dagger_noise_prob=args.dagger_noise_prob,
+                dagger_mix=args.dagger_mix,
+                estimator=args.estimator,
+            )
             state.update(bc_frames=frames, frames=frames, sim_steps=sim)
             save()
         _ppo(spec, agent, optimizer, state, run, args, save)
         save()
         summary = _summary(spec, agent, state, args, policy_path)
-        run.log(int(state["frames"]), {"eval_option_success":
-                                  summary["eval"]["learned (deterministic)"]["success"]})
+        run.log(
+            int(state["frames"]),
+            {"eval_option_success": summary["eval"]["learned (deterministic)"]["success"]},
+        )
     (Path(args.logdir) / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     print(f"summary: {Path(args.logdir) / 'summary.json'}")
     return summary
 
 
 def _summary(spec, agent, state, args, policy_path) -> dict:
-    rows = {"learned (deterministic)": evaluate(spec, _mean_policy(agent), args.eval_episodes,
-                                                estimator=args.estimator, t_abs=args.t_abs,
-                                                progress=True)} if args.eval_episodes else {}
+    rows = (
+        {
+            "learned (deterministic)": evaluate(
+                spec,
+                _mean_policy(agent),
+                args.eval_episodes,
+                estimator=args.estimator,
+                t_abs=args.t_abs,
+                progress=True,
+            )
+        }
+        if args.eval_episodes
+        else {}
+    )
     if rows:
         print_table(rows)
-    return {"spec": spec.name, "seed": args.seed, "envs": args.envs,
-            "frames": state["frames"], "bc_frames": state["bc_frames"],
-            "ppo_frames": state["frames"] - state["bc_frames"], "sim_steps": state["sim_steps"],
-            "iterations": state["iteration"],
-            "actor_iterations": state.get("actor_iterations", 0),
-            "wall_s": round(state["wall_s"], 1),
-            "eval": rows or {"learned (deterministic)": {"success": float("nan")}},
-            "policy": str(policy_path), "torch": torch.__version__}
+    return {
+        "spec": spec.name,
+        "seed": args.seed,
+        "envs": args.envs,
+        "frames": state["frames"],
+        "bc_frames": state["bc_frames"],
+        "ppo_frames": state["frames"] - state["bc_frames"],
+        "sim_steps": state["sim_steps"],
+        "iterations": state["iteration"],
+        "actor_iterations": state.get("actor_iterations", 0),
+        "wall_s": round(state["wall_s"], 1),
+        "eval": rows or {"learned (deterministic)": {"success": float("nan")}},
+        "policy": str(policy_path),
+        "torch": torch.__version__,
+    }
 
 
 def parse_args(argv=None):
@@ -373,50 +501,100 @@ def parse_args(argv=None):
     file, ``--json`` (its folder is created)."""
     from hier_agents.learning.skill_spec import SPECS
 
-    p = Parser(PROG, description=__doc__.split("\n\n")[0],
-               epilog="--frames and --logdir are required for training, not with --evaluate.")
+    p = Parser(
+        PROG,
+        description=__doc__.split("\n\n")[0],
+        epilog="--frames and --logdir are required for training, not with --evaluate.",
+    )
     add = p.add_argument
     add("spec", help="the skill spec (ball, arm)")
-    add("--frames", type=positive_int, default=None,
-        help="training budget, required: agent control steps (warm start + PPO)")
-    add("--logdir", type=Path, default=None,
-        help="training's run directory, required (a fresh run refuses one that holds a run)")
-    add("--evaluate", nargs="?", const=True, metavar="PATH", type=existing_file,
-        help="evaluate a checkpoint (default: the shipped one) against the teacher")
+    add(
+        "--frames",
+        type=positive_int,
+        default=None,
+        help="training budget, required: agent control steps (warm start + PPO)",
+    )
+    add(
+        "--logdir",
+        type=Path,
+        default=None,
+        help="training's run directory, required (a fresh run refuses one that holds a run)",
+    )
+    add(
+        "--evaluate",
+        nargs="?",
+        const=True,
+        metavar="PATH",
+        type=existing_file,
+        help="evaluate a checkpoint (default: the shipped one) against the teacher",
+    )
     add("--estimator", default=None, help="scene estimator (default: the spec's first)")
     add("--json", type=Path, help="--evaluate: write the results here")
     add("--envs", type=positive_int, default=2, help="vectorised environments")
     add("--async-envs", action="store_true", help="one process per environment")
     add("--seed", type=non_negative_int, default=0, help="seed of everything")
     add("--resume", action="store_true", help="continue LOGDIR/checkpoint.pt (required there)")
-    add("--bc-frames", type=non_negative_int, default=20_000,
-        help="frames of the noisy teacher (0: no warm start)")
+    add(
+        "--bc-frames",
+        type=non_negative_int,
+        default=20_000,
+        help="frames of the noisy teacher (0: no warm start)",
+    )
     add("--bc-epochs", type=positive_int, default=60, help="epochs of every fit")
-    add("--bc-noise", type=non_negative_float, default=0.2,
-        help="action noise std (cloning)")
-    add("--bc-noise-prob", type=fraction, default=1.0,
-        help="fraction of cloning options with noise")
-    add("--dagger-frames", type=non_negative_int, default=20_000,
-        help="frames per DAgger round")
+    add("--bc-noise", type=non_negative_float, default=0.2, help="action noise std (cloning)")
+    add(
+        "--bc-noise-prob", type=fraction, default=1.0, help="fraction of cloning options with noise"
+    )
+    add("--dagger-frames", type=non_negative_int, default=20_000, help="frames per DAgger round")
     add("--dagger-rounds", type=non_negative_int, default=1, help="DAgger rounds")
-    add("--dagger-noise", type=non_negative_float, default=0.1,
-        help="action noise std (DAgger)")
-    add("--dagger-noise-prob", type=fraction, default=1.0,
-        help="fraction of DAgger options with noise")
-    add("--dagger-mix", type=fraction, default=1.0,
-        help="probability that the student (not the teacher) acts, per DAgger step")
+    add("--dagger-noise", type=non_negative_float, default=0.1, help="action noise std (DAgger)")
+    add(
+        "--dagger-noise-prob",
+        type=fraction,
+        default=1.0,
+        help="fraction of DAgger options with noise",
+    )
+    add(
+        "--dagger-mix",
+        type=fraction,
+        default=1.0,
+        help="probability that the student (not the teacher) acts, per DAgger step",
+    )
     add("--hidden", type=positive_int, default=64, help="hidden units per layer")
-    add("--log-std", type=float, default=None,
-        help="initial log-std (default: -1.6 after a warm start, else -0.5)")
-    ppo.add_arguments(p, rollout=256, epochs=5, minibatches=4, lr=1e-4, anneal_lr=False,
-                      gamma=0.99, lam=0.95, clip=0.1, ent_coef=0.0, vf_coef=0.5,
-                      max_grad_norm=0.5)
-    add("--critic-warmup", type=non_negative_int, default=3,
-        help="critic-only PPO iterations after a warm start (at most all but one)")
+    add(
+        "--log-std",
+        type=float,
+        default=None,
+        help="initial log-std (default: -1.6 after a warm start, else -0.5)",
+    )
+    ppo.add_arguments(
+        p,
+        rollout=256,
+        epochs=5,
+        minibatches=4,
+        lr=1e-4,
+        anneal_lr=False,
+        gamma=0.99,
+        lam=0.95,
+        clip=0.1,
+        ent_coef=0.0,
+        vf_coef=0.5,
+        max_grad_norm=0.5,
+    )
+    add(
+        "--critic-warmup",
+        type=non_negative_int,
+        default=3,
+        help="critic-only PPO iterations after a warm start (at most all but one)",
+    )
     add("--t-abs", type=positive_int, default=None, help="option cut-off (default: the spec's)")
     add("--save-every", type=positive_int, default=5, help="iterations between checkpoints")
-    add("--eval-episodes", type=non_negative_int, default=100,
-        help="held-out options; 0: skip (at least 1 with --evaluate)")
+    add(
+        "--eval-episodes",
+        type=non_negative_int,
+        default=100,
+        help="held-out options; 0: skip (at least 1 with --evaluate)",
+    )
     args = p.parse_args(argv)
     try:
         spec = spec_named(args.spec)
@@ -430,8 +608,11 @@ def parse_args(argv=None):
             raise UsageError("--evaluate needs --eval-episodes >= 1")
         output_file(args.json, "--json")
         return args
-    missing = [flag for flag, value in (("--frames", args.frames), ("--logdir", args.logdir))
-               if value is None]
+    missing = [
+        flag
+        for flag, value in (("--frames", args.frames), ("--logdir", args.logdir))
+        if value is None
+    ]
     if missing:
         raise UsageError(f"training needs {' and '.join(missing)} (or --evaluate)")
     if args.json is not None:

@@ -40,8 +40,7 @@ from abstract_planners.base import NoPlanError, Planner, Subgoal
 from envs.profile import PROFILE
 from hier_agents.estimators.base import EstimationError, Estimator
 from hier_agents.modular.families import adapter_for
-from hier_agents.modular.options import (T_ABS, Outcome, OptionResult, OptionRunner,
-                                         failure_kind)
+from hier_agents.modular.options import T_ABS, Outcome, OptionResult, OptionRunner, failure_kind
 from skills.base import Skill
 
 __all__ = ["ModularAgent", "OptionStats"]
@@ -102,8 +101,16 @@ class ModularAgent:
         still on the subgoal's path.
     """
 
-    def __init__(self, estimator: Estimator, planner: Planner, skill: Skill, *, t_abs: int = T_ABS,
-                 use_pushes: bool = True, check_every: int = 5):
+    def __init__(
+        self,
+        estimator: Estimator,
+        planner: Planner,
+        skill: Skill,
+        *,
+        t_abs: int = T_ABS,
+        use_pushes: bool = True,
+        check_every: int = 5,
+    ):
         self.estimator, self.planner, self.skill = estimator, planner, skill
         self.runner = OptionRunner(skill, t_abs=t_abs, check_every=check_every)
         self.t_abs = self.runner.t_abs
@@ -165,7 +172,7 @@ class ModularAgent:
         self.description = description
         self.runner.adapter = adapter_for(description)
         self.runner.clear()
-        self.skill.forget_history()   # an episode plays the same whatever came before
+        self.skill.forget_history()  # an episode plays the same whatever came before
         with PROFILE.section("planner"):
             self.planner.reset(seed)
         with PROFILE.section("estimator"):
@@ -191,7 +198,7 @@ class ModularAgent:
             action = runner.act(timestep, scene)
             if action is not None:
                 return action
-            assert runner.result is not None    # `act` returned None: the option ended
+            assert runner.result is not None  # `act` returned None: the option ended
             self._count(runner.result)
         if scene is None:
             return self.skill.hold()
@@ -204,7 +211,7 @@ class ModularAgent:
             action = runner.act(timestep, scene)
             if action is not None:
                 return action
-            assert runner.result is not None    # `act` returned None: the option ended
+            assert runner.result is not None  # `act` returned None: the option ended
             self._count(runner.result)
         return self.skill.hold()
 
@@ -225,11 +232,11 @@ class ModularAgent:
         except EstimationError:
             scene = None
         if runner.act(timestep, scene) is None:
-            assert runner.result is not None    # `act` returned None: the option ended
+            assert runner.result is not None  # `act` returned None: the option ended
             self._count(runner.result)
         else:
             result = runner.interrupt("episode ended", timestep, scene)
-            assert result is not None           # an option was running: it has a result now
+            assert result is not None  # an option was running: it has a result now
             self._count(result)
 
     def _count(self, result: OptionResult) -> None:

@@ -59,9 +59,26 @@ if TYPE_CHECKING:
     from hier_agents.estimators.base import Estimator
     from skills.base import Skill
 
-__all__ = ["PLANNERS", "SKILLS", "ESTIMATORS", "ComponentTable", "Parameter", "Resolved",
-           "UsageError", "check", "env_overrides", "estimator_name", "family", "file_hash",
-           "forms", "is_privileged", "learned_files", "make_agent", "reads_record", "resolve"]
+__all__ = [
+    "PLANNERS",
+    "SKILLS",
+    "ESTIMATORS",
+    "ComponentTable",
+    "Parameter",
+    "Resolved",
+    "UsageError",
+    "check",
+    "env_overrides",
+    "estimator_name",
+    "family",
+    "file_hash",
+    "forms",
+    "is_privileged",
+    "learned_files",
+    "make_agent",
+    "reads_record",
+    "resolve",
+]
 
 #: What a table's factories make: a `Planner`, a `Skill` or an `Estimator`.
 C = TypeVar("C")
@@ -92,9 +109,11 @@ class Parameter:
 def _takes(parameter: Parameter):
     """Marks a factory ``factory(description, seed[, simulator], arg=DEFAULT)``
     as taking ``NAME:ARG`` (the bare name calls it with its default)."""
+
     def mark(factory):
         factory.parameter = parameter
         return factory
+
     return mark
 
 
@@ -107,6 +126,7 @@ def _int_in(low: int, high: int | None = None):
         if value is None or value < low or (high is not None and value > high):
             raise ValueError(f"got {text!r}")
         return value
+
     return parse
 
 
@@ -118,72 +138,94 @@ def _path(text: str) -> str:
 
 def _load_option_policy(path):
     from abstract_planners.learned_options import load_option_policy
+
     load_option_policy(path)
 
 
 def _load_ball_policy(path):
     from skills.learned.ball import load_policy
+
     load_policy(path)
 
 
 def _load_arm_policy(path):
     from skills.learned.arm import FEATURES
     from skills.learned.policy import load_policy
+
     load_policy(path, FEATURES)
 
 
 _SIMULATIONS = Parameter("N", "tree simulations per move, an integer >= 1", _int_in(1))
 _GNUGO_LEVEL = Parameter("LEVEL", "GNU Go's strength, an integer 1..10", _int_in(1, 10))
 _DEPTH = Parameter("D", "plies searched, an integer >= 1", _int_in(1))
-_OPTION_POLICY = Parameter("PATH", "a python -m hier_agents.learning.train_options "
-                           "checkpoint file or run directory", _path, _load_option_policy)
-_BALL_POLICY = Parameter("PATH", "a learned-ball checkpoint (python -m "
-                         "hier_agents.learning.train_skill ball)", _path, _load_ball_policy)
-_ARM_POLICY = Parameter("PATH", "a learned-arm checkpoint (python -m "
-                        "hier_agents.learning.train_skill arm)", _path, _load_arm_policy)
+_OPTION_POLICY = Parameter(
+    "PATH",
+    "a python -m hier_agents.learning.train_options checkpoint file or run directory",
+    _path,
+    _load_option_policy,
+)
+_BALL_POLICY = Parameter(
+    "PATH",
+    "a learned-ball checkpoint (python -m hier_agents.learning.train_skill ball)",
+    _path,
+    _load_ball_policy,
+)
+_ARM_POLICY = Parameter(
+    "PATH",
+    "a learned-arm checkpoint (python -m hier_agents.learning.train_skill arm)",
+    _path,
+    _load_arm_policy,
+)
 
 
 def _sokoban_solver(description, seed):
     from abstract_planners.sokoban_solver import SokobanSolverPlanner
+
     return SokobanSolverPlanner(time_limit=10.0)
 
 
 def _sokoban_time(description, seed):
     from abstract_planners.sokoban_time_solver import TimeSolverPlanner
+
     return TimeSolverPlanner(time_limit=10.0)
 
 
 @_takes(_OPTION_POLICY)
 def _learned_options(description, seed, arg=None):
     from abstract_planners.learned_options import OptionPolicyPlanner
+
     return OptionPolicyPlanner(arg, seed=seed)
 
 
 def _sokoban_random(description, seed):
     from abstract_planners.sokoban_random import RandomPlanner
+
     return RandomPlanner(seed=seed)
 
 
 def _minimax(description, seed):
     from abstract_planners.tictactoe import MinimaxPlanner
+
     return MinimaxPlanner(seed=seed)
 
 
 def _board_random(description, seed):
     from abstract_planners.board_random import RandomMovePlanner
+
     return RandomMovePlanner(seed=seed)
 
 
 @_takes(_GNUGO_LEVEL)
 def _gnugo(description, seed, arg=10):
     from abstract_planners.go import GnuGoPlanner
-    return GnuGoPlanner(arg, board_size=description.board_size, komi=description.komi,
-                        seed=seed)
+
+    return GnuGoPlanner(arg, board_size=description.board_size, komi=description.komi, seed=seed)
 
 
 @_takes(_SIMULATIONS)
 def _mcts(description, seed, arg=1000):
     from abstract_planners.openspiel_bots import MCTSPlanner
+
     return MCTSPlanner(arg, seed=seed)
 
 
@@ -196,28 +238,33 @@ def _mcts_strong(description, seed, arg=2000):
 @_takes(_DEPTH)
 def _alphabeta(description, seed, arg=4):
     from abstract_planners.openspiel_bots import AlphaBetaPlanner
+
     return AlphaBetaPlanner(arg, seed=seed)
 
 
 def _ball(description, seed):
     from skills.ball import BallSkill
+
     return BallSkill()
 
 
 @_takes(_BALL_POLICY)
 def _learned_ball(description, seed, arg=None):
     from skills.learned import LearnedBallSkill
+
     return LearnedBallSkill(arg)
 
 
 def _arm(description, seed):
     from skills.arm import ArmTouchSkill
+
     return ArmTouchSkill()
 
 
 @_takes(_ARM_POLICY)
 def _learned_arm(description, seed, arg=None):
     from skills.learned.arm import LearnedArmSkill
+
     return LearnedArmSkill(arg)
 
 
@@ -225,11 +272,13 @@ def _lazy_estimator(module: str, name: str):
     """A factory of the estimator class ``name`` in ``module``, imported on
     first use; its ``env_overrides()`` returns the class's `envs.load`
     overrides (the cameras it reads)."""
+
     def cls():
         return getattr(importlib.import_module(module), name)
 
     def factory(description, seed, simulator=None):
         return cls()()
+
     factory.env_overrides = lambda: cls().env_overrides  # type: ignore[attr-defined]
     return factory
 
@@ -248,9 +297,12 @@ _board.reads_record = True  # type: ignore[attr-defined]
 def _privileged(cls):
     def factory(description, seed, simulator=None):
         if simulator is None:
-            raise ValueError(f"the {cls.name!r} estimator is privileged (it reads the "
-                             f"simulator): pass the environment as simulator=env")
+            raise ValueError(
+                f"the {cls.name!r} estimator is privileged (it reads the "
+                f"simulator): pass the environment as simulator=env"
+            )
         return cls(simulator)
+
     factory.privileged = True
     return factory
 
@@ -300,16 +352,22 @@ class ComponentTable(dict[str, Factory[C]], Generic[C]):
             try:
                 arg = parameter.parse(text)
             except ValueError as exc:
-                raise UsageError(f"bad {self.kind} {spec!r}: {name}:{parameter.metavar} takes "
-                                 f"{parameter.meaning}; {exc}") from None
+                raise UsageError(
+                    f"bad {self.kind} {spec!r}: {name}:{parameter.metavar} takes "
+                    f"{parameter.meaning}; {exc}"
+                ) from None
             return Resolved(name, arg, parameter, _bind(factory, arg))
         valid = self.forms()
         if factory is not None:
-            raise UsageError(f"the {self.kind} {name!r} takes no parameter, got {spec!r}; "
-                             f"valid {self.kind}s for {self.family}: {', '.join(valid)}")
-        raise UsageError(f"unknown {self.kind} {spec!r} for {self.family}"
-                         f"{close_hint(spec, valid)}; "
-                         f"valid: {', '.join(valid)}")
+            raise UsageError(
+                f"the {self.kind} {name!r} takes no parameter, got {spec!r}; "
+                f"valid {self.kind}s for {self.family}: {', '.join(valid)}"
+            )
+        raise UsageError(
+            f"unknown {self.kind} {spec!r} for {self.family}"
+            f"{close_hint(spec, valid)}; "
+            f"valid: {', '.join(valid)}"
+        )
 
     def forms(self) -> list[str]:
         """Every accepted form, in table order: ``NAME`` and, for a component
@@ -326,6 +384,7 @@ class ComponentTable(dict[str, Factory[C]], Generic[C]):
 def _bind(factory: Factory[C], arg) -> Factory[C]:
     def bound(*args, **kwargs):
         return factory(*args, **kwargs, arg=arg)
+
     bound.__dict__.update(factory.__dict__)
     bound.__name__ = getattr(factory, "__name__", "factory")
     return bound
@@ -333,16 +392,27 @@ def _bind(factory: Factory[C], arg) -> Factory[C]:
 
 #: family -> name -> factory(description, seed); the first entry is the default.
 PLANNERS: dict[str, ComponentTable[Planner]] = {
-    "mujoban": ComponentTable("planner", "mujoban", {
-        "sokoban-solver:time": _sokoban_time, "sokoban-solver": _sokoban_solver,
-        "random": _sokoban_random, "learned": _learned_options}),
-    "mujoxo": ComponentTable("planner", "mujoxo",
-                             {"minimax": _minimax, "mcts": _mcts, "random": _board_random}),
-    "mujogo": ComponentTable("planner", "mujogo",
-                             {"gnugo": _gnugo, "mcts": _mcts, "random": _board_random}),
-    "mujoboard": ComponentTable("planner", "mujoboard",
-                                {"mcts": _mcts_strong, "alphabeta": _alphabeta,
-                                 "random": _board_random}),
+    "mujoban": ComponentTable(
+        "planner",
+        "mujoban",
+        {
+            "sokoban-solver:time": _sokoban_time,
+            "sokoban-solver": _sokoban_solver,
+            "random": _sokoban_random,
+            "learned": _learned_options,
+        },
+    ),
+    "mujoxo": ComponentTable(
+        "planner", "mujoxo", {"minimax": _minimax, "mcts": _mcts, "random": _board_random}
+    ),
+    "mujogo": ComponentTable(
+        "planner", "mujogo", {"gnugo": _gnugo, "mcts": _mcts, "random": _board_random}
+    ),
+    "mujoboard": ComponentTable(
+        "planner",
+        "mujoboard",
+        {"mcts": _mcts_strong, "alphabeta": _alphabeta, "random": _board_random},
+    ),
 }
 #: family -> name -> factory(description, seed); the first entry is the default.
 SKILLS: dict[str, ComponentTable[Skill]] = {
@@ -353,18 +423,28 @@ SKILLS: dict[str, ComponentTable[Skill]] = {
 }
 #: family -> name -> factory(description, seed, simulator=None).
 ESTIMATORS: dict[str, ComponentTable[Estimator]] = {
-    "mujoban": ComponentTable("estimator", "mujoban", {
-        "camera": _camera, "oracle": _privileged(OracleEstimator),
-        "entity-layer": _privileged(EntityLayerEstimator)}),
+    "mujoban": ComponentTable(
+        "estimator",
+        "mujoban",
+        {
+            "camera": _camera,
+            "oracle": _privileged(OracleEstimator),
+            "entity-layer": _privileged(EntityLayerEstimator),
+        },
+    ),
     "mujoxo": ComponentTable("estimator", "mujoxo", {"board": _board, "camera": _board_camera}),
     "mujogo": ComponentTable("estimator", "mujogo", {"board": _board, "camera": _board_camera}),
-    "mujoboard": ComponentTable("estimator", "mujoboard", {"board": _board,
-                                                           "camera": _board_camera}),
+    "mujoboard": ComponentTable(
+        "estimator", "mujoboard", {"board": _board, "camera": _board_camera}
+    ),
 }
 
 #: kind -> family -> table (`resolve`'s overloads give each kind its type).
 _TABLES: dict[str, dict[str, ComponentTable[Any]]] = {
-    "planner": PLANNERS, "skill": SKILLS, "estimator": ESTIMATORS}
+    "planner": PLANNERS,
+    "skill": SKILLS,
+    "estimator": ESTIMATORS,
+}
 
 
 @overload
@@ -443,6 +523,7 @@ def env_overrides(env_name: str, estimator: str | None = None) -> dict:
     """`envs.load` overrides the estimator needs: every camera off except the
     ones it reads, at the frame size it asks for."""
     import envs
+
     fam = family(env_name)
     overrides = dict(envs.no_cameras(env_name))
     asks = getattr(resolve("estimator", fam, estimator).factory, "env_overrides", None)
@@ -451,9 +532,17 @@ def env_overrides(env_name: str, estimator: str | None = None) -> dict:
     return overrides
 
 
-def make_agent(env_name: str, description, *, planner: str | None = None,
-               skill: str | None = None, estimator: str | None = None,
-               seed: int | None = None, t_abs: int = T_ABS, simulator=None) -> ModularAgent:
+def make_agent(
+    env_name: str,
+    description,
+    *,
+    planner: str | None = None,
+    skill: str | None = None,
+    estimator: str | None = None,
+    seed: int | None = None,
+    t_abs: int = T_ABS,
+    simulator=None,
+) -> ModularAgent:
     """The modular agent for an environment named ``env_name`` with the public
     ``description`` (``env.description()``), with parts named as `resolve`
     reads them (None: the family's default).
@@ -471,9 +560,11 @@ def make_agent(env_name: str, description, *, planner: str | None = None,
     make_estimator = resolve("estimator", fam, estimator).factory
     make_planner = resolve("planner", fam, planner).factory
     make_skill = resolve("skill", fam, skill).factory
-    estimator_, planner_, skill_ = (make_estimator(description, seed, simulator),
-                                    make_planner(description, seed),
-                                    make_skill(description, seed))
+    estimator_, planner_, skill_ = (
+        make_estimator(description, seed, simulator),
+        make_planner(description, seed),
+        make_skill(description, seed),
+    )
     return ModularAgent(estimator_, planner_, skill_, t_abs=t_abs)
 
 
@@ -495,8 +586,7 @@ def learned_files(env: str, parts: dict) -> dict:
         resolved = resolve(key, family(env), value)
         if not resolved.name.startswith("learned"):
             continue
-        path = Path(str(resolved.arg)) if resolved.arg is not None \
-            else _shipped(key, resolved.name)
+        path = Path(str(resolved.arg)) if resolved.arg is not None else _shipped(key, resolved.name)
         if path.is_dir():
             found = sorted(path.glob("*_policy.pt")) or sorted(path.glob("*.pt"))
             path = found[0] if found else path
@@ -507,9 +597,12 @@ def learned_files(env: str, parts: dict) -> dict:
 def _shipped(kind: str, name: str) -> Path:
     if kind == "planner":
         from abstract_planners.learned_options import SHIPPED
+
         return SHIPPED
     if name == "learned-arm":
         from skills.learned.arm import POLICY_PATH
+
         return POLICY_PATH
     from skills.learned.ball import POLICY_PATH
+
     return POLICY_PATH

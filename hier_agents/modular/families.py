@@ -56,8 +56,15 @@ import numpy as np
 
 from abstract_planners.base import Subgoal
 
-__all__ = ["FAMILIES", "family", "adapter", "FamilyAdapter", "SokobanAdapter",
-           "BoardAdapter", "encode_sokoban"]
+__all__ = [
+    "FAMILIES",
+    "family",
+    "adapter",
+    "FamilyAdapter",
+    "SokobanAdapter",
+    "BoardAdapter",
+    "encode_sokoban",
+]
 
 _PLAYER, _BOX = 2, 3  # full_entity_layer channels (envs.mujoban.task)
 
@@ -157,8 +164,9 @@ class FamilyAdapter:
         one-hot, 0 when there is none) of the planner conditions."""
         raise NotImplementedError
 
-    def fill_planner_inputs(self, planes: np.ndarray, onehot: np.ndarray, observation,
-                            subgoal, task) -> None:
+    def fill_planner_inputs(
+        self, planes: np.ndarray, onehot: np.ndarray, observation, subgoal, task
+    ) -> None:
         """Writes the current abstract state (from ``observation``) and the
         target (``subgoal``, None: none, the target planes repeat the current
         ones) into ``planes`` and ``onehot`` in place."""
@@ -224,12 +232,13 @@ class SokobanAdapter(FamilyAdapter):
 
     def spaces(self, description, state):
         from abstract_planners.sokoban import MOVES
+
         shape = tuple(int(v) for v in description.grid_shape)
-        return (gym.spaces.Discrete(len(MOVES)),
-                gym.spaces.Box(0.0, 1.0, (4, *shape), np.float32))
+        return (gym.spaces.Discrete(len(MOVES)), gym.spaces.Box(0.0, 1.0, (4, *shape), np.float32))
 
     def option_subgoal(self, state, action: int) -> Subgoal | None:
         from abstract_planners.sokoban import MOVES
+
         move = MOVES[action]
         if not state.is_legal(move):
             return None
@@ -237,6 +246,7 @@ class SokobanAdapter(FamilyAdapter):
 
     def legal_mask(self, state, n: int | np.integer) -> np.ndarray:
         from abstract_planners.sokoban import MOVES
+
         return np.array([state.is_legal(m) for m in MOVES], np.int8)
 
     def observation(self, state, space) -> np.ndarray:
@@ -245,17 +255,26 @@ class SokobanAdapter(FamilyAdapter):
     def score(self, task, timestep, reason: str | None) -> dict:
         # (after a failed reset the task still shows the last episode's end)
         solved = timestep is not None and bool(getattr(task, "solved", False))
-        return {"solved": True} if solved else {"solved": False,
-                                                 "failure_reason": reason or "time limit"}
+        return (
+            {"solved": True}
+            if solved
+            else {"solved": False, "failure_reason": reason or "time limit"}
+        )
 
     def success(self, task) -> bool:
         return bool(task.solved)
 
     discounts = (0.99, 0.9)
-    proprio_keys = ("walker/joints_pos", "walker/joints_vel", "walker/joints_torque",
-                    "walker/orientation", "walker/sensors_touch",
-                    "walker/sensors_accelerometer", "walker/sensors_gyro",
-                    "walker/sensors_velocimeter")
+    proprio_keys = (
+        "walker/joints_pos",
+        "walker/joints_vel",
+        "walker/joints_torque",
+        "walker/orientation",
+        "walker/sensors_touch",
+        "walker/sensors_accelerometer",
+        "walker/sensors_gyro",
+        "walker/sensors_velocimeter",
+    )
     state_key = "full_entity_layer"
     truth_estimator = "entity-layer"
     # The paper's expert: the exact Sokoban solver (not the library's
@@ -265,11 +284,13 @@ class SokobanAdapter(FamilyAdapter):
 
     def planner_inputs(self, task) -> tuple[tuple[int, int, int], int]:
         from abstract_planners.sokoban import MOVES
+
         height, width = task.grid_shape
         return (8, int(height), int(width)), len(MOVES)
 
     def fill_planner_inputs(self, planes, onehot, observation, subgoal, task) -> None:
         from abstract_planners.sokoban import MOVES
+
         half = planes.shape[0] // 2
         planes[:half] = observation["full_entity_layer"].transpose(2, 0, 1)
         planes[half:] = planes[:half]
@@ -315,19 +336,26 @@ class BoardAdapter(FamilyAdapter):
         stones), or the legal point nearest the centre."""
         subgoal = planner.plan(state)
         pass_action = getattr(description, "pass_action", None)
-        if (pass_action is None or subgoal.action != pass_action
-                or getattr(description, "allow_double_pass", True)):
+        if (
+            pass_action is None
+            or subgoal.action != pass_action
+            or getattr(description, "allow_double_pass", True)
+        ):
             return subgoal
         history = state.history()
         if len(history) < 2 or history[-2] != pass_action:
             return subgoal
         centre = np.asarray(description.board_centre, float)
-        points = sorted((a for a in state.legal_actions() if a != pass_action),
-                        key=lambda a: float(np.linalg.norm(
-                            np.asarray(description.point_positions[a][:2]) - centre)))
+        points = sorted(
+            (a for a in state.legal_actions() if a != pass_action),
+            key=lambda a: float(
+                np.linalg.norm(np.asarray(description.point_positions[a][:2]) - centre)
+            ),
+        )
         if not points:
             return subgoal
         from envs.boards.games import BoardGame
+
         game = BoardGame.from_description(description)
         players, mover = game.players(state), state.current_player()
         action = next((a for a in points if not _own_eye(game, players, mover, a)), points[0])
@@ -338,12 +366,13 @@ class BoardAdapter(FamilyAdapter):
         game = state.get_game()
         shape = tuple(int(v) for v in game.observation_tensor_shape())
         # OpenSpiel's tic-tac-toe and Go tensors are 0/1 planes.
-        return (gym.spaces.Discrete(int(game.num_distinct_actions())),
-                gym.spaces.Box(0.0, 1.0, shape, np.float32))
+        return (
+            gym.spaces.Discrete(int(game.num_distinct_actions())),
+            gym.spaces.Box(0.0, 1.0, shape, np.float32),
+        )
 
     def option_subgoal(self, state, action: int) -> Subgoal | None:
-        if state.is_terminal() or state.current_player() < 0 \
-                or action not in state.legal_actions():
+        if state.is_terminal() or state.current_player() < 0 or action not in state.legal_actions():
             return None
         return Subgoal(action, state.child(action))
 
@@ -363,8 +392,10 @@ class BoardAdapter(FamilyAdapter):
         outcome = task.outcome if timestep is not None else None
         # The task's outcome counts an opponent's resignation as a win; a
         # game still running counts as lost.
-        row = {"outcome": outcome or "loss",
-               "final_reward": float(timestep.reward or 0.0) if timestep is not None else 0.0}
+        row = {
+            "outcome": outcome or "loss",
+            "final_reward": float(timestep.reward or 0.0) if timestep is not None else 0.0,
+        }
         if timestep is not None and getattr(task, "resigned", False):
             row["opponent_resigned"] = True
         if row["outcome"] != "win" and (reason or outcome is None):
@@ -380,12 +411,18 @@ class BoardAdapter(FamilyAdapter):
         if scene is None or getattr(scene, "state", None) is None:
             return False
         game, truth, state = task.game, task.state, scene.state
-        return (state.current_player() == truth.current_player()
-                and np.array_equal(game.players(state), game.players(truth)))
+        return state.current_player() == truth.current_player() and np.array_equal(
+            game.players(state), game.players(truth)
+        )
 
     discounts = (0.99, 0.98)
-    proprio_keys = ("arm/joints_pos", "arm/joints_vel", "arm/joints_torque",
-                    "arm/pinch_site_pos", "arm/pinch_site_rmat")
+    proprio_keys = (
+        "arm/joints_pos",
+        "arm/joints_vel",
+        "arm/joints_torque",
+        "arm/pinch_site_pos",
+        "arm/pinch_site_rmat",
+    )
     state_key = "board_state"
     truth_estimator = "board"
     paper_batch = 64
@@ -426,17 +463,21 @@ def _own_eye(game, players, mover: int, point: int) -> bool:
     """Whether every orthogonal neighbour of ``point`` on ``game``'s board
     holds a stone of ``mover`` (``players``: `BoardGame.players` of the state)."""
     row, col = divmod(int(point), game.cols)
-    neighbours = [(r, c) for r, c in ((row - 1, col), (row + 1, col), (row, col - 1),
-                                      (row, col + 1))
-                  if 0 <= r < game.rows and 0 <= c < game.cols]
+    neighbours = [
+        (r, c)
+        for r, c in ((row - 1, col), (row + 1, col), (row, col - 1), (row, col + 1))
+        if 0 <= r < game.rows and 0 <= c < game.cols
+    ]
     return all(players[r * game.cols + c] == mover for r, c in neighbours)
 
 
 #: family name -> adapter.
-FAMILIES: dict[str, FamilyAdapter] = {"mujoban": SokobanAdapter(),
-                                      "mujoxo": BoardAdapter("mujoxo"),
-                                      "mujogo": BoardAdapter("mujogo"),
-                                      "mujoboard": BoardAdapter("mujoboard")}
+FAMILIES: dict[str, FamilyAdapter] = {
+    "mujoban": SokobanAdapter(),
+    "mujoxo": BoardAdapter("mujoxo"),
+    "mujogo": BoardAdapter("mujogo"),
+    "mujoboard": BoardAdapter("mujoboard"),
+}
 
 
 def family(env_name: str) -> str:
@@ -445,8 +486,10 @@ def family(env_name: str) -> str:
     agent."""
     prefix = str(env_name).split("/", 1)[0]
     if prefix not in FAMILIES:
-        raise ValueError(f"no modular agent for {env_name!r}; environment families: "
-                         + ", ".join(f"{f}/*" for f in FAMILIES))
+        raise ValueError(
+            f"no modular agent for {env_name!r}; environment families: "
+            + ", ".join(f"{f}/*" for f in FAMILIES)
+        )
     return prefix
 
 
@@ -465,6 +508,7 @@ def adapter_for(description) -> FamilyAdapter:
     if hasattr(description, "grid_shape"):
         return FAMILIES["mujoban"]
     if hasattr(description, "board_size"):
-        return FAMILIES[{"tic_tac_toe": "mujoxo", "go": "mujogo"}.get(description.game,
-                                                                       "mujoboard")]
+        return FAMILIES[
+            {"tic_tac_toe": "mujoxo", "go": "mujogo"}.get(description.game, "mujoboard")
+        ]
     return GENERIC

@@ -99,8 +99,9 @@ class OptionRunner:
       check_every: control steps between deviation checks.
     """
 
-    def __init__(self, skill, adapter=None, *, t_abs: int = T_ABS, gamma: float = 1.0,
-                 check_every: int = 5):
+    def __init__(
+        self, skill, adapter=None, *, t_abs: int = T_ABS, gamma: float = 1.0, check_every: int = 5
+    ):
         if int(t_abs) < 1:
             raise ValueError(f"t_abs must be a positive number of control steps, got {t_abs!r}")
         if not 0.0 < float(gamma) <= 1.0:
@@ -132,8 +133,9 @@ class OptionRunner:
         self.subgoal, self.result = subgoal, None
         self._duration, self._reward, self._discount = 0, 0.0, 1.0
         self._awaiting = False
-        self._expected = (self.adapter.expected(scene.state, subgoal)
-                          if self.adapter is not None else None)
+        self._expected = (
+            self.adapter.expected(scene.state, subgoal) if self.adapter is not None else None
+        )
         self._running = True
         self.skill.reset(description, subgoal, scene)
 
@@ -170,8 +172,11 @@ class OptionRunner:
         if self._duration >= self.t_abs:
             self._end(Outcome.CUT_OFF, None, timestep, scene)
             return None
-        if (self._expected is not None and self._duration % self.check_every == 0
-                and self.adapter.deviates(self._expected, scene)):
+        if (
+            self._expected is not None
+            and self._duration % self.check_every == 0
+            and self.adapter.deviates(self._expected, scene)
+        ):
             self._end(Outcome.FAILED, "deviation", timestep, scene)
             return None
         return self._issue(action)
@@ -193,19 +198,32 @@ class OptionRunner:
     def _record(self, timestep) -> None:
         self._awaiting = False
         k = self._duration - 1
-        self._reward += (self.gamma ** k) * float(timestep.reward or 0.0)
+        self._reward += (self.gamma**k) * float(timestep.reward or 0.0)
         discount = 1.0 if timestep.discount is None else float(timestep.discount)
         self._discount *= self.gamma * discount
 
     def _end(self, outcome: Outcome, reason, timestep, scene) -> None:
         self._running = False
-        self.result = OptionResult(outcome, reason, self._duration, self._reward,
-                                   self._discount, timestep, scene)
+        self.result = OptionResult(
+            outcome, reason, self._duration, self._reward, self._discount, timestep, scene
+        )
         return None
 
 
-def run_option(env, estimator, skill, subgoal, timestep, *, adapter=None, t_abs: int = T_ABS,
-               gamma: float = 1.0, scene=None, on_step=None, description=None) -> OptionResult:
+def run_option(
+    env,
+    estimator,
+    skill,
+    subgoal,
+    timestep,
+    *,
+    adapter=None,
+    t_abs: int = T_ABS,
+    gamma: float = 1.0,
+    scene=None,
+    on_step=None,
+    description=None,
+) -> OptionResult:
     """Runs ``skill`` on ``subgoal`` in ``env`` from ``timestep`` until the
     option ends (`OptionRunner`'s rules) and returns its `OptionResult`.
 
@@ -220,6 +238,7 @@ def run_option(env, estimator, skill, subgoal, timestep, *, adapter=None, t_abs:
     options of an episode so that skills keep their per-task state.
     """
     from hier_agents.estimators.base import EstimationError
+
     if scene is None:
         scene = estimator.estimate(timestep)
     runner = OptionRunner(skill, adapter, t_abs=t_abs, gamma=gamma)
@@ -232,7 +251,7 @@ def run_option(env, estimator, skill, subgoal, timestep, *, adapter=None, t_abs:
             scene = None
         if on_step is not None and scene is not None:
             on_step(timestep, scene)
-    assert runner.result is not None        # `act` returned None: the option ended
+    assert runner.result is not None  # `act` returned None: the option ended
     return runner.result
 
 

@@ -106,5 +106,14 @@ from skills.arm.model import HOME_ARM_QPOS, JOINT_ACCELERATION, ArmModel
 from skills.arm.skill import ArmTouchSkill
 from skills.arm.targets import PASS_OFFSET, PASS_TOLERANCE, PASS_Y_RANGE
 
-__all__ = ["ArmTouchSkill", "ArmTouchConfig", "ArmModel", "DOWN_QUAT", "HOME_ARM_QPOS",
-           "JOINT_ACCELERATION", "PASS_OFFSET", "PASS_TOLERANCE", "PASS_Y_RANGE"]
+__all__ = [
+    "ArmTouchSkill",
+    "ArmTouchConfig",
+    "ArmModel",
+    "DOWN_QUAT",
+    "HOME_ARM_QPOS",
+    "JOINT_ACCELERATION",
+    "PASS_OFFSET",
+    "PASS_TOLERANCE",
+    "PASS_Y_RANGE",
+]

@@ -68,13 +68,20 @@ def enclosing_circle(points: np.ndarray) -> tuple[np.ndarray, float]:
         centre = points.mean(axis=0)
     else:
         sa, sb, sc = a @ a, b @ b, c @ c
-        centre = np.array([sa * (b[1] - c[1]) + sb * (c[1] - a[1]) + sc * (a[1] - b[1]),
-                           sa * (c[0] - b[0]) + sb * (a[0] - c[0]) + sc * (b[0] - a[0])]) / d
+        centre = (
+            np.array(
+                [
+                    sa * (b[1] - c[1]) + sb * (c[1] - a[1]) + sc * (a[1] - b[1]),
+                    sa * (c[0] - b[0]) + sb * (a[0] - c[0]) + sc * (b[0] - a[0]),
+                ]
+            )
+            / d
+        )
     return centre, float(np.max(np.linalg.norm(points - centre, axis=1)))
 
 
 def trapezoid_time(distance: np.ndarray, speed: np.ndarray, accel: np.ndarray) -> np.ndarray:
     """Least time to move ``distance`` from rest to rest with those limits."""
     distance = np.abs(distance)
-    cruise = distance >= speed ** 2 / accel
+    cruise = distance >= speed**2 / accel
     return np.where(cruise, distance / speed + speed / accel, 2 * np.sqrt(distance / accel))

@@ -44,8 +44,9 @@ class ArmModel:
         self.description = arm
         self.band = float(band)
         self.model = model = arm.model()
-        ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
-               for name in arm.joint_names]
+        ids = [
+            mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name) for name in arm.joint_names
+        ]
         if min(ids) < 0 or len(ids) != 9:
             raise ValueError(f"the arm model lacks some of the joints {arm.joint_names}")
         # Observation order (arm/joints_pos) -> the model's qpos and dofs.
@@ -78,10 +79,11 @@ class ArmModel:
                 mesh = model.geom_dataid[g]
                 start, count = model.mesh_vertadr[mesh], model.mesh_vertnum[mesh]
                 self.tip_geoms.append(g)
-                self.tip_verts.append(model.mesh_vert[start:start + count].astype(float).copy())
+                self.tip_verts.append(model.mesh_vert[start : start + count].astype(float).copy())
         if len(self.tip_geoms) != 3:
-            raise ValueError(f"expected the Jaco hand's three fingertip meshes, found "
-                             f"{len(self.tip_geoms)}")
+            raise ValueError(
+                f"expected the Jaco hand's three fingertip meshes, found {len(self.tip_geoms)}"
+            )
 
     # -- the observed posture ----------------------------------------------------
 
@@ -137,8 +139,10 @@ class ArmModel:
 
     def tip_heights(self, data) -> list[np.ndarray]:
         """Each fingertip mesh's vertex heights (world z) in ``data``."""
-        return [data.geom_xpos[g][2] + verts @ data.geom_xmat[g][6:9]
-                for g, verts in zip(self.tip_geoms, self.tip_verts)]
+        return [
+            data.geom_xpos[g][2] + verts @ data.geom_xmat[g][6:9]
+            for g, verts in zip(self.tip_geoms, self.tip_verts)
+        ]
 
     def tip_points(self, data, tip: int, index) -> np.ndarray:
         """World coordinates of fingertip ``tip``'s vertices ``index``."""
@@ -147,8 +151,12 @@ class ArmModel:
 
     def tip_lows(self, data) -> np.ndarray:
         """(3, 3): each fingertip mesh's lowest point in ``data``."""
-        return np.array([self.tip_points(data, i, int(np.argmin(z)))
-                         for i, z in enumerate(self.tip_heights(data))])
+        return np.array(
+            [
+                self.tip_points(data, i, int(np.argmin(z)))
+                for i, z in enumerate(self.tip_heights(data))
+            ]
+        )
 
     def sweep(self, q: np.ndarray, finger_reach: float, band: float, samples: int = 3):
         """The fingertips' footprint while the fingers close from ``q`` by up to
@@ -175,8 +183,9 @@ class ArmModel:
             lowest = min(lowest, low)
         return np.concatenate(points), lowest
 
-    def footprint_offset(self, q: np.ndarray, centre_xy: np.ndarray, finger_reach: float,
-                         band: float) -> float:
+    def footprint_offset(
+        self, q: np.ndarray, centre_xy: np.ndarray, finger_reach: float, band: float
+    ) -> float:
         """Largest distance along x or y (the pads are squares) from
         ``centre_xy`` of the fingertips' footprint (``band``) at ``q`` while
         the fingers close by up to ``finger_reach``."""
@@ -186,8 +195,9 @@ class ArmModel:
     def tool_jacobian_z(self, tool: np.ndarray) -> np.ndarray:
         """d(tool height)/d(arm joint angles) (6), at the ``current`` posture."""
         jacp = np.zeros((3, self.model.nv))
-        mujoco.mj_jac(self.model, self.current.data, jacp, None, tool,
-                      int(self.model.site_bodyid[self.site]))
+        mujoco.mj_jac(
+            self.model, self.current.data, jacp, None, tool, int(self.model.site_bodyid[self.site])
+        )
         return jacp[2, self.arm_dof]
 
     def tilt(self, data) -> float:

@@ -10,8 +10,15 @@ import numpy as np
 from skills.arm.model import ArmModel
 
 
-def line_command(arm: ArmModel, q: np.ndarray, arm_qvel: np.ndarray, goal: np.ndarray,
-                 accel: np.ndarray, dt: float, brake: bool) -> tuple[np.ndarray, float]:
+def line_command(
+    arm: ArmModel,
+    q: np.ndarray,
+    arm_qvel: np.ndarray,
+    goal: np.ndarray,
+    accel: np.ndarray,
+    dt: float,
+    brake: bool,
+) -> tuple[np.ndarray, float]:
     """Joint-velocity command along the straight line in joint space from
     ``q`` to ``goal`` (full qpos of the arm model), the fingers closing.
 
@@ -35,8 +42,9 @@ def line_command(arm: ArmModel, q: np.ndarray, arm_qvel: np.ndarray, goal: np.nd
         # Acceleration along the line (fraction of full speed per second).
         rate = float(np.min(accel[moving] * remaining / np.abs(delta[moving])))
         slowest = int(np.argmax(scaled))
-        current = float(np.clip(arm_qvel[slowest] * np.sign(delta[slowest])
-                                / arm.vmax[slowest], 0.0, 1.0))
+        current = float(
+            np.clip(arm_qvel[slowest] * np.sign(delta[slowest]) / arm.vmax[slowest], 0.0, 1.0)
+        )
         half = 0.5 * rate * dt  # braking a step late
         speed = min(1.0, current + rate * dt, math.sqrt(2 * rate * remaining + half * half) - half)
     command[:6] = delta / remaining * speed

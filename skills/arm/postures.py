@@ -32,15 +32,15 @@ class PostureIK:
         # May tilt the hand: weak pull towards pointing down, heading free,
         # regularised towards the start posture (slow joints weigh more) so the
         # joints have little to travel.
-        self.soft_frame = mink.FrameTask(site, "site", position_cost=1.0,
-                                         orientation_cost=[0.02, 0.02, 0.0])
+        self.soft_frame = mink.FrameTask(
+            site, "site", position_cost=1.0, orientation_cost=[0.02, 0.02, 0.0]
+        )
         cost = np.zeros(model.nv)
         cost[arm.arm_dof] = 0.02 / arm.vmax
         self.soft_posture = mink.PostureTask(model, cost=cost)
         # The wrist (nearly) locked: the fast shoulder and elbow move the
         # tool, the hand's orientation changes a little.
-        self.position_frame = mink.FrameTask(site, "site", position_cost=1.0,
-                                             orientation_cost=0.0)
+        self.position_frame = mink.FrameTask(site, "site", position_cost=1.0, orientation_cost=0.0)
         cost = np.full(model.nv, 1e-4)
         cost[arm.arm_dof[3:]] = 1.0
         self.wrist_lock = mink.DampingTask(model, cost)
@@ -67,9 +67,16 @@ class PostureIK:
             step(error, i)
         return False
 
-    def soft(self, q_start: np.ndarray, tool_goal: np.ndarray, orientation_cost: float,
-             iterations: int, roll: float = 0.0, tolerance: float = 1e-3,
-             direction: np.ndarray = DOWN):
+    def soft(
+        self,
+        q_start: np.ndarray,
+        tool_goal: np.ndarray,
+        orientation_cost: float,
+        iterations: int,
+        roll: float = 0.0,
+        tolerance: float = 1e-3,
+        direction: np.ndarray = DOWN,
+    ):
         """Joint angles (full qpos) putting the closed fingers' tool point at
         ``tool_goal``, near ``q_start``, the hand pulled towards pointing along
         ``direction`` (default down; `lean_direction` for far targets) with
@@ -96,20 +103,26 @@ class PostureIK:
         def step(error, i):
             if i == half:
                 posture.set_target(config.q)
-            frame.set_target(mink.SE3.from_rotation_and_translation(
-                pointing(data.site_xmat[arm.site], direction, roll),
-                data.site_xpos[arm.site] + error))
-            velocity = mink.solve_ik(config, [frame, posture], 1.0, "daqp", damping=1e-4,
-                                     limits=arm.limits)
+            frame.set_target(
+                mink.SE3.from_rotation_and_translation(
+                    pointing(data.site_xmat[arm.site], direction, roll),
+                    data.site_xpos[arm.site] + error,
+                )
+            )
+            velocity = mink.solve_ik(
+                config, [frame, posture], 1.0, "daqp", damping=1e-4, limits=arm.limits
+            )
             config.integrate_inplace(velocity, 1.0)
 
-        if self._solve_tool(config, tool_goal, step, iterations, tolerance,
-                            done=lambda i: i > half):
+        if self._solve_tool(
+            config, tool_goal, step, iterations, tolerance, done=lambda i: i > half
+        ):
             return config.q.copy(), arm.tilt(data)
         return None
 
-    def shoulder(self, q_start: np.ndarray, tool_goal: np.ndarray, iterations: int,
-                 tolerance: float = 1e-3):
+    def shoulder(
+        self, q_start: np.ndarray, tool_goal: np.ndarray, iterations: int, tolerance: float = 1e-3
+    ):
         """Joint angles (full qpos) putting the tool point at ``tool_goal``
         moving mostly the shoulder and elbow from ``q_start``; or None."""
         arm = self.arm
@@ -118,19 +131,29 @@ class PostureIK:
         data = config.data
 
         def step(error, i):
-            frame.set_target(mink.SE3.from_rotation_and_translation(
-                mink.SO3.from_matrix(data.site_xmat[arm.site].reshape(3, 3).copy()),
-                data.site_xpos[arm.site] + error))
-            velocity = mink.solve_ik(config, [frame, self.wrist_lock], 1.0, "daqp",
-                                     damping=1e-6, limits=arm.limits)
+            frame.set_target(
+                mink.SE3.from_rotation_and_translation(
+                    mink.SO3.from_matrix(data.site_xmat[arm.site].reshape(3, 3).copy()),
+                    data.site_xpos[arm.site] + error,
+                )
+            )
+            velocity = mink.solve_ik(
+                config, [frame, self.wrist_lock], 1.0, "daqp", damping=1e-6, limits=arm.limits
+            )
             config.integrate_inplace(velocity, 1.0)
 
         if self._solve_tool(config, tool_goal, step, iterations, tolerance):
             return config.q.copy()
         return None
 
-    def oriented(self, q_start: np.ndarray, tool_goal: np.ndarray, rotation: mink.SO3,
-                 iterations: int, tolerance: float = 1e-3) -> np.ndarray | None:
+    def oriented(
+        self,
+        q_start: np.ndarray,
+        tool_goal: np.ndarray,
+        rotation: mink.SO3,
+        iterations: int,
+        tolerance: float = 1e-3,
+    ) -> np.ndarray | None:
         """Joint angles (full qpos) putting the closed fingers' tool point at
         ``tool_goal`` with the pinch site at orientation ``rotation``; None if
         the IK does not converge. Starts from ``q_start``."""
@@ -142,13 +165,13 @@ class PostureIK:
         data = config.data
 
         def target(error):
-            frame.set_target(mink.SE3.from_rotation_and_translation(
-                rotation, data.site_xpos[arm.site] + error))
+            frame.set_target(
+                mink.SE3.from_rotation_and_translation(rotation, data.site_xpos[arm.site] + error)
+            )
 
         def step(error, i):
             target(error)
-            velocity = mink.solve_ik(config, [frame], 1.0, "daqp", damping=1e-4,
-                                     limits=arm.limits)
+            velocity = mink.solve_ik(config, [frame], 1.0, "daqp", damping=1e-4, limits=arm.limits)
             config.integrate_inplace(velocity, 1.0)
 
         def done(i):
@@ -199,17 +222,30 @@ class PosturePlanner:
         pre_goal = pad_top + np.array([0.0, 0.0, cfg.pre_height + extra_height])
         lean = self.leans(pre_goal)
         orientations = [(h, r, t) for t in lean for h, r in cfg.orientations]
-        landable = self.landable(
-            self.candidates(q, pre_goal, orientations, cfg.tilt_costs), target)
+        landable = self.landable(self.candidates(q, pre_goal, orientations, cfg.tilt_costs), target)
         if not landable:  # a hard case: more orientations, leans and iterations
             leans = sorted({*lean, lean[-1] + cfg.lean_step, max(lean[0] - cfg.lean_step, 0.0)})
-            landable = self.landable(self.candidates(
-                q, pre_goal, [(h, r, t) for t in leans for h in range(-180, 180, 30)
-                              for r in (-15, 0, 15)], (),
-                iterations=4 * cfg.ik_iterations), target)
-        timed = sorted(((float(np.max(trapezoid_time(arm.joint_delta(q, q_pre), arm.vmax,
-                                                     self.accel))), index, q_pre)
-                        for index, q_pre in enumerate(landable)), key=lambda t: t[:2])
+            landable = self.landable(
+                self.candidates(
+                    q,
+                    pre_goal,
+                    [(h, r, t) for t in leans for h in range(-180, 180, 30) for r in (-15, 0, 15)],
+                    (),
+                    iterations=4 * cfg.ik_iterations,
+                ),
+                target,
+            )
+        timed = sorted(
+            (
+                (
+                    float(np.max(trapezoid_time(arm.joint_delta(q, q_pre), arm.vmax, self.accel))),
+                    index,
+                    q_pre,
+                )
+                for index, q_pre in enumerate(landable)
+            ),
+            key=lambda t: t[:2],
+        )
         for duration, _, best in timed:
             # The fingers close on the way (slowly) and half-closed fingertips
             # reach lower than closed ones: raise the pre-touch posture until
@@ -220,8 +256,9 @@ class PosturePlanner:
             _, lowest = arm.sweep(probe, reach, 0.0, 5)
             deficit = pad_top[2] + cfg.min_clearance - lowest
             if deficit > 0:
-                raised = self.ik.shoulder(best, pre_goal + np.array([0.0, 0.0, deficit]),
-                                          cfg.ik_iterations)
+                raised = self.ik.shoulder(
+                    best, pre_goal + np.array([0.0, 0.0, deficit]), cfg.ik_iterations
+                )
                 if raised is not None and self.landable([raised], target):
                     best = raised
             # The touch posture: straight below, moving the (fast) shoulder
@@ -229,9 +266,13 @@ class PosturePlanner:
             q_touch = self.ik.shoulder(best, press, cfg.ik_iterations)
             if q_touch is not None:
                 data = arm.scratch.data  # at q_touch
-                return TouchPlan(pre=best, touch=q_touch, duration=duration,
-                                 tilt=arm.tilt(data),
-                                 direction=data.site_xmat[arm.site][[2, 5, 8]].copy())
+                return TouchPlan(
+                    pre=best,
+                    touch=q_touch,
+                    duration=duration,
+                    tilt=arm.tilt(data),
+                    direction=data.site_xmat[arm.site][[2, 5, 8]].copy(),
+                )
         return None
 
     def leans(self, goal: np.ndarray) -> tuple[float, ...]:
@@ -256,8 +297,11 @@ class PosturePlanner:
         rolled by ``roll`` about the hand's x axis, and leant by ``lean``
         (degrees) away from the arm's base (the hand's z axis tilted from
         straight down towards the horizontal direction base -> ``goal``)."""
-        rotation = (mink.SO3.from_z_radians(math.radians(heading)) @ self._down
-                    @ mink.SO3.from_x_radians(math.radians(roll)))
+        rotation = (
+            mink.SO3.from_z_radians(math.radians(heading))
+            @ self._down
+            @ mink.SO3.from_x_radians(math.radians(roll))
+        )
         if lean:
             out = goal[:2] - self.arm.base_xy()
             out /= max(float(np.linalg.norm(out)), 1e-9)
@@ -272,8 +316,7 @@ class PosturePlanner:
         iterations = iterations or cfg.ik_iterations
         found = []
         for heading, roll, lean in orientations:
-            q_pre = self.ik.oriented(q, goal, self.rotation(goal, heading, roll, lean),
-                                     iterations)
+            q_pre = self.ik.oriented(q, goal, self.rotation(goal, heading, roll, lean), iterations)
             if q_pre is not None:
                 found.append(q_pre)
         leans = sorted({lean for _, _, lean in orientations})
@@ -282,8 +325,9 @@ class PosturePlanner:
         for lean in leans:
             direction = lean_direction(out, lean)
             for cost, roll in tilt_costs:
-                solved = self.ik.soft(q, goal, cost, 2 * iterations, math.radians(roll),
-                                      direction=direction)
+                solved = self.ik.soft(
+                    q, goal, cost, 2 * iterations, math.radians(roll), direction=direction
+                )
                 if solved is not None and solved[1] <= cfg.max_tilt:
                     found.append(solved[0])
         return found
@@ -292,9 +336,12 @@ class PosturePlanner:
         """The postures whose closed fingertips' footprint (slow landing) lies
         over the target's pad."""
         cfg = self.config
-        return [q for q in postures
-                if self.arm.footprint_offset(q, target.pad_top, 0.0, cfg.band) + cfg.safety
-                <= target.tolerance]
+        return [
+            q
+            for q in postures
+            if self.arm.footprint_offset(q, target.pad_top, 0.0, cfg.band) + cfg.safety
+            <= target.tolerance
+        ]
 
 
 def joint_acceleration(config: ArmTouchConfig) -> np.ndarray:

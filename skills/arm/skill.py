@@ -125,7 +125,7 @@ class ArmTouchSkill(Skill):
         state and sets its target. Returns the arm's posture, or None after
         failing (the zone is not a point of the board)."""
         arm, cfg = self._arm, self.config
-        assert arm is not None                  # `reset` sets it (`_model`) first
+        assert arm is not None  # `reset` sets it (`_model`) first
         self._presses = 0
         self._pressing = 0
         self._lifting = False
@@ -153,9 +153,11 @@ class ArmTouchSkill(Skill):
         self._plan = self._make_plan(q)
         self.plan_ms += (time.perf_counter() - start) * 1e3
         if self._plan is None:
-            assert self._pad_top is not None    # `_aim` set it: it returned a posture
-            self._fail(f"unreachable: no arm posture puts the fingertips on "
-                       f"{np.round(self._pad_top, 3).tolist()}")
+            assert self._pad_top is not None  # `_aim` set it: it returned a posture
+            self._fail(
+                f"unreachable: no arm posture puts the fingertips on "
+                f"{np.round(self._pad_top, 3).tolist()}"
+            )
 
     def _next_touch(self, scene) -> None:
         """Move games: on to the destination once the piece shows selected;
@@ -170,8 +172,9 @@ class ArmTouchSkill(Skill):
         elif self._stage == 1 and scene.selected != source:
             self._reselects += 1
             if self._reselects > self.config.max_recoveries:
-                self._fail(f"no registration: the selection of {source} was lost "
-                           f"{self._reselects} times")
+                self._fail(
+                    f"no registration: the selection of {source} was lost {self._reselects} times"
+                )
                 return
             self._stage = 0
             self.events.append(f"{self.steps}: selection of {source} lost")
@@ -190,7 +193,7 @@ class ArmTouchSkill(Skill):
             self._check_outcome(timestep, scene)
         if self.status is Status.RUNNING:
             self._next_touch(scene)
-        limit = self.config.max_steps * len(self._zones)       # per touch
+        limit = self.config.max_steps * len(self._zones)  # per touch
         if self.status is Status.RUNNING and self.steps >= limit:
             self._fail(f"timeout: no move registered in {limit} steps")
         if self.status is not Status.RUNNING:
@@ -227,14 +230,18 @@ class ArmTouchSkill(Skill):
 
     def _model(self, arm_description) -> ArmModel:
         arm = self._arm
-        if arm is None or (arm.description is not arm_description
-                           and arm.description != arm_description):
+        if arm is None or (
+            arm.description is not arm_description and arm.description != arm_description
+        ):
             cfg = self.config
             arm = self._arm = ArmModel(arm_description, band=cfg.band)
             self._planner = PosturePlanner(arm, cfg)
-            self._touch_ik = TouchIK(arm, damping=cfg.damping,
-                                     orientation_cost=cfg.orientation_cost,
-                                     wrist_damping=cfg.wrist_damping)
+            self._touch_ik = TouchIK(
+                arm,
+                damping=cfg.damping,
+                orientation_cost=cfg.orientation_cost,
+                wrist_damping=cfg.wrist_damping,
+            )
         return arm
 
     # -- plan, travel, descend ------------------------------------------------
@@ -251,7 +258,7 @@ class ArmTouchSkill(Skill):
         return plan
 
     def _line_command(self, q: np.ndarray, goal: np.ndarray, brake: bool):
-        assert self._arm is not None            # `act` checked it
+        assert self._arm is not None  # `act` checked it
         return line_command(self._arm, q, self._qvel, goal, self._accel, self._dt, brake)
 
     def _travel(self, q: np.ndarray, tool: np.ndarray, spread: float):
@@ -263,16 +270,14 @@ class ArmTouchSkill(Skill):
         """
         cfg = self.config
         # Running after a successful `_aim` and plan (`act` checked the arm).
-        assert (self._arm is not None and self._pad_top is not None
-                and self._plan is not None)
+        assert self._arm is not None and self._pad_top is not None and self._plan is not None
         dxy = float(np.linalg.norm(tool[:2] - self._pad_top[:2]))
         height = tool[2] - self._pad_top[2]
         off_target = dxy > self._tolerance
         # The travel ends pre_height above the pads, braking; below that height
         # the tool's current velocity is extrapolated `lookahead` seconds.
         ahead = height + min(self._tool_speed[2], 0.0) * cfg.lookahead
-        if off_target and (height < cfg.guard
-                           or (height < cfg.pre_height and ahead < cfg.guard)):
+        if off_target and (height < cfg.guard or (height < cfg.pre_height and ahead < cfg.guard)):
             if self._recovering:
                 return lift_command(self._arm, tool, cfg.speed)  # still climbing after a re-plan
             return self._recover(q, tool, "near the board off target")
@@ -311,7 +316,7 @@ class ArmTouchSkill(Skill):
         self._plan = plan
         self._set_phase("travel", why)
         self._recovering = True
-        assert self._arm is not None            # `act` checked it
+        assert self._arm is not None  # `act` checked it
         return lift_command(self._arm, tool, self.config.speed)
 
     def _landing(self, q: np.ndarray, margin: float | None = None) -> str | None:
@@ -322,7 +327,7 @@ class ArmTouchSkill(Skill):
         footprint with ``band`` does; else None."""
         cfg = self.config
         margin = cfg.safety if margin is None else margin
-        assert self._arm is not None and self._pad_top is not None     # as in `_travel`
+        assert self._arm is not None and self._pad_top is not None  # as in `_travel`
         for kind, band in (("fast", cfg.fast_band), ("slow", cfg.band)):
             offset = self._arm.footprint_offset(q, self._pad_top, cfg.finger_reach, band)
             if offset + margin <= self._tolerance:
@@ -333,8 +338,7 @@ class ArmTouchSkill(Skill):
         """Down to the touch posture; None when the touch phase should take over."""
         cfg = self.config
         # Running after a successful `_aim` and plan (`act` checked the arm).
-        assert (self._arm is not None and self._pad_top is not None
-                and self._plan is not None)
+        assert self._arm is not None and self._pad_top is not None and self._plan is not None
         height = tool[2] - self._pad_top[2]
         if 0.0 < height < 2.5 * cfg.guard and self._landing(q, margin=0.0) is None:
             # A fingertip would land off the pad: climb and plan again.
@@ -346,7 +350,7 @@ class ArmTouchSkill(Skill):
         if self._landing_kind == "slow":
             # Land at touch_speed: braking from the descent's speed takes the
             # big joints about a step, so the cap grows with the height.
-            cap = math.sqrt(cfg.touch_speed ** 2 + 2 * cfg.landing_decel * max(height, 0.0))
+            cap = math.sqrt(cfg.touch_speed**2 + 2 * cfg.landing_decel * max(height, 0.0))
             down = -float(self._arm.tool_jacobian_z(tool) @ command[:6])
             if down > cap:
                 command[:6] *= cap / down
@@ -360,7 +364,7 @@ class ArmTouchSkill(Skill):
         velocity = self._tool_velocity(tool, spread)
         if self.status is not Status.RUNNING:
             return self.hold()
-        assert self._touch_ik is not None       # set with the arm (`_model`)
+        assert self._touch_ik is not None  # set with the arm (`_model`)
         try:
             return self._touch_ik.command(tool, velocity, self._touch_direction, self._dt)
         except Exception as error:  # noqa: BLE001 - mink raises several kinds
@@ -396,8 +400,7 @@ class ArmTouchSkill(Skill):
             else:
                 return np.array([0.0, 0.0, cfg.speed])
         # Horizontal: straight for the target, proportional near it.
-        v_xy = (horizontal * (min(cfg.speed, cfg.gain * dxy) / dxy) if dxy > 1e-9
-                else np.zeros(2))
+        v_xy = horizontal * (min(cfg.speed, cfg.gain * dxy) / dxy) if dxy > 1e-9 else np.zeros(2)
         # Vertical: into the pad once every fingertip would land on it, else
         # down (or up) to the funnel's height at this distance.
         capture = float(np.clip(self._tolerance - spread - cfg.safety, 0.0, 0.02))
@@ -426,22 +429,27 @@ class ArmTouchSkill(Skill):
         if measure < self._best - threshold:
             self._best, self._best_step = measure, self.steps
         elif self.steps - self._best_step >= self.config.stall_steps:
-            self._fail(f"no progress for {self.config.stall_steps} steps in the "
-                       f"{self.phase} phase")
+            self._fail(f"no progress for {self.config.stall_steps} steps in the {self.phase} phase")
             return True
         return False
 
     def _check_outcome(self, timestep, scene) -> None:
         """The outcome rule (`touch_outcome`) applied to this timestep."""
-        assert self.subgoal is not None         # set by `reset`
-        status, reason = touch_outcome(scene.moves, self._moves_before, self.subgoal.action,
-                                       timestep is not None and timestep.last())
+        assert self.subgoal is not None  # set by `reset`
+        status, reason = touch_outcome(
+            scene.moves,
+            self._moves_before,
+            self.subgoal.action,
+            timestep is not None and timestep.last(),
+        )
         if status is Status.SUCCESS:
             self.status = Status.SUCCESS
         elif status is Status.FAILURE:
-            assert reason is not None           # `touch_outcome` gives a FAILURE its reason
+            assert reason is not None  # `touch_outcome` gives a FAILURE its reason
             self._fail(reason)
 
     def __repr__(self) -> str:
-        return (f"ArmTouchSkill(pre_height={self.config.pre_height:g}, "
-                f"max_tilt={self.config.max_tilt:g})")
+        return (
+            f"ArmTouchSkill(pre_height={self.config.pre_height:g}, "
+            f"max_tilt={self.config.max_tilt:g})"
+        )

@@ -20,19 +20,22 @@ class TouchIK:
         the pinch site's position).
     """
 
-    def __init__(self, arm: ArmModel, *, damping: float, orientation_cost: float,
-                 wrist_damping: float):
+    def __init__(
+        self, arm: ArmModel, *, damping: float, orientation_cost: float, wrist_damping: float
+    ):
         self.arm = arm
         self.damping = float(damping)
         model = arm.model
-        self.frame = mink.FrameTask(arm.site_name, "site", position_cost=1.0,
-                                    orientation_cost=orientation_cost)
+        self.frame = mink.FrameTask(
+            arm.site_name, "site", position_cost=1.0, orientation_cost=orientation_cost
+        )
         cost = np.full(model.nv, 1e-3)
         cost[arm.arm_dof[3:]] = wrist_damping
         self.tasks = [self.frame, mink.DampingTask(model, cost)]
 
-    def command(self, tool: np.ndarray, velocity: np.ndarray, direction: np.ndarray,
-                dt: float) -> np.ndarray:
+    def command(
+        self, tool: np.ndarray, velocity: np.ndarray, direction: np.ndarray, dt: float
+    ) -> np.ndarray:
         """The action moving ``tool`` by ``velocity * dt`` with the hand's z axis
         turned (tilt corrected, heading kept) to ``direction``; the arm joints
         scaled within their speed limits, the fingers closing. Raises what
@@ -47,8 +50,9 @@ class TouchIK:
         offset = xmat.T @ (tool - data.site_xpos[arm.site])
         pinch = tool + velocity * dt - rotation.as_matrix() @ offset
         self.frame.set_target(mink.SE3.from_rotation_and_translation(rotation, pinch))
-        qdot = mink.solve_ik(arm.current, self.tasks, dt, "daqp", damping=self.damping,
-                             limits=arm.limits)
+        qdot = mink.solve_ik(
+            arm.current, self.tasks, dt, "daqp", damping=self.damping, limits=arm.limits
+        )
         command = arm.hold()
         command[:6] = qdot[arm.arm_dof]
         ratio = float(np.max(np.abs(command[:6]) / arm.vmax))

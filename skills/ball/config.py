@@ -128,6 +128,7 @@ class BallConfig:
         names = self.field_names()
         unknown = sorted(set(overrides) - set(names))
         if unknown:
-            raise TypeError(f"unknown BallConfig parameter(s) {', '.join(unknown)}; "
-                            f"valid: {', '.join(names)}")
+            raise TypeError(
+                f"unknown BallConfig parameter(s) {', '.join(unknown)}; valid: {', '.join(names)}"
+            )
         return dataclasses.replace(self, **overrides)

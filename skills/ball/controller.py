@@ -112,8 +112,9 @@ class Contact:
         self.stalled = 0
         self._last_rem = None
 
-    def push(self, config: BallConfig, leg, on_last_segment, px, py, box_xy, carrot_xy, v_des,
-             two_a):
+    def push(
+        self, config: BallConfig, leg, on_last_segment, px, py, box_xy, carrot_xy, v_des, two_a
+    ):
         """Adjusts the carrot and speed target for the push of ``leg``.
 
         Returns (carrot x, carrot y, speed target, whether backing off this
@@ -137,8 +138,7 @@ class Contact:
                 # to steer the box back onto its line: meet it aligned.
                 tol_align = config.finish_align_tol if chain == 0 else config.align_tol
                 # Each back-off widens the tolerance (no endless shuttling).
-                if gap < config.align_gap and \
-                        abs(ball_off) > tol_align * (1 + self.backoffs):
+                if gap < config.align_gap and abs(ball_off) > tol_align * (1 + self.backoffs):
                     if not self.backing:
                         self.backoffs += 1
                     self.backing = True
@@ -159,9 +159,10 @@ class Contact:
                 # The ball drags the box sideways (friction 1 on its
                 # face): steer across the push line to bring the box
                 # back onto its cell's centre line before pegs catch it.
-                box_off = ((by if dx else bx) - leg.cell_lat)
-                shift = max(-config.max_recentre, min(config.max_recentre,
-                                                      -config.k_recentre * box_off))
+                box_off = (by if dx else bx) - leg.cell_lat
+                shift = max(
+                    -config.max_recentre, min(config.max_recentre, -config.k_recentre * box_off)
+                )
                 lat = leg.cell_lat + shift
                 # A box off its line that stops advancing is caught on a
                 # peg: the ball drags it sideways, towards its line, from
@@ -175,7 +176,7 @@ class Contact:
                 else:
                     carrot_x = lat
             elif gap > 0.0:
-                v = math.sqrt(config.contact_speed ** 2 + two_a * gap)
+                v = math.sqrt(config.contact_speed**2 + two_a * gap)
                 if v < v_des:
                     v_des = v
         # The box's remaining distance caps the pushing speed; before the
@@ -210,8 +211,21 @@ class Drive:
         self.prev_heading = heading
         return rate
 
-    def command(self, config: BallConfig, px, py, vx, vy, heading, rate, speed, carrot_x,
-                carrot_y, v_des, pushing):
+    def command(
+        self,
+        config: BallConfig,
+        px,
+        py,
+        vx,
+        vy,
+        heading,
+        rate,
+        speed,
+        carrot_x,
+        carrot_y,
+        v_des,
+        pushing,
+    ):
         """[roll, steer] towards the carrot at speed target ``v_des``;
         ``pushing`` adds the push bias.
 
@@ -240,8 +254,11 @@ class Drive:
         w_des = config.k_heading * err + 2.0 * max(v_along, 0.0) * math.sin(err) / reach
         w_max = config.max_yaw_rate
         w_des = max(-w_max, min(w_max, w_des))
-        u = (w_des / config.steer_gain + config.steer_deadband * math.tanh(w_des / 0.3)
-             + config.k_rate * (w_des - rate))
+        u = (
+            w_des / config.steer_gain
+            + config.steer_deadband * math.tanh(w_des / 0.3)
+            + config.k_rate * (w_des - rate)
+        )
         steer = -max(-1.0, min(1.0, u))  # a positive steer command turns clockwise
         f = config.k_speed * (v_des - v_along) + config.k_speed_ff * v_des
         if pushing and v_des > 0.0:

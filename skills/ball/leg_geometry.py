@@ -9,8 +9,16 @@ from __future__ import annotations
 import math
 
 from skills.ball.config import BallConfig
-from skills.ball.paths import (BALL_RADIUS, CONTACT, PEG_RADIUS, UNIT, GridFrame,
-                               merge_collinear, walk_points, widest_arc)
+from skills.ball.paths import (
+    BALL_RADIUS,
+    CONTACT,
+    PEG_RADIUS,
+    UNIT,
+    GridFrame,
+    merge_collinear,
+    walk_points,
+    widest_arc,
+)
 
 __all__ = ["Leg", "make_leg", "rebuild"]
 
@@ -46,8 +54,9 @@ def rebuild(description, config: BallConfig, leg: Leg, box_xy, start) -> Leg:
     return make_leg(description, config, cells, push, box_xy, blocked, keep=keep, start=start)
 
 
-def make_leg(description, config: BallConfig, cells, push, box_xy, blocked, *, keep=(),
-             start=None) -> Leg:
+def make_leg(
+    description, config: BallConfig, cells, push, box_xy, blocked, *, keep=(), start=None
+) -> Leg:
     """A leg through ``cells`` (grid cells), maybe ending in ``push`` =
     (box index or -1, move, box cell, cells pushed).
 
@@ -63,11 +72,10 @@ def make_leg(description, config: BallConfig, cells, push, box_xy, blocked, *, k
     if description.pegs:
         peg_touch = (BALL_RADIUS + PEG_RADIUS) / size
         peg = (BALL_RADIUS + PEG_RADIUS + config.peg_margin) / size
-    pts = walk_points(frame, cells, blocked, keep=keep, start=start, peg=peg,
-                      smooth=config.smooth)
+    pts = walk_points(frame, cells, blocked, keep=keep, start=start, peg=peg, smooth=config.smooth)
     leg = Leg()
     leg.args = (cells, push, blocked, keep)
-    line = None                 # the leg's push: set when ``push`` is given
+    line = None  # the leg's push: set when ``push`` is given
     if push is not None:
         line, leg.cell_lat = _push_line(frame, pts, push, box_xy)
     leg.push = line
@@ -76,7 +84,7 @@ def make_leg(description, config: BallConfig, cells, push, box_xy, blocked, *, k
     # push, which is as long as the box's actual distance to its target (a
     # leg rebuilt mid-push starts with the box between cells).
     contact_run: float | None = None
-    push_run = 0.0              # read only for a push, which sets it
+    push_run = 0.0  # read only for a push, which sets it
     if line is not None:
         _, (ux, uy), (tx, ty), _, _ = line
         bx, by = box_xy[line[0]]
@@ -104,8 +112,9 @@ def make_leg(description, config: BallConfig, cells, push, box_xy, blocked, *, k
         # rebuilt mid-push): braking there would let the box slide on alone.
         bx, by = box_xy[line[0]]
         ux, uy = line[1]
-        touching = start is not None and \
-            (bx - start[0]) * ux + (by - start[1]) * uy - CONTACT < 0.05
+        touching = (
+            start is not None and (bx - start[0]) * ux + (by - start[1]) * uy - CONTACT < 0.05
+        )
         if not touching:
             limits.append((s_last + max(0.0, length - push_run), config.contact_speed))
     else:
@@ -125,8 +134,9 @@ def _push_line(frame: GridFrame, pts, push, box_xy) -> tuple[tuple, float]:
     ux, uy = UNIT[move]
     cx, cy = frame.to_world(cell)
     if index < 0:  # nearest physical box to the cell
-        index = min(range(len(box_xy)),
-                    key=lambda i: (box_xy[i][0] - cx) ** 2 + (box_xy[i][1] - cy) ** 2)
+        index = min(
+            range(len(box_xy)), key=lambda i: (box_xy[i][0] - cx) ** 2 + (box_xy[i][1] - cy) ** 2
+        )
     bx, by = box_xy[index]
     # The push line goes through the box's actual centre.
     lateral = by if ux else bx
@@ -137,8 +147,9 @@ def _push_line(frame: GridFrame, pts, push, box_xy) -> tuple[tuple, float]:
     return (index, (ux, uy), (tx, ty), lateral, chain), (cy if ux else cx)
 
 
-def _round_corners(frame: GridFrame, config: BallConfig, merged, blocked, peg, peg_touch,
-                   contact_run):
+def _round_corners(
+    frame: GridFrame, config: BallConfig, merged, blocked, peg, peg_touch, contact_run
+):
     """Rounds the corners of polyline ``merged``: the widest clear arc (radius
     <= ``max_radius``) that leaves each segment at most half its length (the
     first and last almost all of it; with a push, ``contact_run`` not None,
@@ -166,8 +177,9 @@ def _round_corners(frame: GridFrame, config: BallConfig, merged, blocked, peg, p
                 t_out = lengths[k] * (0.9 if k == last else 0.5)
             half = math.tan(theta / 2.0)
             radius = min(config.max_radius, t_in / half, t_out / half)
-            found = widest_arc(frame, (x1, y1), (ax, ay), (bx_, by_), theta, radius, blocked,
-                               peg, peg_touch)
+            found = widest_arc(
+                frame, (x1, y1), (ax, ay), (bx_, by_), theta, radius, blocked, peg, peg_touch
+            )
         if found is not None:
             points, radius = found
             v = min(math.sqrt(config.lateral_accel * radius), config.max_turn_rate * radius)

@@ -34,8 +34,15 @@ class Trajectory:
       pushed_boxes: indices of the boxes the legs push.
     """
 
-    __slots__ = ("legs", "goal_boxes", "goal_player", "expected", "box_start",
-                 "needs_settle", "pushed_boxes")
+    __slots__ = (
+        "legs",
+        "goal_boxes",
+        "goal_player",
+        "expected",
+        "box_start",
+        "needs_settle",
+        "pushed_boxes",
+    )
     legs: list[Leg]
     goal_boxes: frozenset
     goal_player: tuple
@@ -64,8 +71,9 @@ def plan(description, config: BallConfig, subgoal, scene) -> Trajectory:
     out.box_start = [tuple(b) for b in box_xy]
     here = tuple(float(v) for v in scene.walker_xy)
     walls = walls_and_outside(state)
-    legs = _split(description, config, horizon, states, pushed, n_sub, box_xy, est_boxes,
-                  walls, here)
+    legs = _split(
+        description, config, horizon, states, pushed, n_sub, box_xy, est_boxes, walls, here
+    )
     # A box left short of its cell centre (the option layer may start a
     # new subgoal as soon as the estimate rounds it into its cell) is
     # first pushed on to the centre, if the walker is still behind it.
@@ -73,14 +81,16 @@ def plan(description, config: BallConfig, subgoal, scene) -> Trajectory:
     if finish is None and not moves:
         # Holding with a box off its cell centre and the walker not behind
         # it: walk round behind it and centre it.
-        finish = centre_leg(description, config, box_xy, est_boxes, state, here,
-                            walls | state.boxes)
+        finish = centre_leg(
+            description, config, box_xy, est_boxes, state, here, walls | state.boxes
+        )
     if finish is not None and not moves:
         legs = [finish]
     elif finish is not None:
         first = legs[0]
-        if not (first.push is not None and first.push[:2] == finish.push[:2]
-                and len(first.seg) == 1):
+        if not (
+            first.push is not None and first.push[:2] == finish.push[:2] and len(first.seg) == 1
+        ):
             legs.insert(0, finish)
     # The walker stops where the horizon ends; the subgoal needs settling
     # only if it ends there too.
@@ -103,8 +113,9 @@ def _horizon(state, moves, plan, lookahead):
     for k, move in enumerate(moves):
         s = states[-1]
         if move not in DIRECTIONS or not s.is_legal(move):
-            raise IllegalMove(f"illegal move: {move!r} (move {k} of the subgoal) "
-                              f"from player at {s.player}")
+            raise IllegalMove(
+                f"illegal move: {move!r} (move {k} of the subgoal) from player at {s.player}"
+            )
         pushed.append(ahead(s.player, move) if s.is_push(move) else None)
         states.append(s.apply(move))
     horizon = list(moves)
@@ -137,16 +148,16 @@ def _horizon(state, moves, plan, lookahead):
     return horizon, states, pushed
 
 
-def _split(description, config, horizon, states, pushed, n_sub, box_xy, est_boxes, walls,
-           here) -> list:
+def _split(
+    description, config, horizon, states, pushed, n_sub, box_xy, est_boxes, walls, here
+) -> list:
     """The horizon as legs: walks ending in a straight chain of pushes. A walk
     subgoal's last cell stays a vertex (its estimate must pass there)."""
     cells_of = [s.player for s in states]
 
     def _keep(lo, hi):
         end = n_sub
-        return (end - lo,) if n_sub and pushed[n_sub - 1] is None and lo <= end < hi \
-            else ()
+        return (end - lo,) if n_sub and pushed[n_sub - 1] is None and lo <= end < hi else ()
 
     legs = []
     start = 0
@@ -157,21 +168,40 @@ def _split(description, config, horizon, states, pushed, n_sub, box_xy, est_boxe
             continue
         move = horizon[k]
         chain = 1
-        while k + chain < len(horizon) and horizon[k + chain] == move \
-                and pushed[k + chain] is not None:
+        while (
+            k + chain < len(horizon)
+            and horizon[k + chain] == move
+            and pushed[k + chain] is not None
+        ):
             chain += 1
         index = box_index(pushed[k], est_boxes)
-        legs.append(make_leg(
-            description, config, cells_of[start:k + 1], (index, move, pushed[k], chain), box_xy,
-            walls | states[start].boxes, keep=_keep(start, k + 1),
-            start=here if start == 0 else None))
+        legs.append(
+            make_leg(
+                description,
+                config,
+                cells_of[start : k + 1],
+                (index, move, pushed[k], chain),
+                box_xy,
+                walls | states[start].boxes,
+                keep=_keep(start, k + 1),
+                start=here if start == 0 else None,
+            )
+        )
         start = k + chain
         k += chain
     if start < len(horizon) or not legs:
-        legs.append(make_leg(description, config, cells_of[start:], None, box_xy,
-                             walls | states[start].boxes,
-                             keep=_keep(start, len(horizon) + 1),
-                             start=here if start == 0 else None))
+        legs.append(
+            make_leg(
+                description,
+                config,
+                cells_of[start:],
+                None,
+                box_xy,
+                walls | states[start].boxes,
+                keep=_keep(start, len(horizon) + 1),
+                start=here if start == 0 else None,
+            )
+        )
     return legs
 
 
@@ -215,8 +245,9 @@ def finish_leg(description, config: BallConfig, box_xy, est_boxes, here, blocked
         behind = (cell[0] - dr, cell[1] - dc)
         if behind in blocked:
             continue
-        return make_leg(description, config, [behind], (i, move, cell, 0), box_xy, blocked,
-                        start=here)
+        return make_leg(
+            description, config, [behind], (i, move, cell, 0), box_xy, blocked, start=here
+        )
     return None
 
 
@@ -238,8 +269,7 @@ def centre_leg(description, config: BallConfig, box_xy, est_boxes, state, here, 
         path = walk_cells(state.player, behind, blocked, state.height, state.width)
         if path is None:
             continue
-        return make_leg(description, config, path, (i, move, cell, 0), box_xy, blocked,
-                        start=here)
+        return make_leg(description, config, path, (i, move, cell, 0), box_xy, blocked, start=here)
     return None
 
 
@@ -260,8 +290,7 @@ def walk_cells(start, goal, blocked, height, width):
                 return path[::-1]
             for dr, dc in DIRECTIONS.values():
                 n = (cell[0] + dr, cell[1] + dc)
-                if n in previous or n in blocked or not (0 <= n[0] < height
-                                                          and 0 <= n[1] < width):
+                if n in previous or n in blocked or not (0 <= n[0] < height and 0 <= n[1] < width):
                     continue
                 previous[n] = cell
                 nxt.append(n)

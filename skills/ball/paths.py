@@ -94,8 +94,9 @@ def segment_clear(a, b, blocked, margin=MARGIN, step=0.05, peg=0.0) -> bool:
     n = max(1, int(length / step) + 1)
     for k in range(n + 1):
         f = k / n
-        if not point_clear((a[0] + (b[0] - a[0]) * f, a[1] + (b[1] - a[1]) * f),
-                           blocked, margin, peg):
+        if not point_clear(
+            (a[0] + (b[0] - a[0]) * f, a[1] + (b[1] - a[1]) * f), blocked, margin, peg
+        ):
             return False
     return True
 
@@ -123,8 +124,9 @@ def string_pull(points, blocked, keep=(), peg=0.0) -> list:
     return out
 
 
-def walk_points(frame: GridFrame, cells, blocked, *, keep=(), start=None, peg=0.0,
-                smooth=True) -> list:
+def walk_points(
+    frame: GridFrame, cells, blocked, *, keep=(), start=None, peg=0.0, smooth=True
+) -> list:
     """World vertices of a walk through grid ``cells``.
 
     ``start`` (world (x, y), the walker) replaces the first cell centre when
@@ -134,8 +136,9 @@ def walk_points(frame: GridFrame, cells, blocked, *, keep=(), start=None, peg=0.
     grid = [(float(r), float(c)) for r, c in cells]
     if start is not None:
         here = frame.to_grid(start)
-        if (round(here[0]), round(here[1])) == tuple(cells[0]) \
-                and point_clear(here, blocked, MARGIN, peg):
+        if (round(here[0]), round(here[1])) == tuple(cells[0]) and point_clear(
+            here, blocked, MARGIN, peg
+        ):
             grid[0] = here
     if smooth:
         grid = string_pull(grid, blocked, keep, peg)
@@ -172,8 +175,13 @@ def arc(vertex, a, b, theta, radius, turn, step=0.1) -> list:
     cx, cy = sx - a[1] * radius * turn, sy + a[0] * radius * turn
     phi = math.atan2(sy - cy, sx - cx)
     n = max(2, int(math.ceil(theta * radius / step)))
-    return [(cx + radius * math.cos(phi + turn * theta * i / n),
-             cy + radius * math.sin(phi + turn * theta * i / n)) for i in range(n + 1)]
+    return [
+        (
+            cx + radius * math.cos(phi + turn * theta * i / n),
+            cy + radius * math.sin(phi + turn * theta * i / n),
+        )
+        for i in range(n + 1)
+    ]
 
 
 def widest_arc(frame: GridFrame, vertex, a, b, theta, radius, blocked, peg, peg_touch):
@@ -190,9 +198,9 @@ def widest_arc(frame: GridFrame, vertex, a, b, theta, radius, blocked, peg, peg_
     turn = 1.0 if a[0] * b[1] - a[1] * b[0] > 0 else -1.0
     while radius >= 0.1 * size:
         points = arc(vertex, a, b, theta, radius, turn)
-        if (all(point_clear(to_grid(q), blocked, MARGIN, peg) for q in points)
-                and segment_clear(to_grid(points[0]), to_grid(points[-1]), blocked,
-                                  BALL_RADIUS / size, peg=peg_touch)):
+        if all(point_clear(to_grid(q), blocked, MARGIN, peg) for q in points) and segment_clear(
+            to_grid(points[0]), to_grid(points[-1]), blocked, BALL_RADIUS / size, peg=peg_touch
+        ):
             return points, radius
         radius *= 0.7
     return None

@@ -47,8 +47,10 @@ class BallSkill(Skill):
 
     def __repr__(self) -> str:
         c = self.config
-        return (f"BallSkill(cruise_speed={c.cruise_speed}, push_speed={c.push_speed}, "
-                f"stuck_steps={c.stuck_steps})")
+        return (
+            f"BallSkill(cruise_speed={c.cruise_speed}, push_speed={c.push_speed}, "
+            f"stuck_steps={c.stuck_steps})"
+        )
 
     def forget_history(self) -> None:
         """The skill did not see the frames before its next ``reset``: no yaw
@@ -108,8 +110,11 @@ class BallSkill(Skill):
         self._legs = plan.legs
         self._pushed_boxes = plan.pushed_boxes
         contact.backoffs = 0
-        if was_backing is not None and plan.legs[0].push is not None \
-                and plan.legs[0].push[:2] == was_backing:
+        if (
+            was_backing is not None
+            and plan.legs[0].push is not None
+            and plan.legs[0].push[:2] == was_backing
+        ):
             contact.backing = was_backing_now
             contact.backoffs = backoffs
 
@@ -150,30 +155,58 @@ class BallSkill(Skill):
         box = None
         if leg.push is not None:
             carrot_x, carrot_y, v_des, backing, box = contact.push(
-                cfg, leg, on_last_segment, px, py, boxes, (carrot_x, carrot_y), v_des, two_a)
+                cfg, leg, on_last_segment, px, py, boxes, (carrot_x, carrot_y), v_des, two_a
+            )
             if backing:
                 self._since_best = 0  # backing off is progress
             progress += box.rem
         roll, steer, err, v_des, v_along = drive.command(
-            cfg, px, py, vx, vy, heading, rate, speed, carrot_x, carrot_y, v_des,
-            contact.touched and box is not None)
+            cfg,
+            px,
+            py,
+            vx,
+            vy,
+            heading,
+            rate,
+            speed,
+            carrot_x,
+            carrot_y,
+            v_des,
+            contact.touched and box is not None,
+        )
         if self.trace is not None:
-            self.trace.append((self._steps, self._leg, i, round(px, 2), round(py, 2),
-                               round(heading, 2), round(rate, 2), round(err, 2), drive.sign,
-                               round(v_des, 2), round(v_along, 2), round(roll, 2),
-                               round(steer, 2), round(box.rem if box is not None else 0.0, 3)))
+            self.trace.append(
+                (
+                    self._steps,
+                    self._leg,
+                    i,
+                    round(px, 2),
+                    round(py, 2),
+                    round(heading, 2),
+                    round(rate, 2),
+                    round(err, 2),
+                    drive.sign,
+                    round(v_des, 2),
+                    round(v_along, 2),
+                    round(roll, 2),
+                    round(steer, 2),
+                    round(box.rem if box is not None else 0.0, 3),
+                )
+            )
         action = self._action
         action[0] = roll
         action[1] = steer
         if self.status is Status.RUNNING:
-            self._update_status(scene, boxes, leg, box, px, py, speed, v_along, progress,
-                                on_last_segment)
+            self._update_status(
+                scene, boxes, leg, box, px, py, speed, v_along, progress, on_last_segment
+            )
         return action.copy()
 
     # -- status -------------------------------------------------------------------------
 
-    def _update_status(self, scene, boxes, leg, box, px, py, speed, v_along, progress,
-                       on_last_segment) -> None:
+    def _update_status(
+        self, scene, boxes, leg, box, px, py, speed, v_along, progress, on_last_segment
+    ) -> None:
         """Success, failure or the next leg (package docstring, *Status*)."""
         cfg = self.config
         est = scene.abstract_cells
@@ -181,8 +214,9 @@ class BallSkill(Skill):
             self._est_seen = est
             est_boxes = frozenset(est[0])
             if est_boxes not in self._expected:
-                self._fail(f"estimate deviates: boxes {sorted(est_boxes)} are not on the "
-                           f"subgoal's path")
+                self._fail(
+                    f"estimate deviates: boxes {sorted(est_boxes)} are not on the subgoal's path"
+                )
                 return
             self._est_match = est_boxes == self._goal_boxes and est[1] == self._goal_player
         for k, (bx_, by_) in enumerate(boxes):
@@ -190,14 +224,15 @@ class BallSkill(Skill):
                 continue
             sx, sy = self._box_start[k]
             if abs(bx_ - sx) > cfg.disturb_tol or abs(by_ - sy) > cfg.disturb_tol:
-                self._fail(f"box disturbed: box {k} moved "
-                           f"{math.hypot(bx_ - sx, by_ - sy):.2f} m but should not have")
+                self._fail(
+                    f"box disturbed: box {k} moved "
+                    f"{math.hypot(bx_ - sx, by_ - sy):.2f} m but should not have"
+                )
                 return
         box_speed = 0.0
         if box is not None:
             if abs(box.off_line) > 0.2:
-                self._fail(f"box off line: the pushed box left its line by "
-                           f"{box.off_line:.2f} m")
+                self._fail(f"box off line: the pushed box left its line by {box.off_line:.2f} m")
                 return
             prev_box = self._prev_box
             if prev_box is not None:
@@ -209,8 +244,7 @@ class BallSkill(Skill):
         if box is not None:
             # Settled: the box has (nearly) stopped and the ball no longer pushes it.
             done_leg = box.rem < tol and box_speed < 0.1 and (box.gap > 0.03 or v_along < 0.15)
-            if not done_leg and cfg.chain and box.rem < tol and (self._continues
-                                                                 or not last_leg):
+            if not done_leg and cfg.chain and box.rem < tol and (self._continues or not last_leg):
                 # Chained: the box slides the rest on its own.
                 rest = box.rem - box_speed * box_speed / (2.0 * cfg.box_decel)
                 done_leg = abs(rest) < 0.5 * tol
@@ -218,16 +252,16 @@ class BallSkill(Skill):
                 self._fail(f"box overshot: by {-box.rem:.2f} m, out of its cell")
                 return
         else:
-            done_leg = (math.hypot(px - leg.pts[-1][0], py - leg.pts[-1][1]) < 0.25
-                        and speed < 0.3)
+            done_leg = math.hypot(px - leg.pts[-1][0], py - leg.pts[-1][1]) < 0.25 and speed < 0.3
         if self._est_match:
             if not self._needs_settle or (last_leg and done_leg):
                 self.status = Status.SUCCESS
                 return
         if done_leg and not last_leg:
             self._leg += 1
-            self._legs[self._leg] = legs.rebuild(self._description, cfg, self._legs[self._leg],
-                                                  boxes, (px, py))
+            self._legs[self._leg] = legs.rebuild(
+                self._description, cfg, self._legs[self._leg], boxes, (px, py)
+            )
             self._i = 0
             self._prev_box = None
             self._contact.new_leg()
@@ -245,6 +279,9 @@ class BallSkill(Skill):
         else:
             self._since_best += 1
             if self._since_best > cfg.stuck_steps:
-                what = "the box does not move" if box is not None and on_last_segment \
-                    and box.gap < 0.05 else "the walker makes no progress"
+                what = (
+                    "the box does not move"
+                    if box is not None and on_last_segment and box.gap < 0.05
+                    else "the walker makes no progress"
+                )
                 self._fail(f"stuck: {what} for {cfg.stuck_steps} steps")

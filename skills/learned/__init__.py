@@ -9,8 +9,24 @@
   ``skills/learned/ball_policy.pt``. See `skills.learned.ball`.
 """
 
-from skills.learned.ball import (FEATURES, POLICY_PATH, LearnedBallSkill, LearnedDrive,
-                                 NumpyPolicy, env_action, load_policy, policy_action)
+from skills.learned.ball import (
+    FEATURES,
+    POLICY_PATH,
+    LearnedBallSkill,
+    LearnedDrive,
+    NumpyPolicy,
+    env_action,
+    load_policy,
+    policy_action,
+)
 
-__all__ = ["LearnedBallSkill", "LearnedDrive", "NumpyPolicy", "FEATURES", "POLICY_PATH",
-           "load_policy", "env_action", "policy_action"]
+__all__ = [
+    "LearnedBallSkill",
+    "LearnedDrive",
+    "NumpyPolicy",
+    "FEATURES",
+    "POLICY_PATH",
+    "load_policy",
+    "env_action",
+    "policy_action",
+]

@@ -125,11 +125,14 @@ __all__ = ["LearnedArmSkill", "FEATURES", "ACTION_DIM", "POLICY_PATH", "MAX_STEP
 
 _AXES = ("r", "t", "u")
 FEATURES: tuple[str, ...] = (
-    tuple(f"sin_q{i}" for i in range(1, 7)) + tuple(f"cos_q{i}" for i in range(1, 7))
+    tuple(f"sin_q{i}" for i in range(1, 7))
+    + tuple(f"cos_q{i}" for i in range(1, 7))
     + tuple(f"finger{i}" for i in range(1, 4))
-    + tuple(f"tool_{a}" for a in _AXES) + tuple(f"near_{a}" for a in _AXES)
+    + tuple(f"tool_{a}" for a in _AXES)
+    + tuple(f"near_{a}" for a in _AXES)
     + tuple(f"hand_{a}" for a in _AXES)
-    + ("spread", "target_range", "target_sin", "target_cos", "target_height", "tolerance"))
+    + ("spread", "target_range", "target_sin", "target_cos", "target_height", "tolerance")
+)
 ACTION_DIM = 6
 #: The shipped checkpoint.
 POLICY_PATH = Path(__file__).with_name("arm_policy.pt")
@@ -166,15 +169,23 @@ class LearnedArmSkill(LearnedSkill):
     _frame: np.ndarray
     _target_const: np.ndarray
 
-    def __init__(self, policy=None, *, record_only: bool = False, labels: bool | None = None,
-                 max_steps: int = MAX_STEPS, teacher_config: ArmTouchConfig | None = None):
+    def __init__(
+        self,
+        policy=None,
+        *,
+        record_only: bool = False,
+        labels: bool | None = None,
+        max_steps: int = MAX_STEPS,
+        teacher_config: ArmTouchConfig | None = None,
+    ):
         if record_only:
             policy = None
         elif policy is None or (isinstance(policy, (str, Path)) and policy != "teacher"):
             policy = load_policy(policy if policy is not None else POLICY_PATH, FEATURES)
         super().__init__(policy)
-        self.labels = bool(labels) if labels is not None else (
-            policy is None or isinstance(policy, str))
+        self.labels = (
+            bool(labels) if labels is not None else (policy is None or isinstance(policy, str))
+        )
         self.max_steps = int(max_steps)
         self.teacher = ArmTouchSkill(teacher_config)
         self._band = self.teacher.config.band
@@ -188,8 +199,11 @@ class LearnedArmSkill(LearnedSkill):
         self._description = None
 
     def __repr__(self) -> str:
-        kind = "record-only" if self.policy is None else (
-            "teacher" if isinstance(self.policy, str) else type(self.policy).__name__)
+        kind = (
+            "record-only"
+            if self.policy is None
+            else ("teacher" if isinstance(self.policy, str) else type(self.policy).__name__)
+        )
         return f"LearnedArmSkill({kind})"
 
     # -- Skill API ------------------------------------------------------------
@@ -217,12 +231,18 @@ class LearnedArmSkill(LearnedSkill):
         radial = pad[:2] - arm.base_xy()
         distance = float(np.linalg.norm(radial))
         radial = radial / distance if distance > 1e-9 else np.array([1.0, 0.0])
-        self._frame = np.array([[radial[0], radial[1], 0.0],
-                                [-radial[1], radial[0], 0.0],
-                                [0.0, 0.0, 1.0]])
-        self._target_const = np.array([
-            (distance - _RANGE_CENTRE) / _RANGE_SCALE, radial[1], radial[0], pad[2] / 0.05,
-            self.target.tolerance / 0.05])
+        self._frame = np.array(
+            [[radial[0], radial[1], 0.0], [-radial[1], radial[0], 0.0], [0.0, 0.0, 1.0]]
+        )
+        self._target_const = np.array(
+            [
+                (distance - _RANGE_CENTRE) / _RANGE_SCALE,
+                radial[1],
+                radial[0],
+                pad[2] / 0.05,
+                self.target.tolerance / 0.05,
+            ]
+        )
         state = scene.state
         legal = state.legal_actions() if state is not None and not state.is_terminal() else []
         if action not in legal:
@@ -235,12 +255,16 @@ class LearnedArmSkill(LearnedSkill):
         if self._arm is None or self.subgoal is None:
             raise RuntimeError("LearnedArmSkill.act called before reset")
         if self.status is Status.RUNNING:
-            status, reason = touch_outcome(scene.moves, self._moves_before, self.subgoal.action,
-                                           timestep is not None and timestep.last())
+            status, reason = touch_outcome(
+                scene.moves,
+                self._moves_before,
+                self.subgoal.action,
+                timestep is not None and timestep.last(),
+            )
             if status is Status.SUCCESS:
                 self.status = status
             elif status is Status.FAILURE:
-                assert reason is not None       # `touch_outcome` gives a FAILURE its reason
+                assert reason is not None  # `touch_outcome` gives a FAILURE its reason
                 self._fail(reason)
         if self.status is Status.RUNNING and self.steps >= self.max_steps:
             self._fail(f"timeout: no move registered in {self.max_steps} steps")
@@ -256,8 +280,11 @@ class LearnedArmSkill(LearnedSkill):
         if self.policy is None:
             return self.hold()
         if isinstance(self.policy, str):  # "teacher"
-            return self.hold() if self._teacher_action is None else self.env_action(
-                self._teacher_action)
+            return (
+                self.hold()
+                if self._teacher_action is None
+                else self.env_action(self._teacher_action)
+            )
         return self.env_action(self.policy(self._features))
 
     def hold(self) -> np.ndarray:
@@ -285,16 +312,18 @@ class LearnedArmSkill(LearnedSkill):
         if self._arm is None:
             raise RuntimeError("LearnedArmSkill.env_action called before reset")
         command = self._arm.hold()
-        command[:6] = np.clip(np.asarray(policy_action, float)[:ACTION_DIM], -1.0, 1.0) \
-            * self._arm.vmax
+        command[:6] = (
+            np.clip(np.asarray(policy_action, float)[:ACTION_DIM], -1.0, 1.0) * self._arm.vmax
+        )
         return np.clip(command, self._arm.low, self._arm.high)
 
     # -- internals ------------------------------------------------------------
 
     def _model(self, arm_description) -> ArmModel:
         arm = self._arm
-        if arm is None or (arm.description is not arm_description
-                           and arm.description != arm_description):
+        if arm is None or (
+            arm.description is not arm_description and arm.description != arm_description
+        ):
             arm = self._arm = ArmModel(arm_description, band=self._band)
         return arm
 
@@ -314,9 +343,10 @@ class LearnedArmSkill(LearnedSkill):
         return self._normalise(command) if teacher.status is Status.RUNNING else None
 
     def _normalise(self, command) -> np.ndarray:
-        assert self._arm is not None            # `act` checked it
-        return np.clip(np.asarray(command, float)[:ACTION_DIM] / self._arm.vmax,
-                       -1.0, 1.0).astype(np.float32)
+        assert self._arm is not None  # `act` checked it
+        return np.clip(np.asarray(command, float)[:ACTION_DIM] / self._arm.vmax, -1.0, 1.0).astype(
+            np.float32
+        )
 
     def _compute_features(self, scene) -> np.ndarray:
         arm = self._arm
@@ -330,18 +360,21 @@ class LearnedArmSkill(LearnedSkill):
         offset = frame @ (tool - self.target.pad_top)
         hand = frame @ data.site_xmat[arm.site].reshape(3, 3)[:, 2]
         q = qpos[:6]
-        out = np.concatenate([
-            np.sin(q), np.cos(q),
-            qpos[6:9] / arm.fingers_closed,
-            np.clip(offset / _POS_SCALE, -3.0, 3.0),
-            np.tanh(offset / _NEAR_SCALE),
-            hand,
-            [min(spread / 0.02, 3.0)],
-            self._target_const])
+        out = np.concatenate(
+            [
+                np.sin(q),
+                np.cos(q),
+                qpos[6:9] / arm.fingers_closed,
+                np.clip(offset / _POS_SCALE, -3.0, 3.0),
+                np.tanh(offset / _NEAR_SCALE),
+                hand,
+                [min(spread / 0.02, 3.0)],
+                self._target_const,
+            ]
+        )
         return out.astype(np.float32)
 
     @property
     def training_frames(self) -> int:
         meta = getattr(self.policy, "meta", None) or {}
         return int(meta.get("sim_steps", meta.get("frames", 0)))
-

@@ -76,11 +76,31 @@ from skills.learned.base import LearnedSkill
 from skills.learned.policy import NumpyPolicy
 from skills.learned.policy import load_policy as _load
 
-__all__ = ["LearnedBallSkill", "LearnedDrive", "NumpyPolicy", "FEATURES", "POLICY_PATH",
-           "load_policy", "policy_action", "env_action"]
+__all__ = [
+    "LearnedBallSkill",
+    "LearnedDrive",
+    "NumpyPolicy",
+    "FEATURES",
+    "POLICY_PATH",
+    "load_policy",
+    "policy_action",
+    "env_action",
+]
 
-FEATURES = ("cos_err", "sin_err", "err", "carrot_fwd", "carrot_left", "reach", "v_des",
-            "v_along", "v_left", "yaw_rate", "pushing", "sign")
+FEATURES = (
+    "cos_err",
+    "sin_err",
+    "err",
+    "carrot_fwd",
+    "carrot_left",
+    "reach",
+    "v_des",
+    "v_along",
+    "v_left",
+    "yaw_rate",
+    "pushing",
+    "sign",
+)
 OBS_DIM = len(FEATURES)
 #: Index of the drive sign in the feature vector.
 SIGN = FEATURES.index("sign")
@@ -127,13 +147,15 @@ class LearnedDrive(Drive):
         self.obs = np.zeros(OBS_DIM, np.float32)
         self.teacher = np.zeros(2)
 
-    def command(self, config, px, py, vx, vy, heading, rate, speed, carrot_x, carrot_y, v_des,
-                pushing):
+    def command(
+        self, config, px, py, vx, vy, heading, rate, speed, carrot_x, carrot_y, v_des, pushing
+    ):
         # The scripted loops: the teacher's action and the geometric values
         # they share with the policy (the drive sign with its hysteresis,
         # the heading error, the speed along the drive direction).
         roll_t, steer_t, err, v_scaled, v_along = super().command(
-            config, px, py, vx, vy, heading, rate, speed, carrot_x, carrot_y, v_des, pushing)
+            config, px, py, vx, vy, heading, rate, speed, carrot_x, carrot_y, v_des, pushing
+        )
         sign = self.sign
         face = heading if sign > 0 else heading + math.pi
         c, s = math.cos(face), math.sin(face)
@@ -186,8 +208,11 @@ class LearnedBallSkill(BallSkill, LearnedSkill):
         self.policy = policy
 
     def __repr__(self) -> str:
-        kind = "record-only" if self.policy is None else (
-            "teacher" if self.policy == "teacher" else type(self.policy).__name__)
+        kind = (
+            "record-only"
+            if self.policy is None
+            else ("teacher" if self.policy == "teacher" else type(self.policy).__name__)
+        )
         return f"LearnedBallSkill({kind})"
 
     @property

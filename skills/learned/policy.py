@@ -35,14 +35,15 @@ class NumpyPolicy:
         self.meta = dict(meta or {})
 
         def arr(v):
-            return np.asarray(v.detach().cpu().numpy() if hasattr(v, "detach") else v,
-                              np.float64)
-        keys = sorted({k.rsplit(".", 1)[0] for k in state_dict if k.endswith(".weight")},
-                      key=lambda k: int(k.split(".")[-1]))
+            return np.asarray(v.detach().cpu().numpy() if hasattr(v, "detach") else v, np.float64)
+
+        keys = sorted(
+            {k.rsplit(".", 1)[0] for k in state_dict if k.endswith(".weight")},
+            key=lambda k: int(k.split(".")[-1]),
+        )
         if not keys:
             raise ValueError("the state dict has no Linear layers")
-        self.layers = [(arr(state_dict[k + ".weight"]), arr(state_dict[k + ".bias"]))
-                       for k in keys]
+        self.layers = [(arr(state_dict[k + ".weight"]), arr(state_dict[k + ".bias"])) for k in keys]
 
     @property
     def obs_dim(self) -> int:
@@ -68,19 +69,25 @@ def load_policy(path, features: tuple[str, ...]) -> NumpyPolicy:
     not ``features`` or a directory holds several policies, and
     ``FileNotFoundError`` when there is none."""
     import torch
+
     path = Path(path)
     if path.is_dir():
         found = sorted(path.glob("*_policy.pt"))
         if len(found) > 1:
-            raise ValueError(f"{path} holds several skill checkpoints "
-                             f"{[f.name for f in found]}; name one")
+            raise ValueError(
+                f"{path} holds several skill checkpoints {[f.name for f in found]}; name one"
+            )
         if found:
             path = found[0]
     if not path.is_file():
-        raise FileNotFoundError(f"no skill checkpoint at {path}"
-                                + (" (no *_policy.pt in the folder)" if path.is_dir() else ""))
+        raise FileNotFoundError(
+            f"no skill checkpoint at {path}"
+            + (" (no *_policy.pt in the folder)" if path.is_dir() else "")
+        )
     ckpt = torch.load(path, map_location="cpu", weights_only=True)
     if tuple(ckpt.get("features", ())) != tuple(features):
-        raise ValueError(f"{path}: checkpoint features {ckpt.get('features')} do not match "
-                         f"the skill's {tuple(features)}")
+        raise ValueError(
+            f"{path}: checkpoint features {ckpt.get('features')} do not match "
+            f"the skill's {tuple(features)}"
+        )
     return NumpyPolicy(ckpt["actor"], ckpt.get("meta"))

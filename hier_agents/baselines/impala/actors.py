@@ -71,8 +71,9 @@ def stack_states(rows: list[list[np.ndarray]], like) -> tuple:
     out = []
     for k, template in enumerate(like):
         # np.stack copies, so the tensors own writable memory (Ray's arrays are read-only).
-        out.append(torch.from_numpy(np.stack([r[k] for r in rows],
-                                             axis=1 if template.dim() == 3 else 0)))
+        out.append(
+            torch.from_numpy(np.stack([r[k] for r in rows], axis=1 if template.dim() == 3 else 0))
+        )
     return tuple(out)
 
 
@@ -89,12 +90,20 @@ class Actor:
         torch.set_num_threads(1)
         self.config, self.actor_id = config, actor_id
         base = config.seed * 10_007 + actor_id * 101
-        self.envs = [AgentEnv(config.env, config.condition, seed=base + i,
-                              cameras=config.cameras, image_size=config.image_size,
-                              state=config.state,
-                              t_abs=config.t_abs, abs_reward=config.abs_reward,
-                              **config.env_overrides)
-                     for i in range(config.envs_per_actor)]
+        self.envs = [
+            AgentEnv(
+                config.env,
+                config.condition,
+                seed=base + i,
+                cameras=config.cameras,
+                image_size=config.image_size,
+                state=config.state,
+                t_abs=config.t_abs,
+                abs_reward=config.abs_reward,
+                **config.env_overrides,
+            )
+            for i in range(config.envs_per_actor)
+        ]
         self.spec = self.envs[0].input_spec
         self.net = ImpalaNet(self.spec, two_values=config.condition != "vanilla")
         self.net.eval()
@@ -116,9 +125,13 @@ class Actor:
         keys = list(self._obs[0])
         # The planner inputs are 0/1 planes and one-hots: uint8 in transit
         # (4x less to pickle); the network casts them back to float.
-        obs_buf = {k: np.empty((T + 1, n, *self._obs[0][k].shape),
-                               np.uint8 if k in _BINARY_KEYS else self._obs[0][k].dtype)
-                   for k in keys}
+        obs_buf = {
+            k: np.empty(
+                (T + 1, n, *self._obs[0][k].shape),
+                np.uint8 if k in _BINARY_KEYS else self._obs[0][k].dtype,
+            )
+            for k in keys
+        }
         first_buf = np.empty((T + 1, n), dtype=bool)
         actions = np.empty((T, n, self.spec.action_dim), dtype=np.float32)
         log_probs = np.empty((T, n), dtype=np.float32)
@@ -135,9 +148,9 @@ class Actor:
                 break
             batch = {k: obs_buf[k][t] for k in keys}
             with torch.no_grad():
-                a, logp, self._state = self.net.act(batch, self._first, self._state,
-                                                    generator=self._generator,
-                                                    policy_only=True)
+                a, logp, self._state = self.net.act(
+                    batch, self._first, self._state, generator=self._generator, policy_only=True
+                )
             actions[t], log_probs[t] = a, logp
             for i, env in enumerate(self.envs):
                 res = env.step(a[i])
@@ -154,17 +167,22 @@ class Actor:
         cpu_s = time.process_time()  # this actor process's CPU seconds so far
         out = []
         for i in range(n):
-            out.append({
-                "obs": {k: obs_buf[k][:, i] for k in keys},
-                "first": first_buf[:, i],
-                "actions": actions[:, i], "log_probs": log_probs[:, i],
-                "rewards_env": r_env[:, i], "discounts_env": d_env[:, i],
-                "rewards_abs": r_abs[:, i], "discounts_abs": d_abs[:, i],
-                "state": start_state[i],
-                "stream": (self.actor_id, i),
-                "episodes": episodes if i == 0 else [],
-                "cpu_s": cpu_s,
-            })
+            out.append(
+                {
+                    "obs": {k: obs_buf[k][:, i] for k in keys},
+                    "first": first_buf[:, i],
+                    "actions": actions[:, i],
+                    "log_probs": log_probs[:, i],
+                    "rewards_env": r_env[:, i],
+                    "discounts_env": d_env[:, i],
+                    "rewards_abs": r_abs[:, i],
+                    "discounts_abs": d_abs[:, i],
+                    "state": start_state[i],
+                    "stream": (self.actor_id, i),
+                    "episodes": episodes if i == 0 else [],
+                    "cpu_s": cpu_s,
+                }
+            )
         return out
 
     def close(self) -> None:
@@ -187,8 +205,9 @@ class _Actors:
                 self._submit(actor_id)
 
     def _submit(self, actor_id: int) -> None:
-        self.pool.submit("unroll", *self._unroll_args(), worker=actor_id,
-                         label=f"actor {actor_id}'s unroll")
+        self.pool.submit(
+            "unroll", *self._unroll_args(), worker=actor_id, label=f"actor {actor_id}'s unroll"
+        )
 
     def _unroll_args(self) -> tuple:
         return ()
@@ -198,8 +217,9 @@ class _Actors:
         """Actors replaced after their process died."""
         return self.pool.restarts
 
-    def get(self, timeout: float = 600.0,
-            should_stop: Callable[[], bool] | None = None) -> list[dict] | None:
+    def get(
+        self, timeout: float = 600.0, should_stop: Callable[[], bool] | None = None
+    ) -> list[dict] | None:
         """The next actor's unrolls (that actor's next unroll is queued), or
         None once ``should_stop()`` is true.
 
@@ -229,8 +249,12 @@ class _SharedWeightsActor:
     weights before an unroll when their version changed."""
 
     def __init__(self, config: TrainConfig, shared_net, version, actor_id: int):
-        self.actor, self.shared, self.version, self.seen = Actor(config, actor_id), \
-            shared_net, version, -1
+        self.actor, self.shared, self.version, self.seen = (
+            Actor(config, actor_id),
+            shared_net,
+            version,
+            -1,
+        )
 
     def unroll(self) -> list[dict]:
         weights = None
@@ -282,8 +306,9 @@ class RayActors(_Actors):
     def __init__(self, config: TrainConfig, num_actors: int, net, *, address: str | None = None):
         self._weights_ref: ObjectRef[dict] | None = None
         self._version = 0
-        self.pool = Pool(partial(_RayActor, config), num_actors, address=address or "local",
-                         name="impala-actor")
+        self.pool = Pool(
+            partial(_RayActor, config), num_actors, address=address or "local", name="impala-actor"
+        )
         import ray
 
         self._ray = ray

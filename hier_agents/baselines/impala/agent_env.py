@@ -109,15 +109,27 @@ from __future__ import annotations
 import numpy as np
 
 from envs.core import episode_seed
-from hier_agents.baselines.impala.agent_env_spec import (CONDITIONS, PLANNER_ACTIONS, InputSpec,
-                                                         StepResult, _gamma, _load_env,
-                                                         main_camera_only)
+from hier_agents.baselines.impala.agent_env_spec import (
+    CONDITIONS,
+    PLANNER_ACTIONS,
+    InputSpec,
+    StepResult,
+    _gamma,
+    _load_env,
+    main_camera_only,
+)
 from hier_agents.baselines.impala.inputs import ActionMap, AgentInputs, make_auxiliary
 from hier_agents.modular.families import adapter, family
 from hier_agents.modular.options import T_ABS
 
-__all__ = ["AgentEnv", "CONDITIONS", "InputSpec", "PLANNER_ACTIONS", "StepResult",
-           "main_camera_only"]
+__all__ = [
+    "AgentEnv",
+    "CONDITIONS",
+    "InputSpec",
+    "PLANNER_ACTIONS",
+    "StepResult",
+    "main_camera_only",
+]
 
 
 class AgentEnv:
@@ -152,14 +164,25 @@ class AgentEnv:
       from. timestep: the environment's last ``dm_env.TimeStep``.
     """
 
-    def __init__(self, env_name: str, condition: str = "vanilla", *, seed: int | None = 0,
-                 cameras: bool = True, image_size: int = 96, state: bool = False,
-                 t_abs: int = T_ABS,
-                 abs_reward: float = 1.0, gamma_env: float | None = None,
-                 gamma_abs: float | None = None, **overrides):
+    def __init__(
+        self,
+        env_name: str,
+        condition: str = "vanilla",
+        *,
+        seed: int | None = 0,
+        cameras: bool = True,
+        image_size: int = 96,
+        state: bool = False,
+        t_abs: int = T_ABS,
+        abs_reward: float = 1.0,
+        gamma_env: float | None = None,
+        gamma_abs: float | None = None,
+        **overrides,
+    ):
         if condition not in CONDITIONS:
-            raise ValueError(f"unknown condition {condition!r}; valid conditions: "
-                             f"{', '.join(CONDITIONS)}")
+            raise ValueError(
+                f"unknown condition {condition!r}; valid conditions: {', '.join(CONDITIONS)}"
+            )
         self.family = family(env_name)
         if int(t_abs) < 1:
             raise ValueError(f"t_abs must be a positive number of control steps, got {t_abs!r}")
@@ -176,11 +199,19 @@ class AgentEnv:
         try:
             description = self.env.description()
             planner, estimator = make_auxiliary(condition, description, self.seed, self.env)
-            self.inputs = AgentInputs(description, self.env.observation_spec(),
-                                      self.env.action_spec(), condition, state=state,
-                                      task=self.env.task, planner=planner, estimator=estimator,
-                                      t_abs=t_abs, abs_reward=abs_reward,
-                                      gamma_abs=self.gamma_abs)
+            self.inputs = AgentInputs(
+                description,
+                self.env.observation_spec(),
+                self.env.action_spec(),
+                condition,
+                state=state,
+                task=self.env.task,
+                planner=planner,
+                estimator=estimator,
+                t_abs=t_abs,
+                abs_reward=abs_reward,
+                gamma_abs=self.gamma_abs,
+            )
             self._actions = ActionMap(self.env.action_spec())
         except BaseException:
             if planner is not None:
@@ -216,8 +247,10 @@ class AgentEnv:
     def step(self, action) -> StepResult:
         """One control step with ``action`` in [-1, 1]^A (clipped, then mapped)."""
         if self._needs_reset:
-            raise RuntimeError("call reset() first: no episode is running "
-                               "(before the first reset, or after the last step)")
+            raise RuntimeError(
+                "call reset() first: no episode is running "
+                "(before the first reset, or after the last step)"
+            )
         timestep = self.timestep = self.env.step(self._actions(action))
         reward = float(timestep.reward)
         self._return += reward
@@ -229,15 +262,25 @@ class AgentEnv:
         if last:
             self._needs_reset = True
             info = self._episode_info()
-        return StepResult(self.inputs.observe(timestep.observation), reward, discount_env,
-                          reward_abs, discount_abs, last, info)
+        return StepResult(
+            self.inputs.observe(timestep.observation),
+            reward,
+            discount_env,
+            reward_abs,
+            discount_abs,
+            last,
+            info,
+        )
 
     def _episode_info(self) -> dict:
         task = self.env.task
         terminated = bool(task.should_terminate_episode(self.env.physics))
-        info = {"episode_return": self._return, "episode_steps": self._steps,
-                "success": self.inputs.adapter.success(task),
-                "truncated": not terminated and self.env.step_count >= task.time_limit_steps}
+        info = {
+            "episode_return": self._return,
+            "episode_steps": self._steps,
+            "success": self.inputs.adapter.success(task),
+            "truncated": not terminated and self.env.step_count >= task.time_limit_steps,
+        }
         info.update(self.inputs.episode_info())
         return info
 
@@ -256,5 +299,7 @@ class AgentEnv:
         self.close()
 
     def __repr__(self) -> str:
-        return (f"AgentEnv({self.env_name!r}, {self.condition!r}, seed={self.seed}, "
-                f"images={[name for name, _ in self.input_spec.images]})")
+        return (
+            f"AgentEnv({self.env_name!r}, {self.condition!r}, seed={self.seed}, "
+            f"images={[name for name, _ in self.input_spec.images]})"
+        )

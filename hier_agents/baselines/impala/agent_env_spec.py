@@ -47,10 +47,13 @@ class InputSpec:
     def keys(self) -> tuple[str, ...]:
         """The observation keys, in order: ``"proprio"``, the cameras,
         ``"planner"``, ``"planner_action"``, ``"state"`` (those present)."""
-        return (("proprio",) + tuple(name for name, _ in self.images)
-                + (("planner",) if self.planner_shape is not None else ())
-                + (("planner_action",) if self.planner_action_dim else ())
-                + (("state",) if self.state_shape is not None else ()))
+        return (
+            ("proprio",)
+            + tuple(name for name, _ in self.images)
+            + (("planner",) if self.planner_shape is not None else ())
+            + (("planner_action",) if self.planner_action_dim else ())
+            + (("state",) if self.state_shape is not None else ())
+        )
 
     @property
     def privileged(self) -> bool:

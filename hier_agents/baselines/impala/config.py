@@ -25,16 +25,28 @@ PRESETS = {"cpu": {"observations": "main-camera", "image_size": 48, "envs_per_ac
 #: Options (flags with ``_`` for ``-``) -> (`TrainConfig` field, type); ``None``
 #: for the options `from_options` turns into other fields.
 OPTIONS = {
-    "condition": ("condition", str), "frames": ("steps", int), "observations": (None, str),
-    "image_size": ("image_size", int), "state": ("state", bool), "preset": (None, str),
-    "actors": ("actors", int), "envs_per_actor": ("envs_per_actor", int),
-    "backend": ("backend", str), "ray_address": ("ray_address", str),
-    "logdir": ("logdir", str), "unroll_length": ("unroll_length", int),
-    "batch_size": ("batch_size", int), "learning_rate": ("learning_rate", float),
-    "entropy_cost": ("entropy_cost", float), "abs_reward": ("abs_reward", float),
-    "seed": ("seed", int), "checkpoint_every": ("checkpoint_every_s", float),
-    "keep_checkpoints": ("keep_checkpoints", bool), "save_at": ("save_at", tuple),
-    "log_every": ("log_every_s", float), "no_progress": (None, bool),
+    "condition": ("condition", str),
+    "frames": ("steps", int),
+    "observations": (None, str),
+    "image_size": ("image_size", int),
+    "state": ("state", bool),
+    "preset": (None, str),
+    "actors": ("actors", int),
+    "envs_per_actor": ("envs_per_actor", int),
+    "backend": ("backend", str),
+    "ray_address": ("ray_address", str),
+    "logdir": ("logdir", str),
+    "unroll_length": ("unroll_length", int),
+    "batch_size": ("batch_size", int),
+    "learning_rate": ("learning_rate", float),
+    "entropy_cost": ("entropy_cost", float),
+    "abs_reward": ("abs_reward", float),
+    "seed": ("seed", int),
+    "checkpoint_every": ("checkpoint_every_s", float),
+    "keep_checkpoints": ("keep_checkpoints", bool),
+    "save_at": ("save_at", tuple),
+    "log_every": ("log_every_s", float),
+    "no_progress": (None, bool),
 }
 
 
@@ -96,15 +108,21 @@ class TrainConfig:
             _check_type(key, value, OPTIONS[key][1])
         if "preset" in options:
             options = {**PRESETS[choice("preset", options["preset"], PRESETS)], **options}
-        observations = choice("observations value", options.get("observations", "cameras"),
-                              OBSERVATIONS)
+        observations = choice(
+            "observations value", options.get("observations", "cameras"), OBSERVATIONS
+        )
         fields = {attr: v for k, v in options.items() if (attr := OPTIONS[k][0]) is not None}
         fields["save_at"] = tuple(sorted({int(b) for b in fields.get("save_at", ())}))
-        config = cls(env=env, cameras=observations != "proprio",
-                     progress=not options.get("no_progress", False), **fields)
+        config = cls(
+            env=env,
+            cameras=observations != "proprio",
+            progress=not options.get("no_progress", False),
+            **fields,
+        )
         config.validate()
         if observations == "main-camera":
             from hier_agents.baselines.impala.agent_env import main_camera_only
+
             config.env_overrides.update(main_camera_only(env))
         return config
 
@@ -122,47 +140,57 @@ class TrainConfig:
         choice("environment", self.env, envs.names())
         choice("condition", self.condition, CONDITIONS)
         choice("backend", self.backend, ("local", "ray"))
-        for name in ("steps", "actors", "envs_per_actor", "unroll_length", "image_size",
-                     "t_abs"):
+        for name in ("steps", "actors", "envs_per_actor", "unroll_length", "image_size", "t_abs"):
             if int(getattr(self, name)) < 1:
                 raise UsageError(f"{name} must be >= 1, got {getattr(self, name)!r}")
         if self.batch_size is not None and self.batch_size < 1:
             raise UsageError(f"batch_size must be >= 1, got {self.batch_size!r}")
-        for name, low, strict in (("seed", 0, False), ("learning_rate", 0, True),
-                                  ("entropy_cost", 0, False), ("abs_reward", 0, False),
-                                  ("checkpoint_every_s", 0, True), ("log_every_s", 0, False)):
+        for name, low, strict in (
+            ("seed", 0, False),
+            ("learning_rate", 0, True),
+            ("entropy_cost", 0, False),
+            ("abs_reward", 0, False),
+            ("checkpoint_every_s", 0, True),
+            ("log_every_s", 0, False),
+        ):
             value = getattr(self, name)
             if value < low or (strict and value == low):
-                raise UsageError(f"{name} must be {'>' if strict else '>='} {low}, "
-                                 f"got {value!r}")
+                raise UsageError(f"{name} must be {'>' if strict else '>='} {low}, got {value!r}")
         for budget in self.save_at:
             if int(budget) < 1 or int(budget) > self.steps or int(budget) % self.unroll_length:
-                raise UsageError(f"save_at {budget!r}: each must be a multiple of the unroll "
-                                 f"length ({self.unroll_length}) within the budget "
-                                 f"({self.steps} frames)")
+                raise UsageError(
+                    f"save_at {budget!r}: each must be a multiple of the unroll "
+                    f"length ({self.unroll_length}) within the budget "
+                    f"({self.steps} frames)"
+                )
         if self.steps < self.unroll_length:
-            raise UsageError(f"a budget of {plural(self.steps, 'frame')} is less than one unroll "
-                             f"of {plural(self.unroll_length, 'frame')}: give --frames >= "
-                             f"{self.unroll_length} or a shorter --unroll-length")
+            raise UsageError(
+                f"a budget of {plural(self.steps, 'frame')} is less than one unroll "
+                f"of {plural(self.unroll_length, 'frame')}: give --frames >= "
+                f"{self.unroll_length} or a shorter --unroll-length"
+            )
 
     def resolved_batch(self) -> int:
         """Unrolls per update: ``batch_size``, or the paper's for the
         environment's family (its adapter's ``paper_batch``)."""
         from hier_agents.modular.families import adapter
+
         return int(self.batch_size or adapter(self.env).paper_batch)
 
     def actor_config(self, updates: int) -> TrainConfig:
         """The config the actors get after ``updates`` updates: this one with
         ``seed`` ``seed * 1000 + updates`` (a resumed run's actors meet new
         episodes)."""
-        return dataclasses.replace(self, seed=self.seed * 1000 + updates,
-                                   env_overrides=dict(self.env_overrides))
+        return dataclasses.replace(
+            self, seed=self.seed * 1000 + updates, env_overrides=dict(self.env_overrides)
+        )
 
 
 def _check_type(key: str, value, kind) -> None:
     if kind is tuple:
         ok = isinstance(value, (list, tuple)) and all(
-            isinstance(v, int) and not isinstance(v, bool) for v in value)
+            isinstance(v, int) and not isinstance(v, bool) for v in value
+        )
     elif kind is float:
         ok = isinstance(value, (int, float)) and not isinstance(value, bool)
     elif kind is int:
@@ -170,6 +198,11 @@ def _check_type(key: str, value, kind) -> None:
     else:
         ok = isinstance(value, kind)
     if not ok:
-        names = {str: "a string", int: "an integer", float: "a number", bool: "true or false",
-                 tuple: "a list of integers"}
+        names = {
+            str: "a string",
+            int: "an integer",
+            float: "a number",
+            bool: "true or false",
+            tuple: "a list of integers",
+        }
         raise UsageError(f"{key} must be {names[kind]}, got {value!r}")

@@ -32,8 +32,11 @@ def camera_names(observation_spec) -> tuple[str, ...]:
     """The observation keys of the rendered cameras, in the observation
     spec's order (the task's): the ``*_camera`` keys (the environments'
     naming convention, as in `envs.no_cameras`) holding ``(H, W, 3)`` images."""
-    return tuple(key for key, spec in observation_spec.items()
-                 if key.endswith("_camera") and len(spec.shape) == 3 and spec.shape[-1] == 3)
+    return tuple(
+        key
+        for key, spec in observation_spec.items()
+        if key.endswith("_camera") and len(spec.shape) == 3 and spec.shape[-1] == 3
+    )
 
 
 class ActionMap:
@@ -55,8 +58,12 @@ class ActionMap:
             raise ValueError(f"action must have shape {self.shape}, got {a.shape}")
         # Plain Python on a few floats beats numpy's per-call overhead; NaN
         # passes through (the environment rejects non-finite actions).
-        return np.array([c + h * min(max(x, -1.0), 1.0)
-                         for x, c, h in zip(a.ravel().tolist(), self._centre, self._half)])
+        return np.array(
+            [
+                c + h * min(max(x, -1.0), 1.0)
+                for x, c, h in zip(a.ravel().tolist(), self._centre, self._half)
+            ]
+        )
 
 
 class AgentInputs:
@@ -84,23 +91,38 @@ class AgentInputs:
       abstract_state: the state the current sub-episode started from.
     """
 
-    def __init__(self, description, observation_spec, action_spec, condition: str, *,
-                 state: bool = False, task=None, planner=None, estimator=None,
-                 t_abs: int = T_ABS, abs_reward: float = 1.0, gamma_abs: float = 0.9):
+    def __init__(
+        self,
+        description,
+        observation_spec,
+        action_spec,
+        condition: str,
+        *,
+        state: bool = False,
+        task=None,
+        planner=None,
+        estimator=None,
+        t_abs: int = T_ABS,
+        abs_reward: float = 1.0,
+        gamma_abs: float = 0.9,
+    ):
         if condition not in CONDITIONS:
-            raise ValueError(f"unknown condition {condition!r}; valid conditions: "
-                             f"{', '.join(CONDITIONS)}")
+            raise ValueError(
+                f"unknown condition {condition!r}; valid conditions: {', '.join(CONDITIONS)}"
+            )
         self.adapter = adapter_for(description)
         self.description, self.condition, self.task = description, condition, task
         self.planner, self.estimator = planner, estimator
         self.t_abs, self.abs_reward, self.gamma_abs = int(t_abs), float(abs_reward), gamma_abs
         self.planning = condition != "vanilla"
         self.cameras = camera_names(observation_spec)
-        images = tuple((name, (3, int(observation_spec[name].shape[0]),
-                                int(observation_spec[name].shape[1])))
-                       for name in self.cameras)
-        proprio_dim = sum(int(np.prod(observation_spec[k].shape))
-                          for k in self.adapter.proprio_keys)
+        images = tuple(
+            (name, (3, int(observation_spec[name].shape[0]), int(observation_spec[name].shape[1])))
+            for name in self.cameras
+        )
+        proprio_dim = sum(
+            int(np.prod(observation_spec[k].shape)) for k in self.adapter.proprio_keys
+        )
         planner_shape, action_dim = None, 0
         if self.planning:
             planner_shape, action_dim = self.adapter.planner_inputs(task)
@@ -111,10 +133,14 @@ class AgentInputs:
             self._state_key = self.adapter.state_key
             h, w, c = (int(v) for v in observation_spec[self._state_key].shape)
             state_shape = (c, h, w)
-        self.spec = InputSpec(images=images, proprio_dim=proprio_dim,
-                              planner_shape=planner_shape, planner_action_dim=action_dim,
-                              action_dim=int(np.prod(action_spec.shape)),
-                              state_shape=state_shape)
+        self.spec = InputSpec(
+            images=images,
+            proprio_dim=proprio_dim,
+            planner_shape=planner_shape,
+            planner_action_dim=action_dim,
+            action_dim=int(np.prod(action_spec.shape)),
+            state_shape=state_shape,
+        )
         self.subgoal: Subgoal | None = None
         self.abstract_state = None
         self._issued = self._reached = self._unplanned = self._sub_steps = 0
@@ -122,8 +148,11 @@ class AgentInputs:
 
     def observe(self, observation) -> dict[str, np.ndarray]:
         """The network's inputs (fresh arrays) from a timestep's observation."""
-        obs = {"proprio": np.concatenate([observation[k] for k in self.adapter.proprio_keys],
-                                         dtype=np.float32)}
+        obs = {
+            "proprio": np.concatenate(
+                [observation[k] for k in self.adapter.proprio_keys], dtype=np.float32
+            )
+        }
         for name in self.cameras:
             obs[name] = np.ascontiguousarray(observation[name].transpose(2, 0, 1))
         if self.planning:
@@ -165,8 +194,11 @@ class AgentInputs:
         """The auxiliary task's counters of the episode so far (empty for vanilla)."""
         if not self.planning:
             return {}
-        return {"subgoals_issued": self._issued, "subgoals_reached": self._reached,
-                "subgoals_unplanned": self._unplanned}
+        return {
+            "subgoals_issued": self._issued,
+            "subgoals_reached": self._reached,
+            "subgoals_unplanned": self._unplanned,
+        }
 
     def close(self) -> None:
         """Frees the planner (a GNU Go subprocess). Idempotent."""
@@ -196,8 +228,9 @@ class AgentInputs:
         else:
             self._issued += 1
         self._mark = self.adapter.subepisode_mark(self.task)
-        self.adapter.fill_planner_inputs(self._planes, self._onehot, timestep.observation,
-                                         subgoal, self.task)
+        self.adapter.fill_planner_inputs(
+            self._planes, self._onehot, timestep.observation, subgoal, self.task
+        )
 
 
 def make_auxiliary(condition: str, description, seed, simulator) -> tuple:
@@ -214,5 +247,6 @@ def make_auxiliary(condition: str, description, seed, simulator) -> tuple:
     name = adapter.expert_planner if condition == "expert-planner" else "random"
     planner = resolve("planner", adapter.name, name).factory(description, seed)
     estimator = resolve("estimator", adapter.name, adapter.truth_estimator).factory(
-        description, seed, simulator)
+        description, seed, simulator
+    )
     return planner, estimator

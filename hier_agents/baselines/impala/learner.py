@@ -70,12 +70,19 @@ def make_batch(unrolls: list[dict], net, value_states: dict | None = None):
     """
     import torch
 
-    obs = {k: torch.from_numpy(np.stack([u["obs"][k] for u in unrolls], axis=1))
-           for k in unrolls[0]["obs"]}
-    batch = {"obs": obs,
-             "first": torch.from_numpy(np.stack([u["first"] for u in unrolls], axis=1))}
-    for key in ("actions", "log_probs", "rewards_env", "discounts_env", "rewards_abs",
-                "discounts_abs"):
+    obs = {
+        k: torch.from_numpy(np.stack([u["obs"][k] for u in unrolls], axis=1))
+        for k in unrolls[0]["obs"]
+    }
+    batch = {"obs": obs, "first": torch.from_numpy(np.stack([u["first"] for u in unrolls], axis=1))}
+    for key in (
+        "actions",
+        "log_probs",
+        "rewards_env",
+        "discounts_env",
+        "rewards_abs",
+        "discounts_abs",
+    ):
         batch[key] = torch.from_numpy(np.stack([u[key] for u in unrolls], axis=1))
     state = list(stack_states([u["state"] for u in unrolls], net.initial_state(1)))
     streams = [tuple(u.get("stream", ())) for u in unrolls]
@@ -96,8 +103,9 @@ def make_batch(unrolls: list[dict], net, value_states: dict | None = None):
     return batch
 
 
-def learner_step(net, optimizer, batch, config: TrainConfig,
-                 value_states: dict | None = None) -> dict:
+def learner_step(
+    net, optimizer, batch, config: TrainConfig, value_states: dict | None = None
+) -> dict:
     """One gradient step on ``batch``; returns float statistics.
 
     When ``value_states`` is given, the value core's state after each
@@ -108,8 +116,13 @@ def learner_step(net, optimizer, batch, config: TrainConfig,
     from hier_agents.baselines.impala.vtrace import impala_loss
 
     T = batch["actions"].shape[0]
-    out, new_state = net(batch["obs"], batch["first"], batch["state"],
-                         value_state_after=T - 1, value_chain=batch.get("value_chain"))
+    out, new_state = net(
+        batch["obs"],
+        batch["first"],
+        batch["state"],
+        value_state_after=T - 1,
+        value_chain=batch.get("value_chain"),
+    )
     if value_states is not None:
         hv, cv = new_state[0].detach(), new_state[1].detach()
         for j, stream in enumerate(batch["streams"]):  # the stream's last column wins
@@ -117,11 +130,18 @@ def learner_step(net, optimizer, batch, config: TrainConfig,
                 value_states[stream] = (hv[j].clone(), cv[j].clone())
     steps = type(out)(*(None if x is None else x[:-1] for x in out))
     bootstrap = type(out)(*(None if x is None else x[-1] for x in out))
-    loss, stats = impala_loss(steps, bootstrap, batch["actions"], batch["log_probs"],
-                              batch["rewards_env"], batch["discounts_env"],
-                              batch["rewards_abs"], batch["discounts_abs"],
-                              baseline_cost=config.baseline_cost,
-                              entropy_cost=config.entropy_cost)
+    loss, stats = impala_loss(
+        steps,
+        bootstrap,
+        batch["actions"],
+        batch["log_probs"],
+        batch["rewards_env"],
+        batch["discounts_env"],
+        batch["rewards_abs"],
+        batch["discounts_abs"],
+        baseline_cost=config.baseline_cost,
+        entropy_cost=config.entropy_cost,
+    )
     optimizer.zero_grad(set_to_none=True)
     loss.backward()
     grad_norm = torch.nn.utils.clip_grad_norm_(net.parameters(), config.grad_clip)
@@ -155,11 +175,15 @@ def load_checkpoint(path: str | Path) -> dict:
         ckpt = torch.load(path, map_location="cpu", weights_only=False)
     except Exception as exc:  # noqa: BLE001 - whatever is wrong with the file, it is the input
         raise UsageError(f"{path} is not a readable checkpoint ({type(exc).__name__})") from None
-    missing = [k for k in ("model", "input_spec", "config", "counters")
-               if not isinstance(ckpt, dict) or k not in ckpt]
+    missing = [
+        k
+        for k in ("model", "input_spec", "config", "counters")
+        if not isinstance(ckpt, dict) or k not in ckpt
+    ]
     if missing:
-        raise UsageError(f"{path} is not a checkpoint of {TRAINER} (it has no "
-                         f"{', '.join(missing)})")
+        raise UsageError(
+            f"{path} is not a checkpoint of {TRAINER} (it has no {', '.join(missing)})"
+        )
     return ckpt
 
 
@@ -198,8 +222,10 @@ def observed(config: dict, spec) -> tuple[list[str], bool]:
     (runs made before config.json recorded them)."""
     keys = config.get("observations")
     privileged = config.get("privileged")
-    return (list(spec.keys) if keys is None else list(keys),
-            bool(spec.privileged if privileged is None else privileged))
+    return (
+        list(spec.keys) if keys is None else list(keys),
+        bool(spec.privileged if privileged is None else privileged),
+    )
 
 
 def _build(config: TrainConfig, run: RunDir):
@@ -211,16 +237,28 @@ def _build(config: TrainConfig, run: RunDir):
     from hier_agents.baselines.impala.network import ImpalaNet
 
     # The input spec comes from one environment built here (closed at once).
-    probe = AgentEnv(config.env, config.condition, seed=config.seed, cameras=config.cameras,
-                     image_size=config.image_size, state=config.state, t_abs=config.t_abs,
-                     abs_reward=config.abs_reward, **config.env_overrides)
+    probe = AgentEnv(
+        config.env,
+        config.condition,
+        seed=config.seed,
+        cameras=config.cameras,
+        image_size=config.image_size,
+        state=config.state,
+        t_abs=config.t_abs,
+        abs_reward=config.abs_reward,
+        **config.env_overrides,
+    )
     spec = probe.input_spec
     probe.close()
     run.record(observations=list(spec.keys), privileged=spec.privileged)
     net = ImpalaNet(spec, two_values=config.condition != "vanilla")
-    optimizer = torch.optim.RMSprop(net.parameters(), lr=config.learning_rate,
-                                    alpha=config.rmsprop_alpha, eps=config.rmsprop_eps,
-                                    momentum=config.rmsprop_momentum)
+    optimizer = torch.optim.RMSprop(
+        net.parameters(),
+        lr=config.learning_rate,
+        alpha=config.rmsprop_alpha,
+        eps=config.rmsprop_eps,
+        momentum=config.rmsprop_momentum,
+    )
     counters = {"frames": 0, "updates": 0, "episodes": 0, "wall_s": 0.0, "cpu_s": 0.0}
     recent: deque = deque(maxlen=100)
     ckpt = run.load()
@@ -229,14 +267,24 @@ def _build(config: TrainConfig, run: RunDir):
         optimizer.load_state_dict(ckpt["optimizer"])
         counters.update(ckpt["counters"])
         recent.extend(ckpt["counters"].get("recent_episodes", []))
-        print(f"resuming {run.checkpoint_path} at {plural(counters['frames'], 'frame')}, "
-              f"{plural(counters['updates'], 'update')}", file=sys.stderr)
+        print(
+            f"resuming {run.checkpoint_path} at {plural(counters['frames'], 'frame')}, "
+            f"{plural(counters['updates'], 'update')}",
+            file=sys.stderr,
+        )
     counters.pop("recent_episodes", None)
     return net, optimizer, spec, counters, recent
 
 
-def _gather(actors, pending: list, batch_size: int, counters: dict, recent: deque,
-            run: RunDir, actor_cpu: dict) -> None:
+def _gather(
+    actors,
+    pending: list,
+    batch_size: int,
+    counters: dict,
+    recent: deque,
+    run: RunDir,
+    actor_cpu: dict,
+) -> None:
     """Takes unrolls (and their finished episodes) until ``batch_size`` are
     pending or a stop; ``actor_cpu`` keeps each actor's CPU seconds (`_note_cpu`)."""
     while len(pending) < batch_size and not run.stop_requested:
@@ -245,10 +293,14 @@ def _gather(actors, pending: list, batch_size: int, counters: dict, recent: dequ
             _note_cpu(actor_cpu, u["stream"][0], float(u.pop("cpu_s", 0.0)))
             for ep in u.pop("episodes"):
                 counters["episodes"] += 1
-                recent.append({"return": float(ep.get("episode_return", 0.0)),
-                               "success": float(bool(ep.get("success", False))),
-                               "steps": int(ep.get("episode_steps", 0)),
-                               "subgoals": int(ep.get("subgoals_reached", 0))})
+                recent.append(
+                    {
+                        "return": float(ep.get("episode_return", 0.0)),
+                        "success": float(bool(ep.get("success", False))),
+                        "steps": int(ep.get("episode_steps", 0)),
+                        "subgoals": int(ep.get("subgoals_reached", 0)),
+                    }
+                )
             pending.append(u)
 
 
@@ -262,13 +314,23 @@ def _note_cpu(actor_cpu: dict, actor: int, seconds: float) -> None:
 
 def _scalars(stats: dict, counters: dict, recent: deque, fps: float, lags: list) -> dict:
     scalars = {"frames": counters["frames"], **{f"loss/{k}": float(v) for k, v in stats.items()}}
-    scalars.update({"perf/frames_per_s": fps, "perf/updates": counters["updates"],
-                    "perf/policy_lag": float(np.mean(lags)) if lags else 0.0,
-                    "episodes/count": counters["episodes"], "wall_s": counters["wall_s"],
-                    "cpu_s": counters["cpu_s"]})
+    scalars.update(
+        {
+            "perf/frames_per_s": fps,
+            "perf/updates": counters["updates"],
+            "perf/policy_lag": float(np.mean(lags)) if lags else 0.0,
+            "episodes/count": counters["episodes"],
+            "wall_s": counters["wall_s"],
+            "cpu_s": counters["cpu_s"],
+        }
+    )
     if recent:
-        for key, name in (("success", "success_rate"), ("return", "return"), ("steps", "steps"),
-                          ("subgoals", "subgoals_reached")):
+        for key, name in (
+            ("success", "success_rate"),
+            ("return", "return"),
+            ("steps", "steps"),
+            ("subgoals", "subgoals_reached"),
+        ):
             scalars[f"episodes/{name}"] = float(np.mean([e.get(key, 0) for e in recent]))
     return scalars
 
@@ -284,16 +346,19 @@ def train(config: TrainConfig) -> dict:
 
     config.validate()
     batch_size = config.resolved_batch()
-    run = RunDir(config.logdir, dataclasses.asdict(config), resume=None, fixed=FIXED,
-                 trainer=TRAINER)
+    run = RunDir(
+        config.logdir, dataclasses.asdict(config), resume=None, fixed=FIXED, trainer=TRAINER
+    )
     torch.manual_seed(config.seed)
     torch.set_num_threads(1)
     try:
         net, optimizer, spec, counters, recent = _build(config, run)
         if counters["frames"] >= config.steps:
-            print(f"{run.checkpoint_path} already has {plural(counters['frames'], 'frame')}, "
-                  f"the budget is {plural(config.steps, 'frame')}: nothing to train",
-                  file=sys.stderr)
+            print(
+                f"{run.checkpoint_path} already has {plural(counters['frames'], 'frame')}, "
+                f"the budget is {plural(config.steps, 'frame')}: nothing to train",
+                file=sys.stderr,
+            )
             return counters
         return _loop(config, run, net, optimizer, spec, counters, recent, batch_size)
     finally:
@@ -317,8 +382,7 @@ class _Training:
     this one's, and each actor's, reported with its unrolls), when it last
     logged and saved."""
 
-    def __init__(self, config: TrainConfig, run: RunDir, net, optimizer, spec, counters,
-                 recent):
+    def __init__(self, config: TrainConfig, run: RunDir, net, optimizer, spec, counters, recent):
         self.config, self.run, self.net, self.optimizer = config, run, net, optimizer
         self.spec, self.counters, self.recent = spec, counters, recent
         self.save_at = sorted({int(b) for b in config.save_at})
@@ -343,11 +407,9 @@ class _Training:
         """One learner step on the first ``take`` pending unrolls; returns the frames."""
         batch_unrolls, self.pending = self.pending[:take], self.pending[take:]
         # Updates between the weights an unroll was acted with and now.
-        self.lags.extend(self.published - int(u.get("policy_version", 0))
-                         for u in batch_unrolls)
+        self.lags.extend(self.published - int(u.get("policy_version", 0)) for u in batch_unrolls)
         batch = make_batch(batch_unrolls, self.net, self.value_states)
-        self.stats = learner_step(self.net, self.optimizer, batch, self.config,
-                                  self.value_states)
+        self.stats = learner_step(self.net, self.optimizer, batch, self.config, self.value_states)
         self.published += 1
         self.counters["updates"] += 1
         new_frames = self.config.unroll_length * len(batch_unrolls)
@@ -359,8 +421,11 @@ class _Training:
         """Brings ``wall_s`` and ``cpu_s`` up to now."""
         counters = self.counters
         counters["wall_s"] = self.wall0 + (time.perf_counter() - self.start)
-        counters["cpu_s"] = (self.cpu0 + (time.process_time() - self.process0)
-                             + sum(a + b for a, b in self.actor_cpu.values()))
+        counters["cpu_s"] = (
+            self.cpu0
+            + (time.process_time() - self.process0)
+            + sum(a + b for a, b in self.actor_cpu.values())
+        )
 
     def log_and_save(self) -> None:
         """A scalars row every ``log_every_s`` and at the end; a kept
@@ -368,8 +433,9 @@ class _Training:
         now, counters, config = time.perf_counter(), self.counters, self.config
         if now - self.last_log >= config.log_every_s or counters["frames"] >= config.steps:
             fps = (counters["frames"] - self.frames_at_log) / max(now - self.last_log, 1e-9)
-            self.run.log(counters["frames"], _scalars(self.stats, counters, self.recent, fps,
-                                                      self.lags))
+            self.run.log(
+                counters["frames"], _scalars(self.stats, counters, self.recent, fps, self.lags)
+            )
             self.last_log, self.frames_at_log, self.lags = now, counters["frames"], []
         if counters["frames"] in self.save_at and counters["frames"] < config.steps:
             self.save(keep=True)
@@ -381,11 +447,16 @@ class _Training:
     def save(self, keep: bool) -> None:
         """Saves the checkpoint (``keep``: also as ``frames-N.pt``)."""
         counters = self.counters
-        self.run.save({"format": 1, "model": self.net.state_dict(),
-                       "optimizer": self.optimizer.state_dict(),
-                       "counters": dict(counters, recent_episodes=list(self.recent)),
-                       "input_spec": dataclasses.asdict(self.spec)},
-                      keep=f"frames-{int(counters['frames'])}" if keep else None)
+        self.run.save(
+            {
+                "format": 1,
+                "model": self.net.state_dict(),
+                "optimizer": self.optimizer.state_dict(),
+                "counters": dict(counters, recent_episodes=list(self.recent)),
+                "input_spec": dataclasses.asdict(self.spec),
+            },
+            keep=f"frames-{int(counters['frames'])}" if keep else None,
+        )
 
 
 def _loop(config, run: RunDir, net, optimizer, spec, counters, recent, batch_size) -> dict:
@@ -393,8 +464,13 @@ def _loop(config, run: RunDir, net, optimizer, spec, counters, recent, batch_siz
     stop; the checkpoint is saved however the loop ends."""
     actors = _start_actors(config, net, counters)
     state = _Training(config, run, net, optimizer, spec, counters, recent)
-    bar = run.progress(config.steps, counters["frames"], desc=f"{config.env} {config.condition}",
-                       unit="frame", disable=not config.progress)
+    bar = run.progress(
+        config.steps,
+        counters["frames"],
+        desc=f"{config.env} {config.condition}",
+        unit="frame",
+        disable=not config.progress,
+    )
     with run.interruptible():
         try:
             while counters["frames"] < config.steps and not run.stop_requested:
@@ -405,9 +481,11 @@ def _loop(config, run: RunDir, net, optimizer, spec, counters, recent, batch_siz
                 bar.update(state.update(take))
                 actors.publish(net)
                 if recent:
-                    bar.set_postfix(success=f"{np.mean([e['success'] for e in recent]):.2f}",
-                                    ret=f"{np.mean([e['return'] for e in recent]):.2f}",
-                                    refresh=False)
+                    bar.set_postfix(
+                        success=f"{np.mean([e['success'] for e in recent]):.2f}",
+                        ret=f"{np.mean([e['return'] for e in recent]):.2f}",
+                        refresh=False,
+                    )
                 state.log_and_save()
         finally:
             bar.close()
@@ -415,8 +493,11 @@ def _loop(config, run: RunDir, net, optimizer, spec, counters, recent, batch_siz
             state.clock()
             state.save(keep=config.keep_checkpoints or counters["frames"] in state.save_at)
     if run.stop_requested:
-        print(f"interrupted: checkpoint saved at {plural(counters['frames'], 'frame')}; run "
-              f"the same command to resume", file=sys.stderr)
+        print(
+            f"interrupted: checkpoint saved at {plural(counters['frames'], 'frame')}; run "
+            f"the same command to resume",
+            file=sys.stderr,
+        )
     if recent:
         counters["success_rate_last_100"] = float(np.mean([e["success"] for e in recent]))
         counters["return_last_100"] = float(np.mean([e["return"] for e in recent]))

@@ -55,10 +55,15 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
-from hier_agents.baselines.impala.network_parts import (ENCODING_SIZE,  # noqa: F401
-                                                        PLANNER_CHANNELS, ImageEncoder,
-                                                        LSTMCore, PlannerEncoder, ResidualBlock,
-                                                        ResNetGroup)
+from hier_agents.baselines.impala.network_parts import (
+    ENCODING_SIZE,  # noqa: F401
+    PLANNER_CHANNELS,  # noqa: F401
+    ImageEncoder,
+    LSTMCore,
+    PlannerEncoder,
+    ResidualBlock,  # noqa: F401
+    ResNetGroup,  # noqa: F401
+)
 
 if TYPE_CHECKING:  # the network needs only the spec's fields, not its module
     from hier_agents.baselines.impala.agent_env import InputSpec
@@ -122,7 +127,8 @@ class ImpalaNet(nn.Module):
         size = 0
         self.cameras = [(name, _module_key(name)) for name, _ in spec.images]
         self.image_encoders = nn.ModuleDict(
-            {_module_key(name): ImageEncoder(tuple(shape)) for name, shape in spec.images})
+            {_module_key(name): ImageEncoder(tuple(shape)) for name, shape in spec.images}
+        )
         size += ENCODING_SIZE * len(self.cameras)
         self.proprio_encoder = None
         if spec.proprio_dim > 0:
@@ -178,9 +184,16 @@ class ImpalaNet(nn.Module):
             parts.append(self.state_encoder(planes.reshape(n, *planes.shape[-3:])))
         return parts[0] if len(parts) == 1 else torch.cat(parts, dim=1)
 
-    def forward(self, obs: dict[str, torch.Tensor], first: torch.Tensor,
-                state: tuple[torch.Tensor, ...] | None = None, *, with_value: bool = True,
-                value_state_after: int | None = None, value_chain=None):
+    def forward(
+        self,
+        obs: dict[str, torch.Tensor],
+        first: torch.Tensor,
+        state: tuple[torch.Tensor, ...] | None = None,
+        *,
+        with_value: bool = True,
+        value_state_after: int | None = None,
+        value_chain=None,
+    ):
         """Runs ``T`` steps for ``B`` columns.
 
         ``obs``: dict of ``[T, B, ...]`` tensors (keys as in `InputSpec`);
@@ -211,18 +224,21 @@ class ImpalaNet(nn.Module):
         if not with_value:
             return NetOutput(mean, std, None, None), (state[0], state[1], hp, cp)
         if value_chain is None or all(int(i) < 0 for i in value_chain):
-            v_out, (hv, cv) = self.value_core(x, first, (state[0], state[1]),
-                                              keep_state_after=value_state_after)
+            v_out, (hv, cv) = self.value_core(
+                x, first, (state[0], state[1]), keep_state_after=value_state_after
+            )
         else:
-            v_out, (hv, cv) = self._chained_value_core(x, first, state, value_state_after,
-                                                       [int(i) for i in value_chain])
+            v_out, (hv, cv) = self._chained_value_core(
+                x, first, state, value_state_after, [int(i) for i in value_chain]
+            )
         value_env = self.value_env_head(v_out).squeeze(-1)
-        abs_head = self.value_abs_head      # None unless two_values
+        abs_head = self.value_abs_head  # None unless two_values
         value_abs = abs_head(v_out).squeeze(-1) if abs_head is not None else None
         return NetOutput(mean, std, value_env, value_abs), (hv, cv, hp, cp)
 
-    def _chained_value_core(self, x, first, state, after, chain
-                            ) -> tuple[torch.Tensor, tuple[torch.Tensor, torch.Tensor]]:
+    def _chained_value_core(
+        self, x, first, state, after, chain
+    ) -> tuple[torch.Tensor, tuple[torch.Tensor, torch.Tensor]]:
         if after is None:
             raise ValueError("value_chain needs value_state_after")
         B = x.shape[1]
@@ -240,20 +256,26 @@ class ImpalaNet(nn.Module):
         for d in range(max(depth) + 1):
             cols = [j for j in range(B) if depth[j] == d]
             # Chained states are detached: each unroll is its own truncated-BPTT window.
-            h0 = torch.stack([state[0][j] if chain[j] < 0 else hs[chain[j]].detach()
-                              for j in cols])
-            c0 = torch.stack([state[1][j] if chain[j] < 0 else cs[chain[j]].detach()
-                              for j in cols])
-            out, (h, c) = self.value_core(x[:, cols], first[:, cols], (h0, c0),
-                                          keep_state_after=after)
+            h0 = torch.stack([state[0][j] if chain[j] < 0 else hs[chain[j]].detach() for j in cols])
+            c0 = torch.stack([state[1][j] if chain[j] < 0 else cs[chain[j]].detach() for j in cols])
+            out, (h, c) = self.value_core(
+                x[:, cols], first[:, cols], (h0, c0), keep_state_after=after
+            )
             for n, j in enumerate(cols):
                 outs[j], hs[j], cs[j] = out[:, n], h[n], c[n]
         return torch.stack(outs, dim=1), (torch.stack(hs), torch.stack(cs))
 
     @torch.no_grad()
-    def act(self, obs: dict, first, state: tuple[torch.Tensor, ...], *,
-            deterministic: bool = False, generator: torch.Generator | None = None,
-            policy_only: bool = False):
+    def act(
+        self,
+        obs: dict,
+        first,
+        state: tuple[torch.Tensor, ...],
+        *,
+        deterministic: bool = False,
+        generator: torch.Generator | None = None,
+        policy_only: bool = False,
+    ):
         """One step for ``B`` environments, for actors and evaluation (no gradients).
 
         ``obs``: dict of numpy arrays or tensors with leading batch ``B``;
@@ -265,20 +287,25 @@ class ImpalaNet(nn.Module):
         the value core (its state is passed through unchanged).
         """
         device = self.mean_head.weight.device
-        batch = {k: torch.as_tensor(_writable(v), device=device).unsqueeze(0)
-                 for k, v in obs.items()}
+        batch = {
+            k: torch.as_tensor(_writable(v), device=device).unsqueeze(0) for k, v in obs.items()
+        }
         first_t = torch.as_tensor(np.asarray(first), dtype=torch.bool, device=device).view(1, -1)
         out, new_state = self.forward(batch, first_t, state, with_value=not policy_only)
         mean, std = out.mean[0], out.std[0]
         if deterministic:
             actions = mean
         else:
-            noise = torch.randn(mean.shape, generator=generator, dtype=mean.dtype,
-                                device=mean.device)
+            noise = torch.randn(
+                mean.shape, generator=generator, dtype=mean.dtype, device=mean.device
+            )
             actions = mean + std * noise
         log_probs = gaussian_log_prob(mean, std, actions)
-        return (actions.cpu().numpy().astype(np.float32, copy=False),
-                log_probs.cpu().numpy().astype(np.float32, copy=False), new_state)
+        return (
+            actions.cpu().numpy().astype(np.float32, copy=False),
+            log_probs.cpu().numpy().astype(np.float32, copy=False),
+            new_state,
+        )
 
 
 # -- Gaussian helpers -------------------------------------------------------------------------

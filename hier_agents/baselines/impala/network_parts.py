@@ -16,8 +16,15 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
-__all__ = ["ENCODING_SIZE", "PLANNER_CHANNELS", "ResidualBlock", "ResNetGroup", "ImageEncoder",
-           "PlannerEncoder", "LSTMCore"]
+__all__ = [
+    "ENCODING_SIZE",
+    "PLANNER_CHANNELS",
+    "ResidualBlock",
+    "ResNetGroup",
+    "ImageEncoder",
+    "PlannerEncoder",
+    "LSTMCore",
+]
 
 #: Size of each input's encoding (before the cores).
 ENCODING_SIZE = 256
@@ -76,8 +83,9 @@ class ImageEncoder(nn.Module):
     #: Images per recomputed chunk of a training batch.
     CHUNK = 512
 
-    def __init__(self, image_shape: Sequence[int], channels=(16, 32, 32),
-                 out_size: int = ENCODING_SIZE):
+    def __init__(
+        self, image_shape: Sequence[int], channels=(16, 32, 32), out_size: int = ENCODING_SIZE
+    ):
         super().__init__()
         groups, c_in = [], int(image_shape[0])
         for c_out in channels:
@@ -93,9 +101,13 @@ class ImageEncoder(nn.Module):
         n = images.shape[0]
         if torch.is_grad_enabled() and n > self.CHUNK:
             from torch.utils.checkpoint import checkpoint
-            return torch.cat([checkpoint(self._encode, images[i:i + self.CHUNK],
-                                         use_reentrant=False)
-                              for i in range(0, n, self.CHUNK)])
+
+            return torch.cat(
+                [
+                    checkpoint(self._encode, images[i : i + self.CHUNK], use_reentrant=False)
+                    for i in range(0, n, self.CHUNK)
+                ]
+            )
         return self._encode(images)
 
     def _encode(self, images: torch.Tensor) -> torch.Tensor:
@@ -202,8 +214,14 @@ class LSTMCore(nn.Module):
         for p in (self.input_proj.weight, self.input_proj.bias, self.weight_hh):
             nn.init.uniform_(p, -bound, bound)
 
-    def forward(self, x: torch.Tensor, first: torch.Tensor,
-                state: tuple[torch.Tensor, torch.Tensor], *, keep_state_after: int | None = None):
+    def forward(
+        self,
+        x: torch.Tensor,
+        first: torch.Tensor,
+        state: tuple[torch.Tensor, torch.Tensor],
+        *,
+        keep_state_after: int | None = None,
+    ):
         """See the class docstring. With ``keep_state_after=k`` the returned
         state is the one after step ``k`` (not after the last step)."""
         T, B = x.shape[:2]
@@ -221,9 +239,9 @@ class LSTMCore(nn.Module):
             h = h * keep[t]
             c = c * keep[t]
             gates = torch.addmm(steps[t], h, w_hh)
-            sig = torch.sigmoid(gates[:, :3 * H])
-            i, f, o = sig[:, :H], sig[:, H:2 * H], sig[:, 2 * H:]
-            c = f * c + i * torch.tanh(gates[:, 3 * H:])
+            sig = torch.sigmoid(gates[:, : 3 * H])
+            i, f, o = sig[:, :H], sig[:, H : 2 * H], sig[:, 2 * H :]
+            c = f * c + i * torch.tanh(gates[:, 3 * H :])
             h = o * torch.tanh(c)
             outs.append(h)
             if t == keep_state_after:

@@ -44,9 +44,17 @@ def _clip(rhos: torch.Tensor, bound: float | None) -> torch.Tensor:
 
 
 @torch.no_grad()
-def vtrace(log_rhos: torch.Tensor, discounts: torch.Tensor, rewards: torch.Tensor,
-           values: torch.Tensor, bootstrap_value: torch.Tensor, *, clip_rho: float | None = 1.0,
-           clip_pg_rho: float | None = 1.0, clip_c: float | None = 1.0) -> VTrace:
+def vtrace(
+    log_rhos: torch.Tensor,
+    discounts: torch.Tensor,
+    rewards: torch.Tensor,
+    values: torch.Tensor,
+    bootstrap_value: torch.Tensor,
+    *,
+    clip_rho: float | None = 1.0,
+    clip_pg_rho: float | None = 1.0,
+    clip_c: float | None = 1.0,
+) -> VTrace:
     """V-trace targets and policy-gradient advantages (no gradients flow).
 
     ``log_rhos``: ``log pi(a_t|x_t) - log mu(a_t|x_t)``; ``discounts``:
@@ -55,8 +63,9 @@ def vtrace(log_rhos: torch.Tensor, discounts: torch.Tensor, rewards: torch.Tenso
     A clip of None means no truncation.
     """
     log_rhos, discounts, rewards, values, bootstrap_value = (
-        x.detach().to(torch.float32) for x in (log_rhos, discounts, rewards, values,
-                                               bootstrap_value))
+        x.detach().to(torch.float32)
+        for x in (log_rhos, discounts, rewards, values, bootstrap_value)
+    )
     rhos = torch.exp(log_rhos)
     clipped_rhos = _clip(rhos, clip_rho)
     cs = _clip(rhos, clip_c)
@@ -77,12 +86,22 @@ def vtrace(log_rhos: torch.Tensor, discounts: torch.Tensor, rewards: torch.Tenso
     return VTrace(vs, pg_advantages)
 
 
-def impala_loss(out, bootstrap, actions: torch.Tensor, behaviour_log_probs: torch.Tensor,
-                rewards_env: torch.Tensor, discounts_env: torch.Tensor,
-                rewards_abs: torch.Tensor | None = None,
-                discounts_abs: torch.Tensor | None = None, *, baseline_cost: float = 0.5,
-                entropy_cost: float = 1e-3, clip_rho: float | None = 1.0,
-                clip_pg_rho: float | None = 1.0, clip_c: float | None = 1.0):
+def impala_loss(
+    out,
+    bootstrap,
+    actions: torch.Tensor,
+    behaviour_log_probs: torch.Tensor,
+    rewards_env: torch.Tensor,
+    discounts_env: torch.Tensor,
+    rewards_abs: torch.Tensor | None = None,
+    discounts_abs: torch.Tensor | None = None,
+    *,
+    baseline_cost: float = 0.5,
+    entropy_cost: float = 1e-3,
+    clip_rho: float | None = 1.0,
+    clip_pg_rho: float | None = 1.0,
+    clip_c: float | None = 1.0,
+):
     """The IMPALA actor-critic loss for one unroll batch; returns ``(loss, stats)``.
 
     ``out``: `NetOutput` for the ``T`` steps (``mean``, ``std`` ``[T, B, A]``,
@@ -135,15 +154,18 @@ def impala_loss(out, bootstrap, actions: torch.Tensor, behaviour_log_probs: torc
     loss = pg_loss + baseline_loss + entropy_loss
 
     rhos = torch.exp(log_rhos)
-    stats.update({
-        "loss": float(loss.detach()),
-        "pg_loss": float(pg_loss.detach()),
-        "baseline_loss": float(baseline_loss.detach()),
-        "entropy_loss": float(entropy_loss.detach()),
-        "entropy": float(entropy.detach()),
-        "std": float(out.std.detach().mean()),
-        "rho": float(rhos.mean()),
-        "rho_clipped_fraction": float((rhos > (clip_rho if clip_rho is not None
-                                               else float("inf"))).float().mean()),
-    })
+    stats.update(
+        {
+            "loss": float(loss.detach()),
+            "pg_loss": float(pg_loss.detach()),
+            "baseline_loss": float(baseline_loss.detach()),
+            "entropy_loss": float(entropy_loss.detach()),
+            "entropy": float(entropy.detach()),
+            "std": float(out.std.detach().mean()),
+            "rho": float(rhos.mean()),
+            "rho_clipped_fraction": float(
+                (rhos > (clip_rho if clip_rho is not None else float("inf"))).float().mean()
+            ),
+        }
+    )
     return loss, stats

@@ -37,8 +37,14 @@ if TYPE_CHECKING:
 
     from skills.arm import ArmTouchSkill
 
-__all__ = ["ARM_SPEC", "ArmSceneSource", "TRAIN_SOURCES", "SOURCE_WEIGHTS",
-           "HELDOUT_SEED_OFFSET", "make_arm_skill"]
+__all__ = [
+    "ARM_SPEC",
+    "ArmSceneSource",
+    "TRAIN_SOURCES",
+    "SOURCE_WEIGHTS",
+    "HELDOUT_SEED_OFFSET",
+    "make_arm_skill",
+]
 
 #: The games options start in, and how often each is picked.
 TRAIN_SOURCES = ("mujoxo/optimal", "mujoxo/mixture", "mujogo/7x7")
@@ -76,6 +82,7 @@ class _Game:
         import envs
         from hier_agents.estimators import BoardEstimator
         from hier_agents.modular.components import PLANNERS, family
+
         if estimator != "board":
             raise ValueError(f"the arm skill's scenes use the 'board' estimator, got {estimator!r}")
         self.name = name
@@ -107,14 +114,23 @@ class ArmSceneSource:
       p_pass: Go: probability of the pass as the subgoal.
     """
 
-    def __init__(self, seed: int = 0, estimator: str = "board", *, sources=TRAIN_SOURCES,
-                 weights=SOURCE_WEIGHTS, max_skip: int = 2, p_planner: float = 0.5,
-                 p_pass: float = 0.04):
+    def __init__(
+        self,
+        seed: int = 0,
+        estimator: str = "board",
+        *,
+        sources=TRAIN_SOURCES,
+        weights=SOURCE_WEIGHTS,
+        max_skip: int = 2,
+        p_planner: float = 0.5,
+        p_pass: float = 0.04,
+    ):
         self.seed = int(seed)
         self.estimator_name = estimator
         self.sources = tuple(sources)
-        weights = np.asarray(weights if len(weights) == len(self.sources)
-                             else np.ones(len(self.sources)), float)
+        weights = np.asarray(
+            weights if len(weights) == len(self.sources) else np.ones(len(self.sources)), float
+        )
         self.weights = weights / weights.sum()
         self.max_skip, self.p_planner, self.p_pass = int(max_skip), float(p_planner), float(p_pass)
         self.sim_steps = 0
@@ -129,8 +145,11 @@ class ArmSceneSource:
         name = self.sources[int(rng.choice(len(self.sources), p=self.weights))]
         game = self._game(name)
         fresh = False
-        if self._current is game and self._recorder is not None \
-                and self._recorder.timestep is not None:
+        if (
+            self._current is game
+            and self._recorder is not None
+            and self._recorder.timestep is not None
+        ):
             game.timestep = self._recorder.timestep  # where the last option left it
         if game.reset_pending or game.timestep is None or game.timestep.last():
             self._new_game(game, rng)
@@ -147,15 +166,25 @@ class ArmSceneSource:
             return None
         self._current = game
         self._recorder = _Recorder(game.env, self)
-        return OptionStart(env=self._recorder, estimator=game.estimator,
-                           description=game.description, timestep=game.timestep, scene=scene,
-                           subgoal=subgoal, source=name, fresh=fresh)
+        return OptionStart(
+            env=self._recorder,
+            estimator=game.estimator,
+            description=game.description,
+            timestep=game.timestep,
+            scene=scene,
+            subgoal=subgoal,
+            source=name,
+            fresh=fresh,
+        )
 
     def end(self, succeeded_or_cut_off: bool) -> None:
         # The game goes on from the option's last timestep either way (a
         # failed touch may have played another move; the game record says).
-        if self._current is not None and self._recorder is not None \
-                and self._recorder.timestep is not None:
+        if (
+            self._current is not None
+            and self._recorder is not None
+            and self._recorder.timestep is not None
+        ):
             self._current.timestep = self._recorder.timestep
 
     def close(self) -> None:
@@ -175,6 +204,7 @@ class ArmSceneSource:
     def _new_game(self, game: _Game, rng) -> None:
         from skills.arm import ArmTouchSkill
         from skills.base import Status
+
         game.reset_pending = False
         game.timestep = game.env.reset()
         game.estimator.reset(game.description, game.timestep)
@@ -190,8 +220,7 @@ class ArmSceneSource:
                 return
             skill.reset(game.description, game.planner.plan(scene.state), scene)
             steps = 0
-            while skill.status is Status.RUNNING and steps < _FF_STEPS \
-                    and not game.timestep.last():
+            while skill.status is Status.RUNNING and steps < _FF_STEPS and not game.timestep.last():
                 action = skill.act(game.timestep, scene)
                 if skill.status is not Status.RUNNING:
                     break
@@ -202,12 +231,16 @@ class ArmSceneSource:
 
     def _subgoal(self, game: _Game, scene, rng):
         from abstract_planners.base import Subgoal
+
         state = scene.state
         legal = [int(a) for a in state.legal_actions()]
         pass_action = game.description.pass_action
         points = [a for a in legal if a != pass_action]
-        can_pass = pass_action is not None and pass_action in legal and not (
-            len(scene.moves) >= 2 and scene.moves[-2] == pass_action)
+        can_pass = (
+            pass_action is not None
+            and pass_action in legal
+            and not (len(scene.moves) >= 2 and scene.moves[-2] == pass_action)
+        )
         if not points and not can_pass:
             return None
         if can_pass and (rng.random() < self.p_pass or not points):
@@ -228,6 +261,7 @@ def make_arm_skill(policy=None):
     """The learned arm skill for training: record-only for ``policy=None``;
     otherwise driven by ``policy`` with teacher labels on (for DAgger)."""
     from skills.learned.arm import LearnedArmSkill
+
     if policy is None:
         return LearnedArmSkill(record_only=True)
     return LearnedArmSkill(policy, labels=True)

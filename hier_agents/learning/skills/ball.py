@@ -51,14 +51,22 @@ from skills.learned.ball import POLICY_PATH
 if TYPE_CHECKING:
     from dm_env import TimeStep
 
-__all__ = ["BALL_SPEC", "BallSceneSource", "TRAIN_SOURCES", "HELDOUT_SOURCES",
-           "make_source_env", "TRAIN_T_ABS"]
+__all__ = [
+    "BALL_SPEC",
+    "BallSceneSource",
+    "TRAIN_SOURCES",
+    "HELDOUT_SOURCES",
+    "make_source_env",
+    "TRAIN_T_ABS",
+]
 
 #: The default training mixture: generated L1-L5 with and without pegs and
 #: the shipped Boxoban files (with and without pegs).
 TRAIN_SOURCES = tuple(f"mujoban/level{d}{p}" for d in range(1, 6) for p in ("", "-pegs")) + (
-    "boxoban/unfiltered-valid-000", "boxoban/unfiltered-valid-000-pegs",
-    "boxoban/medium-valid-000-pegs")
+    "boxoban/unfiltered-valid-000",
+    "boxoban/unfiltered-valid-000-pegs",
+    "boxoban/medium-valid-000-pegs",
+)
 #: Held-out evaluation: level-5 with pegs (other seeds than training).
 HELDOUT_SOURCES = ("mujoban/level5-pegs",)
 #: The training cut-off of a ball option (control steps; module docstring).
@@ -71,9 +79,10 @@ def make_source_env(source: str, seed: int, estimator: str = "oracle"):
     import envs
     from envs.mujoban.levels import BOXOBAN_DIR
     from hier_agents.modular.components import env_overrides
+
     cameras = env_overrides("mujoban/level1", estimator)
     if source.startswith("boxoban/"):
-        stem = source[len("boxoban/"):]
+        stem = source[len("boxoban/") :]
         pegs = stem.endswith("-pegs")
         stem = stem[: -len("-pegs")] if pegs else stem
         path = BOXOBAN_DIR / f"{stem}.txt"
@@ -106,6 +115,7 @@ class _Level:
     def __init__(self, name: str, seed: int, estimator: str, owner: "BallSceneSource"):
         from abstract_planners.sokoban_solver import SokobanSolverPlanner
         from hier_agents.modular.components import ESTIMATORS
+
         self.name = name
         self.env = make_source_env(name, seed, estimator)
         self.description = self.env.description()
@@ -118,9 +128,18 @@ class _Level:
 class BallSceneSource:
     """Option starts for the ball skill (module docstring); a `SceneSource`."""
 
-    def __init__(self, seed: int, estimator: str = "oracle", *, sources=TRAIN_SOURCES,
-                 t_abs: int = TRAIN_T_ABS, max_skip: int = 6, p_continue: float = 0.7):
+    def __init__(
+        self,
+        seed: int,
+        estimator: str = "oracle",
+        *,
+        sources=TRAIN_SOURCES,
+        t_abs: int = TRAIN_T_ABS,
+        max_skip: int = 6,
+        p_continue: float = 0.7,
+    ):
         from skills.ball import BallSkill
+
         self.sources = tuple(sources)
         self.estimator = estimator
         self.t_abs, self.max_skip, self.p_continue = int(t_abs), int(max_skip), float(p_continue)
@@ -134,12 +153,13 @@ class BallSceneSource:
     def _get(self, name: str) -> _Level:
         level = self._levels.get(name)
         if level is None:
-            seed = int(self._seed_rng.integers(2 ** 31))
+            seed = int(self._seed_rng.integers(2**31))
             level = self._levels[name] = _Level(name, seed, self.estimator, self)
         return level
 
     def _estimate(self, level: _Level):
         from hier_agents.estimators.base import EstimationError
+
         try:
             return level.estimator.estimate(level.timestep)
         except EstimationError:
@@ -148,25 +168,34 @@ class BallSceneSource:
     def _skip(self, level: _Level, n: int) -> bool:
         """Runs the scripted agent for ``n`` subgoals; False if the level ended."""
         from hier_agents.modular.options import run_option
+
         assert level.timestep is not None  # start() reset the level
         for _ in range(n):
             scene = self._estimate(level)
             if scene is None or level.timestep.last() or scene.state.is_solved():
                 return scene is not None and not level.timestep.last()
             subgoal = level.planner.next_push(scene.state)
-            run_option(level.counted, level.estimator, self._scripted, subgoal,
-                       level.timestep, adapter=FAMILIES["mujoban"], scene=scene)
+            run_option(
+                level.counted,
+                level.estimator,
+                self._scripted,
+                subgoal,
+                level.timestep,
+                adapter=FAMILIES["mujoban"],
+                scene=scene,
+            )
             if level.timestep.last():
                 return False
         return True
 
     def start(self, rng: np.random.Generator) -> OptionStart | None:
         from abstract_planners.base import NoPlanError
+
         if not (self._alive and rng.random() < self.p_continue):
             level = self._level = self._get(self.sources[int(rng.integers(len(self.sources)))])
             level.timestep = level.env.reset()
             level.estimator.reset(level.description, level.timestep)
-            level.planner.reset(int(rng.integers(2 ** 31)))
+            level.planner.reset(int(rng.integers(2**31)))
             skip, fresh = int(rng.integers(self.max_skip + 1)), True
         else:
             assert self._level is not None  # alive: the last option's level goes on
@@ -180,14 +209,26 @@ class BallSceneSource:
                 return None
             scene = self._estimate(level)
             time_left = level.description.time_limit_steps - level.env.step_count
-            if scene is None or level.timestep.last() or scene.state.is_solved() \
-                    or time_left < self.t_abs:
+            if (
+                scene is None
+                or level.timestep.last()
+                or scene.state.is_solved()
+                or time_left < self.t_abs
+            ):
                 return None
             subgoal = level.planner.next_push(scene.state)
         except NoPlanError:
             return None
-        return OptionStart(level.counted, level.estimator, level.description, level.timestep,
-                           scene, subgoal, source=level.name, fresh=fresh)
+        return OptionStart(
+            level.counted,
+            level.estimator,
+            level.description,
+            level.timestep,
+            scene,
+            subgoal,
+            source=level.name,
+            fresh=fresh,
+        )
 
     def end(self, succeeded_or_cut_off: bool) -> None:
         self._alive = bool(succeeded_or_cut_off)
@@ -202,6 +243,7 @@ class BallSceneSource:
 def make_ball_skill(policy=None):
     """The learned ball skill; ``policy=None``: record-only (the environment's mode)."""
     from skills.learned.ball import LearnedBallSkill
+
     return LearnedBallSkill(policy, record_only=policy is None)
 
 
@@ -214,11 +256,20 @@ def _heldout_scenes(seed: int, estimator: str = "oracle") -> BallSceneSource:
 
 
 BALL_SPEC = SkillSpec(
-    name="ball", skill_name="learned-ball", make_skill=make_ball_skill,
+    name="ball",
+    skill_name="learned-ball",
+    make_skill=make_ball_skill,
     scenes=_train_scenes,
     heldout=_heldout_scenes,
-    checkpoint=POLICY_PATH, t_abs=TRAIN_T_ABS, estimators=("oracle", "camera"),
+    checkpoint=POLICY_PATH,
+    t_abs=TRAIN_T_ABS,
+    estimators=("oracle", "camera"),
     family="mujoban",
-    penalties={"box disturbed": -1.0, "box off line": -1.0, "estimate deviates": -1.0,
-               "deviation": -1.0},
-    step_cost=-0.002)
+    penalties={
+        "box disturbed": -1.0,
+        "box off line": -1.0,
+        "estimate deviates": -1.0,
+        "deviation": -1.0,
+    },
+    step_cost=-0.002,
+)
