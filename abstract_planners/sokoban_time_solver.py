@@ -133,14 +133,8 @@ def solve_for_time(
     board = _board_for(state)
 
     def result(solved, reason, moves=(), pushes=0, nodes=0):
-        return SolveResult(
-            solved=solved,
-            moves=tuple(moves),
-            pushes=pushes,
-            nodes=nodes,
-            ms=(time.perf_counter() - t0) * 1000.0,
-            reason=reason,
-        )
+        ms = (time.perf_counter() - t0) * 1000.0
+        return SolveResult(solved, tuple(moves), pushes, nodes, ms, reason)
 
     if state.is_solved():
         return result(True, "solved")

@@ -160,26 +160,10 @@ def run(
         load or fit the environment.
       FileNotFoundError: a checkpoint that does not exist.
     """
-    given = {
-        "planner": planner,
-        "skill": skill,
-        "estimator": estimator,
-        "stochastic": stochastic or None,
-        **(options or {}),
-    }
-    play = _play(
-        env_name,
-        seed,
-        agent,
-        {k: v for k, v in given.items() if v is not None},
-        levels,
-        env_options,
-        video,
-        first_episode,
-        profile,
-        workers,
-        ray_address,
-    )
+    given = dict(planner=planner, skill=skill, estimator=estimator, stochastic=stochastic or None)
+    chosen = {k: v for k, v in {**given, **(options or {})}.items() if v is not None}
+    settings = dict(levels=levels, env_options=env_options, video=video, profile=profile)
+    play = _play(env_name, seed, agent, chosen, first_episode, workers, ray_address, **settings)
     indices = list(range(first_episode, first_episode + episodes))
     return _Run(play, indices, progress, on_progress).go(workers, ray_address)
 
@@ -189,13 +173,14 @@ def _play(
     seed,
     agent,
     options,
+    first_episode,
+    workers,
+    ray_address,
+    *,
     levels,
     env_options,
     video,
-    first_episode,
     profile,
-    workers,
-    ray_address,
 ) -> Play:
     """The checked `Play` of `run`'s arguments (its ValueErrors)."""
     fam = family(env_name)

@@ -110,23 +110,7 @@ def run_jobs(
     cache = Path(cache)
     (cache / "jobs").mkdir(parents=True, exist_ok=True)
     by_key = {job.key: job for job in jobs}
-    records, evals, trains = {}, [], []
-    needed_trains: set[str] = set()
-    for job in jobs:
-        record = load_record(cache, job.key)
-        if record is not None and job.kind == "eval":
-            records[job.key] = record
-        elif job.kind == "eval":
-            evals.append(job)
-            needed_trains.update(job.deps)
-    for job in jobs:
-        if job.kind != "train":
-            continue
-        record = load_record(cache, job.key)
-        if record is not None and (job.key not in needed_trains or artifacts_present(cache, job)):
-            records[job.key] = record
-        else:
-            trains.append(job)
+    records, evals, trains = _cached(jobs, cache)
     # Ready evaluations go first, so that each finished training is evaluated
     # before the next one starts and results arrive as the experiment runs.
     todo = evals + trains
@@ -163,21 +147,36 @@ def run_jobs(
             todo, cache, cpus, ray_address, retries, ready, blocked, finished, starts, progress
         )
     else:
-        _run_local(
-            todo,
-            cache,
-            cpus or os.cpu_count() or 1,
-            retries,
-            ready,
-            blocked,
-            finished,
-            starts,
-            progress,
-        )
+        slots = cpus or os.cpu_count() or 1
+        _run_local(todo, cache, slots, retries, ready, blocked, finished, starts, progress)
     if failed:
         lines = "; ".join(f"{by_key[k].describe()}: {v}" for k, v in failed.items())
         raise JobFailed(f"{len(failed)} of {total} jobs failed: {lines}")
     return records
+
+
+def _cached(jobs: list[Job], cache: Path) -> tuple[dict, list[Job], list[Job]]:
+    """(records of the jobs the cache holds, evaluations to run, trainings to
+    run). A cached training whose checkpoints are gone runs again when an
+    evaluation still to run needs them."""
+    records, evals, trains = {}, [], []
+    needed_trains: set[str] = set()
+    for job in jobs:
+        record = load_record(cache, job.key)
+        if record is not None and job.kind == "eval":
+            records[job.key] = record
+        elif job.kind == "eval":
+            evals.append(job)
+            needed_trains.update(job.deps)
+    for job in jobs:
+        if job.kind != "train":
+            continue
+        record = load_record(cache, job.key)
+        if record is not None and (job.key not in needed_trains or artifacts_present(cache, job)):
+            records[job.key] = record
+        else:
+            trains.append(job)
+    return records, evals, trains
 
 
 def _skip_blocked(pending, blocked, finished) -> None:

@@ -244,60 +244,78 @@ def plot(spec, pts: list[dict], path: Path, *, use_iqm: bool = False) -> None:
     fig, axes = plt.subplots(
         1, len(env_names), figsize=(5.2 * len(env_names), 4.4), dpi=110, squeeze=False, sharey=True
     )
-    colours = plt.get_cmap("tab10")
     labels = [a.label for a in spec.agents if a.kind != "random"]
-    handles = {}
+    handles: dict = {}
     xmax = max([p["training_frames"] for p in pts] + [1])
     for ax, env in zip(axes[0], env_names):
-        for p in [p for p in pts if p["env"] == env and p["kind"] == "random"]:
-            lo, hi = p[f"{stat}_interval"]
-            ax.axhspan(100 * lo, 100 * hi, color="grey", alpha=0.18, lw=0)
-            ax.axhline(100 * p[stat], color="grey", lw=0.8, ls="--")
-            ax.annotate(
-                p["agent"],
-                (1.0, 100 * p[stat]),
-                xycoords=("axes fraction", "data"),
-                xytext=(-3, 2),
-                textcoords="offset points",
-                ha="right",
-                va="bottom",
-                fontsize=7,
-                color="dimgrey",
-            )
+        here = [p for p in pts if p["env"] == env]
+        _random_bands(ax, [p for p in here if p["kind"] == "random"], stat)
         for i, label in enumerate(labels):
             members = sorted(
-                (p for p in pts if p["env"] == env and p["agent"] == label),
-                key=lambda p: p["training_frames"],
+                (p for p in here if p["agent"] == label), key=lambda p: p["training_frames"]
             )
-            if not members:
-                continue
-            colour = colours(i % 10)
-            x = [p["training_frames"] for p in members]
-            y = [100 * p[stat] for p in members]
-            lo = [100 * p[f"{stat}_interval"][0] for p in members]
-            hi = [100 * p[f"{stat}_interval"][1] for p in members]
-            style = "--" if any(p["privileged"] for p in members) else "-"
-            if len(members) > 1:
-                (line,) = ax.plot(x, y, style, marker="o", ms=3.5, lw=1.4, color=colour)
-                ax.fill_between(x, lo, hi, color=colour, alpha=0.18, lw=0)
-            else:
-                line = ax.errorbar(
-                    x,
-                    y,
-                    yerr=[[y[0] - lo[0]], [hi[0] - y[0]]],
-                    fmt="s",
-                    ms=5,
-                    capsize=3,
-                    color=colour,
-                    mfc="white" if style == "--" else colour,
-                )
-            handles[label] = line
+            if members:
+                handles[label] = _series(ax, members, plt.get_cmap("tab10")(i % 10), stat)
         ax.set_title(env, fontsize=10)
         ax.set_xlabel("training frames (control steps)")
         ax.set_xlim(-0.03 * xmax, 1.05 * xmax)
         ax.set_ylim(-2, 102)
         ax.grid(alpha=0.3)
     axes[0][0].set_ylabel(f"success % ({stat} over seeds, 95% CI)")
+    _legend(fig, handles, pts)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, metadata={"Software": None})
+    plt.close(fig)
+
+
+def _random_bands(ax, randoms: list[dict], stat: str) -> None:
+    """Random agents' points as grey bands (their interval) with a dashed
+    line at the statistic, labelled at the panel's right edge."""
+    for p in randoms:
+        lo, hi = p[f"{stat}_interval"]
+        ax.axhspan(100 * lo, 100 * hi, color="grey", alpha=0.18, lw=0)
+        ax.axhline(100 * p[stat], color="grey", lw=0.8, ls="--")
+        ax.annotate(
+            p["agent"],
+            (1.0, 100 * p[stat]),
+            xycoords=("axes fraction", "data"),
+            xytext=(-3, 2),
+            textcoords="offset points",
+            ha="right",
+            va="bottom",
+            fontsize=7,
+            color="dimgrey",
+        )
+
+
+def _series(ax, members: list[dict], colour, stat: str):
+    """One agent's points in a panel: a line with its shaded interval over
+    budgets, or one point with error bars; dashed or hollow when privileged.
+    Returns the legend handle."""
+    x = [p["training_frames"] for p in members]
+    y = [100 * p[stat] for p in members]
+    lo = [100 * p[f"{stat}_interval"][0] for p in members]
+    hi = [100 * p[f"{stat}_interval"][1] for p in members]
+    style = "--" if any(p["privileged"] for p in members) else "-"
+    if len(members) > 1:
+        (line,) = ax.plot(x, y, style, marker="o", ms=3.5, lw=1.4, color=colour)
+        ax.fill_between(x, lo, hi, color=colour, alpha=0.18, lw=0)
+        return line
+    return ax.errorbar(
+        x,
+        y,
+        yerr=[[y[0] - lo[0]], [hi[0] - y[0]]],
+        fmt="s",
+        ms=5,
+        capsize=3,
+        color=colour,
+        mfc="white" if style == "--" else colour,
+    )
+
+
+def _legend(fig, handles: dict, pts: list[dict]) -> None:
+    """The legend below the panels (privileged series starred) and the note
+    on what the marks mean; the panels leave room for it."""
     names = [
         n + (" *" if any(p["privileged"] for p in pts if p["agent"] == n) else "") for n in handles
     ]
@@ -323,6 +341,3 @@ def plot(spec, pts: list[dict], path: Path, *, use_iqm: bool = False) -> None:
         color="dimgrey",
     )
     fig.tight_layout(rect=(0, 0.07 + 0.05 * rows, 1, 1))
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, metadata={"Software": None})
-    plt.close(fig)

@@ -86,6 +86,24 @@ def vtrace(
     return VTrace(vs, pg_advantages)
 
 
+def _value_streams(streams, log_rhos, baseline_cost: float, stats: dict, kw: dict):
+    """The V-trace advantages summed over the value ``streams`` (name, values,
+    bootstrap, rewards, discounts) and their baseline loss; each stream's
+    parts go into ``stats``."""
+    advantages = torch.zeros_like(log_rhos)
+    baseline_loss = log_rhos.new_zeros(())
+    for name, values, boot, rewards, discounts in streams:
+        targets = vtrace(log_rhos, discounts, rewards, values, boot, **kw)
+        advantages = advantages + targets.pg_advantages
+        part = 0.5 * baseline_cost * (targets.vs - values).square().mean()
+        baseline_loss = baseline_loss + part
+        stats[f"baseline_loss_{name}"] = float(part.detach())
+        stats[f"advantage_{name}"] = float(targets.pg_advantages.mean())
+        stats[f"vs_{name}"] = float(targets.vs.mean())
+        stats[f"value_{name}"] = float(values.detach().mean())
+    return advantages, baseline_loss
+
+
 def impala_loss(
     out,
     bootstrap,
@@ -136,36 +154,25 @@ def impala_loss(
         streams.append(("abs", out.value_abs, bootstrap.value_abs, rewards_abs, discounts_abs))
 
     stats: dict[str, float] = {}
-    advantages = torch.zeros_like(log_probs)
-    baseline_loss = log_probs.new_zeros(())
-    for name, values, boot, rewards, discounts in streams:
-        targets = vtrace(log_rhos, discounts, rewards, values, boot, **kw)
-        advantages = advantages + targets.pg_advantages
-        part = 0.5 * baseline_cost * (targets.vs - values).square().mean()
-        baseline_loss = baseline_loss + part
-        stats[f"baseline_loss_{name}"] = float(part.detach())
-        stats[f"advantage_{name}"] = float(targets.pg_advantages.mean())
-        stats[f"vs_{name}"] = float(targets.vs.mean())
-        stats[f"value_{name}"] = float(values.detach().mean())
-
+    advantages, baseline_loss = _value_streams(streams, log_rhos, baseline_cost, stats, kw)
     pg_loss = -(log_probs * advantages).mean()
     entropy = gaussian_entropy(out.std).mean()
     entropy_loss = -entropy_cost * entropy
     loss = pg_loss + baseline_loss + entropy_loss
 
     rhos = torch.exp(log_rhos)
+    clip = clip_rho if clip_rho is not None else float("inf")
+    parts = dict(
+        loss=loss,
+        pg_loss=pg_loss,
+        baseline_loss=baseline_loss,
+        entropy_loss=entropy_loss,
+        entropy=entropy,
+    )
+    stats.update({name: float(value.detach()) for name, value in parts.items()})
     stats.update(
-        {
-            "loss": float(loss.detach()),
-            "pg_loss": float(pg_loss.detach()),
-            "baseline_loss": float(baseline_loss.detach()),
-            "entropy_loss": float(entropy_loss.detach()),
-            "entropy": float(entropy.detach()),
-            "std": float(out.std.detach().mean()),
-            "rho": float(rhos.mean()),
-            "rho_clipped_fraction": float(
-                (rhos > (clip_rho if clip_rho is not None else float("inf"))).float().mean()
-            ),
-        }
+        std=float(out.std.detach().mean()),
+        rho=float(rhos.mean()),
+        rho_clipped_fraction=float((rhos > clip).float().mean()),
     )
     return loss, stats
