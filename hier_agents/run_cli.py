@@ -38,6 +38,26 @@ NAMED_ENV_EPISODES = 10
 def build_parser(description: str, epilog: str | None = None) -> argparse.ArgumentParser:
     """The ``python -m hier_agents.run`` argument parser (`physics_planning.cli.Parser`)."""
     parser = cli.Parser(PROG, description=description, epilog=epilog)
+    _add_play_args(parser)
+    _add_agent_args(parser)
+    _add_output_args(parser)
+    _add_run_args(parser)
+    parser.add_argument(
+        "--profile",
+        action="store_true",
+        help="report the share of time spent in physics, rendering, the "
+        "estimator, the planner and the skill (table and JSON)",
+    )
+    parser.add_argument(
+        "--list",
+        action="store_true",
+        help="list the agent kinds and each family's planners, skills and estimators and exit",
+    )
+    return parser
+
+
+def _add_play_args(parser: argparse.ArgumentParser) -> None:
+    """What to play: the environment, the episodes, the seed."""
     parser.add_argument(
         "env",
         nargs="?",
@@ -54,6 +74,10 @@ def build_parser(description: str, epilog: str | None = None) -> argparse.Argume
     parser.add_argument(
         "--seed", type=cli.non_negative_int, default=0, help="seed of the environment and the agent"
     )
+
+
+def _add_agent_args(parser: argparse.ArgumentParser) -> None:
+    """The agent: its kind and its parts, the levels and environment overrides it plays."""
     parser.add_argument(
         "--agent",
         default="modular",
@@ -100,6 +124,10 @@ def build_parser(description: str, epilog: str | None = None) -> argparse.Argume
         "physics_timestep=0.005 or time_limit=5 (repeatable; VALUE is a "
         "Python literal; modular and checkpoint agents)",
     )
+
+
+def _add_output_args(parser: argparse.ArgumentParser) -> None:
+    """The outputs: the video and the JSON summary."""
     parser.add_argument(
         "--video",
         metavar="MP4",
@@ -111,6 +139,10 @@ def build_parser(description: str, epilog: str | None = None) -> argparse.Argume
         help="write the summary here, rewritten after every episode "
         '("finished": false until the run ends; its folder is created)',
     )
+
+
+def _add_run_args(parser: argparse.ArgumentParser) -> None:
+    """Where and how the episodes run: the first episode, the workers, Ray."""
     parser.add_argument(
         "--first-episode",
         type=cli.non_negative_int,
@@ -130,18 +162,6 @@ def build_parser(description: str, epilog: str | None = None) -> argparse.Argume
         help="play on a Ray cluster (auto: the one `ray start` made; local: "
         "start one here), --workers tasks at a time",
     )
-    parser.add_argument(
-        "--profile",
-        action="store_true",
-        help="report the share of time spent in physics, rendering, the "
-        "estimator, the planner and the skill (table and JSON)",
-    )
-    parser.add_argument(
-        "--list",
-        action="store_true",
-        help="list the agent kinds and each family's planners, skills and estimators and exit",
-    )
-    return parser
 
 
 def print_components() -> None:

@@ -62,10 +62,7 @@ PROG = "python -m hier_agents.train"
 
 def build_parser() -> Parser:
     """The command's parser; its defaults are `TrainConfig`'s."""
-    from hier_agents.baselines.impala.agent_env import CONDITIONS
     from hier_agents.baselines.impala.config import TrainConfig
-    from hier_agents.modular.families import FAMILIES
-    from physics_planning.cli import non_negative_float
 
     default = {
         f.name: f.default
@@ -73,6 +70,18 @@ def build_parser() -> Parser:
         if f.default is not dataclasses.MISSING
     }
     parser = Parser(PROG, description=__doc__.split("\n\n")[0], epilog=__doc__.split("\n\n", 1)[1])
+    _add_task_args(parser, default)
+    _add_observation_args(parser, default)
+    _add_scale_args(parser, default)
+    _add_learning_args(parser, default)
+    _add_logging_args(parser, default)
+    return parser
+
+
+def _add_task_args(parser: Parser, default: dict) -> None:
+    """What to train: the environment, the condition, the frame budget."""
+    from hier_agents.baselines.impala.agent_env import CONDITIONS
+
     add = parser.add_argument
     add("env", help="environment name, e.g. mujoban/level1 (python -m hier_agents.run --list)")
     add(
@@ -86,6 +95,11 @@ def build_parser() -> Parser:
         default=default["steps"],
         help="environment frames (control steps) to train for, in total",
     )
+
+
+def _add_observation_args(parser: Parser, default: dict) -> None:
+    """What the agent observes, and the ``--preset`` of defaults."""
+    add = parser.add_argument
     add(
         "--observations",
         default="cameras",
@@ -113,6 +127,11 @@ def build_parser() -> Parser:
             for name, flags in PRESETS.items()
         ),
     )
+
+
+def _add_scale_args(parser: Parser, default: dict) -> None:
+    """Where the actors run and where the run is kept."""
+    add = parser.add_argument
     add(
         "--actors",
         type=positive_int,
@@ -136,6 +155,14 @@ def build_parser() -> Parser:
         default=default["logdir"],
         help="the run directory (the same one again resumes the run)",
     )
+
+
+def _add_learning_args(parser: Parser, default: dict) -> None:
+    """The learner's unrolls, batches and losses, and the seed."""
+    from hier_agents.modular.families import FAMILIES
+    from physics_planning.cli import non_negative_float
+
+    add = parser.add_argument
     add(
         "--unroll-length",
         type=positive_int,
@@ -174,6 +201,13 @@ def build_parser() -> Parser:
         default=default["seed"],
         help="seed of the network and the actors' environments",
     )
+
+
+def _add_logging_args(parser: Parser, default: dict) -> None:
+    """Checkpoints, logging and the progress bar."""
+    from physics_planning.cli import non_negative_float
+
+    add = parser.add_argument
     add(
         "--checkpoint-every",
         type=positive_float,
@@ -202,7 +236,6 @@ def build_parser() -> Parser:
         help="seconds between TensorBoard / scalars.jsonl rows (0: every update)",
     )
     add("--no-progress", action="store_true", help="no progress bar")
-    return parser
 
 
 def parse_args(argv=None) -> argparse.Namespace:

@@ -72,9 +72,7 @@ def build_parser() -> cli.Parser:
 def _main(argv=None) -> int:
     from hier_agents.compare import jobs as jobs_mod
     from hier_agents.compare import report
-    from hier_agents.compare.backends import JobFailed, run_jobs
     from hier_agents.compare.spec import load
-    from hier_agents.provenance import provenance
 
     args = build_parser().parse_args(argv)
     cli.choice("--backend", args.backend, ("local", "ray"))
@@ -85,6 +83,44 @@ def _main(argv=None) -> int:
     planned = jobs_mod.plan(spec)
     if args.only is not None:
         cli.choice("--only", args.only, ("train", "eval"))
+    if args.plan:
+        _print_plan(planned, cache)
+        return 0
+    failure = None if args.report_only else _run(planned, cache, args)
+    records = {j.key: r for j in planned if (r := jobs_mod.load_record(cache, j.key)) is not None}
+    pts = report.points(spec, planned, records)
+    costs = report.series_cost(spec, planned, records)
+    table = report.format_table(spec, pts, costs, use_iqm=args.iqm)
+    print(table)
+    missing = sum(1 for j in planned if j.key not in records)
+    code_versions = report.code_versions(records)
+    content = _content(spec, args, planned, pts, costs, missing, code_versions)
+    if len(code_versions) > 1:
+        _warn_code_versions(code_versions)
+    _write_outputs(Path(cache), content, table, spec, pts, args)
+    if failure:
+        print(f"{PROG}: {failure}", file=sys.stderr)
+        return 1
+    if missing:
+        print(f"{PROG}: {cli.plural(missing, 'job')} missing from the cache", file=sys.stderr)
+    return 0
+
+
+def _print_plan(planned, cache) -> None:
+    """``--plan``: a line per job, cached or to run."""
+    from hier_agents.compare import jobs as jobs_mod
+
+    for job in planned:
+        record = jobs_mod.load_record(cache, job.key)
+        state = "cached" if record is not None else "to run"
+        print(f"{job.key}  {state:<7} {job.describe()}")
+
+
+def _run(planned, cache, args) -> str | None:
+    """Runs the jobs ``--only`` selects that are not cached; the failure's
+    message when jobs failed (the others' records are kept), else None."""
+    from hier_agents.compare.backends import JobFailed, run_jobs
+
     runnable = [j for j in planned if args.only in (None, j.kind)]
     say = (
         (lambda text: None)
@@ -93,34 +129,24 @@ def _main(argv=None) -> int:
             lambda text: print(f"{time.strftime('%H:%M:%S')} {text}", file=sys.stderr, flush=True)
         )
     )
-    if args.plan:
-        for job in planned:
-            record = jobs_mod.load_record(cache, job.key)
-            state = "cached" if record is not None else "to run"
-            print(f"{job.key}  {state:<7} {job.describe()}")
-        return 0
-    failure = None
-    if not args.report_only:
-        try:
-            run_jobs(
-                runnable,
-                cache,
-                backend=args.backend,
-                cpus=args.cpus,
-                ray_address=args.ray_address,
-                retries=args.retries,
-                progress=say,
-            )
-        except JobFailed as exc:
-            failure = str(exc)
-    records = {j.key: r for j in planned if (r := jobs_mod.load_record(cache, j.key)) is not None}
-    pts = report.points(spec, planned, records)
-    costs = report.series_cost(spec, planned, records)
-    table = report.format_table(spec, pts, costs, use_iqm=args.iqm)
-    print(table)
-    missing = sum(1 for j in planned if j.key not in records)
-    code_versions = report.code_versions(records)
-    content = {
+    try:
+        run_jobs(
+            runnable,
+            cache,
+            backend=args.backend,
+            cpus=args.cpus,
+            ray_address=args.ray_address,
+            retries=args.retries,
+            progress=say,
+        )
+    except JobFailed as exc:
+        return str(exc)
+    return None
+
+
+def _content(spec, args, planned, pts, costs, missing, code_versions) -> dict:
+    """comparison.json's content, its provenance aside."""
+    return {
         "name": spec.name,
         "description": spec.description,
         "spec": spec.raw,
@@ -133,21 +159,33 @@ def _main(argv=None) -> int:
         "code_versions": code_versions,
         "job_keys": [j.key for j in planned if j.kind == "eval"],
     }
-    if len(code_versions) > 1:
-        versions = ", ".join(f"{c} ({n})" for c, n in code_versions.items())
-        print(
-            f"{PROG}: warning: the job records come from "
-            f"{len(code_versions)} code versions: {versions}; records are "
-            f"cached by their inputs, not the code: delete CACHE/jobs/KEY.json to run a "
-            f"job again",
-            file=sys.stderr,
-        )
-    out = Path(cache) / "comparison.json"
+
+
+def _warn_code_versions(code_versions) -> None:
+    """Warns that the job records come from more than one code version."""
+    versions = ", ".join(f"{c} ({n})" for c, n in code_versions.items())
+    print(
+        f"{PROG}: warning: the job records come from "
+        f"{len(code_versions)} code versions: {versions}; records are "
+        f"cached by their inputs, not the code: delete CACHE/jobs/KEY.json to run a "
+        f"job again",
+        file=sys.stderr,
+    )
+
+
+def _write_outputs(cache: Path, content, table, spec, pts, args) -> None:
+    """Writes comparison.txt, comparison.png and comparison.json into
+    ``cache`` (the JSON last: it marks them done), unless they already hold
+    ``content``."""
+    from hier_agents.compare import report
+    from hier_agents.provenance import provenance
+
+    out = cache / "comparison.json"
     try:
         old = json.loads(out.read_text())
     except (OSError, ValueError):
         old = None
-    outputs = [Path(cache) / name for name in ("comparison.txt", "comparison.png")]
+    outputs = [cache / name for name in ("comparison.txt", "comparison.png")]
     if (
         old is not None
         and all(p.is_file() for p in outputs)
@@ -160,12 +198,6 @@ def _main(argv=None) -> int:
         report.plot(spec, pts, outputs[1], use_iqm=args.iqm)
         cli.write_json(out, {**content, "provenance": provenance()})  # last: marks them done
         print(f"wrote {out}, comparison.txt and comparison.png", file=sys.stderr)
-    if failure:
-        print(f"{PROG}: {failure}", file=sys.stderr)
-        return 1
-    if missing:
-        print(f"{PROG}: {cli.plural(missing, 'job')} missing from the cache", file=sys.stderr)
-    return 0
 
 
 def main(argv=None) -> int:

@@ -387,6 +387,28 @@ def train(args, command: str = PROG) -> dict:
         args.log_std if args.log_std is not None else (-1.6 if args.bc_frames > 0 else -0.5),
     )
     optimizer = torch.optim.Adam(agent.parameters(), lr=args.lr, eps=1e-5)
+    state = _restore(run, agent, optimizer, args)
+    policy_path = Path(args.logdir) / f"{spec.name}_policy.pt"
+    save = _saver(run, agent, optimizer, state, probe.FEATURES, policy_path, spec, args, command)
+    with run, run.interruptible():
+        if args.bc_frames > 0 and state["bc_frames"] == 0:
+            _warm_start(agent, spec, state, args)
+            save()
+        _ppo(spec, agent, optimizer, state, run, args, save)
+        save()
+        summary = _summary(spec, agent, state, args, policy_path)
+        run.log(
+            int(state["frames"]),
+            {"eval_option_success": summary["eval"]["learned (deterministic)"]["success"]},
+        )
+    (Path(args.logdir) / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    print(f"summary: {Path(args.logdir) / 'summary.json'}")
+    return summary
+
+
+def _restore(run, agent, optimizer, args) -> dict:
+    """The training counters, fresh or, with a checkpoint in ``run``, loaded
+    from it together with ``agent`` and ``optimizer``'s states."""
     state = {
         "iteration": 0,
         "ppo_iterations": 0,
@@ -405,7 +427,12 @@ def train(args, command: str = PROG) -> dict:
             f"resumed {args.logdir}: iteration {state['iteration']}, "
             f"{plural(state['frames'], 'frame')}"
         )
-    policy_path = Path(args.logdir) / f"{spec.name}_policy.pt"
+    return state
+
+
+def _saver(run, agent, optimizer, state, features, policy_path, spec, args, command):
+    """The function that checkpoints the run and exports the policy to
+    ``policy_path``, counting the wall time from now on top of ``state``'s."""
     t0, wall0 = time.perf_counter(), state["wall_s"]
 
     def save():
@@ -415,7 +442,7 @@ def train(args, command: str = PROG) -> dict:
         )
         export_policy(
             agent,
-            probe.FEATURES,
+            features,
             policy_path,
             {
                 "frames": state["frames"],
@@ -429,35 +456,28 @@ def train(args, command: str = PROG) -> dict:
             },
         )
 
-    with run, run.interruptible():
-        if args.bc_frames > 0 and state["bc_frames"] == 0:
-            frames, sim = clone(
-                agent,
-                spec,
-                frames=args.bc_frames,
-                seed=args.seed,
-                dagger_frames=args.dagger_frames,
-                epochs=args.bc_epochs,
-                dagger_rounds=args.dagger_rounds,
-                noise=args.bc_noise,
-                noise_prob=args.bc_noise_prob,
-                dagger_noise=args.dagger_noise,
-                dagger_noise_prob=args.dagger_noise_prob,
-                dagger_mix=args.dagger_mix,
-                estimator=args.estimator,
-            )
-            state.update(bc_frames=frames, frames=frames, sim_steps=sim)
-            save()
-        _ppo(spec, agent, optimizer, state, run, args, save)
-        save()
-        summary = _summary(spec, agent, state, args, policy_path)
-        run.log(
-            int(state["frames"]),
-            {"eval_option_success": summary["eval"]["learned (deterministic)"]["success"]},
-        )
-    (Path(args.logdir) / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
-    print(f"summary: {Path(args.logdir) / 'summary.json'}")
-    return summary
+    return save
+
+
+def _warm_start(agent, spec, state, args) -> None:
+    """The warm start (`clone`): behaviour cloning and DAgger, its frames
+    counted in ``state``."""
+    frames, sim = clone(
+        agent,
+        spec,
+        frames=args.bc_frames,
+        seed=args.seed,
+        dagger_frames=args.dagger_frames,
+        epochs=args.bc_epochs,
+        dagger_rounds=args.dagger_rounds,
+        noise=args.bc_noise,
+        noise_prob=args.bc_noise_prob,
+        dagger_noise=args.dagger_noise,
+        dagger_noise_prob=args.dagger_noise_prob,
+        dagger_mix=args.dagger_mix,
+        estimator=args.estimator,
+    )
+    state.update(bc_frames=frames, frames=frames, sim_steps=sim)
 
 
 def _summary(spec, agent, state, args, policy_path) -> dict:
@@ -499,14 +519,22 @@ def parse_args(argv=None):
     parser's one-line error): the spec and estimator names, training's
     required ``--frames``/``--logdir`` and its `budget`, ``--evaluate``'s
     file, ``--json`` (its folder is created)."""
-    from hier_agents.learning.skill_spec import SPECS
-
     p = Parser(
         PROG,
         description=__doc__.split("\n\n")[0],
         epilog="--frames and --logdir are required for training, not with --evaluate.",
     )
-    add = p.add_argument
+    _add_run_args(p)
+    _add_warm_start_args(p)
+    _add_ppo_args(p)
+    _add_schedule_args(p)
+    return _check_args(p.parse_args(argv))
+
+
+def _add_run_args(parser: Parser) -> None:
+    """The spec, the mode (training or ``--evaluate``), the run directory, the
+    environments, the seed."""
+    add = parser.add_argument
     add("spec", help="the skill spec (ball, arm)")
     add(
         "--frames",
@@ -534,6 +562,11 @@ def parse_args(argv=None):
     add("--async-envs", action="store_true", help="one process per environment")
     add("--seed", type=non_negative_int, default=0, help="seed of everything")
     add("--resume", action="store_true", help="continue LOGDIR/checkpoint.pt (required there)")
+
+
+def _add_warm_start_args(parser: Parser) -> None:
+    """The warm start: behaviour cloning, then DAgger."""
+    add = parser.add_argument
     add(
         "--bc-frames",
         type=non_negative_int,
@@ -560,6 +593,11 @@ def parse_args(argv=None):
         default=1.0,
         help="probability that the student (not the teacher) acts, per DAgger step",
     )
+
+
+def _add_ppo_args(parser: Parser) -> None:
+    """The policy and PPO."""
+    add = parser.add_argument
     add("--hidden", type=positive_int, default=64, help="hidden units per layer")
     add(
         "--log-std",
@@ -568,7 +606,7 @@ def parse_args(argv=None):
         help="initial log-std (default: -1.6 after a warm start, else -0.5)",
     )
     ppo.add_arguments(
-        p,
+        parser,
         rollout=256,
         epochs=5,
         minibatches=4,
@@ -587,6 +625,11 @@ def parse_args(argv=None):
         default=3,
         help="critic-only PPO iterations after a warm start (at most all but one)",
     )
+
+
+def _add_schedule_args(parser: Parser) -> None:
+    """The option cut-off, checkpoints, the evaluation."""
+    add = parser.add_argument
     add("--t-abs", type=positive_int, default=None, help="option cut-off (default: the spec's)")
     add("--save-every", type=positive_int, default=5, help="iterations between checkpoints")
     add(
@@ -595,7 +638,13 @@ def parse_args(argv=None):
         default=100,
         help="held-out options; 0: skip (at least 1 with --evaluate)",
     )
-    args = p.parse_args(argv)
+
+
+def _check_args(args):
+    """Returns the parsed ``args`` once `parse_args`'s checks pass; raises
+    `UsageError` otherwise."""
+    from hier_agents.learning.skill_spec import SPECS
+
     try:
         spec = spec_named(args.spec)
     except ValueError:
