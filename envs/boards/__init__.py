@@ -305,30 +305,38 @@ def make_mujogo(
     paper's; 1: white; ``"random"``), ``front_camera_2``, ``multisamples``,
     ``shadows``: as in `make_mujoxo`.
     """
-    check_mujogo(
-        board_size=board_size,
-        level=level,
-        epsilon=epsilon,
-        komi=komi,
-        agent_player=agent_player,
-        seed=seed,
-        front_camera=front_camera,
-        front_camera_2=front_camera_2,
-        arm_reset=arm_reset,
-        time_limit=time_limit,
-        control_timestep=control_timestep,
-        physics_timestep=physics_timestep,
-        registering=registering,
-        allow_double_pass=allow_double_pass,
-        piece_noise=piece_noise,
-        gnugo_timeout=gnugo_timeout,
-        gnugo_command=gnugo_command,
-        render_size=render_size,
-        multisamples=multisamples,
-        shadows=shadows,
-        raise_on_physics_error=raise_on_physics_error,
-        lazy_cameras=lazy_cameras,
-    )
+    options = dict(locals())  # the keyword arguments above: no other name is bound yet
+    check_mujogo(**options)
+    return _build_mujogo(**options)
+
+
+def _build_mujogo(
+    *,
+    board_size,
+    level,
+    epsilon,
+    komi,
+    agent_player,
+    seed,
+    front_camera,
+    front_camera_2,
+    arm_reset,
+    time_limit,
+    control_timestep,
+    physics_timestep,
+    registering,
+    allow_double_pass,
+    piece_noise,
+    gnugo_timeout,
+    gnugo_command,
+    render_size,
+    multisamples,
+    shadows,
+    raise_on_physics_error,
+    lazy_cameras,
+) -> Environment:
+    """Builds `make_mujogo`'s environment from its checked arguments (`check_mujogo`);
+    GNU Go is closed again if building the task or environment fails."""
     game = BoardGame("go", board_size, komi=float(komi), draw_reward=0.0)
     epsilon = _check_epsilon(epsilon)
     level = _check_level(level)

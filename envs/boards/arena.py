@@ -108,12 +108,28 @@ class BoardArena(composer.Arena):
             from envs.boards.games import BoardGame
 
             game = BoardGame("go", GO_REFERENCE_SIZE)
-        root = self._mjcf_root
+        self._set_layout(game)
+        rules = game.rules
+
+        self._add_scene(offscreen_size, physics_timestep, multisamples, shadows)
+        board, sensor_mat = self._add_points()
+        self.pass_geom = self.pass_site = None
+        if rules.pass_zones:
+            self._add_pass_zones(board, sensor_mat)
+        if rules.look == "wood":
+            self._add_lines(board)
+        elif rules.look == "plain" and not self.hex:
+            self._add_lines(board, between=True)
+        self._add_pieces(game)
+        self._add_cameras()
+
+    def _set_layout(self, game) -> None:
+        """The board's geometry from the game's rules: point spacing, square
+        and sensor half-sizes, the board's centre and half-extents."""
         self.game = game
         self.kind, self.size = game.name, game.size
         self.rows, self.cols = game.rows, game.cols
-        rules = game.rules
-        self.hex = rules.layout == "hex"
+        self.hex = game.rules.layout == "hex"
         if game.name == "tic_tac_toe":
             spacing = 2 * SQUARE_HALF
             self.centre = (0.0, 0.0)
@@ -135,15 +151,10 @@ class BoardArena(composer.Arena):
         #: Half-size of a touch sensor's site: a press registers inside it.
         self.pad_half = SENSOR_FRACTION * half
 
-        self._add_scene(offscreen_size, physics_timestep, multisamples, shadows)
-        board, sensor_mat = self._add_points()
-        self.pass_geom = self.pass_site = None
-        if rules.pass_zones:
-            self._add_pass_zones(board, sensor_mat)
-        if rules.look == "wood":
-            self._add_lines(board)
-        elif rules.look == "plain" and not self.hex:
-            self._add_lines(board, between=True)
+    def _add_pieces(self, game) -> None:
+        """One hidden render-only cylinder per point and, for move games, the
+        hidden disc marking the selected piece."""
+        root, rules, half = self._mjcf_root, game.rules, self.square_half
         if game.name in PIECE_SIZE:
             radius, piece_half_height = PIECE_SIZE[game.name]
             if game.name == "go" and self.size != GO_REFERENCE_SIZE:
@@ -179,6 +190,10 @@ class BoardArena(composer.Arena):
                 conaffinity=0,
                 rgba=SELECTION_RGBA,
             )
+
+    def _add_cameras(self) -> None:
+        """The original's front camera and its code's second, steeper view."""
+        root = self._mjcf_root
         # The original's front camera, facing the arm and the board (fovy 45).
         self.front_camera = root.worldbody.add(
             "camera",

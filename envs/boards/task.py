@@ -86,6 +86,31 @@ def check_agent_player(agent_player) -> None:
         raise ValueError(f"agent_player must be 0, 1 or 'random', got {agent_player!r}")
 
 
+def _check_task_options(
+    game, opponent, registering, time_limit, agent_player, half_move_timeout, piece_noise
+):
+    """Checks `BoardTask`'s options (ValueError or TypeError naming the bad
+    one) and returns ``piece_noise``, the game's default where None."""
+    if registering not in ("arm", "fingers", "fingertips"):
+        raise ValueError(
+            f"registering must be 'arm', 'fingers' or 'fingertips', got {registering!r}"
+        )
+    if time_limit <= 0:
+        raise ValueError(f"time_limit must be positive seconds, got {time_limit}")
+    check_agent_player(agent_player)
+    if not half_move_timeout > 0:
+        raise ValueError(f"half_move_timeout must be positive seconds, got {half_move_timeout!r}")
+    if piece_noise is None:
+        piece_noise = PIECE_NOISE.get(game.name, PIECE_NOISE["go"])
+    if not 0 <= piece_noise <= 1:
+        raise ValueError(f"piece_noise must be in [0, 1], got {piece_noise}")
+    if not isinstance(opponent, Planner):
+        raise TypeError(
+            f"opponent must be an abstract_planners Planner, got {type(opponent).__name__}"
+        )
+    return piece_noise
+
+
 class BoardTask(GameRecordMixin, ArmPoseMixin, ObservationsMixin, PhysicsTask):
     """A two-player board game against a planner, played with a Jaco arm.
 
@@ -151,25 +176,9 @@ class BoardTask(GameRecordMixin, ArmPoseMixin, ObservationsMixin, PhysicsTask):
         agent_player=AGENT,
         half_move_timeout=HALF_MOVE_TIMEOUT,
     ):
-        if registering not in ("arm", "fingers", "fingertips"):
-            raise ValueError(
-                f"registering must be 'arm', 'fingers' or 'fingertips', got {registering!r}"
-            )
-        if time_limit <= 0:
-            raise ValueError(f"time_limit must be positive seconds, got {time_limit}")
-        check_agent_player(agent_player)
-        if not half_move_timeout > 0:
-            raise ValueError(
-                f"half_move_timeout must be positive seconds, got {half_move_timeout!r}"
-            )
-        if piece_noise is None:
-            piece_noise = PIECE_NOISE.get(game.name, PIECE_NOISE["go"])
-        if not 0 <= piece_noise <= 1:
-            raise ValueError(f"piece_noise must be in [0, 1], got {piece_noise}")
-        if not isinstance(opponent, Planner):
-            raise TypeError(
-                f"opponent must be an abstract_planners Planner, got {type(opponent).__name__}"
-            )
+        piece_noise = _check_task_options(
+            game, opponent, registering, time_limit, agent_player, half_move_timeout, piece_noise
+        )
         self.game = game
         self.opponent = opponent
         self._spiel_game = game.load()

@@ -34,44 +34,13 @@ class ObservationsMixin:
         return self._description
 
     def _describe(self):
-        from dm_control import mjcf
-
-        from envs.description import ArmDescription, BoardDescription, CameraDescription
+        from envs.description import BoardDescription, CameraDescription
 
         arena = self._arena
-        # The arm's own model: a fresh arm and hand mounted as in the arena.
-        root = mjcf.RootElement(model="jaco")
-        arm, hand = kinova.JacoArm(name="arm"), kinova.JacoHand(name="hand")
-        arm.attach(hand)
-        frame = root.attach(arm.mjcf_model)
-        frame.pos = arena_lib.ARM_OFFSET
-        xml = root.to_xml_string()
-        assets = root.get_assets()
-        joints = list(arm.joints) + list(hand.joints)
-        spec = self._model.actuator_ctrlrange[self._act_ids]
-        arm_desc = ArmDescription(
-            xml=xml,
-            assets=assets,
-            joint_names=tuple(j.full_identifier for j in joints),
-            pinch_site=hand.pinch_site.full_identifier,
-            tool_center_point=hand.tool_center_point.full_identifier,
-            base_position=tuple(float(v) for v in arena_lib.ARM_OFFSET),
-            action_minimum=tuple(float(v) for v in spec[:, 0]),
-            action_maximum=tuple(float(v) for v in spec[:, 1]),
-        )
+        arm_desc = self._describe_arm()
         game = self.game
         cx, cy = arena.centre
-        zones = {}
-        if arena.pass_geom is not None:
-            size = tuple(float(v) for v in arena.pass_geom.size)
-            # The pass sensor covers the board's footprint and beyond; the
-            # part outside the board on each side is what a robot can touch.
-            for side, sign in (("left", -1.0), ("right", 1.0)):
-                # (the pass geom is centred at z = 0: its top is at its half-height)
-                zones[side] = {
-                    "centre": (cx + sign * 0.5 * (arena.half_board + size[0]), cy, size[2]),
-                    "half": (0.5 * (size[0] - arena.half_board), size[1]),
-                }
+        zones = self._describe_pass_zones()
         front, front_2 = (
             CameraDescription(
                 name,
@@ -117,6 +86,51 @@ class ObservationsMixin:
                 max(self._piece_noise, float(game.rules.input == "point")) * arena.pad_half
             ),
         )
+
+    def _describe_arm(self):
+        """The `envs.description.ArmDescription`: the arm's own model, a fresh
+        arm and hand mounted as in the arena, and its action bounds."""
+        from dm_control import mjcf
+
+        from envs.description import ArmDescription
+
+        root = mjcf.RootElement(model="jaco")
+        arm, hand = kinova.JacoArm(name="arm"), kinova.JacoHand(name="hand")
+        arm.attach(hand)
+        frame = root.attach(arm.mjcf_model)
+        frame.pos = arena_lib.ARM_OFFSET
+        xml = root.to_xml_string()
+        assets = root.get_assets()
+        joints = list(arm.joints) + list(hand.joints)
+        spec = self._model.actuator_ctrlrange[self._act_ids]
+        return ArmDescription(
+            xml=xml,
+            assets=assets,
+            joint_names=tuple(j.full_identifier for j in joints),
+            pinch_site=hand.pinch_site.full_identifier,
+            tool_center_point=hand.tool_center_point.full_identifier,
+            base_position=tuple(float(v) for v in arena_lib.ARM_OFFSET),
+            action_minimum=tuple(float(v) for v in spec[:, 0]),
+            action_maximum=tuple(float(v) for v in spec[:, 1]),
+        )
+
+    def _describe_pass_zones(self) -> dict:
+        """The pass areas left and right of the board (empty without passes):
+        ``{side: {"centre": (x, y, z), "half": (hx, hy)}}``."""
+        arena = self._arena
+        cx, cy = arena.centre
+        zones = {}
+        if arena.pass_geom is not None:
+            size = tuple(float(v) for v in arena.pass_geom.size)
+            # The pass sensor covers the board's footprint and beyond; the
+            # part outside the board on each side is what a robot can touch.
+            for side, sign in (("left", -1.0), ("right", 1.0)):
+                # (the pass geom is centred at z = 0: its top is at its half-height)
+                zones[side] = {
+                    "centre": (cx + sign * 0.5 * (arena.half_board + size[0]), cy, size[2]),
+                    "half": (0.5 * (size[0] - arena.half_board), size[1]),
+                }
+        return zones
 
     # -- observations -------------------------------------------------------
 

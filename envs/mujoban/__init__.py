@@ -87,27 +87,37 @@ def make(
       raise_on_physics_error: raise on a diverging simulation (else the
         episode ends with discount 0).
     """
-    source = check_config(
-        difficulty=difficulty,
-        pegs=pegs,
-        seed=seed,
-        levels=levels,
-        level_order=level_order,
-        grid_shape=grid_shape,
-        top_camera=top_camera,
-        egocentric_camera=egocentric_camera,
-        randomize_appearance=randomize_appearance,
-        time_limit=time_limit,
-        control_timestep=control_timestep,
-        physics_timestep=physics_timestep,
-        pad_tolerance=pad_tolerance,
-        noslip_iterations=noslip_iterations,
-        sleep=sleep,
-        render_size=render_size,
-        raise_on_physics_error=raise_on_physics_error,
-        lazy_cameras=lazy_cameras,
-        multisamples=multisamples,
-    )
+    options = dict(locals())  # the keyword arguments above: no other name is bound yet
+    source = check_config(**options)
+    return _build_environment(source, **options)
+
+
+def _build_environment(
+    source,
+    *,
+    difficulty,
+    pegs,
+    seed,
+    grid_shape,
+    top_camera,
+    egocentric_camera,
+    randomize_appearance,
+    time_limit,
+    control_timestep,
+    physics_timestep,
+    pad_tolerance,
+    noslip_iterations,
+    sleep,
+    render_size,
+    multisamples,
+    raise_on_physics_error,
+    lazy_cameras,
+    **file_options,
+) -> Environment:
+    """Builds `make`'s environment from its checked arguments. ``source`` is
+    `check_config`'s `sources.FileLevels` of the level file, or None for
+    generated levels; ``file_options`` (``levels``, ``level_order``) were
+    read into it and are not needed again."""
     if source is None:
         source = (
             sources.CurriculumLevels()

@@ -93,6 +93,33 @@ ALIVE_THRESHOLD = -0.5
 _PARKED_DAMPING = 1e6
 
 
+def _check_task_options(
+    level_source, grid_shape, max_boxes, pad_tolerance, time_limit, sleep, noslip_iterations
+) -> tuple[int, ...]:
+    """Checks `Mujoban`'s options (TypeError or ValueError naming the bad
+    one) and returns ``grid_shape`` as a tuple of ints."""
+    if not callable(level_source):
+        raise TypeError("level_source must be callable as level_source(rng) -> Level")
+    grid_shape = tuple(int(v) for v in grid_shape)
+    if len(grid_shape) != 2 or min(grid_shape) < 3:
+        raise ValueError(f"grid_shape must be (rows, cols) with both >= 3, got {grid_shape}")
+    if int(max_boxes) < 1:
+        raise ValueError(f"max_boxes must be >= 1, got {max_boxes}")
+    if not 0 < pad_tolerance <= 0.5:
+        raise ValueError(f"pad_tolerance must be in (0, 0.5] cells, got {pad_tolerance}")
+    if time_limit <= 0:
+        raise ValueError(f"time_limit must be positive seconds, got {time_limit}")
+    if not isinstance(sleep, bool):
+        raise TypeError(f"sleep must be True or False, got {sleep!r}")
+    if (
+        not isinstance(noslip_iterations, numbers.Integral)
+        or isinstance(noslip_iterations, bool)
+        or noslip_iterations < 0
+    ):
+        raise ValueError(f"noslip_iterations must be an integer >= 0, got {noslip_iterations!r}")
+    return grid_shape
+
+
 class Mujoban(ObservationsMixin, LooksMixin, LayoutMixin, PhysicsTask):
     """MuJoBan as a composer task.
 
@@ -174,27 +201,9 @@ class Mujoban(ObservationsMixin, LooksMixin, LayoutMixin, PhysicsTask):
         sleep=False,
         multisamples=arena_lib.MULTISAMPLES,
     ):
-        if not callable(level_source):
-            raise TypeError("level_source must be callable as level_source(rng) -> Level")
-        grid_shape = tuple(int(v) for v in grid_shape)
-        if len(grid_shape) != 2 or min(grid_shape) < 3:
-            raise ValueError(f"grid_shape must be (rows, cols) with both >= 3, got {grid_shape}")
-        if int(max_boxes) < 1:
-            raise ValueError(f"max_boxes must be >= 1, got {max_boxes}")
-        if not 0 < pad_tolerance <= 0.5:
-            raise ValueError(f"pad_tolerance must be in (0, 0.5] cells, got {pad_tolerance}")
-        if time_limit <= 0:
-            raise ValueError(f"time_limit must be positive seconds, got {time_limit}")
-        if not isinstance(sleep, bool):
-            raise TypeError(f"sleep must be True or False, got {sleep!r}")
-        if (
-            not isinstance(noslip_iterations, numbers.Integral)
-            or isinstance(noslip_iterations, bool)
-            or noslip_iterations < 0
-        ):
-            raise ValueError(
-                f"noslip_iterations must be an integer >= 0, got {noslip_iterations!r}"
-            )
+        grid_shape = _check_task_options(
+            level_source, grid_shape, max_boxes, pad_tolerance, time_limit, sleep, noslip_iterations
+        )
         self._level_source = level_source
         self._randomize_appearance = bool(randomize_appearance)
         self._pad_tolerance = float(pad_tolerance) * cell_size
@@ -219,35 +228,10 @@ class Mujoban(ObservationsMixin, LooksMixin, LayoutMixin, PhysicsTask):
         self._add_walker_touch_sensor()
         self._walker.create_root_joints(self._arena.attach(self._walker))
 
-        self._boxes = []
-        self._box_joints = []
-        sliding, torsional, rolling = BOX_FLOOR_FRICTION
+        self._boxes: list[Box] = []
+        self._box_joints: list[list] = []  # each box's x, y and z slide joints
         for i in range(max_boxes):
-            box = Box(name=f"box_{i}")
-            frame = self._arena.attach(box)
-            frame.pos = (0, 0, box.half_height)  # resting on the floor at qpos z = 0
-            joints = [
-                frame.add(
-                    "joint",
-                    name=f"box_{i}_{axis}",
-                    type="slide",
-                    axis=vec,
-                    frictionloss=0.0,
-                    damping=0.0,
-                    armature=0.0,
-                )
-                for axis, vec in (("x", (1, 0, 0)), ("y", (0, 1, 0)), ("z", (0, 0, 1)))
-            ]
-            self._arena.mjcf_model.contact.add(
-                "pair",
-                name=f"box_{i}_floor",
-                geom1=box.geom,
-                geom2=self._arena.floor,
-                condim=6,
-                friction=(sliding, sliding, torsional, rolling, rolling),
-            )
-            self._boxes.append(box)
-            self._box_joints.append(joints)
+            self._add_box(i)
 
         self._cameras: dict[str, CameraConfig] = {}
         if top_camera:
@@ -260,6 +244,37 @@ class Mujoban(ObservationsMixin, LooksMixin, LayoutMixin, PhysicsTask):
         self.set_timesteps(control_timestep=control_timestep, physics_timestep=physics_timestep)
         self.time_limit_steps = int(round(time_limit / control_timestep))
         self.level: Level | None = None
+
+    def _add_box(self, i: int) -> None:
+        """Attaches box ``i``: three slide joints (x, y, z) without friction
+        loss, damping or armature, resting on the floor at qpos z = 0, and a
+        box-floor contact pair with `BOX_FLOOR_FRICTION`."""
+        sliding, torsional, rolling = BOX_FLOOR_FRICTION
+        box = Box(name=f"box_{i}")
+        frame = self._arena.attach(box)
+        frame.pos = (0, 0, box.half_height)  # resting on the floor at qpos z = 0
+        joints = [
+            frame.add(
+                "joint",
+                name=f"box_{i}_{axis}",
+                type="slide",
+                axis=vec,
+                frictionloss=0.0,
+                damping=0.0,
+                armature=0.0,
+            )
+            for axis, vec in (("x", (1, 0, 0)), ("y", (0, 1, 0)), ("z", (0, 0, 1)))
+        ]
+        self._arena.mjcf_model.contact.add(
+            "pair",
+            name=f"box_{i}_floor",
+            geom1=box.geom,
+            geom2=self._arena.floor,
+            condim=6,
+            friction=(sliding, sliding, torsional, rolling, rolling),
+        )
+        self._boxes.append(box)
+        self._box_joints.append(joints)
 
     # -- parts and sizes ----------------------------------------------------
 

@@ -204,6 +204,35 @@ class BallSkill(Skill):
 
     # -- status -------------------------------------------------------------------------
 
+    def _fail_if_disturbed(self, boxes) -> bool:
+        """Fails (and returns True) if a box this subgoal does not push has
+        moved more than ``disturb_tol`` along either axis from its start."""
+        tol = self.config.disturb_tol
+        for k, (bx_, by_) in enumerate(boxes):
+            if k in self._pushed_boxes:
+                continue
+            sx, sy = self._box_start[k]
+            if abs(bx_ - sx) > tol or abs(by_ - sy) > tol:
+                self._fail(
+                    f"box disturbed: box {k} moved "
+                    f"{math.hypot(bx_ - sx, by_ - sy):.2f} m but should not have"
+                )
+                return True
+        return False
+
+    def _start_next_leg(self, boxes, px, py) -> None:
+        """Moves on to the next leg, rebuilt from the boxes' and the ball's
+        current positions, with fresh progress and contact tracking."""
+        self._leg += 1
+        self._legs[self._leg] = legs.rebuild(
+            self._description, self.config, self._legs[self._leg], boxes, (px, py)
+        )
+        self._i = 0
+        self._prev_box = None
+        self._contact.new_leg()
+        self._best = math.inf
+        self._since_best = 0
+
     def _update_status(
         self, scene, boxes, leg, box, px, py, speed, v_along, progress, on_last_segment
     ) -> None:
@@ -219,16 +248,8 @@ class BallSkill(Skill):
                 )
                 return
             self._est_match = est_boxes == self._goal_boxes and est[1] == self._goal_player
-        for k, (bx_, by_) in enumerate(boxes):
-            if k in self._pushed_boxes:
-                continue
-            sx, sy = self._box_start[k]
-            if abs(bx_ - sx) > cfg.disturb_tol or abs(by_ - sy) > cfg.disturb_tol:
-                self._fail(
-                    f"box disturbed: box {k} moved "
-                    f"{math.hypot(bx_ - sx, by_ - sy):.2f} m but should not have"
-                )
-                return
+        if self._fail_if_disturbed(boxes):
+            return
         box_speed = 0.0
         if box is not None:
             if abs(box.off_line) > 0.2:
@@ -258,15 +279,7 @@ class BallSkill(Skill):
                 self.status = Status.SUCCESS
                 return
         if done_leg and not last_leg:
-            self._leg += 1
-            self._legs[self._leg] = legs.rebuild(
-                self._description, cfg, self._legs[self._leg], boxes, (px, py)
-            )
-            self._i = 0
-            self._prev_box = None
-            self._contact.new_leg()
-            self._best = math.inf
-            self._since_best = 0
+            self._start_next_leg(boxes, px, py)
             return
         # Stuck: no progress along the trajectory (or of the box) for a while.
         if done_leg:
