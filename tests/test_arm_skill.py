@@ -91,15 +91,18 @@ def scene_of(env, timestep):
     return estimator.estimate(timestep)
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture
 def mujoxo():
+    """A fresh environment per test (as `mujogo`)."""
     env = envs.load("mujoxo/optimal", seed=0, **NO_CAMERA)
     yield env
     env.close()
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture
 def mujogo():
+    """A fresh environment per test: the arm's random reset poses then do not
+    depend on which tests ran before (the order differs between workers)."""
     env = envs.load("mujogo/7x7", seed=0, **NO_CAMERA)
     yield env
     env.close()

@@ -22,8 +22,10 @@ def _subgoal(state, action):
     return Subgoal(action=action, state=child)
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture
 def xo():
+    """A fresh environment per test: its random arm poses do not depend on the
+    tests that ran before (the order differs between workers)."""
     env = envs.load("mujoxo/optimal", seed=3, **envs.no_cameras("mujoxo/optimal"))
     yield env
     env.close()
