@@ -25,11 +25,12 @@ from hier_agents.modular.components import (
 
 ROOT = Path(__file__).resolve().parents[1]
 #: One short environment per family (a shortened time limit keeps every
-#: combination's episode short).
+#: combination's episode short; on the boards it still holds the arm's first
+#: touch and the opponent's reply).
 FAMILY_ENVS = {
     "mujoban": ("mujoban/level1-pegs", 8.0),
     "mujoxo": ("mujoxo/mixture", 8.0),
-    "mujogo": ("mujogo/7x7", 8.0),
+    "mujogo": ("mujogo/7x7", 4.0),
     "mujoboard": ("mujoboard/breakthrough-6x6", 8.0),
 }
 
