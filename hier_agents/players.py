@@ -1,5 +1,5 @@
 """Where `hier_agents.run` plays its episodes: here (`play_here`), or split
-over processes (``--workers``) or Ray tasks (``--ray-address``)
+over processes (``--workers``) or Ray actors (``--ray-address``)
 (`play_parallel`).
 
 A worker of the executor (`hier_agents.executor.Pool`: a spawned process

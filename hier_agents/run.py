@@ -43,8 +43,7 @@ Bad input (an unknown name, a negative seed, a missing or malformed
 command before anything is played with one line on stderr (what was wrong,
 what is allowed, the closest name) and exit status 2 (`physics_planning.cli`). Output
 folders are created up front; ``--json`` is rewritten after every episode
-(``"finished": false`` until the run ends; checkpoint and random agents write
-it at the end), the ``--video`` after the first.
+(``"finished": false`` until the run ends), the ``--video`` after the first.
 
 Every agent kind (``--agent NAME[:ARG]``: ``modular``, ``checkpoint:PATH``,
 ``random[:HOLD]`` and any kind registered with `hier_agents.agents.register`)
