@@ -210,9 +210,9 @@ def _add_logging_args(parser: Parser, default: dict) -> None:
     add = parser.add_argument
     add(
         "--checkpoint-every",
-        type=positive_float,
+        type=non_negative_float,
         default=default["checkpoint_every_s"],
-        help="seconds between checkpoints",
+        help="seconds between checkpoints (0: after every update)",
     )
     add(
         "--keep-checkpoints",

@@ -150,7 +150,7 @@ class TrainConfig:
             ("learning_rate", 0, True),
             ("entropy_cost", 0, False),
             ("abs_reward", 0, False),
-            ("checkpoint_every_s", 0, True),
+            ("checkpoint_every_s", 0, False),  # 0: a checkpoint after every update
             ("log_every_s", 0, False),
         ):
             value = getattr(self, name)
