@@ -133,6 +133,15 @@ def test_an_interrupted_save_leaves_the_previous_checkpoint_whole(tmp_path, monk
         ]
         run.save({"step": 3}, keep="step-3")
         assert torch.load(tmp_path / "checkpoints" / "step-3.pt", weights_only=True)["step"] == 3
+        # A lean kept copy leaves out what only resuming reads; checkpoint.pt keeps it all.
+        run.save(
+            {"step": 4, "optimizer": {"m": 1}}, keep="step-4", keep_without=("optimizer", "rng")
+        )
+        lean = torch.load(tmp_path / "checkpoints" / "step-4.pt", weights_only=True)
+        assert lean["step"] == 4 and "optimizer" not in lean and "rng" not in lean
+        assert lean["config"] == run.config
+        full = torch.load(run.checkpoint_path, weights_only=True)
+        assert full["optimizer"] == {"m": 1} and "rng" in full
 
 
 def test_config_json_is_checked_and_merged_on_resume(tmp_path):

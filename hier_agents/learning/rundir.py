@@ -11,7 +11,8 @@ A run directory holds:
   file in the same directory, then ``os.replace``): the trainer's payload
   plus ``config`` and ``rng`` (torch, numpy and python ``random`` states),
   loadable with ``torch.load(weights_only=True)`` when the payload is;
-  ``checkpoints/NAME.pt``: copies kept on request (learning curves);
+  ``checkpoints/NAME.pt``: copies kept on request (learning curves), which
+  may leave out what only resuming needs (`RunDir.save`'s ``keep_without``);
 * ``scalars.jsonl``: one JSON object per log call (``{"step": S, ...}``),
   and the same scalars as TensorBoard events (``torch.utils.tensorboard``).
 
@@ -289,17 +290,23 @@ class RunDir:
             set_rng_state(data["rng"])
         return data
 
-    def save(self, payload: dict, keep: str | None = None) -> Path:
+    def save(self, payload: dict, keep: str | None = None, keep_without=()) -> Path:
         """Writes ``payload`` + ``config`` + ``rng`` atomically to ``checkpoint.pt``;
-        ``keep``: also as ``checkpoints/KEEP.pt``. Returns the checkpoint's path."""
+        ``keep``: also as ``checkpoints/KEEP.pt``, a copy without the keys
+        ``keep_without`` (e.g. ``("optimizer", "rng")``: a kept copy for
+        evaluation, which resuming never reads). Returns the checkpoint's path."""
         data = {**payload, "config": self.config, "rng": rng_state()}
         atomic_save(data, self.checkpoint_path)
         if keep is not None:
             kept = self.path / KEPT
             kept.mkdir(exist_ok=True)
-            atomic_write(
-                kept / f"{keep}.pt", lambda tmp: shutil.copyfile(self.checkpoint_path, tmp)
-            )
+            if keep_without:
+                lean = {k: v for k, v in data.items() if k not in keep_without}
+                atomic_save(lean, kept / f"{keep}.pt")
+            else:
+                atomic_write(
+                    kept / f"{keep}.pt", lambda tmp: shutil.copyfile(self.checkpoint_path, tmp)
+                )
         return self.checkpoint_path
 
     # scalars and progress

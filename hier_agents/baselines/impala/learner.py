@@ -17,7 +17,9 @@
    for learning curves: `benchmarks/learning_curve.py`); with ``save_at``,
    a kept copy ``checkpoints/frames-B.pt`` exactly at each budget B (updates
    are cut so the frame count meets it: evaluation at equal budgets,
-   `hier_agents.compare`).
+   `hier_agents.compare`). Kept copies hold what evaluation reads (weights,
+   input spec, config, counters), not the optimiser state or the random
+   states (`KEPT_WITHOUT`): a run resumes from ``checkpoint.pt`` only.
 
 Frames are environment control steps consumed by the learner. The budget
 ``steps`` is met exactly when it is a multiple of ``unroll_length`` (else
@@ -54,6 +56,10 @@ from hier_agents.baselines.impala.config import TrainConfig  # noqa: F401
 from hier_agents.learning.rundir import CHECKPOINT, KEPT, RunDir
 
 KEPT_CHECKPOINTS = KEPT  # folder of `keep_checkpoints` copies, frames-N.pt
+#: What a kept copy ``frames-N.pt`` leaves out: only resuming reads them, and a
+#: run resumes from ``checkpoint.pt`` alone (a kept copy is for evaluation:
+#: `load_checkpoint`, `net_from_checkpoint`; it is what a comparison ships).
+KEPT_WITHOUT = ("optimizer", "rng")
 #: The trainer recorded in its run directories (`RunDir`'s ``trainer``).
 TRAINER = "python -m hier_agents.train"
 
@@ -456,6 +462,7 @@ class _Training:
                 "input_spec": dataclasses.asdict(self.spec),
             },
             keep=f"frames-{int(counters['frames'])}" if keep else None,
+            keep_without=KEPT_WITHOUT,
         )
 
 
