@@ -61,9 +61,22 @@ def build_parser() -> cli.Parser:
         "cached then fail)",
     )
     add(
+        "--retrain",
+        action="store_true",
+        help="train every series of the spec again from zero (its run directory is removed "
+        "first) and evaluate it again, whatever the cache holds",
+    )
+    add(
+        "--reevaluate",
+        action="store_true",
+        help="run every evaluation again, ignoring stored evaluation records (trainings "
+        "whose kept checkpoints are on disk are not run: a cold run of shipped checkpoints)",
+    )
+    add(
         "--iqm",
         action="store_true",
-        help="table and plot show the interquartile mean over seeds instead of the mean",
+        help="the plot's bands and the README table follow the interquartile mean (with its "
+        "stratified bootstrap interval) instead of the mean",
     )
     add("--quiet", action="store_true", help="no line per job")
     return parser
@@ -83,21 +96,31 @@ def _main(argv=None) -> int:
     planned = jobs_mod.plan(spec)
     if args.only is not None:
         cli.choice("--only", args.only, ("train", "eval"))
+    if args.report_only and (args.retrain or args.reevaluate):
+        raise cli.UsageError("--report-only runs nothing: drop --retrain and --reevaluate")
+    if args.retrain and args.only == "eval":
+        raise cli.UsageError("--retrain trains: it does not go with --only eval")
+    fresh = _fresh(planned, args)
     if args.plan:
-        _print_plan(planned, cache)
+        _print_plan(planned, cache, fresh)
         return 0
-    failure = None if args.report_only else _run(planned, cache, args)
+    failure = None if args.report_only else _run(planned, cache, args, fresh)
     records = {j.key: r for j in planned if (r := jobs_mod.load_record(cache, j.key)) is not None}
     pts = report.points(spec, planned, records)
-    costs = report.series_cost(spec, planned, records)
-    table = report.format_table(spec, pts, costs, use_iqm=args.iqm)
+    costs = report.series_cost(spec, planned, records, jobs_mod.series_records(cache))
+    aggs = report.aggregates(spec, pts)
+    table = report.format_table(spec, pts, costs, aggs, use_iqm=args.iqm)
     print(table)
-    missing = sum(1 for j in planned if j.key not in records)
+    missing = sum(
+        1
+        for j in planned
+        if j.key not in records and not (j.kind == "train" and jobs_mod.artifacts_present(cache, j))
+    )
     code_versions = report.code_versions(records)
-    content = _content(spec, args, planned, pts, costs, missing, code_versions)
+    content = _content(spec, args, planned, (pts, aggs, costs), missing, code_versions)
     if len(code_versions) > 1:
         _warn_code_versions(code_versions)
-    _write_outputs(Path(cache), content, table, spec, pts, args)
+    _write_outputs(Path(cache), content, table, spec, (pts, aggs), args)
     if failure:
         print(f"{PROG}: {failure}", file=sys.stderr)
         return 1
@@ -106,22 +129,67 @@ def _main(argv=None) -> int:
     return 0
 
 
-def _print_plan(planned, cache) -> None:
-    """``--plan``: a line per job, cached or to run."""
+def _fresh(planned, args) -> set[str]:
+    """Keys of the jobs to run whatever the cache holds: with ``--retrain``
+    every training and the evaluations of trained agents, with
+    ``--reevaluate`` every evaluation."""
+    fresh: set[str] = set()
+    for job in planned:
+        if args.reevaluate and job.kind == "eval":
+            fresh.add(job.key)
+        if args.retrain and (job.kind == "train" or job.deps):
+            fresh.add(job.key)
+    return fresh
+
+
+def _print_plan(planned, cache, fresh) -> None:
+    """``--plan``: a line per job, done (its record, or a training's kept
+    checkpoints) or to run."""
     from hier_agents.compare import jobs as jobs_mod
 
     for job in planned:
-        record = jobs_mod.load_record(cache, job.key)
-        state = "cached" if record is not None else "to run"
-        print(f"{job.key}  {state:<7} {job.describe()}")
+        done = job.key not in fresh and (
+            jobs_mod.load_record(cache, job.key) is not None
+            if job.kind == "eval"
+            else jobs_mod.artifacts_present(cache, job)
+            or jobs_mod.load_record(cache, job.key) is not None
+        )
+        print(f"{job.key}  {'cached' if done else 'to run':<7} {job.describe()}")
 
 
-def _run(planned, cache, args) -> str | None:
-    """Runs the jobs ``--only`` selects that are not cached; the failure's
-    message when jobs failed (the others' records are kept), else None."""
+def _check_trainable(planned, cache, fresh) -> None:
+    """Refuses, before anything runs, a training that can no longer keep a
+    checkpoint at one of its budgets (`hier_agents.compare.jobs.unreachable_budgets`).
+
+    Raises:
+      UsageError: one line naming the agent, environment, seed and budgets.
+    """
+    from hier_agents.compare import jobs as jobs_mod
+
+    for job in planned:
+        if job.kind != "train" or job.key in fresh or jobs_mod.artifacts_present(cache, job):
+            continue
+        unreachable = jobs_mod.unreachable_budgets(cache, job)
+        if unreachable:
+            p = job.point
+            raise cli.UsageError(
+                f"agent {p['agent']!r} on {p['env']}, seed {p['seed']}: its run "
+                f"{jobs_mod.train_dir(cache, job.inputs['series'])} cannot keep checkpoints at "
+                f"{', '.join(f'{b:,}' for b in unreachable)} frames (it is past them, or its "
+                f"resumable checkpoint is not here, as in a clone of shipped checkpoints); "
+                f"--retrain trains its series again from zero"
+            )
+
+
+def _run(planned, cache, args, fresh) -> str | None:
+    """Runs the jobs ``--only`` selects that are not done (``fresh`` ones
+    whatever the cache holds), then prints the wall time and the CPUs it
+    had; the failure's message when jobs failed (the others' records are
+    kept), else None."""
     from hier_agents.compare.backends import JobFailed, run_jobs
 
     runnable = [j for j in planned if args.only in (None, j.kind)]
+    _check_trainable(runnable, cache, fresh)
     say = (
         (lambda text: None)
         if args.quiet
@@ -129,6 +197,8 @@ def _run(planned, cache, args) -> str | None:
             lambda text: print(f"{time.strftime('%H:%M:%S')} {text}", file=sys.stderr, flush=True)
         )
     )
+    stats: dict = {}
+    failure = None
     try:
         run_jobs(
             runnable,
@@ -138,21 +208,43 @@ def _run(planned, cache, args) -> str | None:
             ray_address=args.ray_address,
             retries=args.retries,
             progress=say,
+            fresh=fresh,
+            stats=stats,
         )
     except JobFailed as exc:
-        return str(exc)
-    return None
+        failure = str(exc)
+    if stats.get("ran"):
+        why = " (--reevaluate: every evaluation)" if args.reevaluate else ""
+        print(
+            f"{PROG}: {cli.plural(stats['ran'], 'job')} run{why} in "
+            f"{_clock(stats['wall_s'])} wall on {stats['cpus']} CPUs ({stats['backend']})",
+            file=sys.stderr,
+        )
+    return failure
 
 
-def _content(spec, args, planned, pts, costs, missing, code_versions) -> dict:
-    """comparison.json's content, its provenance aside."""
+def _clock(seconds: float) -> str:
+    """``H:MM:SS``."""
+    s = int(round(seconds))
+    return f"{s // 3600}:{s // 60 % 60:02d}:{s % 60:02d}"
+
+
+def _content(spec, args, planned, results, missing, code_versions) -> dict:
+    """comparison.json's content, its provenance aside; ``results``: the
+    points, the aggregates and the series' costs (`hier_agents.compare.report`)."""
+    from hier_agents.compare import report
+
+    pts, aggs, costs = results
     return {
         "name": spec.name,
         "description": spec.description,
         "spec": spec.raw,
         "spec_file": str(spec.path),
         "statistic": "iqm" if args.iqm else "mean",
+        "statistics": report.STATISTICS,
+        "aggregate_statistics": report.AGGREGATE,
         "points": pts,
+        "aggregates": aggs,
         "series_cost": costs,
         "jobs": len(planned),
         "jobs_missing": missing,
@@ -173,10 +265,10 @@ def _warn_code_versions(code_versions) -> None:
     )
 
 
-def _write_outputs(cache: Path, content, table, spec, pts, args) -> None:
+def _write_outputs(cache: Path, content, table, spec, results, args) -> None:
     """Writes comparison.txt, comparison.png and comparison.json into
     ``cache`` (the JSON last: it marks them done), unless they already hold
-    ``content``."""
+    ``content``; ``results``: the points and the aggregates."""
     from hier_agents.compare import report
     from hier_agents.provenance import provenance
 
@@ -195,7 +287,7 @@ def _write_outputs(cache: Path, content, table, spec, pts, args) -> None:
     else:
         outputs[0].parent.mkdir(parents=True, exist_ok=True)
         outputs[0].write_text(table + "\n")
-        report.plot(spec, pts, outputs[1], use_iqm=args.iqm)
+        report.plot(spec, results[0], outputs[1], results[1], use_iqm=args.iqm)
         cli.write_json(out, {**content, "provenance": provenance()})  # last: marks them done
         print(f"wrote {out}, comparison.txt and comparison.png", file=sys.stderr)
 

@@ -1,12 +1,18 @@
 """Running an experiment's jobs: a local pool of job processes, or a Ray cluster.
 
-`run_jobs` is the scheduler both share: it skips jobs whose record is in the
-cache (a train job also needs its checkpoints on disk if an unfinished
-evaluation needs them), starts a job once the jobs it needs are done and its
-CPUs are free (evaluations that can run before trainings, so results arrive
-as the experiment runs), stores each result as it arrives, retries a failed job
+`run_jobs` is the scheduler both share: it skips evaluations whose record is
+in the cache and trainings whose kept checkpoints at every budget are on disk
+(or whose record is, when no evaluation to run needs their checkpoints),
+starts a job once the jobs it needs are done (an evaluation of a trained
+agent: or once its budget's checkpoint is on disk) and its CPUs are free
+(evaluations that can run before trainings, so results arrive as the
+experiment runs), stores each result as it arrives, retries a failed job
 (``retries`` times), and prints a line per start and end with the count
-done. Every job runs in its own process (``python -m
+done, and every ``progress_every`` seconds a line per running training with
+the frames its run directory has reached. ``fresh`` names jobs to run
+whatever the cache holds (``--retrain``: trainings, whose run directories are
+removed first so they start from nothing, and their evaluations;
+``--reevaluate``: evaluations). Every job runs in its own process (``python -m
 hier_agents.compare.jobs``), which dies with its parent: jobs differ in the
 CPUs they take and share nothing, so each gets a fresh process rather than a
 kept `hier_agents.executor.Pool` worker. A job whose process dies (a signal,
@@ -28,6 +34,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -36,7 +43,14 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from hier_agents.compare.jobs import Job, artifacts_present, load_record, store_record
+from hier_agents.compare.jobs import (
+    Job,
+    artifacts_present,
+    load_record,
+    needed_checkpoint,
+    store_record,
+    train_dir,
+)
 from hier_agents.executor import Deaths, WorkerDied, die_with_parent, exit_status
 
 if TYPE_CHECKING:
@@ -100,83 +114,151 @@ def run_jobs(
     ray_address: str | None = None,
     retries: int = 1,
     progress=print,
+    fresh=frozenset(),
+    progress_every: float = 60.0,
+    stats: dict | None = None,
 ) -> dict:
-    """Runs every job not already in the cache; returns key -> record.
+    """Runs every job not already done (module docstring); returns key ->
+    record of the jobs whose record is stored. ``stats``, when given, gets
+    ``ran`` (jobs run), ``wall_s`` (seconds this call took), ``cpus`` (the
+    CPUs the jobs could use: the pool's, or the Ray cluster's) and
+    ``backend``.
 
     Raises:
       JobFailed: some jobs failed after their retries (the message lists
         them; every other job's record is stored).
     """
     cache = Path(cache)
+    start = time.perf_counter()
     (cache / "jobs").mkdir(parents=True, exist_ok=True)
     by_key = {job.key: job for job in jobs}
-    records, evals, trains = _cached(jobs, cache)
+    records, done, evals, trains = _cached(jobs, cache, set(fresh))
+    for job in trains:
+        if job.key in fresh and train_dir(cache, job.inputs["series"]).exists():
+            progress(f"removing {train_dir(cache, job.inputs['series'])}: trained again from zero")
+            shutil.rmtree(train_dir(cache, job.inputs["series"]))
     # Ready evaluations go first, so that each finished training is evaluated
     # before the next one starts and results arrive as the experiment runs.
     todo = evals + trains
-    total, done = len(todo), 0
+    total, count = len(todo), 0
     cached = len(jobs) - total
     progress(
         f"{len(jobs)} jobs: {cached} in the cache ({cache}), {total} to run"
         + (f" on {backend}" if total else "")
     )
+    slots = cpus or os.cpu_count() or 1
+    if stats is not None:
+        stats.update(ran=total, wall_s=0.0, cpus=slots, backend=backend)
     if not todo:
         return records
     failed: dict[str, str] = {}
     starts: dict[str, float] = {}
 
     def ready(job):
-        return all(d in records for d in job.deps)
+        if all(d in done for d in job.deps):
+            return True
+        path = needed_checkpoint(cache, job)
+        return path is not None and path.is_file()
 
     def blocked(job):
-        return any(d in failed for d in job.deps)
+        return any(d in failed for d in job.deps) and not ready(job)
 
     def finished(job, record, error=None):
-        nonlocal done
-        done += 1
+        nonlocal count
+        count += 1
         took = time.perf_counter() - starts.get(job.key, time.perf_counter())
         if error is None:
             records[job.key] = record
-            progress(f"[{done}/{total}] done   {job.describe()} ({took:,.0f} s)")
+            done.add(job.key)
+            progress(f"[{count}/{total}] done   {job.describe()} ({took:,.0f} s)")
         else:
             failed[job.key] = error
-            progress(f"[{done}/{total}] FAILED {job.describe()}: {error}")
+            progress(f"[{count}/{total}] FAILED {job.describe()}: {error}")
 
+    watch = _Watch(cache, starts, progress, progress_every)
     if backend == "ray":
-        _run_ray(
-            todo, cache, cpus, ray_address, retries, ready, blocked, finished, starts, progress
+        slots = _run_ray(
+            todo, cache, cpus, ray_address, retries, ready, blocked, finished, starts, watch
         )
     else:
-        slots = cpus or os.cpu_count() or 1
-        _run_local(todo, cache, slots, retries, ready, blocked, finished, starts, progress)
+        _run_local(todo, cache, slots, retries, ready, blocked, finished, starts, watch)
+    if stats is not None:
+        stats.update(wall_s=time.perf_counter() - start, cpus=slots)
     if failed:
         lines = "; ".join(f"{by_key[k].describe()}: {v}" for k, v in failed.items())
         raise JobFailed(f"{len(failed)} of {total} jobs failed: {lines}")
     return records
 
 
-def _cached(jobs: list[Job], cache: Path) -> tuple[dict, list[Job], list[Job]]:
-    """(records of the jobs the cache holds, evaluations to run, trainings to
-    run). A cached training whose checkpoints are gone runs again when an
-    evaluation still to run needs them."""
-    records, evals, trains = {}, [], []
+class _Watch:
+    """Every ``every`` seconds, a line per running training: the frames its
+    run directory has reached (`Trainer.frames_done`) of its target, and
+    how long it has run."""
+
+    def __init__(self, cache: Path, starts: dict, progress, every: float) -> None:
+        self.cache, self.starts, self.progress, self.every = cache, starts, progress, every
+        self.last = time.perf_counter()
+
+    def __call__(self, running) -> None:
+        """``running``: the jobs running now; prints when a period has passed."""
+        now = time.perf_counter()
+        if now - self.last < self.every:
+            return
+        self.last = now
+        for job in running:
+            if job.kind == "train":
+                self.progress(
+                    "       " + train_progress(self.cache, job, now - self.starts[job.key])
+                )
+
+
+def train_progress(cache: Path, job: Job, elapsed: float) -> str:
+    """One line on a running training: frames reached of its target, and
+    the seconds it has run."""
+    from hier_agents.compare import trainers
+
+    i = job.inputs
+    frames = trainers.get(i["trainer"]).frames_done(train_dir(cache, i["series"]))
+    share = 100 * frames / max(1, i["frames"])
+    return (
+        f"{job.describe()}: {frames:,} of {i['frames']:,} frames ({share:.0f}%), "
+        f"{elapsed / 60:,.0f} min"
+    )
+
+
+def _cached(jobs: list[Job], cache: Path, fresh: set) -> tuple[dict, set, list[Job], list[Job]]:
+    """(records of the done jobs the cache holds, keys of the done jobs,
+    evaluations to run, trainings to run). An evaluation is done with its
+    record; a training with its kept checkpoints at every budget, or with
+    its record when no evaluation to run needs its checkpoints. Jobs in
+    ``fresh`` are run whatever the cache holds."""
+    records, done, evals, trains = {}, set(), [], []
     needed_trains: set[str] = set()
     for job in jobs:
-        record = load_record(cache, job.key)
-        if record is not None and job.kind == "eval":
+        if job.kind != "eval":
+            continue
+        record = None if job.key in fresh else load_record(cache, job.key)
+        if record is not None:
             records[job.key] = record
-        elif job.kind == "eval":
+            done.add(job.key)
+        else:
             evals.append(job)
             needed_trains.update(job.deps)
     for job in jobs:
         if job.kind != "train":
             continue
         record = load_record(cache, job.key)
-        if record is not None and (job.key not in needed_trains or artifacts_present(cache, job)):
+        if record is not None:
             records[job.key] = record
-        else:
+        if job.key in fresh:
+            records.pop(job.key, None)
             trains.append(job)
-    return records, evals, trains
+        elif artifacts_present(cache, job) or (record is not None and job.key not in needed_trains):
+            done.add(job.key)
+        else:
+            records.pop(job.key, None)
+            trains.append(job)
+    return records, done, evals, trains
 
 
 def _skip_blocked(pending, blocked, finished) -> None:
@@ -196,7 +278,8 @@ def _died(deaths: Deaths, job: Job, how: str, where: str, finished) -> bool:
         return False
 
 
-def _run_local(todo, cache, slots, retries, ready, blocked, finished, starts, progress) -> None:
+def _run_local(todo, cache, slots, retries, ready, blocked, finished, starts, watch) -> None:
+    progress = watch.progress
     pending = list(todo)
     running: dict[str, threading.Thread] = {}
     results: dict[str, tuple[int, float]] = {}
@@ -252,14 +335,16 @@ def _run_local(todo, cache, slots, retries, ready, blocked, finished, starts, pr
                 pending.clear()
             if running:
                 lock.wait(timeout=5.0)
+                watch([j for j in todo if j.key in running])
 
 
-def _run_ray(
-    todo, cache, cpus, address, retries, ready, blocked, finished, starts, progress
-) -> None:
+def _run_ray(todo, cache, cpus, address, retries, ready, blocked, finished, starts, watch) -> int:
+    """Runs ``todo`` as Ray tasks; returns the cluster's CPUs."""
     from hier_agents.cluster import connect, remote
 
+    progress = watch.progress
     ray = connect(address, num_cpus=cpus)
+    cluster_cpus = int(ray.cluster_resources().get("CPU", 0))
     task = remote(_ray_task)
     pending = list(todo)
     running: dict[ObjectRef, Job] = {}  # task ref -> its job
@@ -287,6 +372,7 @@ def _run_ray(
                 finished(job, None, "its dependencies never finished")
             break
         done_refs, _ = ray.wait(list(running), num_returns=1, timeout=10.0)
+        watch(list(running.values()))
         for ref in done_refs:
             job = running.pop(ref)
             try:
@@ -306,3 +392,4 @@ def _run_ray(
                 continue
             store_record(cache, record)  # the driver's copy
             finished(job, record)
+    return cluster_cpus

@@ -2,21 +2,34 @@
 
 Two kinds:
 
-* ``train``: ``python -m hier_agents.train`` on one environment and seed up
-  to the agent's largest budget, keeping a checkpoint exactly at every budget
-  (``--save-at``); its run directory is ``CACHE/train/KEY`` (a killed job
-  resumes from its last checkpoint when run again);
+* ``train``: one trainer (`hier_agents.compare.trainers`: ``impala``,
+  ``sb3``) on one environment and seed up to the agent's largest budget,
+  keeping a checkpoint exactly at every budget (``save_at``). A training
+  series (trainer, environment, the trainer's table, seed) has one run
+  directory, ``CACHE/train/SERIES`` (`series_key`), whatever its budgets: a
+  killed job resumes from the run's last checkpoint, and a spec whose
+  largest budget grows (1M -> 5M frames) resumes the same run where it
+  stopped instead of training again from zero;
 * ``eval``: ``episodes`` episodes from ``first_episode`` of one agent (a
-  modular agent, a random one, or a train job's checkpoint at one budget) in
-  one environment at one seed (`hier_agents.run.run`, per-episode seeding:
-  shards of a point played anywhere give the rows of one run).
+  modular agent, a random one, or a series' kept checkpoint at one budget)
+  in one environment at one seed (`hier_agents.run.run`, per-episode
+  seeding: shards of a point played anywhere give the rows of one run).
 
-A job's key is a hash of everything that decides its result: its kind, its
-inputs (for a modular agent with learned parts, the content hash of their
-checkpoint files) and the keys of the jobs it needs, and `CACHE_VERSION`.
-Finished jobs are stored as ``CACHE/jobs/KEY.json`` (the inputs, the result,
-CPU and wall seconds, attempts, provenance): a run of the same spec skips
-them, so a killed or extended experiment continues where it stopped.
+A job's key is a hash of its kind, its inputs and `CACHE_VERSION`: for an
+evaluation of a trained agent, the series key and the budget (not the
+largest budget: growing a series keeps its evaluations); for a modular
+agent with learned parts, the content hash of their checkpoint files; for a
+training, the series and the budgets it must reach. Finished jobs are
+stored as ``CACHE/jobs/KEY.json`` (the inputs, the result, CPU and wall
+seconds, attempts, provenance): a run of the same spec skips them, so a
+killed or extended experiment continues where it stopped. A training whose
+kept checkpoints at every budget are on disk counts as done without its
+record (a clone with shipped checkpoints).
+
+Version 2 (this one): keys no longer hash the keys of the jobs a job needs,
+train jobs carry their trainer's name and series key, and an evaluation of
+a trained agent names its series and budget; run directories are
+``train/SERIES``. `hier_agents.compare.migrate` re-keys a version 1 cache.
 """
 
 from __future__ import annotations
@@ -29,18 +42,21 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from hier_agents.compare import trainers
 from physics_planning import cli
 
-#: Bumped when a change of the code changes what a job with the same inputs returns.
-CACHE_VERSION = 1
+#: Bumped when keys change, or when a change of the code changes what a job with
+#: the same inputs returns. 2: series keys (module docstring).
+CACHE_VERSION = 2
 
 
 @dataclass(frozen=True)
 class Job:
     """One unit of work: ``kind`` (train or eval), its ``inputs`` (JSON-able),
-    the keys of the jobs it needs (``deps``), the CPUs it occupies, and where
-    its result goes in the comparison (``point``: agent label, env, seed and,
-    for end-to-end agents, the budget)."""
+    the keys of the jobs it waits for (``deps``: scheduling only, not part
+    of its key), the CPUs it occupies, and where its result goes in the
+    comparison (``point``: agent label, env, seed and, for trained agents,
+    the budget)."""
 
     kind: str
     inputs: dict
@@ -50,14 +66,14 @@ class Job:
 
     @property
     def key(self) -> str:
-        return job_key(self.kind, self.inputs, self.deps)
+        return job_key(self.kind, self.inputs)
 
     def describe(self) -> str:
         i = self.inputs
         if self.kind == "train":
             return (
-                f"train {self.point['agent']} on {i['env']}, seed {i['seed']}, "
-                f"{i['frames']:,} frames"
+                f"train {self.point['agent']} ({i['trainer']}) on {i['env']}, seed {i['seed']}, "
+                f"to {i['frames']:,} frames"
             )
         last = i["first_episode"] + i["episodes"] - 1
         budget = f" at {self.point['budget']:,} frames" if self.point.get("budget") else ""
@@ -87,16 +103,23 @@ class Job:
         )
 
 
-def job_key(kind: str, inputs: dict, deps=()) -> str:
-    """A stable hash (20 hex digits) of a job's kind, inputs, dependencies'
-    keys and `CACHE_VERSION`; equal inputs give equal keys in any process or
-    order of dict keys."""
+def job_key(kind: str, inputs: dict) -> str:
+    """A stable hash (20 hex digits) of a job's kind, inputs and
+    `CACHE_VERSION`; equal inputs give equal keys in any process or order
+    of dict keys."""
     text = json.dumps(
-        {"version": CACHE_VERSION, "kind": kind, "inputs": inputs, "deps": list(deps)},
+        {"version": CACHE_VERSION, "kind": kind, "inputs": inputs},
         sort_keys=True,
         separators=(",", ":"),
     )
     return hashlib.sha256(text.encode()).hexdigest()[:20]
+
+
+def series_key(trainer: str, env: str, table: dict, seed: int) -> str:
+    """The key of a training series: its trainer's name, environment, the
+    trainer's table and seed, not its budgets (the run directory
+    ``CACHE/train/KEY`` and every evaluation of the series name it)."""
+    return job_key("series", {"trainer": trainer, "env": env, "table": table, "seed": seed})
 
 
 def plan(spec) -> list[Job]:
@@ -111,19 +134,17 @@ def plan(spec) -> list[Job]:
             for seed in agent.seeds:
                 point = {"agent": agent.label, "env": env, "seed": seed}
                 if agent.kind == "train":
-                    inputs = {
-                        "env": env,
-                        "train": agent.train,
-                        "seed": seed,
-                        "frames": max(agent.budgets),
-                        "save_at": list(agent.budgets),
-                    }
-                    actors = int(agent.train.get("actors", 2))
-                    train = Job("train", inputs, cpus=min(cpus, actors), point=point)
+                    train = train_job(agent, env, seed, point, cpus)
                     trains.append(train)
                     targets = [
                         (
-                            {"kind": "checkpoint", "budget": b, "stochastic": agent.stochastic},
+                            {
+                                "kind": "series",
+                                "trainer": agent.trainer,
+                                "series": train.inputs["series"],
+                                "budget": b,
+                                "stochastic": agent.stochastic,
+                            },
                             (train.key,),
                             {**point, "budget": b},
                         )
@@ -139,6 +160,22 @@ def plan(spec) -> list[Job]:
                         )
                     )
     return trains + evals
+
+
+def train_job(agent, env: str, seed: int, point: dict, cpus: int) -> Job:
+    """The train job of a trained agent's series on ``env`` at ``seed``: up
+    to its largest budget, keeping every budget."""
+    trainer = trainers.get(agent.trainer)
+    inputs = {
+        "trainer": agent.trainer,
+        "env": env,
+        "train": agent.train,
+        "seed": seed,
+        "series": series_key(agent.trainer, env, agent.train, seed),
+        "frames": max(agent.budgets),
+        "save_at": list(agent.budgets),
+    }
+    return Job("train", inputs, cpus=trainer.cpus(agent.train, cpus), point=point)
 
 
 def _eval_jobs(env, target, seed, episodes, shard, deps, point) -> list[Job]:
@@ -160,20 +197,31 @@ def _eval_jobs(env, target, seed, episodes, shard, deps, point) -> list[Job]:
     ]
 
 
-# -- execution ---------------------------------------------------------------------------
+# -- the cache -----------------------------------------------------------------------------
 
 
 def record_path(cache: Path, key: str) -> Path:
     return Path(cache) / "jobs" / f"{key}.json"
 
 
-def train_dir(cache: Path, key: str) -> Path:
-    return Path(cache) / "train" / key
+def train_dir(cache: Path, series: str) -> Path:
+    """A series' run directory."""
+    return Path(cache) / "train" / series
 
 
-def checkpoint_of(cache: Path, train_key: str, budget: int) -> Path:
-    """A train job's kept checkpoint at ``budget`` frames."""
-    return train_dir(cache, train_key) / "checkpoints" / f"frames-{int(budget)}.pt"
+def checkpoint_of(cache: Path, trainer: str, series: str, budget: int) -> Path:
+    """A series' kept checkpoint at ``budget`` frames."""
+    return trainers.get(trainer).checkpoint(train_dir(cache, series), budget)
+
+
+def needed_checkpoint(cache: Path, job: Job) -> Path | None:
+    """The kept checkpoint an evaluation of a trained agent plays (None for
+    other jobs): once it is on disk the evaluation may run, whatever its
+    training job's state."""
+    agent = job.inputs.get("agent") or {}
+    if job.kind != "eval" or agent.get("kind") != "series":
+        return None
+    return checkpoint_of(cache, agent["trainer"], agent["series"], agent["budget"])
 
 
 def store_record(cache: Path, record: dict) -> Path:
@@ -192,11 +240,51 @@ def load_record(cache: Path, key: str) -> dict | None:
 
 
 def artifacts_present(cache: Path, job: Job) -> bool:
-    """Whether a finished train job's checkpoints are still on disk (they are
-    not shipped; a record without them is re-run when an evaluation needs them)."""
+    """Whether a train job's kept checkpoints at every budget are on disk
+    (True for other jobs)."""
     if job.kind != "train":
         return True
-    return all(checkpoint_of(cache, job.key, b).is_file() for b in job.inputs["save_at"])
+    i = job.inputs
+    return all(checkpoint_of(cache, i["trainer"], i["series"], b).is_file() for b in i["save_at"])
+
+
+def series_records(cache: Path) -> dict[str, dict]:
+    """Per series key, the stored train record that reached the most frames
+    (any spec's, any budgets: the series' cost so far)."""
+    out: dict[str, dict] = {}
+    for path in sorted((Path(cache) / "jobs").glob("*.json")):
+        try:
+            record = json.loads(path.read_text())
+        except (OSError, ValueError):
+            continue
+        series = (record.get("inputs") or {}).get("series")
+        if record.get("kind") != "train" or not series:
+            continue
+        best = out.get(series)
+        if best is None or record["inputs"]["frames"] > best["inputs"]["frames"]:
+            out[series] = record
+    return out
+
+
+def unreachable_budgets(cache: Path, job: Job) -> list[int]:
+    """Budgets of a train job its run can no longer keep a checkpoint at:
+    missing, and below what the run has already trained (a budget added
+    under a finished part), or every missing one when the run's resumable
+    checkpoint is gone but kept ones are there (a clone with shipped
+    checkpoints: training again from zero would overwrite them). Empty
+    when the job can run."""
+    i = job.inputs
+    trainer = trainers.get(i["trainer"])
+    run = train_dir(cache, i["series"])
+    kept = trainer.kept_budgets(run)
+    missing = [b for b in i["save_at"] if not trainer.checkpoint(run, b).is_file()]
+    if kept and not (run / trainer.latest).is_file():
+        return missing
+    done = trainer.frames_done(run)
+    return [b for b in missing if b < done]
+
+
+# -- execution ---------------------------------------------------------------------------
 
 
 def execute(job: Job, cache: Path) -> dict:
@@ -204,51 +292,70 @@ def execute(job: Job, cache: Path) -> dict:
 
     Raises whatever the job raised (a failed training, a missing checkpoint).
     """
-    cache = Path(cache)
-    inputs = job.inputs
     if job.kind == "train":
-        from hier_agents.baselines.impala.config import TrainConfig
-        from hier_agents.baselines.impala.learner import train
-        from hier_agents.compare.spec import train_argv
+        return _train(job, Path(cache))
+    return _evaluate(job, Path(cache))
 
-        logdir = train_dir(cache, job.key)
-        planned = {
-            "frames": inputs["frames"],
-            "seed": inputs["seed"],
-            "logdir": str(logdir),
-            "save_at": list(inputs["save_at"]),
-            "no_progress": True,
-            "log_every": 30.0,
-            "checkpoint_every": 120.0,
-        }
-        config = TrainConfig.from_options(inputs["env"], {**inputs["train"], **planned})
-        counters = train(config)
-        counters.pop("last_stats", None)
-        missing = [b for b in inputs["save_at"] if not checkpoint_of(cache, job.key, b).is_file()]
-        if missing:
-            raise RuntimeError(
-                f"training ended at {counters.get('frames')} frames without "
-                f"checkpoints at {missing}"
-            )
-        # The command that trains the same run, for a reader of the record.
-        argv = train_argv(
-            inputs["env"],
-            inputs["train"],
-            frames=inputs["frames"],
-            seed=inputs["seed"],
-            logdir=str(logdir),
-            save_at=inputs["save_at"],
-        ) + ["--no-progress", "--log-every", "30", "--checkpoint-every", "120"]
-        return {"counters": counters, "argv": argv}
+
+def _train(job: Job, cache: Path) -> dict:
+    """A train job: trains (or resumes) the series' run to the job's frames.
+
+    Result: the trainer's ``counters``, ``series_cpu_s`` (CPU seconds of the
+    series so far, over every resumed part: the trainer's own ``cpu_s`` when
+    it spans resumes, else the series' earlier parts' plus this one's; None
+    when unknown), the frames it resumed from (0: a fresh run), and the
+    command that trains the same run (None for trainers without one).
+
+    Raises:
+      RuntimeError: budgets the run can no longer keep (`unreachable_budgets`)
+        or a training that ended without a checkpoint at every budget.
+    """
+    i = job.inputs
+    trainer = trainers.get(i["trainer"])
+    logdir = train_dir(cache, i["series"])
+    unreachable = unreachable_budgets(cache, job)
+    if unreachable:
+        raise RuntimeError(
+            f"{logdir} cannot keep checkpoints at {unreachable} any more (its run is past "
+            f"them, or its resumable {trainer.latest} is not here); run with --retrain"
+        )
+    resumed_from = trainer.frames_done(logdir) if (logdir / trainer.latest).is_file() else 0
+    before = series_records(cache).get(i["series"])
+    planned = dict(frames=i["frames"], seed=i["seed"], save_at=i["save_at"], logdir=logdir)
+    config = trainer.make_config(i["env"], i["train"], **planned)
+    counters = trainer.train(config)
+    counters.pop("last_stats", None)
+    missing = [b for b in i["save_at"] if not trainer.checkpoint(logdir, b).is_file()]
+    if missing:
+        raise RuntimeError(
+            f"training ended at {counters.get('frames')} frames without checkpoints at {missing}"
+        )
+    cpu = counters.get("cpu_s")
+    if cpu is not None and not trainer.cpu_spans_resumes and resumed_from:
+        earlier = ((before or {}).get("result") or {}).get("series_cpu_s")
+        cpu = None if earlier is None else float(earlier) + float(cpu)
+    return {
+        "counters": counters,
+        "series_cpu_s": cpu,
+        "resumed_from": resumed_from,
+        "argv": trainer.argv(i["env"], i["train"], **{**planned, "logdir": str(logdir)}),
+    }
+
+
+def _evaluate(job: Job, cache: Path) -> dict:
+    """An eval job: its episodes played (`hier_agents.run.run`); the rows
+    and the summary."""
     from hier_agents.agents import kind_of
     from hier_agents.run import run
 
+    inputs = job.inputs
     agent = inputs["agent"]
-    if agent["kind"] == "checkpoint" and job.deps:  # a train job's checkpoint at a budget
-        path = checkpoint_of(cache, job.deps[0], agent["budget"])
+    path = needed_checkpoint(cache, job)
+    if path is not None:  # a series' kept checkpoint at a budget
         if not path.is_file():
-            raise FileNotFoundError(f"the train job's checkpoint {path} is missing")
-        name, options = f"checkpoint:{path}", {"stochastic": agent.get("stochastic", False)}
+            raise FileNotFoundError(f"the series' checkpoint {path} is missing")
+        name = trainers.get(agent["trainer"]).agent(path)
+        options = {"stochastic": agent.get("stochastic", False)}
     else:
         kind = kind_of(agent["kind"])
         arg, options = kind.from_job_inputs(agent)

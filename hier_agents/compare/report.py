@@ -1,26 +1,63 @@
-"""An experiment's results: points with statistics across seeds, the table,
-the JSON and the plot.
+"""An experiment's results: points with statistics across seeds, aggregates
+across environments, the table, the JSON and the plot.
 
-A point is one agent in one environment at one training budget (end-to-end
+A point is one agent in one environment at one training budget (trained
 agents: each budget; modular agents: the frames their learned parts were
 trained on, 0 when scripted; random agents: 0). Per seed, its value is the
 success rate over that seed's episodes (MuJoBan: solved; board games: won).
-Across seeds: the mean with a 95% percentile-bootstrap interval over seeds
-(`hier_agents.stats.bootstrap_interval`, 10,000 resamples, seeded), the
-interquartile mean (`hier_agents.stats.iqm`) with its own bootstrap interval,
-the per-seed values, and the pooled Wilson interval over all episodes for
-reference. Series also report the CPU hours their jobs cost (training and
-evaluation, from the job records: a training's own ``cpu_s`` counter, which
-spans every resumed attempt; otherwise the record's ``cpu_s``, which covers
-only the attempt that finished, counted in ``cpu_partial_jobs`` and marked
-``>=`` in the table).
+Across seeds (`hier_agents.stats`, 10,000 resamples, seeded):
+
+* the **mean** over seeds with a 95% percentile-bootstrap interval over the
+  per-seed rates (`hier_agents.stats.bootstrap_interval`);
+* the **IQM** (interquartile mean, `hier_agents.stats.iqm`) over seeds with
+  a 95% **stratified bootstrap** interval
+  (`hier_agents.stats.stratified_interval`): the strata are the seeds; each
+  resample draws every seed's episodes with replacement within that seed,
+  recomputes each seed's success rate, and takes the IQM over the seeds;
+* the per-seed values and the pooled Wilson interval over all episodes.
+
+An **aggregate** per agent (and budget) over the spec's environments where
+it has a point, rliable-style (`aggregates`): the mean and the IQM over
+every run (one per environment and seed), with 95% intervals from a
+stratified bootstrap whose strata are the environments (each resample draws
+every environment's runs with replacement within it:
+`hier_agents.stats.aggregate_interval`).
+
+Series also report the CPU hours their jobs cost (`series_cost`): training,
+summed over seeds, each seed's run counted over every resumed part (the
+train job's ``series_cpu_s``, or its trainer's ``cpu_s`` counter; else the
+record's ``cpu_s``, which covers only the attempt that finished, counted in
+``cpu_partial_jobs`` and marked ``>=`` in the table), and evaluation.
+
+The plot (`plot`): one panel per environment (and one for the aggregate when
+there are several): learning curves of every trained series (success
+against the frames of its budgets: the mean with its interval shaded, the
+IQM dotted), the modular agents as coloured horizontal lines and random
+actions as grey dashed ones.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from hier_agents.stats import bootstrap_interval, iqm, wilson_interval
+from hier_agents.stats import (
+    aggregate_interval,
+    bootstrap_interval,
+    iqm,
+    stratified_interval,
+    wilson_interval,
+)
+
+#: The table's, the JSON's and the plot's words for the statistics.
+STATISTICS = (
+    "mean over seeds [95% percentile bootstrap over the per-seed rates]; IQM over seeds "
+    "[95% stratified bootstrap: each seed's episodes resampled within that seed, the "
+    "per-seed rates recomputed, the IQM over seeds]; 10,000 resamples, seeded"
+)
+AGGREGATE = (
+    "over environments, rliable-style: mean and IQM over all runs (one per environment and "
+    "seed) [95% stratified bootstrap: runs resampled within each environment]"
+)
 
 
 def _success(row: dict) -> bool:
@@ -45,7 +82,8 @@ def _observations(agent, summary: dict) -> tuple[str, bool]:
 
 def points(spec, jobs, records) -> list[dict]:
     """The comparison's points, in the spec's agent order then environment
-    and budget; points with missing jobs are left out."""
+    and budget; a seed with a missing shard is left out of its point (and
+    named in ``missing_seeds``), a point without any complete seed is left out."""
     grouped: dict[tuple, dict[int, list]] = {}
     summaries: dict[tuple, dict] = {}
     for job in jobs:
@@ -56,7 +94,6 @@ def points(spec, jobs, records) -> list[dict]:
         where = (p["agent"], p["env"], p.get("budget"))
         grouped.setdefault(where, {}).setdefault(p["seed"], []).extend(record["result"]["rows"])
         summaries.setdefault(where, record["result"]["summary"])
-    by_label = {a.label: a for a in spec.agents}
     out = []
     for agent in spec.agents:
         for env in agent.envs:
@@ -65,85 +102,137 @@ def points(spec, jobs, records) -> list[dict]:
                 where = (agent.label, env, budget)
                 seeds = grouped.get(where, {})
                 complete = {s: rows for s, rows in seeds.items() if len(rows) == agent.episodes}
-                if not complete:
-                    continue
-                summary = summaries[where]
-                per_seed = {
-                    s: sum(map(_success, rows)) / len(rows) for s, rows in sorted(complete.items())
-                }
-                values = list(per_seed.values())
-                wins = sum(sum(map(_success, rows)) for rows in complete.values())
-                episodes = sum(len(rows) for rows in complete.values())
-                observed, privileged = _observations(by_label[agent.label], summary)
-                frames = (
-                    int(summary.get("training_frames", budget or 0))
-                    if budget
-                    else int(summary.get("training_frames", 0) or 0)
-                )
-                point = {
-                    "agent": agent.label,
-                    "kind": agent.kind,
-                    "env": env,
-                    "budget": budget,
-                    "training_frames": frames,
-                    "seeds": list(per_seed),
-                    "per_seed": [round(v, 6) for v in values],
-                    "missing_seeds": sorted(set(agent.seeds) - set(per_seed)),
-                    "episodes_per_seed": agent.episodes,
-                    "mean": sum(values) / len(values),
-                    "mean_interval": list(bootstrap_interval(values)),
-                    "iqm": iqm(values),
-                    "iqm_interval": list(bootstrap_interval(values, iqm)),
-                    "pooled_wilson_interval": list(wilson_interval(wins, episodes)),
-                    "mean_steps": (
-                        sum(r["steps"] for rows in complete.values() for r in rows) / episodes
-                    ),
-                    "observations": observed,
-                    "privileged": privileged,
-                }
-                if agent.kind == "train":
-                    point["condition"] = agent.train.get("condition", "vanilla")
-                out.append(point)
+                if complete:
+                    out.append(_point(agent, env, budget, complete, summaries[where]))
     return out
 
 
-def series_cost(spec, jobs, records) -> list[dict]:
-    """Per agent and environment: CPU hours of training (all seeds, all
-    budgets: one run per seed) and of evaluation, the jobs counted, and
-    ``cpu_partial_jobs``: jobs retried whose CPU covers only their last
-    attempt (a lower bound; see the module docstring), also split by kind
-    (``cpu_partial_train_jobs``, ``cpu_partial_eval_jobs``)."""
+def _point(agent, env: str, budget, complete: dict, summary: dict) -> dict:
+    """One point from its complete seeds' rows (seed -> rows) and an
+    evaluation summary (`hier_agents.run.run`)."""
+    per_seed = {s: sum(map(_success, rows)) / len(rows) for s, rows in sorted(complete.items())}
+    values = list(per_seed.values())
+    outcomes = [[float(_success(r)) for r in rows] for _, rows in sorted(complete.items())]
+    wins = sum(sum(map(_success, rows)) for rows in complete.values())
+    episodes = sum(len(rows) for rows in complete.values())
+    observed, privileged = _observations(agent, summary)
+    frames = int(summary.get("training_frames", budget or 0) or 0)
+    point = {
+        "agent": agent.label,
+        "kind": agent.kind,
+        "env": env,
+        "budget": budget,
+        "training_frames": frames,
+        "seeds": list(per_seed),
+        "per_seed": [round(v, 6) for v in values],
+        "missing_seeds": sorted(set(agent.seeds) - set(per_seed)),
+        "episodes_per_seed": agent.episodes,
+        "mean": sum(values) / len(values),
+        "mean_interval": list(bootstrap_interval(values)),
+        "iqm": iqm(values),
+        "iqm_interval": list(stratified_interval(outcomes, "iqm")),
+        "pooled_wilson_interval": list(wilson_interval(wins, episodes)),
+        "mean_steps": sum(r["steps"] for rows in complete.values() for r in rows) / episodes,
+        "observations": observed,
+        "privileged": privileged,
+    }
+    if agent.kind == "train":
+        point["trainer"] = agent.trainer
+        key = "condition" if agent.trainer == "impala" else "algo"
+        point["condition"] = agent.train.get(key, "vanilla" if key == "condition" else "?")
+    return point
+
+
+def aggregates(spec, pts: list[dict]) -> list[dict]:
+    """Per agent and budget with points in two or more of the spec's
+    environments: the mean and IQM over all its runs (per-seed rates of
+    every environment), with 95% stratified-bootstrap intervals (strata:
+    the environments; `AGGREGATE`), the environments and the runs counted."""
+    out = []
+    for agent in spec.agents:
+        budgets = agent.budgets if agent.kind == "train" else (None,)
+        for budget in budgets:
+            here = [p for p in pts if p["agent"] == agent.label and p["budget"] == budget]
+            if len(here) < 2:
+                continue
+            runs = [p["per_seed"] for p in here]
+            flat = [v for r in runs for v in r]
+            out.append(
+                {
+                    "agent": agent.label,
+                    "kind": agent.kind,
+                    "budget": budget,
+                    "training_frames": max(p["training_frames"] for p in here),
+                    "envs": [p["env"] for p in here],
+                    "runs": len(flat),
+                    "mean": sum(flat) / len(flat),
+                    "mean_interval": list(aggregate_interval(runs, "mean")),
+                    "iqm": iqm(flat),
+                    "iqm_interval": list(aggregate_interval(runs, "iqm")),
+                    "privileged": any(p["privileged"] for p in here),
+                }
+            )
+    return out
+
+
+def series_cost(spec, jobs, records, series_records=None) -> list[dict]:
+    """Per agent and environment: CPU hours of training (summed over seeds,
+    each seed's run over every resumed part; `_train_seconds`) and of
+    evaluation, the jobs counted, and ``cpu_partial_jobs``: jobs retried
+    whose CPU covers only their last attempt (a lower bound; module
+    docstring), also split by kind (``cpu_partial_train_jobs``,
+    ``cpu_partial_eval_jobs``), and ``cpu_unknown_train_jobs``: trainings
+    done (their kept checkpoints on disk) without any record of their cost.
+    ``series_records``: series key -> its most advanced train record
+    (`hier_agents.compare.jobs.series_records`), for trainings without a
+    record of their own."""
     out: dict[tuple, dict] = {}
     for job in jobs:
         record = records.get(job.key)
-        if record is None:
-            continue
+        if record is None and job.kind == "train":
+            record = (series_records or {}).get(job.inputs.get("series"))
         key = (job.point["agent"], job.point["env"])
-        entry = out.setdefault(
-            key,
-            {
-                "agent": key[0],
-                "env": key[1],
-                "train_cpu_hours": 0.0,
-                "eval_cpu_hours": 0.0,
-                "train_jobs": 0,
-                "eval_jobs": 0,
-                "cpu_partial_jobs": 0,
-                "cpu_partial_train_jobs": 0,
-                "cpu_partial_eval_jobs": 0,
-            },
-        )
-        counters = (record.get("result") or {}).get("counters") or {}
-        if "cpu_s" in counters:  # the training's own count, every attempt
-            seconds = float(counters["cpu_s"])
-        else:
+        entry = out.setdefault(key, _cost_entry(*key))
+        if record is None:
+            entry["cpu_unknown_train_jobs"] += job.kind == "train"
+            continue
+        seconds, partial = _train_seconds(record) if job.kind == "train" else (0.0, False)
+        if job.kind != "train" or seconds is None:
             seconds = float(record.get("cpu_s", 0.0))
             partial = int(record.get("attempts", 1)) > 1
-            entry["cpu_partial_jobs"] += partial
-            entry[f"cpu_partial_{job.kind}_jobs"] += partial
+        entry["cpu_partial_jobs"] += partial
+        entry[f"cpu_partial_{job.kind}_jobs"] += partial
         entry[f"{job.kind}_cpu_hours"] += seconds / 3600
         entry[f"{job.kind}_jobs"] += 1
-    return list(out.values())
+    return [e for e in out.values() if e["train_jobs"] or e["eval_jobs"]]
+
+
+def _cost_entry(agent: str, env: str) -> dict:
+    return {
+        "agent": agent,
+        "env": env,
+        "train_cpu_hours": 0.0,
+        "eval_cpu_hours": 0.0,
+        "train_jobs": 0,
+        "eval_jobs": 0,
+        "cpu_partial_jobs": 0,
+        "cpu_partial_train_jobs": 0,
+        "cpu_partial_eval_jobs": 0,
+        "cpu_unknown_train_jobs": 0,
+    }
+
+
+def _train_seconds(record: dict) -> tuple[float | None, bool]:
+    """A train record's CPU seconds over every resumed part of its series,
+    and False (not a lower bound); (None, False) when the record has no
+    such count (the caller falls back to the record's own ``cpu_s``)."""
+    result = record.get("result") or {}
+    if result.get("series_cpu_s") is not None:
+        return float(result["series_cpu_s"]), False
+    counters = result.get("counters") or {}
+    if "cpu_s" in counters:  # the IMPALA learner's own count, every attempt
+        return float(counters["cpu_s"]), False
+    return None, False
 
 
 def code_versions(records) -> dict:
@@ -156,52 +245,83 @@ def code_versions(records) -> dict:
     return dict(sorted(counts.items(), key=lambda kv: (-kv[1], kv[0])))
 
 
+def _train_hours(c: dict) -> str:
+    """A series' training CPU hours cell: ``>=`` where some attempts' or
+    some seeds' CPU was not counted, ``?`` when none was."""
+    if not c.get("train_jobs"):
+        return "?" if c.get("cpu_unknown_train_jobs") else "-"
+    lower = c.get("cpu_partial_train_jobs") or c.get("cpu_unknown_train_jobs")
+    return f"{'>=' if lower else ''}{c['train_cpu_hours']:.2f}"
+
+
+def _pct(value: float) -> str:
+    return f"{100 * value:.1f}"
+
+
+def _ci(interval) -> str:
+    lo, hi = interval
+    return f"[{100 * lo:.1f}, {100 * hi:.1f}]"
+
+
 def _cells(p: dict, cost: dict, stat: str) -> dict:
-    """One point's table cells: success with its interval over seeds, per-seed
-    values, and its series' training CPU hours (``>=`` where some attempts'
-    CPU was not counted; ``-`` for agents without training)."""
-    lo, hi = p[f"{stat}_interval"]
+    """One point's table cells: ``stat`` (the mean or the IQM) with its
+    interval, both statistics with theirs, per-seed values, and its
+    series' training CPU hours (`_train_hours`; ``-`` for agents without
+    training)."""
     c = cost.get((p["agent"], p["env"]), {})
-    at_least = ">=" if c.get("cpu_partial_train_jobs") else ""
     return {
-        "value": f"{100 * p[stat]:.1f}",
-        "interval": f"[{100 * lo:.1f}, {100 * hi:.1f}]",
+        "value": _pct(p[stat]),
+        "interval": _ci(p[f"{stat}_interval"]),
+        "mean": _pct(p["mean"]),
+        "mean_ci": _ci(p["mean_interval"]),
+        "iqm": _pct(p["iqm"]),
+        "iqm_ci": _ci(p["iqm_interval"]),
         "per_seed": " ".join(f"{100 * v:.0f}" for v in p["per_seed"]),
-        "train_h": (
-            f"{at_least}{c.get('train_cpu_hours', 0.0):.2f}" if p["kind"] == "train" else "-"
-        ),
+        "train_h": _train_hours(c) if p["kind"] == "train" else "-",
     }
 
 
-def format_table(spec, pts: list[dict], costs: list[dict], *, use_iqm: bool = False) -> str:
-    """The comparison as text: one block per environment, one row per point."""
-    stat = "iqm" if use_iqm else "mean"
-    lines = []
+def format_table(
+    spec, pts: list[dict], costs: list[dict], aggs=(), *, use_iqm: bool = False
+) -> str:
+    """The comparison as text: the statistics' header line, one block per
+    environment with one row per point (mean and IQM with their intervals,
+    per-seed values, training CPU hours, observations), then the
+    aggregates over environments (`aggregates`). ``use_iqm``: accepted for
+    the command's ``--iqm``; the table shows both statistics either way."""
+    lines = [f"success %: {STATISTICS}", ""]
     width = max([len(p["agent"]) for p in pts] + [12])
     cost = {(c["agent"], c["env"]): c for c in costs}
+    head = (
+        f"  {'agent':<{width}} {'train frames':>13} {'mean %':>7} {'[95% CI]':>14} "
+        f"{'IQM %':>6} {'[95% CI]':>14} {'seeds':>5}  {'per seed %':<16} {'train CPU-h':>11}"
+        f"  observations"
+    )
     for env in spec.envs:
         rows = [p for p in pts if p["env"] == env]
         if not rows:
             continue
-        lines.append(
-            f"{env}: success % across seeds ({stat} [95% bootstrap interval over "
-            f"seeds]; per-seed values)"
-        )
-        head = (
-            f"  {'agent':<{width}} {'train frames':>13} {stat + ' %':>7} "
-            f"{'[95% CI]':>14} {'seeds':>5}  {'per seed %':<22} {'train CPU-h':>11}  "
-            f"observations"
-        )
-        lines.append(head)
-        lines.append("  " + "-" * (len(head) - 2))
+        lines += [f"{env}:", head, "  " + "-" * (len(head) - 2)]
         for p in rows:
-            c = _cells(p, cost, stat)
+            c = _cells(p, cost, "mean")
             lines.append(
-                f"  {p['agent']:<{width}} {p['training_frames']:>13,} "
-                f"{c['value']:>7} {c['interval']:>14} {len(p['seeds']):>5}  "
-                f"{c['per_seed']:<22} {c['train_h']:>11}  {p['observations']}"
+                f"  {p['agent']:<{width}} {p['training_frames']:>13,} {c['mean']:>7} "
+                f"{c['mean_ci']:>14} {c['iqm']:>6} {c['iqm_ci']:>14} {len(p['seeds']):>5}  "
+                f"{c['per_seed']:<16} {c['train_h']:>11}  {p['observations']}"
             )
         lines.append("")
+    if aggs:
+        lines += [f"all environments ({AGGREGATE}):"]
+        lines.append(
+            f"  {'agent':<{width}} {'train frames':>13} {'mean %':>7} {'[95% CI]':>14} "
+            f"{'IQM %':>6} {'[95% CI]':>14} {'runs':>5}  environments"
+        )
+        for a in aggs:
+            lines.append(
+                f"  {a['agent']:<{width}} {a['training_frames']:>13,} {_pct(a['mean']):>7} "
+                f"{_ci(a['mean_interval']):>14} {_pct(a['iqm']):>6} {_ci(a['iqm_interval']):>14} "
+                f"{a['runs']:>5}  {', '.join(a['envs'])}"
+            )
     return "\n".join(lines).rstrip()
 
 
@@ -209,71 +329,85 @@ def format_markdown(
     envs, pts: list[dict], costs: list[dict], *, use_iqm: bool = False
 ) -> list[str]:
     """The comparison as Markdown lines (the README's table): one row per
-    environment and point, in ``envs`` order, with `format_table`'s cells."""
-    stat = "iqm" if use_iqm else "mean"
+    environment and point, in ``envs`` order, with `format_table`'s cells:
+    the mean (``use_iqm``: the IQM) with its interval, the IQM (the mean)
+    with its, per-seed values, mean steps, training CPU hours, observations."""
+    first, second = ("iqm", "mean") if use_iqm else ("mean", "iqm")
+    names = {"mean": "mean over seeds", "iqm": "IQM over seeds"}
     cost = {(c["agent"], c["env"]): c for c in costs}
     lines = [
-        f"| environment | agent | training frames | success, {stat} over seeds [95% CI] "
-        f"| per seed | mean steps | training CPU-h (all seeds) | observes |",
-        "| --- | --- | --- | --- | --- | --- | --- | --- |",
+        f"| environment | agent | training frames | success, {names[first]} [95% CI] "
+        f"| {names[second]} [95% CI] | per seed | mean steps | training CPU-h (all seeds) "
+        f"| observes |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- |",
     ]
     for env in envs:
         for p in (p for p in pts if p["env"] == env):
-            c = _cells(p, cost, stat)
+            c = _cells(p, cost, first)
             lines.append(
                 f"| `{env}` | {p['agent']} | {p['training_frames']:,} "
-                f"| {c['value']}% {c['interval']} | {c['per_seed']} "
-                f"| {p['mean_steps']:.0f} | {c['train_h']} | {p['observations']} |"
+                f"| {c[first]}% {c[first + '_ci']} | {c[second]}% {c[second + '_ci']} "
+                f"| {c['per_seed']} | {p['mean_steps']:.0f} | {c['train_h']} "
+                f"| {p['observations']} |"
             )
     return lines
 
 
-def plot(spec, pts: list[dict], path: Path, *, use_iqm: bool = False) -> None:
-    """One panel per environment: success against training frames, each
-    series' across-seed interval shaded, modular agents as points, random
-    agents as grey bands, the legend below the panels."""
+def plot(spec, pts: list[dict], path: Path, aggs=(), *, use_iqm: bool = False) -> None:
+    """One panel per environment, and one for the aggregates (`aggregates`)
+    when there are any: learning curves of the trained series (success
+    against the frames of their budgets; the mean, or with ``use_iqm`` the
+    IQM, as a solid line with its interval shaded, the other statistic
+    dotted), the modular agents as coloured horizontal lines at their mean
+    (IQM), random actions as grey dashed lines with their interval as a
+    band; privileged series dashed; the legend below the panels."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     stat = "iqm" if use_iqm else "mean"
-    env_names = [e for e in spec.envs if any(p["env"] == e for p in pts)]
-    if not env_names:
+    panels = [(e, [p for p in pts if p["env"] == e]) for e in spec.envs]
+    panels = [(e, here) for e, here in panels if here]
+    if aggs:
+        panels.append(("all environments (aggregate over runs)", list(aggs)))
+    if not panels:
         return
     fig, axes = plt.subplots(
-        1, len(env_names), figsize=(5.2 * len(env_names), 4.4), dpi=110, squeeze=False, sharey=True
+        1, len(panels), figsize=(5.2 * len(panels), 4.6), dpi=110, squeeze=False, sharey=True
     )
-    labels = [a.label for a in spec.agents if a.kind != "random"]
+    colours = {
+        a.label: plt.get_cmap("tab10")(i % 10)
+        for i, a in enumerate(a for a in spec.agents if a.kind != "random")
+    }
     handles: dict = {}
-    xmax = max([p["training_frames"] for p in pts] + [1])
-    for ax, env in zip(axes[0], env_names):
-        here = [p for p in pts if p["env"] == env]
-        _random_bands(ax, [p for p in here if p["kind"] == "random"], stat)
-        for i, label in enumerate(labels):
+    xmax = max([p["training_frames"] for p in pts if p["kind"] == "train"] + [1])
+    for ax, (title, here) in zip(axes[0], panels):
+        _random_lines(ax, [p for p in here if p["kind"] == "random"], stat)
+        for label, colour in colours.items():
             members = sorted(
                 (p for p in here if p["agent"] == label), key=lambda p: p["training_frames"]
             )
             if members:
-                handles[label] = _series(ax, members, plt.get_cmap("tab10")(i % 10), stat)
-        ax.set_title(env, fontsize=10)
+                handles[label] = _series(ax, members, colour, stat)
+        ax.set_title(title, fontsize=10)
         ax.set_xlabel("training frames (control steps)")
         ax.set_xlim(-0.03 * xmax, 1.05 * xmax)
         ax.set_ylim(-2, 102)
         ax.grid(alpha=0.3)
-    axes[0][0].set_ylabel(f"success % ({stat} over seeds, 95% CI)")
-    _legend(fig, handles, pts)
+    axes[0][0].set_ylabel(f"success % ({'IQM' if use_iqm else 'mean'} over seeds, 95% CI)")
+    _legend(fig, handles, pts, stat)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, metadata={"Software": None})
     plt.close(fig)
 
 
-def _random_bands(ax, randoms: list[dict], stat: str) -> None:
-    """Random agents' points as grey bands (their interval) with a dashed
-    line at the statistic, labelled at the panel's right edge."""
+def _random_lines(ax, randoms: list[dict], stat: str) -> None:
+    """Random agents' points as grey dashed lines at the statistic with
+    their interval as a band, labelled at the panel's right edge."""
     for p in randoms:
         lo, hi = p[f"{stat}_interval"]
-        ax.axhspan(100 * lo, 100 * hi, color="grey", alpha=0.18, lw=0)
+        ax.axhspan(100 * lo, 100 * hi, color="grey", alpha=0.15, lw=0)
         ax.axhline(100 * p[stat], color="grey", lw=0.8, ls="--")
         ax.annotate(
             p["agent"],
@@ -289,31 +423,35 @@ def _random_bands(ax, randoms: list[dict], stat: str) -> None:
 
 
 def _series(ax, members: list[dict], colour, stat: str):
-    """One agent's points in a panel: a line with its shaded interval over
-    budgets, or one point with error bars; dashed or hollow when privileged.
-    Returns the legend handle."""
+    """One agent's points in a panel; returns the legend handle. A trained
+    series: its learning curve (``stat`` solid with its interval shaded,
+    the other statistic dotted, dashed when privileged); any other agent: a
+    horizontal reference line at ``stat`` (dashed when privileged)."""
+    other = "mean" if stat == "iqm" else "iqm"
+    style = "--" if any(p["privileged"] for p in members) else "-"
+    if members[0]["kind"] != "train":
+        return ax.axhline(100 * members[0][stat], color=colour, lw=1.3, ls=style, alpha=0.9)
     x = [p["training_frames"] for p in members]
-    y = [100 * p[stat] for p in members]
     lo = [100 * p[f"{stat}_interval"][0] for p in members]
     hi = [100 * p[f"{stat}_interval"][1] for p in members]
-    style = "--" if any(p["privileged"] for p in members) else "-"
-    if len(members) > 1:
-        (line,) = ax.plot(x, y, style, marker="o", ms=3.5, lw=1.4, color=colour)
-        ax.fill_between(x, lo, hi, color=colour, alpha=0.18, lw=0)
-        return line
-    return ax.errorbar(
-        x,
-        y,
-        yerr=[[y[0] - lo[0]], [hi[0] - y[0]]],
-        fmt="s",
-        ms=5,
-        capsize=3,
-        color=colour,
-        mfc="white" if style == "--" else colour,
+    (line,) = ax.plot(
+        x, [100 * p[stat] for p in members], style, marker="o", ms=3.5, lw=1.4, color=colour
     )
+    ax.fill_between(x, lo, hi, color=colour, alpha=0.18, lw=0)
+    ax.plot(
+        x,
+        [100 * p[other] for p in members],
+        ":",
+        marker="o",
+        mfc="white",
+        ms=3.5,
+        lw=1.1,
+        color=colour,
+    )
+    return line
 
 
-def _legend(fig, handles: dict, pts: list[dict]) -> None:
+def _legend(fig, handles: dict, pts: list[dict], stat: str) -> None:
     """The legend below the panels (privileged series starred) and the note
     on what the marks mean; the panels leave room for it."""
     names = [
@@ -327,17 +465,22 @@ def _legend(fig, handles: dict, pts: list[dict]) -> None:
             ncol=min(3, len(handles)),
             fontsize=8,
             frameon=False,
-            bbox_to_anchor=(0.5, 0.035),
+            bbox_to_anchor=(0.5, 0.05),
         )
     rows = (len(handles) + 2) // 3
+    solid, dotted = ("IQM", "mean") if stat == "iqm" else ("mean", "IQM")
     fig.text(
         0.5,
         0.005,
-        "* privileged inputs (dashed line or hollow marker); grey bands: "
-        "random actions; shading: 95% bootstrap interval over seeds",
+        f"trained series: {solid} over seeds (solid, 95% interval shaded) and {dotted} "
+        f"(dotted) at each budget; horizontal lines: modular agents ({solid}; their learned "
+        f"parts' frames are in the table); grey dashed: random actions (band: 95% interval)."
+        f"\n* privileged inputs (dashed). Intervals: mean, percentile bootstrap over seeds; "
+        f"IQM, stratified bootstrap (episodes resampled within each seed); aggregate panel: "
+        f"runs resampled within each environment",
         ha="center",
         va="bottom",
-        fontsize=7,
+        fontsize=6.5,
         color="dimgrey",
     )
-    fig.tight_layout(rect=(0, 0.07 + 0.05 * rows, 1, 1))
+    fig.tight_layout(rect=(0, 0.09 + 0.05 * rows, 1, 1))

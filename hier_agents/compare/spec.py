@@ -21,6 +21,11 @@ A spec (all keys but ``name`` and ``agent`` optional)::
     budgets = [250_000, 500_000, 1_000_000]
 
     [[agent]]
+    label = "sb3 PPO: state"
+    sb3 = { algo = "PPO", policy = "MlpPolicy", obs = "state", n_envs = 8 }
+    budgets = [250_000, 500_000]
+
+    [[agent]]
     label = "random, held 10"
     random = 10
 
@@ -32,13 +37,17 @@ A spec (all keys but ``name`` and ``agent`` optional)::
 An agent has exactly one of ``agent`` (``NAME[:ARG]`` of an agent kind,
 `hier_agents.agents.resolve`, with its ``options``), ``modular`` (a table of
 ``planner``, ``skill``, ``estimator``: `hier_agents.modular.components.resolve`
-names; the same as ``agent = "modular"`` with those options), ``train``
-(flags of ``python -m hier_agents.train`` with ``_`` for ``-``, e.g.
+names; the same as ``agent = "modular"`` with those options), a trainer's
+table with ``budgets`` (frame counts, each evaluated at the checkpoint kept
+exactly there; `hier_agents.compare.trainers`): ``train`` (IMPALA: flags
+of ``python -m hier_agents.train`` with ``_`` for ``-``, e.g.
 ``condition``, ``observations``, ``image_size``, ``state``, ``preset``,
-``actors``, ``envs_per_actor``, ``batch_size``, ``learning_rate``; not
-``frames``, ``seed``, ``logdir``, which the plan sets) with ``budgets``
-(frame counts, each evaluated), or ``random`` (the hold, control steps per
-draw; the same as ``agent = "random:HOLD"``). ``envs``, ``seeds``,
+``actors``, ``envs_per_actor``, ``batch_size``, ``learning_rate``) or
+``sb3`` (Stable-Baselines3: ``algo``, ``policy``, ``obs``, ``n_envs``,
+``hyperparameters``; `hier_agents.baselines.sb3.Sb3Config`), neither
+giving ``frames``, ``seed``, ``logdir``, ``save_at``, which the plan
+sets; or ``random`` (the hold, control steps per draw; the same as
+``agent = "random:HOLD"``). ``envs``, ``seeds``,
 ``episodes`` may be overridden per agent. Seed
 ``s`` is an end-to-end run's training seed and, for every agent, the
 evaluation seed: episode ``e`` of seed ``s`` is seeded from ``(s, e)``
@@ -53,6 +62,7 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from hier_agents.compare import trainers
 from physics_planning import cli
 from physics_planning.cli import UsageError
 
@@ -64,6 +74,7 @@ AGENT_KEYS = (
     "options",
     "modular",
     "train",
+    "sb3",
     "budgets",
     "random",
     "envs",
@@ -72,25 +83,15 @@ AGENT_KEYS = (
     "stochastic",
 )
 #: The keys that say what an agent is (exactly one per agent).
-KIND_KEYS = ("agent", "modular", "train", "random")
+KIND_KEYS = ("agent", "modular", "train", "sb3", "random")
 MODULAR_KEYS = ("planner", "skill", "estimator")
-#: ``train`` keys the plan sets itself.
-PLANNED_TRAIN_KEYS = (
-    "frames",
-    "seed",
-    "logdir",
-    "save_at",
-    "no_progress",
-    "backend",
-    "ray_address",
-    "keep_checkpoints",
-)
 
 
 @dataclass(frozen=True)
 class Agent:
     """One agent (series) of a spec. ``kind`` is ``"train"`` (an end-to-end
-    agent trained by the plan, ``train`` and ``budgets``) or the agent kind
+    agent trained by the plan: ``trainer``, a `hier_agents.compare.trainers`
+    name, its table ``train`` and ``budgets``) or the agent kind
     (`hier_agents.agents`) of ``agent`` (``NAME[:ARG]``) with its
     ``options``."""
 
@@ -102,6 +103,7 @@ class Agent:
     agent: str = ""
     options: dict = field(default_factory=dict)
     train: dict = field(default_factory=dict)
+    trainer: str = ""
     budgets: tuple = ()
     stochastic: bool = False
 
@@ -208,32 +210,6 @@ def train_argv(
     return argv
 
 
-def _check_train(env: str, train: dict, budgets: tuple, where: str) -> None:
-    """Checks a ``train`` table as the plan will use it (`TrainConfig.from_options`
-    with the largest budget, seed 0 and every budget kept)."""
-    from hier_agents.baselines.impala.config import OPTIONS, TrainConfig
-
-    for key in train:
-        if key in PLANNED_TRAIN_KEYS:
-            raise UsageError(
-                f"{where}: train.{key} is set by the plan (budgets, seeds, the "
-                f"cache), not by the spec"
-            )
-        if key not in OPTIONS:
-            valid = sorted(set(OPTIONS) - set(PLANNED_TRAIN_KEYS))
-            raise UsageError(
-                f"{where}: the train table is not valid python -m "
-                f"hier_agents.train flags: unknown key {key!r}"
-                f"{cli.close_hint(key, valid)}; valid: {', '.join(valid)}"
-            )
-    try:
-        TrainConfig.from_options(
-            env, {**train, "frames": max(budgets), "seed": 0, "save_at": list(budgets)}
-        )
-    except UsageError as exc:
-        raise UsageError(f"{where}: {exc}") from None
-
-
 def load(path: str | Path) -> Spec:
     """Reads and checks a spec file.
 
@@ -314,11 +290,15 @@ def _agent(path: Path, i: int, table, defaults: dict) -> Agent:
             else defaults["episodes"]
         ),
     )
+    trainer = trainers.by_table(kinds[0])
     for key in ("budgets", "stochastic"):
-        if key in table and kinds[0] != "train":
-            raise UsageError(f"{at}: {key} applies to train agents only")
-    if kinds[0] == "train":
-        return _train_agent(table, at, common)
+        if key in table and trainer is None:
+            raise UsageError(
+                f"{at}: {key} applies to trained agents only "
+                f"({', '.join(t.table for t in trainers.TRAINERS.values())})"
+            )
+    if trainer is not None:
+        return _train_agent(trainer, table, at, common)
     if "options" in table and kinds[0] != "agent":
         raise UsageError(f'{at}: options go with agent = "NAME[:ARG]"')
     if kinds[0] == "modular":
@@ -352,17 +332,23 @@ def _named_agent(name: str, options: dict, at: str, common: dict) -> Agent:
     return Agent(kind=kind.name, agent=name, options=options, **common)
 
 
-def _train_agent(table: dict, at: str, common: dict) -> Agent:
-    """An end-to-end agent the plan trains (``train`` and ``budgets``)."""
-    train = table["train"]
-    if not isinstance(train, dict):
-        raise UsageError(f"{at}: train must be a table of hier_agents.train flags")
+def _train_agent(trainer, table: dict, at: str, common: dict) -> Agent:
+    """An end-to-end agent the plan trains with ``trainer`` (its table and
+    ``budgets``), the table checked on every environment of the series."""
+    options = table[trainer.table]
     if "budgets" not in table:
-        raise UsageError(f"{at}: a train agent needs budgets (frame counts to evaluate at)")
+        raise UsageError(f"{at}: a trained agent needs budgets (frame counts to evaluate at)")
     budgets = tuple(sorted(_ints(table["budgets"], "budgets", at, 1)))
     for env in common["envs"]:
-        _check_train(env, train, budgets, at)
+        trainer.check_table(env, options, budgets, at)
     stochastic = table.get("stochastic", False)
     if not isinstance(stochastic, bool):
         raise UsageError(f"{at}: stochastic must be true or false")
-    return Agent(kind="train", train=dict(train), budgets=budgets, stochastic=stochastic, **common)
+    return Agent(
+        kind="train",
+        trainer=trainer.name,
+        train=dict(options),
+        budgets=budgets,
+        stochastic=stochastic,
+        **common,
+    )
