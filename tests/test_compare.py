@@ -423,6 +423,227 @@ def test_failed_jobs_are_retried_then_reported_and_their_dependents_skipped(tmp_
     assert all(jobs_mod.load_record(spec.cache, j.key) for j in done)
 
 
+# -- series: budgets that grow, shipped checkpoints, --retrain and --reevaluate ---------------
+
+E2E = '\n[[agent]]\nlabel = "e2e"\ntrain = { actors = 1 }\nbudgets = BUDGETS\n'
+
+
+def e2e_spec(tmp_path: Path, budgets: str = "[200]") -> Path:
+    tmp_path.mkdir(parents=True, exist_ok=True)
+    return write_spec(tmp_path, SPEC + E2E.replace("BUDGETS", budgets))
+
+
+def _fake_job(planned, ran: list, fail_trains: bool = False):
+    """A stand-in for `job_process`: notes each job run; a training writes
+    its kept checkpoints (and a latest one) and its record, or fails."""
+
+    def fake(job, cache, log):
+        ran.append(job)
+        if job.kind == "eval":
+            _fake_records(cache, planned, [job])
+            return 0, 0.0
+        if fail_trains:
+            return 1, 0.0
+        run = jobs_mod.train_dir(cache, job.inputs["series"])
+        for budget in job.inputs["save_at"]:
+            path = jobs_mod.checkpoint_of(cache, "impala", job.inputs["series"], budget)
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_bytes(b"weights")
+        (run / "checkpoint.pt").write_bytes(b"latest")
+        jobs_mod.store_record(cache, {**job.to_json(), "result": {"series_cpu_s": 7200.0}})
+        return 0, 0.0
+
+    return fake
+
+
+def test_a_grown_budget_resumes_its_series_and_keeps_its_evaluations(tmp_path):
+    """Adding a larger budget changes the training job (it must reach more
+    frames) but not its series (run directory) nor the keys of the
+    evaluations at the budgets already there."""
+    small = jobs_mod.plan(load(e2e_spec(tmp_path / "a", "[200, 400]")))
+    grown = jobs_mod.plan(load(e2e_spec(tmp_path / "b", "[200, 400, 800]")))
+    trains = [[j for j in plan if j.kind == "train"] for plan in (small, grown)]
+    assert [t.inputs["series"] for t in trains[0]] == [t.inputs["series"] for t in trains[1]]
+    assert not {t.key for t in trains[0]} & {t.key for t in trains[1]}
+    assert all(t.inputs["trainer"] == "impala" for t in trains[1])
+    old = {j.key for j in small if j.kind == "eval"}
+    new = {j.key for j in grown if j.kind == "eval" and j.point.get("budget") != 800}
+    assert old == new
+    # The series key is what names the run directory; the seed and the table change it.
+    seeds = {t.inputs["series"] for t in trains[0]}
+    assert len(seeds) == 2
+    assert jobs_mod.series_key("impala", "mujoban/level1", {"actors": 1}, 0) in seeds
+    assert jobs_mod.series_key("impala", "mujoban/level1", {"actors": 2}, 0) not in seeds
+
+
+def test_a_training_with_its_kept_checkpoints_is_done_without_its_record(tmp_path, monkeypatch):
+    """A clone with shipped checkpoints and no train record runs nothing;
+    --reevaluate re-runs every evaluation and no training, and prints the
+    wall time and the CPUs; --retrain removes the runs, trains again from
+    zero and re-runs their evaluations only."""
+    from hier_agents.compare.__main__ import main
+
+    path = e2e_spec(tmp_path)
+    spec = load(path)
+    planned = jobs_mod.plan(spec)
+    ran: list = []
+    monkeypatch.setattr("hier_agents.compare.backends.job_process", _fake_job(planned, ran))
+    _fake_records(spec.cache, planned, [j for j in planned if j.kind == "eval"])
+    trains = [j for j in planned if j.kind == "train"]
+    for job in trains:  # shipped: the kept checkpoints, no resumable one, no record
+        kept = jobs_mod.checkpoint_of(spec.cache, "impala", job.inputs["series"], 200)
+        kept.parent.mkdir(parents=True)
+        kept.write_bytes(b"shipped")
+    assert main([str(path), "--quiet", "--cpus", "1"]) == 0 and ran == []
+    assert main([str(path), "--quiet", "--cpus", "1", "--reevaluate"]) == 0
+    assert sorted(j.key for j in ran) == sorted(j.key for j in planned if j.kind == "eval")
+    ran.clear()
+    monkeypatch.setattr("sys.stderr", stderr := __import__("io").StringIO())
+    assert main([str(path), "--quiet", "--cpus", "1", "--retrain"]) == 0
+    assert sorted(j.key for j in ran) == sorted(j.key for j in planned if j.deps or j in trains)
+    assert all(
+        jobs_mod.checkpoint_of(spec.cache, "impala", t.inputs["series"], 200).read_bytes()
+        == b"weights"
+        for t in trains
+    )
+    (line,) = [x for x in stderr.getvalue().splitlines() if "wall on" in x]
+    assert line.startswith("python -m hier_agents.compare: 6 jobs run in 0:00:0")  # 2 + 2 x 2
+    assert line.endswith("wall on 1 CPUs (local)")
+    # The table counts the trainings' CPU from their records: 2 seeds x 2 h.
+    assert "4.00" in (spec.cache / "comparison.txt").read_text()
+
+
+def test_an_evaluation_runs_once_its_checkpoint_is_on_disk(tmp_path, monkeypatch):
+    """Budget 200's checkpoint is there (an earlier, shorter run), 400's is
+    not, and the training fails: the evaluations at 200 run, those at 400
+    are skipped as needing a failed job."""
+    from hier_agents.compare.backends import JobFailed
+
+    spec = load(e2e_spec(tmp_path, "[200, 400]"))
+    planned = [j for j in jobs_mod.plan(spec) if j.point["agent"] == "e2e"]
+    for job in (j for j in planned if j.kind == "train"):
+        kept = jobs_mod.checkpoint_of(spec.cache, "impala", job.inputs["series"], 200)
+        kept.parent.mkdir(parents=True)
+        kept.write_bytes(b"x")
+        (kept.parent.parent / "checkpoint.pt").write_bytes(b"latest")
+    ran: list = []
+    fake = _fake_job(planned, ran, fail_trains=True)
+    monkeypatch.setattr("hier_agents.compare.backends.job_process", fake)
+    with pytest.raises(JobFailed, match="6 of 10 jobs failed"):
+        run_jobs(planned, spec.cache, cpus=1, retries=0, progress=lambda s: None)
+    evaluated = {j.point["budget"] for j in ran if j.kind == "eval"}
+    assert evaluated == {200}
+
+
+def test_a_budget_the_run_can_no_longer_keep_is_refused_in_one_line(tmp_path, capsys):
+    """Shipped checkpoints without the resumable one cannot grow: training
+    from zero would overwrite them; the command says so and names --retrain."""
+    from hier_agents.compare.__main__ import main
+
+    path = e2e_spec(tmp_path, "[200, 400]")
+    spec = load(path)
+    train = next(j for j in jobs_mod.plan(spec) if j.kind == "train")
+    kept = jobs_mod.checkpoint_of(spec.cache, "impala", train.inputs["series"], 200)
+    kept.parent.mkdir(parents=True)
+    kept.write_bytes(b"shipped")
+    assert jobs_mod.unreachable_budgets(spec.cache, train) == [400]
+    with pytest.raises(SystemExit) as info:
+        main([str(path), "--quiet"])
+    assert info.value.code == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert "agent 'e2e' on mujoban/level1, seed 0" in line and "--retrain" in line
+    # With its resumable checkpoint the run grows; a budget below its frames cannot.
+    (kept.parent.parent / "checkpoint.pt").write_bytes(b"latest")
+    assert jobs_mod.unreachable_budgets(spec.cache, train) == []
+    (kept.parent.parent / "scalars.jsonl").write_text('{"step": 300}\n{"step": 500}\n')
+    assert jobs_mod.unreachable_budgets(spec.cache, train) == [400]
+
+
+def test_a_running_training_reports_the_frames_of_its_run(tmp_path):
+    from hier_agents.compare.backends import _Watch
+
+    spec = load(e2e_spec(tmp_path, "[200, 400]"))
+    train = next(j for j in jobs_mod.plan(spec) if j.kind == "train")
+    run = jobs_mod.train_dir(spec.cache, train.inputs["series"])
+    run.mkdir(parents=True)
+    (run / "scalars.jsonl").write_text('{"step": 100}\n{"step": 300, "x": 1}\n{"ste')
+    lines: list = []
+    _Watch(spec.cache, {train.key: 0.0}, lines.append, every=0.0)([train])
+    (line,) = lines
+    assert line.strip().startswith("train e2e (impala) on mujoban/level1, seed 0, to 400 frames")
+    assert "300 of 400 frames (75%)" in line
+
+
+def test_the_shipped_cache_commits_kept_checkpoints_and_config_only():
+    """.gitignore lets a spec cache's kept budget checkpoints and each
+    series' config.json be committed, not the resumable checkpoint, the
+    logs, the TensorBoard events, the job logs or the attempt logs."""
+    import shutil
+
+    if shutil.which("git") is None or not (ROOT / ".git").exists():
+        pytest.skip("not a git checkout")
+    run = "results/compare/mujoban/train/0123456789abcdef0123"
+    paths = {
+        f"{run}/checkpoints/frames-250000.pt": False,
+        f"{run}/checkpoints/frames-250000.zip": False,
+        f"{run}/config.json": False,
+        f"{run}/checkpoint.pt": True,
+        f"{run}/model.zip": True,
+        f"{run}/scalars.jsonl": True,
+        f"{run}/events.out.tfevents.1.host": True,
+        f"{run}/checkpoints/frames-250000.json": False,  # a trainer's counters beside it
+        f"{run}/checkpoints/latest.pt": True,
+        "results/compare/mujoban/logs/abc.log": True,
+        "results/compare/mujoban/attempts/abc": True,
+    }
+    for path, ignored in paths.items():
+        out = subprocess.run(["git", "check-ignore", "-q", path], cwd=ROOT)
+        assert (out.returncode == 0) == ignored, path
+
+
+def test_an_impala_series_grows_from_its_last_checkpoint_and_ships_weights_only(tmp_path):
+    """A real (tiny) IMPALA series trained to 100 frames, then its spec
+    grown to 200: the second job resumes at 100 frames in the same run
+    directory, leaves the kept 100-frame checkpoint as it was, and the kept
+    checkpoints hold the weights without the optimiser (the resumable
+    checkpoint.pt keeps it); each plays as a checkpoint agent."""
+    import torch
+
+    from hier_agents.baselines.impala.learner import load_checkpoint, net_from_checkpoint
+
+    table = (
+        '{ observations = "proprio", state = true, actors = 1, envs_per_actor = 2, '
+        "batch_size = 1, unroll_length = 50 }"
+    )
+    text = SPEC.split("[[agent]]")[0] + f'[[agent]]\nlabel = "e2e"\ntrain = {table}\n'
+    first = next(j for j in jobs_mod.plan(load(write_spec(tmp_path, text + "budgets = [100]"))))
+    cache = tmp_path / "cache"
+    result = jobs_mod.execute(first, cache)
+    assert result["resumed_from"] == 0 and result["counters"]["frames"] == 100
+    run = jobs_mod.train_dir(cache, first.inputs["series"])
+    kept = run / "checkpoints" / "frames-100.pt"
+    shipped = kept.read_bytes()
+    grown = next(
+        j
+        for j in jobs_mod.plan(load(write_spec(tmp_path, text + "budgets = [100, 200]")))
+        if j.inputs["seed"] == first.inputs["seed"]
+    )
+    assert grown.key != first.key and grown.inputs["series"] == first.inputs["series"]
+    result = jobs_mod.execute(grown, cache)
+    assert result["resumed_from"] == 100 and result["counters"]["frames"] == 200
+    assert result["series_cpu_s"] == result["counters"]["cpu_s"] > 0
+    assert kept.read_bytes() == shipped
+    latest = torch.load(run / "checkpoint.pt", map_location="cpu", weights_only=False)
+    assert "optimizer" in latest
+    for budget in (100, 200):
+        path = run / "checkpoints" / f"frames-{budget}.pt"
+        ckpt = load_checkpoint(path)
+        assert "optimizer" not in ckpt and "rng" not in ckpt
+        assert ckpt["counters"]["frames"] == budget
+        net_from_checkpoint(ckpt)
+        assert path.stat().st_size < (run / "checkpoint.pt").stat().st_size
+
+
 # -- statistics across seeds ----------------------------------------------------------------
 
 
@@ -470,6 +691,31 @@ def test_points_carry_per_seed_values_means_and_intervals(tmp_path):
     table = report.format_table(spec, pts, costs)
     assert "mujoban/level1" in table and "random 10" in table
     report.plot(spec, pts, tmp_path / "p.png")
+    assert (tmp_path / "p.png").stat().st_size > 1000
+
+
+def test_iqm_intervals_are_stratified_by_seed_and_aggregates_span_environments(tmp_path):
+    """Each point's IQM interval is `stratified_interval` of its seeds'
+    episodes; with two environments each agent gets an aggregate over the
+    four runs, in the table, the JSON and the plot's extra panel."""
+    from hier_agents.stats import aggregate_interval, stratified_interval
+
+    text = SPEC.replace('envs = ["mujoban/level1"]', 'envs = ["mujoban/level1", "mujoban/level2"]')
+    spec = load(write_spec(tmp_path, text))
+    planned = jobs_mod.plan(spec)
+    _fake_records(spec.cache, planned, planned)
+    records = {j.key: jobs_mod.load_record(spec.cache, j.key) for j in planned}
+    pts = report.points(spec, planned, records)
+    outcomes = [[1.0, 0.0, 1.0, 0.0]] * 2  # episodes 0-3 of each seed: even ones solved
+    assert all(p["iqm_interval"] == list(stratified_interval(outcomes)) for p in pts)
+    aggs = report.aggregates(spec, pts)
+    assert [(a["agent"], a["runs"]) for a in aggs] == [("modular", 4), ("random 10", 4)]
+    assert aggs[0]["envs"] == ["mujoban/level1", "mujoban/level2"]
+    assert aggs[0]["iqm_interval"] == list(aggregate_interval([[0.5, 0.5], [0.5, 0.5]]))
+    table = report.format_table(spec, pts, [], aggs)
+    assert table.splitlines()[0] == f"success %: {report.STATISTICS}"
+    assert f"all environments ({report.AGGREGATE}):" in table
+    report.plot(spec, pts, tmp_path / "p.png", aggs)
     assert (tmp_path / "p.png").stat().st_size > 1000
 
 
