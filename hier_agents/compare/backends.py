@@ -133,10 +133,7 @@ def run_jobs(
     (cache / "jobs").mkdir(parents=True, exist_ok=True)
     by_key = {job.key: job for job in jobs}
     records, done, evals, trains = _cached(jobs, cache, set(fresh))
-    for job in trains:
-        if job.key in fresh and train_dir(cache, job.inputs["series"]).exists():
-            progress(f"removing {train_dir(cache, job.inputs['series'])}: trained again from zero")
-            shutil.rmtree(train_dir(cache, job.inputs["series"]))
+    _remove_runs([j for j in trains if j.key in fresh], cache, progress)
     # Ready evaluations go first, so that each finished training is evaluated
     # before the next one starts and results arrive as the experiment runs.
     todo = evals + trains
@@ -188,6 +185,15 @@ def run_jobs(
         lines = "; ".join(f"{by_key[k].describe()}: {v}" for k, v in failed.items())
         raise JobFailed(f"{len(failed)} of {total} jobs failed: {lines}")
     return records
+
+
+def _remove_runs(trains: list[Job], cache: Path, progress) -> None:
+    """Removes the run directories of ``trains`` (they train again from zero)."""
+    for job in trains:
+        run = train_dir(cache, job.inputs["series"])
+        if run.exists():
+            progress(f"removing {run}: trained again from zero")
+            shutil.rmtree(run)
 
 
 class _Watch:
