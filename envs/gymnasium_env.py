@@ -119,6 +119,13 @@ def observation_keys(env: Environment, obs: str) -> ObservationKeys:
     raise ValueError(f"unknown obs {obs!r}; valid: {', '.join(OBSERVATIONS)}")
 
 
+def flat_keys(keys: ObservationKeys) -> list[str]:
+    """The environment's observation keys that ``keys`` (`observation_keys`) reads, in order."""
+    if isinstance(keys, str):
+        return [keys]
+    return list(keys.values()) if isinstance(keys, dict) else list(keys)
+
+
 def convert_observation(keys: ObservationKeys, observation: Mapping[str, np.ndarray]):
     """The gymnasium observation of a dm_env ``observation`` (a timestep's)
     for ``keys`` (`observation_keys`): a dict of arrays, one array, or the

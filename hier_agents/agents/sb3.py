@@ -20,6 +20,7 @@ from __future__ import annotations
 import hashlib
 import json
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -244,14 +245,16 @@ class Sb3Agent:
 
 def _check_shapes(keys, spec: dict, space) -> None:
     """UsageError unless ``spec`` has every key of ``keys`` with the shapes ``space`` expects."""
-    flat = (
-        [keys] if isinstance(keys, str) else list(keys.values() if isinstance(keys, dict) else keys)
-    )
+    from envs.gymnasium_env import flat_keys
+
+    flat = flat_keys(keys)
     missing = [k for k in flat if k not in spec]
     if missing:
         raise UsageError(
             f"the environment does not give the observations {missing} the SB3 policy reads"
         )
+    got: object
+    want: object
     if isinstance(keys, dict):
         got = {name: tuple(spec[key].shape) for name, key in keys.items()}
         want = {name: tuple(space[name].shape) for name in keys}
@@ -264,7 +267,7 @@ def _check_shapes(keys, spec: dict, space) -> None:
         raise UsageError(f"the environment gives observations of shape {got}, the policy {want}")
 
 
-def _same_shapes(got, want) -> bool:
+def _same_shapes(got: Any, want: Any) -> bool:
     """``got`` (the environment's) is ``want`` (the policy's), where SB3 may
     hold an image channel-first ((3, H, W) for an (H, W, 3) camera)."""
     if isinstance(got, dict):

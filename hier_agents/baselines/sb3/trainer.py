@@ -44,6 +44,7 @@ import sys
 import time
 from functools import partial
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback
@@ -70,7 +71,9 @@ def make_env(env: str, obs: str, env_options: dict):
     tuples: camera sizes)."""
     from envs.gymnasium_env import GymnasiumEnv
 
-    options = {k: tuple(v) if isinstance(v, list) else v for k, v in env_options.items()}
+    options: dict[str, Any] = {
+        k: tuple(v) if isinstance(v, list) else v for k, v in env_options.items()
+    }
     return GymnasiumEnv(env, obs=obs, **options)
 
 
@@ -130,7 +133,8 @@ class _Session:
         self.start, self.process0 = time.perf_counter(), time.process_time()
         self.wall0, self.cpu0 = self.counters["wall_s"], self.counters["cpu_s"]
         self.children: dict[int, float] = {}  # env subprocess pid -> its last CPU seconds
-        self.venv = self.model = None
+        self.venv: Any = None
+        self.model: Any = None
 
     def clock(self) -> None:
         """Brings ``wall_s`` and ``cpu_s`` up to now (subprocesses read while alive)."""
@@ -175,7 +179,7 @@ class _Session:
         """Records in ``config.json`` what the policy reads (one probe environment)."""
         import stable_baselines3
 
-        from envs.gymnasium_env import observation_keys
+        from envs.gymnasium_env import flat_keys, observation_keys
 
         config = self.config
         probe = make_env(config.env, config.obs, config.env_options)
@@ -186,11 +190,7 @@ class _Session:
                 raise UsageError(f"{config.algo} needs a Box action space, {config.env} has none")
         finally:
             probe.close()
-        flat = (
-            [keys]
-            if isinstance(keys, str)
-            else list(keys.values() if isinstance(keys, dict) else keys)
-        )
+        flat = flat_keys(keys)
         self.run.record(
             observations=flat,
             observation_keys=keys,
