@@ -31,7 +31,7 @@ is made before the parent process renders anything; otherwise pass
 
 from __future__ import annotations
 
-from typing import Any, Mapping
+from typing import Any, Mapping, Union
 
 import gymnasium
 import numpy as np
@@ -78,6 +78,63 @@ def spec_to_space(spec: specs.Array) -> spaces.Box:
         info = np.iinfo(dtype)
         return spaces.Box(info.min, info.max, spec.shape, dtype=dtype)
     return spaces.Box(-np.inf, np.inf, spec.shape, dtype=dtype)
+
+
+#: What `observation_keys` returns: a Dict's ``{name: key}``, one key, or the
+#: keys concatenated into one float32 vector.
+ObservationKeys = Union[dict[str, str], str, tuple[str, ...]]
+
+
+def observation_keys(env: Environment, obs: str) -> ObservationKeys:
+    """Which of ``env``'s observations the ``obs`` choice (`OBSERVATIONS`) holds.
+
+    Returns:
+      ``"sensors"``, ``"full"``: ``{name: key}`` (a Dict observation; in
+      ``"full"`` privileged keys named with `PRIVILEGED_PREFIX`);
+      ``"pixels"``: the main camera's key; ``"state"``: the proprioception's
+      keys then the task's ``state_observations``, in the vector's order.
+
+    Raises:
+      ValueError: ``obs="pixels"`` with the main camera switched off; an
+        unknown ``obs``.
+    """
+    spec = env.observation_spec()
+    privileged = env.privileged_observations
+    cameras = [k for k in env.task.camera_configs if k in spec]
+    if obs == "sensors":
+        return {k: k for k in spec if k not in privileged}
+    if obs == "full":
+        return {(PRIVILEGED_PREFIX + k if k in privileged else k): k for k in spec}
+    if obs == "pixels":
+        main = env.task.main_camera
+        if main not in cameras:
+            raise ValueError(
+                f"obs='pixels' is the main camera {main!r}, which is switched "
+                f"off; build the environment with {main}=(height, width)"
+            )
+        return main
+    if obs == "state":
+        proprio = [k for k in spec if k not in privileged and k not in cameras]
+        return tuple(proprio + [k for k in env.task.state_observations if k in spec])
+    raise ValueError(f"unknown obs {obs!r}; valid: {', '.join(OBSERVATIONS)}")
+
+
+def flat_keys(keys: ObservationKeys) -> list[str]:
+    """The environment's observation keys that ``keys`` (`observation_keys`) reads, in order."""
+    if isinstance(keys, str):
+        return [keys]
+    return list(keys.values()) if isinstance(keys, dict) else list(keys)
+
+
+def convert_observation(keys: ObservationKeys, observation: Mapping[str, np.ndarray]):
+    """The gymnasium observation of a dm_env ``observation`` (a timestep's)
+    for ``keys`` (`observation_keys`): a dict of arrays, one array, or the
+    arrays flattened, as float32 (booleans 0/1), and concatenated."""
+    if isinstance(keys, str):
+        return observation[keys]
+    if isinstance(keys, dict):
+        return {name: observation[key] for name, key in keys.items()}
+    return np.concatenate([np.asarray(observation[k], np.float32).ravel() for k in keys])
 
 
 class GymnasiumEnv(gymnasium.Env):
@@ -160,42 +217,25 @@ class GymnasiumEnv(gymnasium.Env):
     def _build_spaces(self) -> None:
         env = self._env
         spec = env.observation_spec()
-        privileged = env.privileged_observations
-        cameras = [k for k in env.task.camera_configs if k in spec]
-        proprio = [k for k in spec if k not in privileged and k not in cameras]
+        # What `_observation` returns (`observation_keys`).
+        self._keys = observation_keys(env, self._obs)
         self.state_layout: dict[str, slice] = {}
-        # What `_observation` returns: a dict (name -> key), one key's array, or
-        # the keys' arrays concatenated.
-        self._keys: dict[str, str] | str | tuple[str, ...]
-        if self._obs == "sensors":
-            self._keys = {k: k for k in spec if k not in privileged}
-        elif self._obs == "full":
-            self._keys = {(PRIVILEGED_PREFIX + k if k in privileged else k): k for k in spec}
-        elif self._obs == "pixels":
-            main = env.task.main_camera
-            if main not in cameras:
-                raise ValueError(
-                    f"obs='pixels' is the main camera {main!r}, which is switched "
-                    f"off; build the environment with {main}=(height, width)"
-                )
-            self._keys = main
-            self.observation_space = spec_to_space(spec[main])
+        if isinstance(self._keys, str):
+            self.observation_space = spec_to_space(spec[self._keys])
+        elif isinstance(self._keys, dict):
+            self.observation_space = spaces.Dict(
+                {name: spec_to_space(spec[key]) for name, key in self._keys.items()}
+            )
         else:  # "state"
-            parts = proprio + [k for k in env.task.state_observations if k in spec]
             lows, highs, start = [], [], 0
-            for key in parts:
+            for key in self._keys:
                 box = spec_to_space(spec[key])
                 lows.append(box.low.astype(np.float32).ravel())
                 highs.append(box.high.astype(np.float32).ravel())
                 self.state_layout[key] = slice(start, start + box.low.size)
                 start += box.low.size
-            self._keys = tuple(parts)
             self.observation_space = spaces.Box(
                 np.concatenate(lows), np.concatenate(highs), dtype=np.float32
-            )
-        if isinstance(self._keys, dict):
-            self.observation_space = spaces.Dict(
-                {name: spec_to_space(spec[key]) for name, key in self._keys.items()}
             )
         aspec = env.action_spec()
         self.action_space = spaces.Box(
@@ -216,12 +256,7 @@ class GymnasiumEnv(gymnasium.Env):
         return self._obs
 
     def _observation(self, observation: Mapping[str, np.ndarray]):
-        keys = self._keys
-        if isinstance(keys, str):
-            return observation[keys]
-        if isinstance(keys, dict):
-            return {name: observation[key] for name, key in keys.items()}
-        return np.concatenate([np.asarray(observation[k], np.float32).ravel() for k in keys])
+        return convert_observation(self._keys, observation)
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)

@@ -122,7 +122,8 @@ def run(
         ``"modular"`` (estimator + planner + skill, named as
         `hier_agents.modular.components.resolve` reads them),
         ``"checkpoint:PATH"`` (a trained end-to-end agent, `hier_agents.train`;
-        its policy's mean, or samples with ``stochastic``), ``"random[:HOLD]"``
+        its policy's mean, or samples with ``stochastic``), ``"sb3:PATH"`` (a
+        Stable-Baselines3 model, `hier_agents.baselines.sb3`), ``"random[:HOLD]"``
         (uniformly random actions), or a registered kind.
       planner, skill, estimator, stochastic: the options of the kinds that
         take them (modular; checkpoint); ``options``: any kind's options.

@@ -8,7 +8,8 @@
 `base` holds the contract (`Agent`) and the kinds' base class
 (`AgentKind`, `AgentSetup`); `registry` the kinds by name (`register`,
 `resolve`, `forms`); `kinds`
-the shipped kinds (``modular``, ``checkpoint:PATH``, ``random[:HOLD]``);
+the shipped kinds (``modular``, ``checkpoint:PATH``, ``sb3:PATH``, ``random[:HOLD]``;
+``sb3`` in `sb3`);
 `runner` the one episode runner (`Play`, `Player`, `play_episode`).
 """
 

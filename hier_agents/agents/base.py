@@ -10,8 +10,8 @@ An **agent kind** (`AgentKind`) names a way of building agents, as a
 planner, skill or estimator name does a component: ``NAME`` or ``NAME:ARG``
 (`hier_agents.agents.registry.resolve`), the same grammar in ``python -m
 hier_agents.run --agent``, in comparison specs (``agent = "NAME:ARG"``) and
-in code. The kinds shipped are ``modular``, ``checkpoint:PATH`` and
-``random[:HOLD]``
+in code. The kinds shipped are ``modular``, ``checkpoint:PATH``,
+``sb3:PATH`` and ``random[:HOLD]``
 (`hier_agents.agents.kinds`); `hier_agents.agents.registry.register` adds
 another without touching the runner, ``hier_agents.run`` or
 ``hier_agents.compare``.

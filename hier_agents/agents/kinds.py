@@ -1,4 +1,4 @@
-"""The agent kinds shipped: ``modular``, ``checkpoint:PATH`` and ``random[:HOLD]``.
+"""The agent kinds shipped: ``modular``, ``checkpoint:PATH``, ``sb3:PATH`` and ``random[:HOLD]``.
 
 * ``modular``: estimator + planner + skill (`hier_agents.modular`), parts
   named by the ``planner``, ``skill`` and ``estimator`` options
@@ -8,6 +8,9 @@
   hier_agents.train`; PATH its run directory or checkpoint file),
   `hier_agents.agents.checkpoint.CheckpointAgent`; the ``stochastic`` option
   samples its policy instead of taking its mean.
+* ``sb3:PATH``: a Stable-Baselines3 model (``python -m
+  hier_agents.baselines.sb3``; PATH its run directory or a ``.zip``),
+  `hier_agents.agents.sb3.Sb3Agent`; ``stochastic`` samples its policy.
 * ``random[:HOLD]``: uniformly random actions, a new draw every HOLD
   control steps (default 1): the floor every trained agent must clear.
 
@@ -19,9 +22,10 @@ from __future__ import annotations
 from pathlib import Path
 
 from hier_agents.agents.base import AgentKind, AgentSetup
+from hier_agents.agents.sb3 import Sb3Kind
 from physics_planning.cli import UsageError, plural
 
-__all__ = ["ModularKind", "CheckpointKind", "RandomKind", "SHIPPED"]
+__all__ = ["ModularKind", "CheckpointKind", "RandomKind", "Sb3Kind", "SHIPPED"]
 
 
 class ModularKind(AgentKind):
@@ -188,4 +192,4 @@ class RandomKind(AgentKind):
 
 #: The kinds shipped, in the order ``--list`` shows them (``modular`` first:
 #: the default); `hier_agents.agents.registry` registers them on first use.
-SHIPPED = (ModularKind(), CheckpointKind(), RandomKind())
+SHIPPED = (ModularKind(), CheckpointKind(), Sb3Kind(), RandomKind())

@@ -172,6 +172,9 @@ class RunDir:
         runs recorded their trainer is taken as the trainer's when its config
         has ``fixed[0]``.
       tensorboard: also write TensorBoard events.
+      checkpoint: the name of the latest checkpoint's file, whose presence
+        marks a run to continue (`load` and `save` are for ``checkpoint.pt``
+        payloads; a trainer with its own format writes that file itself).
 
     Raises:
       UsageError: ``path`` is a file; ``resume`` is True without a checkpoint
@@ -188,20 +191,21 @@ class RunDir:
         fixed=(),
         trainer: str = "",
         tensorboard: bool = True,
+        checkpoint: str = CHECKPOINT,
     ) -> None:
         self.path = Path(path)
         if self.path.exists() and not self.path.is_dir():
             raise UsageError(f"the run directory {str(self.path)!r} is a file; give a folder")
-        self.checkpoint_path = self.path / CHECKPOINT
+        self.checkpoint_path = self.path / checkpoint
         found = self.checkpoint_path.is_file()
         if resume is True and not found:
             raise UsageError(
-                f"nothing to resume: no {CHECKPOINT} in {str(self.path)!r} "
+                f"nothing to resume: no {checkpoint} in {str(self.path)!r} "
                 f"(drop --resume to start a run there)"
             )
         if resume is False and found:
             raise UsageError(
-                f"{str(self.path)!r} already holds a run ({CHECKPOINT}); "
+                f"{str(self.path)!r} already holds a run ({checkpoint}); "
                 f"continue it with --resume or choose another directory"
             )
         self.resumed = found and resume is not False
@@ -262,12 +266,12 @@ class RunDir:
                 saved = saved.get("config") if isinstance(saved, dict) else None
         except Exception as exc:  # noqa: BLE001 - whatever is wrong with the files, it is the input
             raise UsageError(
-                f"{str(self.path)!r} holds a {CHECKPOINT} whose run cannot be "
+                f"{str(self.path)!r} holds a {self.checkpoint_path.name} whose run cannot be "
                 f"read ({type(exc).__name__}); choose another directory"
             ) from None
         if not isinstance(saved, dict):
             raise UsageError(
-                f"{str(self.path)!r} holds a {CHECKPOINT} without a run "
+                f"{str(self.path)!r} holds a {self.checkpoint_path.name} without a run "
                 f"configuration; choose another directory"
             )
         return dict(saved)
