@@ -644,6 +644,71 @@ def test_an_impala_series_grows_from_its_last_checkpoint_and_ships_weights_only(
         assert path.stat().st_size < (run / "checkpoint.pt").stat().st_size
 
 
+SB3 = (
+    '\n[[agent]]\nlabel = "ppo"\nsb3 = { algo = "PPO", obs = "state", n_envs = 2, vec = "dummy", '
+    "hyperparameters = { n_steps = 64, batch_size = 64 } }\n"
+)
+
+
+@pytest.mark.parametrize(
+    "edit, message",
+    [
+        ("n_envs = 2", "agent 'ppo': sb3: unknown key 'n_env' (did you mean 'n_envs'?)"),
+        ("budgets = [128]", "agent 'ppo': a trained agent needs budgets"),
+        ("budgets = [100]", "agent 'ppo': sb3: a budget of 100 frames is less than one rollout"),
+        ('algo = "PPO"', "agent 'ppo': sb3.frames is set by the plan"),
+    ],
+)
+def test_bad_sb3_tables_are_one_line_usage_errors(tmp_path, edit, message):
+    text = SPEC + SB3 + "budgets = [128]\n"
+    replacement = {
+        "n_envs = 2": "n_env = 2",
+        "budgets = [128]": "",
+        "budgets = [100]": "budgets = [100]",
+        'algo = "PPO"': 'algo = "PPO", frames = 10',
+    }[edit]
+    if edit == "budgets = [100]":
+        text = text.replace("budgets = [128]", replacement)
+    else:
+        text = text.replace(edit, replacement, 1)
+    path = write_spec(tmp_path, text)
+    with pytest.raises(UsageError) as info:
+        load(path)
+    assert message in str(info.value) and str(path) in str(info.value)
+    assert "\n" not in str(info.value)
+
+
+def test_an_sb3_series_trains_grows_and_plays_through_one_door(tmp_path):
+    """The sb3 trainer through the same jobs as IMPALA's: its series keeps
+    frames-B.zip at each budget, grows from its model.zip, and an
+    evaluation plays the kept checkpoint as an ``sb3:PATH`` agent."""
+    first = jobs_mod.plan(load(write_spec(tmp_path, SPEC + SB3 + "budgets = [128]\n")))
+    train = next(j for j in first if j.point["agent"] == "ppo" and j.kind == "train")
+    assert train.inputs["trainer"] == "sb3" and train.cpus == 1  # vec = "dummy"
+    cache = tmp_path / "cache"
+    assert jobs_mod.execute(train, cache)["counters"]["frames"] == 128
+    run = jobs_mod.train_dir(cache, train.inputs["series"])
+    kept = run / "checkpoints" / "frames-128.zip"
+    shipped = kept.read_bytes()
+    grown = jobs_mod.plan(load(write_spec(tmp_path, SPEC + SB3 + "budgets = [128, 256]\n")))
+    again = next(j for j in grown if j.kind == "train" and j.inputs["seed"] == train.inputs["seed"])
+    assert again.inputs["series"] == train.inputs["series"]
+    result = jobs_mod.execute(again, cache)
+    assert result["resumed_from"] == 128 and result["counters"]["frames"] == 256
+    assert kept.read_bytes() == shipped
+    evaluation = next(
+        j
+        for j in grown
+        if j.point["agent"] == "ppo" and j.point.get("budget") == 128 and j.inputs["seed"] == 0
+    )
+    assert evaluation.key in {j.key for j in first}
+    evaluation = jobs_mod.Job.from_json(
+        {**evaluation.to_json(), "inputs": {**evaluation.inputs, "episodes": 1}}
+    )
+    summary = jobs_mod.execute(evaluation, cache)["summary"]
+    assert summary["agent"].startswith("sb3:") and summary["training_frames"] == 128
+
+
 # -- statistics across seeds ----------------------------------------------------------------
 
 

@@ -64,6 +64,7 @@ class Trainer:
     fixed: dict = field(default_factory=dict)  # planned options besides PLANNED
     cpus_key: str | None = None  # the option naming the CPUs a training takes
     cpus_default: int = 1
+    serial: tuple = ()  # (option, value) pairs with which a training takes one CPU
     cpu_spans_resumes: bool = False  # train()'s ``cpu_s`` counts every resumed part
     command: str | None = None  # ``(env, table, frames=, seed=, logdir=, save_at=) -> argv``
 
@@ -140,7 +141,9 @@ class Trainer:
 
     def cpus(self, table: dict, available: int) -> int:
         """CPUs a training of ``table`` takes on a machine of ``available``."""
+        serial = any(table.get(key) == value for key, value in self.serial)
         wanted = table.get(self.cpus_key, self.cpus_default) if self.cpus_key else 1
+        wanted = 1 if serial else wanted
         return max(1, min(available, int(wanted)))
 
     def argv(self, env: str, table: dict, **planned) -> list[str] | None:
@@ -196,6 +199,21 @@ TRAINERS = {
             cpus_default=2,
             cpu_spans_resumes=True,
             command="hier_agents.compare.spec:train_argv",
+        ),
+        Trainer(
+            name="sb3",
+            table="sb3",
+            config="hier_agents.baselines.sb3.config:Sb3Config",
+            train_fn="hier_agents.baselines.sb3.trainer:train",
+            suffix=".zip",  # with frames-B.json, its counters, beside it
+            latest="model.zip",
+            agent_kind="sb3",
+            help="python -m hier_agents.baselines.sb3",
+            options="hier_agents.baselines.sb3.config:OPTIONS",
+            cpus_key="n_envs",
+            cpus_default=8,
+            serial=(("vec", "dummy"),),
+            cpu_spans_resumes=True,
         ),
     )
 }
