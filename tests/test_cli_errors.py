@@ -32,6 +32,7 @@ MODULES = {
     "train_skill": "hier_agents.learning.train_skill",
     "train_options": "hier_agents.learning.train_options",
     "compare": "hier_agents.compare.__main__",
+    "compare_migrate": "hier_agents.compare.migrate",
 }
 
 
@@ -310,9 +311,15 @@ def test_the_real_entry_points_fail_the_same_way(argv, command, expected):
     _assert_one_line_error(result.stderr, _prog(command), expected)
 
 
-HELP_COMMANDS = ["run", "envs", "train", "train_skill", "train_options", "compare"] + sorted(
-    f"bench/{p.stem}" for p in BENCHMARKS.glob("[a-z]*.py")
-)
+HELP_COMMANDS = [
+    "run",
+    "envs",
+    "train",
+    "train_skill",
+    "train_options",
+    "compare",
+    "compare_migrate",
+] + sorted(f"bench/{p.stem}" for p in BENCHMARKS.glob("[a-z]*.py"))
 
 
 @pytest.mark.parametrize("command", HELP_COMMANDS)

@@ -148,7 +148,8 @@ def test_the_cli_refuses_a_missing_spec_in_one_line(tmp_path, capsys):
 
 
 def test_shipped_specs_load():
-    for path in sorted((ROOT / "experiments").glob("*.toml")):
+    sb3 = ROOT / "tests" / "compare_sb3.toml"  # the guide's spec with an sb3 series
+    for path in sorted((ROOT / "experiments").glob("*.toml")) + [sb3]:
         spec = load(path)
         assert jobs_mod.plan(spec)
         assert spec.cache.resolve().is_relative_to(ROOT)
@@ -707,6 +708,39 @@ def test_an_sb3_series_trains_grows_and_plays_through_one_door(tmp_path):
     )
     summary = jobs_mod.execute(evaluation, cache)["summary"]
     assert summary["agent"].startswith("sb3:") and summary["training_frames"] == 128
+
+
+def test_a_version_1_cache_is_re_keyed_with_its_run_directories(tmp_path, capsys):
+    """`python -m hier_agents.compare.migrate`: records stored under their
+    version 1 keys move to the keys now (results kept, the old key noted),
+    a version 1 run directory becomes the series' one, and a second run
+    finds nothing left to do."""
+    from hier_agents.compare import migrate
+
+    path = e2e_spec(tmp_path, "[200, 400]")
+    spec = load(path)
+    planned = jobs_mod.plan(spec)
+    old_keys = migrate.v1_keys(planned)
+    assert len(old_keys) == len(planned)
+    for job in planned:
+        record = {"kind": job.kind, "inputs": {}, "key": old_keys[job.key], "result": {"x": 1}}
+        jobs_mod.store_record(spec.cache, record)
+    train = next(j for j in planned if j.kind == "train")
+    (spec.cache / "train" / old_keys[train.key]).mkdir(parents=True)
+    assert migrate.main([str(path)]) == 0
+    assert capsys.readouterr().out.startswith(f"{len(planned)} records and 1 run directory")
+    for job in planned:
+        record = jobs_mod.load_record(spec.cache, job.key)
+        assert record["inputs"] == job.inputs and record["result"] == {"x": 1}
+        assert record["migrated"] == {"from_version": 1, "from_key": old_keys[job.key]}
+        assert not jobs_mod.record_path(spec.cache, old_keys[job.key]).exists()
+    assert jobs_mod.train_dir(spec.cache, train.inputs["series"]).is_dir()
+    assert migrate.main([str(path)]) == 0
+    assert f"0 records and 0 run directories re-keyed to version 2; {len(planned)}" in (
+        capsys.readouterr().out
+    )
+    # A version 1 key as version 1 computed it (the shipped records were keyed so).
+    assert migrate.v1_key("eval", {"a": 1}, ("b",)) != migrate.v1_key("eval", {"a": 1})
 
 
 # -- statistics across seeds ----------------------------------------------------------------

@@ -91,7 +91,12 @@ def _main(argv=None) -> int:
 
     parser = cli.Parser(PROG, description=__doc__.split("\n\n")[0])
     parser.add_argument("spec", type=cli.existing_file, help="the experiment's TOML spec")
-    parser.add_argument("--cache", type=Path, default=None, help="default: the spec's cache")
+    parser.add_argument(
+        "--cache",
+        type=Path,
+        default=None,
+        help="the cache folder (default: the spec's cache, else runs/compare/NAME)",
+    )
     args = parser.parse_args(argv)
     spec = load(args.spec)
     counts = migrate(jobs_mod.plan(spec), args.cache or spec.cache)
