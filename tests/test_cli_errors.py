@@ -137,7 +137,7 @@ CASES = [
     (
         "run",
         ["mujoban/level1", "--stochastic"],
-        "--stochastic applies to the agents that take it (checkpoint)",
+        "--stochastic applies to the agents that take it (checkpoint, sb3)",
     ),
     ("run", ["mujoban/level1", "--sed", "1"], "did you mean '--seed'"),
     # python -m envs
