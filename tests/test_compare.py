@@ -91,6 +91,42 @@ budgets = [200, 400]
     assert len({j.key for j in planned}) == len(planned)
 
 
+def test_budgets_may_differ_per_environment(tmp_path):
+    text = SPEC.replace('envs = ["mujoban/level1"]', 'envs = ["mujoban/level1", "mujoban/level2"]')
+    agent = """
+[[agent]]
+label = "e2e"
+train = { observations = "proprio", state = true, actors = 1 }
+budgets = { "mujoban/level1" = [400, 200], "mujoban/level2" = [200] }
+"""
+    spec = load(write_spec(tmp_path, text + agent))
+    e2e = spec.agents[-1]
+    assert e2e.budgets_for("mujoban/level1") == (200, 400)
+    assert e2e.budgets_for("mujoban/level2") == (200,)
+    assert spec.agents[0].budgets_for("mujoban/level1") == (None,)
+    trains = {j.inputs["env"]: j for j in jobs_mod.plan(spec) if j.kind == "train"}
+    assert trains["mujoban/level1"].inputs["frames"] == 400
+    assert trains["mujoban/level2"].inputs["save_at"] == [200]
+    evals = [j for j in jobs_mod.plan(spec) if j.kind == "eval" and j.point["agent"] == "e2e"]
+    assert {(j.point["env"], j.point["budget"]) for j in evals} == {
+        ("mujoban/level1", 200),
+        ("mujoban/level1", 400),
+        ("mujoban/level2", 200),
+    }
+    for budgets, message in [
+        ('{ "mujoban/level1" = [200] }', "no list for mujoban/level2"),
+        (
+            '{ "mujoban/level1" = [200], "mujoban/level2" = [200], "mujoban/level3" = [1] }',
+            "level3",
+        ),
+        ('{ "mujoban/level1" = [200], "mujoban/level2" = [] }', "budgets of mujoban/level2"),
+    ]:
+        bad = agent.replace(agent.splitlines()[-1], f"budgets = {budgets}")
+        with pytest.raises(UsageError, match=message) as info:
+            load(write_spec(tmp_path, text + bad))
+        assert "\n" not in str(info.value)
+
+
 @pytest.mark.parametrize(
     "edit, message",
     [

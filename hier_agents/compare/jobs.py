@@ -148,7 +148,7 @@ def plan(spec) -> list[Job]:
                             (train.key,),
                             {**point, "budget": b},
                         )
-                        for b in agent.budgets
+                        for b in agent.budgets_for(env)
                     ]
                 else:
                     kind, arg = resolve(agent.agent)
@@ -172,8 +172,8 @@ def train_job(agent, env: str, seed: int, point: dict, cpus: int) -> Job:
         "train": agent.train,
         "seed": seed,
         "series": series_key(agent.trainer, env, agent.train, seed),
-        "frames": max(agent.budgets),
-        "save_at": list(agent.budgets),
+        "frames": max(agent.budgets_for(env)),
+        "save_at": list(agent.budgets_for(env)),
     }
     return Job("train", inputs, cpus=trainer.cpus(agent.train, cpus), point=point)
 

@@ -97,8 +97,7 @@ def points(spec, jobs, records) -> list[dict]:
     out = []
     for agent in spec.agents:
         for env in agent.envs:
-            budgets = agent.budgets if agent.kind == "train" else (None,)
-            for budget in budgets:
+            for budget in agent.budgets_for(env):
                 where = (agent.label, env, budget)
                 seeds = grouped.get(where, {})
                 complete = {s: rows for s, rows in seeds.items() if len(rows) == agent.episodes}

@@ -39,7 +39,10 @@ An agent has exactly one of ``agent`` (``NAME[:ARG]`` of an agent kind,
 ``planner``, ``skill``, ``estimator``: `hier_agents.modular.components.resolve`
 names; the same as ``agent = "modular"`` with those options), a trainer's
 table with ``budgets`` (frame counts, each evaluated at the checkpoint kept
-exactly there; `hier_agents.compare.trainers`): ``train`` (IMPALA: flags
+exactly there, `hier_agents.compare.trainers`; a list for every environment,
+or a table giving each environment its own list, e.g.
+``budgets = { "mujoban/level1" = [1_000_000, 5_000_000], "mujoban/level2" =
+[1_000_000] }``): ``train`` (IMPALA: flags
 of ``python -m hier_agents.train`` with ``_`` for ``-``, e.g.
 ``condition``, ``observations``, ``image_size``, ``state``, ``preset``,
 ``actors``, ``envs_per_actor``, ``batch_size``, ``learning_rate``) or
@@ -106,6 +109,15 @@ class Agent:
     trainer: str = ""
     budgets: tuple = ()
     stochastic: bool = False
+    env_budgets: dict = field(default_factory=dict)
+
+    def budgets_for(self, env: str) -> tuple:
+        """A trained agent's budgets on ``env`` (ascending; ``budgets`` unless the
+        spec gave that environment its own list); ``(None,)`` for an agent the
+        plan does not train (one point per environment)."""
+        if self.kind != "train":
+            return (None,)
+        return tuple(self.env_budgets.get(env, self.budgets))
 
     @property
     def modular(self) -> dict:
@@ -338,9 +350,9 @@ def _train_agent(trainer, table: dict, at: str, common: dict) -> Agent:
     options = table[trainer.table]
     if "budgets" not in table:
         raise UsageError(f"{at}: a trained agent needs budgets (frame counts to evaluate at)")
-    budgets = tuple(sorted(_ints(table["budgets"], "budgets", at, 1)))
+    budgets, env_budgets = _budgets(table["budgets"], common["envs"], at)
     for env in common["envs"]:
-        trainer.check_table(env, options, budgets, at)
+        trainer.check_table(env, options, env_budgets.get(env, budgets), at)
     stochastic = table.get("stochastic", False)
     if not isinstance(stochastic, bool):
         raise UsageError(f"{at}: stochastic must be true or false")
@@ -350,5 +362,20 @@ def _train_agent(trainer, table: dict, at: str, common: dict) -> Agent:
         train=dict(options),
         budgets=budgets,
         stochastic=stochastic,
+        env_budgets=env_budgets,
         **common,
     )
+
+
+def _budgets(value, envs: tuple, at: str) -> tuple[tuple, dict]:
+    """``(budgets, env_budgets)`` of a ``budgets`` value: a list of frame
+    counts for every environment, or a table giving each of the agent's
+    environments its own list (``budgets`` is then the union)."""
+    if not isinstance(value, dict):
+        return tuple(sorted(_ints(value, "budgets", at, 1))), {}
+    _unknown(value, envs, f"{at}, budgets")
+    missing = [env for env in envs if env not in value]
+    if missing:
+        raise UsageError(f"{at}: budgets gives no list for {', '.join(missing)}")
+    per_env = {env: tuple(sorted(_ints(value[env], f"budgets of {env}", at, 1))) for env in envs}
+    return tuple(sorted({b for bs in per_env.values() for b in bs})), per_env
