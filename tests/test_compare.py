@@ -829,6 +829,108 @@ def test_points_carry_per_seed_values_means_and_intervals(tmp_path):
     assert (tmp_path / "p.png").stat().st_size > 1000
 
 
+BOARD_SPEC = """
+name = "boards"
+cache = "cache"
+envs = ["mujoxo/optimal", "mujoxo/mixture"]
+seeds = [0, 1, 2]
+episodes = 4
+shard_episodes = 2
+
+[[agent]]
+label = "random 10"
+random = 10
+"""
+#: Per seed, the outcomes of episodes 0-3 (the same on both environments).
+BOARD_GAMES = {
+    0: ["win", "draw", "loss", "draw"],  # score (1 + 1/2 + 0 + 1/2) / 4 = 1/2
+    1: ["draw"] * 4,  # 1/2: no win, yet not a zero
+    2: ["loss", "loss", "draw", "win"],  # 3/8
+}
+
+
+def _fake_board_records(cache: Path, planned) -> None:
+    """Stores every job's record with `BOARD_GAMES`' outcomes as rows."""
+    for job in planned:
+        first = job.inputs["first_episode"]
+        outcomes = BOARD_GAMES[job.inputs["seed"]][first : first + job.inputs["episodes"]]
+        rows = [
+            {"episode": first + i, "outcome": o, "final_reward": 0.0, "steps": 10}
+            for i, o in enumerate(outcomes)
+        ]
+        summary = {"privileged": False, "training_frames": 0}
+        record = {**job.to_json(), "result": {"rows": rows, "summary": summary}}
+        jobs_mod.store_record(cache, {**record, "cpu_s": 1.0, "wall_s": 1.0, "attempts": 1})
+
+
+def test_board_points_score_games_a_win_one_a_draw_half_a_loss_zero(tmp_path):
+    """A board point's per-seed value is the mean game score, not the win
+    rate (which is 0 against an opponent nobody beats); its IQM interval is
+    the stratified bootstrap of the scores; its pooled interval a bootstrap
+    (Wilson's needs 0/1 outcomes); it carries the shares won, drawn and lost."""
+    from hier_agents.stats import stratified_interval
+
+    spec = load(write_spec(tmp_path, BOARD_SPEC))
+    planned = jobs_mod.plan(spec)
+    _fake_board_records(spec.cache, planned)
+    records = {j.key: jobs_mod.load_record(spec.cache, j.key) for j in planned}
+    pts = report.points(spec, planned, records)
+    assert [p["env"] for p in pts] == ["mujoxo/optimal", "mujoxo/mixture"]
+    scores = [[1.0, 0.5, 0.0, 0.5], [0.5] * 4, [0.0, 0.0, 0.5, 1.0]]
+    for p in pts:
+        assert p["per_seed"] == [0.5, 0.5, 0.375]
+        assert p["mean"] == pytest.approx(11 / 24)
+        assert p["iqm"] == pytest.approx(iqm([0.5, 0.5, 0.375]))
+        assert p["mean_interval"] == list(bootstrap_interval([0.5, 0.5, 0.375]))
+        assert p["iqm_interval"] == list(stratified_interval(scores))
+        assert p["pooled_bootstrap_interval"] == list(
+            bootstrap_interval([x for s in scores for x in s])
+        )
+        assert "pooled_wilson_interval" not in p
+        assert p["outcomes"] == {"win": 2 / 12, "draw": 7 / 12, "loss": 3 / 12}
+    (agg,) = report.aggregates(spec, pts)
+    assert agg["runs"] == 6 and agg["mean"] == pytest.approx(11 / 24)
+    table = report.format_table(spec, pts, [], [agg])
+    heading = "game score % (per game: win 1, draw 1/2, loss 0)"
+    assert table.splitlines()[0] == f"{heading}: {report.STATISTICS}"
+    assert "W/D/L %" in table and " 17/58/25 " in table and "45.8" in table
+    markdown = report.format_markdown(spec.envs, pts, [])
+    assert markdown[0].startswith("| environment | agent | training frames | game score, mean")
+    assert "| 17/58/25 |" in markdown[2] and markdown[1].count("---") == 10
+    report.plot(spec, pts, tmp_path / "p.png", [agg])
+    assert (tmp_path / "p.png").stat().st_size > 1000
+
+
+def test_the_json_names_each_environments_metric_and_mixed_metrics_never_aggregate(tmp_path):
+    """comparison.json's ``metric`` maps each environment to its family's
+    metric; a spec over MuJoBan and a board game has a header line per
+    metric and no aggregate mixing success with game score."""
+    import json
+
+    from hier_agents.compare.__main__ import main
+
+    text = BOARD_SPEC.replace('"mujoxo/mixture"', '"mujoban/level1"')
+    spec_path = write_spec(tmp_path, text)
+    spec = load(spec_path)
+    planned = jobs_mod.plan(spec)
+    _fake_board_records(spec.cache, [j for j in planned if j.point["env"] != "mujoban/level1"])
+    _fake_records(spec.cache, planned, [j for j in planned if j.point["env"] == "mujoban/level1"])
+    assert main([str(spec_path), "--report-only", "--quiet"]) == 0
+    out = json.loads((spec.cache / "comparison.json").read_text())
+    assert out["metric"] == {
+        "mujoxo/optimal": "game score: 100 x the mean over episodes of 1 for a win, 1/2 for "
+        "a draw, 0 for a loss",
+        "mujoban/level1": "success: 100 x the share of episodes solved",
+    }
+    assert out["aggregates"] == []
+    board, level = out["points"]
+    assert board["per_seed"] == [0.5, 0.5, 0.375] and "outcomes" in board
+    assert level["per_seed"] == [0.5] * 3 and "outcomes" not in level
+    assert "pooled_wilson_interval" in level
+    lines = (spec.cache / "comparison.txt").read_text().splitlines()
+    assert lines[0].startswith("game score % (") and lines[1].startswith("success %: ")
+
+
 def test_iqm_intervals_are_stratified_by_seed_and_aggregates_span_environments(tmp_path):
     """Each point's IQM interval is `stratified_interval` of its seeds'
     episodes; with two environments each agent gets an aggregate over the

@@ -36,7 +36,7 @@ def _exact_iqm_distribution(strata) -> dict:
     per_seed = [list(itertools.product(s, repeat=len(s))) for s in strata]
     counts: Counter = Counter()
     for draw in itertools.product(*per_seed):
-        rates = [Fraction(sum(d), len(d)) for d in draw]
+        rates = [sum(map(Fraction, d)) / len(d) for d in draw]
         counts[round(iqm([float(r) for r in rates]), 9)] += 1
     total = sum(counts.values())
     return {value: n / total for value, n in sorted(counts.items())}
@@ -61,6 +61,26 @@ def test_the_stratified_bootstrap_matches_the_enumerated_resamples():
         stratified_replicates(strata, resamples=500, seed=3)
         == stratified_replicates(strata, resamples=500, seed=3)
     ).all()
+
+
+def test_the_stratified_bootstrap_takes_game_scores_not_only_successes():
+    """Board games score 1 / 1/2 / 0 per game. Seeds [win, draw], [draw,
+    draw], [loss, loss]: seed 0's resampled mean is 1/2, 3/4 or 1
+    (probabilities 1/4, 1/2, 1/4), the others stay 1/2 and 0, so the IQM,
+    (0/4 + 1/2 + a/4) / 1.5, is 5/12, 11/24 or 1/2; a counter of wins only
+    (or of scores rounded to 0/1) would give other values."""
+    strata = [[1.0, 0.5], [0.5, 0.5], [0.0, 0.0]]
+    exact = _exact_iqm_distribution(strata)
+    assert exact == pytest.approx(
+        {round(5 / 12, 9): 0.25, round(11 / 24, 9): 0.5, round(1 / 2, 9): 0.25}
+    )
+    reps = stratified_replicates(strata, resamples=20_000, seed=3)
+    for value, probability in exact.items():
+        assert np.mean(np.isclose(reps, value)) == pytest.approx(probability, abs=0.015)
+    assert np.isclose(reps[:, None], list(exact)).any(axis=1).all()
+    assert stratified_interval(strata, seed=3) == pytest.approx((5 / 12, 1 / 2))
+    # Every game drawn, against an opponent nobody beats: 1/2 exactly, no spread.
+    assert stratified_interval([[0.5] * 50] * 3) == pytest.approx((0.5, 0.5))
 
 
 def test_the_stratified_bootstrap_never_mixes_episodes_of_different_seeds():

@@ -240,6 +240,7 @@ def _content(spec, args, planned, results, missing, code_versions) -> dict:
         "description": spec.description,
         "spec": spec.raw,
         "spec_file": str(spec.path),
+        "metric": report.metrics(spec.envs),
         "statistic": "iqm" if args.iqm else "mean",
         "statistics": report.STATISTICS,
         "aggregate_statistics": report.AGGREGATE,

@@ -4,8 +4,14 @@ across environments, the table, the JSON and the plot.
 A point is one agent in one environment at one training budget (trained
 agents: each budget; modular agents: the frames their learned parts were
 trained on, 0 when scripted; random agents: 0). Per seed, its value is the
-success rate over that seed's episodes (MuJoBan: solved; board games: won).
-Across seeds (`hier_agents.stats`, 10,000 resamples, seeded):
+mean over that seed's episodes of the environment family's per-episode
+metric (`hier_agents.modular.families.FamilyAdapter.episode_score`, the one
+place that chooses it): MuJoBan's **success** (1 solved, 0 not: the share
+solved), the board games' **game score** (1 for a win, 1/2 for a draw, 0
+for a loss; against MuJoXO's optimal opponent nobody wins, so a win rate
+would be 0 for every agent). Board-game points add the shares of games
+won, drawn and lost (``outcomes``). Across seeds (`hier_agents.stats`,
+10,000 resamples, seeded):
 
 * the **mean** over seeds with a 95% percentile-bootstrap interval over the
   per-seed rates (`hier_agents.stats.bootstrap_interval`);
@@ -13,15 +19,19 @@ Across seeds (`hier_agents.stats`, 10,000 resamples, seeded):
   a 95% **stratified bootstrap** interval
   (`hier_agents.stats.stratified_interval`): the strata are the seeds; each
   resample draws every seed's episodes with replacement within that seed,
-  recomputes each seed's success rate, and takes the IQM over the seeds;
-* the per-seed values and the pooled Wilson interval over all episodes.
+  recomputes each seed's mean score, and takes the IQM over the seeds;
+* the per-seed values and a pooled interval over all episodes: Wilson's
+  (``pooled_wilson_interval``) for a 0/1 metric, else a percentile
+  bootstrap of the mean over every episode's score
+  (``pooled_bootstrap_interval``).
 
 An **aggregate** per agent (and budget) over the spec's environments where
 it has a point, rliable-style (`aggregates`): the mean and the IQM over
 every run (one per environment and seed), with 95% intervals from a
 stratified bootstrap whose strata are the environments (each resample draws
 every environment's runs with replacement within it:
-`hier_agents.stats.aggregate_interval`).
+`hier_agents.stats.aggregate_interval`); environments whose metrics differ
+are never aggregated together.
 
 Series also report the CPU hours their jobs cost (`series_cost`): training,
 summed over seeds, each seed's run counted over every resumed part (the
@@ -30,7 +40,7 @@ record's ``cpu_s``, which covers only the attempt that finished, counted in
 ``cpu_partial_jobs`` and marked ``>=`` in the table), and evaluation.
 
 The plot (`plot`): one panel per environment (and one for the aggregate when
-there are several): learning curves of every trained series (success
+there are several): learning curves of every trained series (the metric
 against the frames of its budgets: the mean with its interval shaded, the
 IQM dotted), the modular agents as coloured horizontal lines and random
 actions as grey dashed ones.
@@ -40,6 +50,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from hier_agents.modular.families import env_adapter
 from hier_agents.stats import (
     aggregate_interval,
     bootstrap_interval,
@@ -60,8 +71,15 @@ AGGREGATE = (
 )
 
 
-def _success(row: dict) -> bool:
-    return bool(row["solved"]) if "solved" in row else row.get("outcome") == "win"
+def metrics(envs) -> dict:
+    """Environment -> its metric, ``"NAME: DEFINITION"`` (the JSON's
+    ``metric``; `hier_agents.modular.families.FamilyAdapter.metric`)."""
+    return {e: f"{env_adapter(e).metric}: {env_adapter(e).metric_definition}" for e in envs}
+
+
+def _headings(envs) -> list[str]:
+    """The distinct metric headings of ``envs``, in order."""
+    return list(dict.fromkeys(env_adapter(e).metric_heading for e in envs))
 
 
 def _observations(agent, summary: dict) -> tuple[str, bool]:
@@ -108,12 +126,16 @@ def points(spec, jobs, records) -> list[dict]:
 
 def _point(agent, env: str, budget, complete: dict, summary: dict) -> dict:
     """One point from its complete seeds' rows (seed -> rows) and an
-    evaluation summary (`hier_agents.run.run`)."""
-    per_seed = {s: sum(map(_success, rows)) / len(rows) for s, rows in sorted(complete.items())}
+    evaluation summary (`hier_agents.run.run`): per seed the mean of its
+    episodes' scores (``env``'s family's `episode_score`), the statistics
+    over seeds (module docstring) and, for games, ``outcomes``: the shares
+    of all episodes won, drawn and lost."""
+    family = env_adapter(env)
+    scores = [[family.episode_score(r) for r in rows] for _, rows in sorted(complete.items())]
+    per_seed = {s: sum(x) / len(x) for s, x in zip(sorted(complete), scores)}
     values = list(per_seed.values())
-    outcomes = [[float(_success(r)) for r in rows] for _, rows in sorted(complete.items())]
-    wins = sum(sum(map(_success, rows)) for rows in complete.values())
-    episodes = sum(len(rows) for rows in complete.values())
+    pooled = [x for seed in scores for x in seed]
+    episodes = len(pooled)
     observed, privileged = _observations(agent, summary)
     frames = int(summary.get("training_frames", budget or 0) or 0)
     point = {
@@ -129,12 +151,15 @@ def _point(agent, env: str, budget, complete: dict, summary: dict) -> dict:
         "mean": sum(values) / len(values),
         "mean_interval": list(bootstrap_interval(values)),
         "iqm": iqm(values),
-        "iqm_interval": list(stratified_interval(outcomes, "iqm")),
-        "pooled_wilson_interval": list(wilson_interval(wins, episodes)),
+        "iqm_interval": list(stratified_interval(scores, "iqm")),
+        **_pooled_interval(family, pooled),
         "mean_steps": sum(r["steps"] for rows in complete.values() for r in rows) / episodes,
         "observations": observed,
         "privileged": privileged,
     }
+    shares = family.outcome_shares(r for rows in complete.values() for r in rows)
+    if shares is not None:
+        point["outcomes"] = shares
     if agent.kind == "train":
         point["trainer"] = agent.trainer
         key = "condition" if agent.trainer == "impala" else "algo"
@@ -142,36 +167,49 @@ def _point(agent, env: str, budget, complete: dict, summary: dict) -> dict:
     return point
 
 
+def _pooled_interval(family, pooled: list[float]) -> dict:
+    """The pooled 95% interval over every episode's score: Wilson's for a
+    0/1 metric, else the percentile bootstrap of the mean (seeded)."""
+    if family.binary_metric:
+        return {"pooled_wilson_interval": list(wilson_interval(round(sum(pooled)), len(pooled)))}
+    return {"pooled_bootstrap_interval": list(bootstrap_interval(pooled))}
+
+
 def aggregates(spec, pts: list[dict]) -> list[dict]:
-    """Per agent and budget with points in two or more of the spec's
-    environments: the mean and IQM over all its runs (per-seed rates of
-    every environment), with 95% stratified-bootstrap intervals (strata:
-    the environments; `AGGREGATE`), the environments and the runs counted."""
+    """Per agent, budget and metric (`metrics`) with points in two or more of
+    the spec's environments of that metric: the mean and IQM over all its
+    runs (per-seed values of every such environment), with 95%
+    stratified-bootstrap intervals (strata: the environments; `AGGREGATE`),
+    the environments and the runs counted."""
     out = []
     for agent in spec.agents:
         budgets = agent.budgets if agent.kind == "train" else (None,)
         for budget in budgets:
-            here = [p for p in pts if p["agent"] == agent.label and p["budget"] == budget]
-            if len(here) < 2:
-                continue
-            runs = [p["per_seed"] for p in here]
-            flat = [v for r in runs for v in r]
-            out.append(
-                {
-                    "agent": agent.label,
-                    "kind": agent.kind,
-                    "budget": budget,
-                    "training_frames": max(p["training_frames"] for p in here),
-                    "envs": [p["env"] for p in here],
-                    "runs": len(flat),
-                    "mean": sum(flat) / len(flat),
-                    "mean_interval": list(aggregate_interval(runs, "mean")),
-                    "iqm": iqm(flat),
-                    "iqm_interval": list(aggregate_interval(runs, "iqm")),
-                    "privileged": any(p["privileged"] for p in here),
-                }
-            )
+            mine = [p for p in pts if p["agent"] == agent.label and p["budget"] == budget]
+            groups: dict[str, list[dict]] = {}
+            for p in mine:
+                groups.setdefault(env_adapter(p["env"]).metric, []).append(p)
+            out += [_aggregate(agent, budget, here) for here in groups.values() if len(here) > 1]
     return out
+
+
+def _aggregate(agent, budget, here: list[dict]) -> dict:
+    """One aggregate (`aggregates`) of ``agent`` at ``budget`` over the points ``here``."""
+    runs = [p["per_seed"] for p in here]
+    flat = [v for r in runs for v in r]
+    return {
+        "agent": agent.label,
+        "kind": agent.kind,
+        "budget": budget,
+        "training_frames": max(p["training_frames"] for p in here),
+        "envs": [p["env"] for p in here],
+        "runs": len(flat),
+        "mean": sum(flat) / len(flat),
+        "mean_interval": list(aggregate_interval(runs, "mean")),
+        "iqm": iqm(flat),
+        "iqm_interval": list(aggregate_interval(runs, "iqm")),
+        "privileged": any(p["privileged"] for p in here),
+    }
 
 
 def series_cost(spec, jobs, records, series_records=None) -> list[dict]:
@@ -277,36 +315,51 @@ def _cells(p: dict, cost: dict, stat: str) -> dict:
         "iqm_ci": _ci(p["iqm_interval"]),
         "per_seed": " ".join(f"{100 * v:.0f}" for v in p["per_seed"]),
         "train_h": _train_hours(c) if p["kind"] == "train" else "-",
+        "wdl": _wdl(p),
     }
+
+
+def _wdl(p: dict) -> str:
+    """A game point's shares won, drawn and lost in percent, ``W/D/L``
+    (``-`` for a point without ``outcomes``)."""
+    shares = p.get("outcomes")
+    if not shares:
+        return "-"
+    return "/".join(f"{100 * shares[k]:.0f}" for k in ("win", "draw", "loss"))
 
 
 def format_table(
     spec, pts: list[dict], costs: list[dict], aggs=(), *, use_iqm: bool = False
 ) -> str:
-    """The comparison as text: the statistics' header line, one block per
-    environment with one row per point (mean and IQM with their intervals,
-    per-seed values, training CPU hours, observations), then the
-    aggregates over environments (`aggregates`). ``use_iqm``: accepted for
-    the command's ``--iqm``; the table shows both statistics either way."""
-    lines = [f"success %: {STATISTICS}", ""]
+    """The comparison as text: a header line per metric (the environments'
+    `metrics`: MuJoBan's success, the board games' game score) with the
+    statistics, one block per environment with one row per point (mean and
+    IQM with their intervals, per-seed values, for games the shares won,
+    drawn and lost, training CPU hours, observations), then the aggregates
+    over environments (`aggregates`). ``use_iqm``: accepted for the
+    command's ``--iqm``; the table shows both statistics either way."""
+    lines = [f"{heading}: {STATISTICS}" for heading in _headings(spec.envs)] + [""]
     width = max([len(p["agent"]) for p in pts] + [12])
     cost = {(c["agent"], c["env"]): c for c in costs}
-    head = (
-        f"  {'agent':<{width}} {'train frames':>13} {'mean %':>7} {'[95% CI]':>14} "
-        f"{'IQM %':>6} {'[95% CI]':>14} {'seeds':>5}  {'per seed %':<16} {'train CPU-h':>11}"
-        f"  observations"
-    )
     for env in spec.envs:
         rows = [p for p in pts if p["env"] == env]
         if not rows:
             continue
+        games = env_adapter(env).games
+        wdl = f" {'W/D/L %':>11}" if games else ""
+        head = (
+            f"  {'agent':<{width}} {'train frames':>13} {'mean %':>7} {'[95% CI]':>14} "
+            f"{'IQM %':>6} {'[95% CI]':>14} {'seeds':>5}  {'per seed %':<16}{wdl} "
+            f"{'train CPU-h':>11}  observations"
+        )
         lines += [f"{env}:", head, "  " + "-" * (len(head) - 2)]
         for p in rows:
             c = _cells(p, cost, "mean")
+            outcomes = f" {c['wdl']:>11}" if games else ""
             lines.append(
                 f"  {p['agent']:<{width}} {p['training_frames']:>13,} {c['mean']:>7} "
                 f"{c['mean_ci']:>14} {c['iqm']:>6} {c['iqm_ci']:>14} {len(p['seeds']):>5}  "
-                f"{c['per_seed']:<16} {c['train_h']:>11}  {p['observations']}"
+                f"{c['per_seed']:<16}{outcomes} {c['train_h']:>11}  {p['observations']}"
             )
         lines.append("")
     if aggs:
@@ -329,37 +382,44 @@ def format_markdown(
 ) -> list[str]:
     """The comparison as Markdown lines (the README's table): one row per
     environment and point, in ``envs`` order, with `format_table`'s cells:
-    the mean (``use_iqm``: the IQM) with its interval, the IQM (the mean)
-    with its, per-seed values, mean steps, training CPU hours, observations."""
+    the metric's (``envs``' `metrics` names, e.g. success) mean (``use_iqm``:
+    the IQM) with its interval, the IQM (the mean) with its, per-seed
+    values, when a game is among ``envs`` the shares won, drawn and lost
+    (``-`` for other environments), mean steps, training CPU hours,
+    observations."""
     first, second = ("iqm", "mean") if use_iqm else ("mean", "iqm")
     names = {"mean": "mean over seeds", "iqm": "IQM over seeds"}
+    metric = " / ".join(dict.fromkeys(env_adapter(e).metric for e in envs))
+    games = any(env_adapter(e).games for e in envs)
     cost = {(c["agent"], c["env"]): c for c in costs}
     lines = [
-        f"| environment | agent | training frames | success, {names[first]} [95% CI] "
-        f"| {names[second]} [95% CI] | per seed | mean steps | training CPU-h (all seeds) "
-        f"| observes |",
-        "| --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+        f"| environment | agent | training frames | {metric}, {names[first]} [95% CI] "
+        f"| {names[second]} [95% CI] | per seed |{' W/D/L % |' if games else ''} mean steps "
+        f"| training CPU-h (all seeds) | observes |",
+        "| --- " * (10 if games else 9) + "|",
     ]
     for env in envs:
         for p in (p for p in pts if p["env"] == env):
             c = _cells(p, cost, first)
+            outcomes = f" {c['wdl']} |" if games else ""
             lines.append(
                 f"| `{env}` | {p['agent']} | {p['training_frames']:,} "
                 f"| {c[first]}% {c[first + '_ci']} | {c[second]}% {c[second + '_ci']} "
-                f"| {c['per_seed']} | {p['mean_steps']:.0f} | {c['train_h']} "
-                f"| {p['observations']} |"
+                f"| {c['per_seed']} |{outcomes} {p['mean_steps']:.0f} "
+                f"| {c['train_h']} | {p['observations']} |"
             )
     return lines
 
 
 def plot(spec, pts: list[dict], path: Path, aggs=(), *, use_iqm: bool = False) -> None:
     """One panel per environment, and one for the aggregates (`aggregates`)
-    when there are any: learning curves of the trained series (success
-    against the frames of their budgets; the mean, or with ``use_iqm`` the
-    IQM, as a solid line with its interval shaded, the other statistic
-    dotted), the modular agents as coloured horizontal lines at their mean
-    (IQM), random actions as grey dashed lines with their interval as a
-    band; privileged series dashed; the legend below the panels."""
+    when there are any: learning curves of the trained series (the
+    environments' metric, `metrics`, against the frames of their budgets;
+    the mean, or with ``use_iqm`` the IQM, as a solid line with its
+    interval shaded, the other statistic dotted), the modular agents as
+    coloured horizontal lines at their mean (IQM), random actions as grey
+    dashed lines with their interval as a band; privileged series dashed;
+    the legend below the panels."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -394,7 +454,8 @@ def plot(spec, pts: list[dict], path: Path, aggs=(), *, use_iqm: bool = False) -
         ax.set_xlim(-0.03 * xmax, 1.05 * xmax)
         ax.set_ylim(-2, 102)
         ax.grid(alpha=0.3)
-    axes[0][0].set_ylabel(f"success % ({'IQM' if use_iqm else 'mean'} over seeds, 95% CI)")
+    metric = " / ".join(dict.fromkeys(env_adapter(e).metric for e in spec.envs))
+    axes[0][0].set_ylabel(f"{metric} % ({'IQM' if use_iqm else 'mean'} over seeds, 95% CI)")
     _legend(fig, handles, pts, stat)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, metadata={"Software": None})

@@ -22,6 +22,8 @@ option-env actions         the four moves ``MOVES``    OpenSpiel's distinct
 option-env observation     ``(4, H, W)`` planes:       OpenSpiel's observation
                            walls, pads, boxes, player  tensor for the mover
 scored by (`score`)        solved or not               win / draw / loss (games)
+compared by (`metric`,     success: 1 solved, 0 not    game score: 1 win, 1/2 draw,
+`episode_score`)                                       0 loss
 harness judges the agent's never                       every step: its board and
 estimate                                               mover against the referee's
 level files, learned       yes (``level_files``)       no
@@ -40,7 +42,9 @@ discounts (env, abs)       0.99, 0.9                   0.99, 0.98
 =========================  ==========================  ==========================
 
 The episode runner (`hier_agents.agents.runner`) scores every agent's
-episodes through `FamilyAdapter.score`; the end-to-end agents'
+episodes through `FamilyAdapter.score`, and comparisons
+(`hier_agents.compare.report`) turn each row into a number through
+`FamilyAdapter.episode_score`; the end-to-end agents'
 (`hier_agents.baselines.impala.inputs`) inputs and auxiliary task read the
 family's part of this table from its adapter.
 
@@ -60,6 +64,7 @@ __all__ = [
     "FAMILIES",
     "family",
     "adapter",
+    "env_adapter",
     "FamilyAdapter",
     "SokobanAdapter",
     "BoardAdapter",
@@ -143,6 +148,28 @@ class FamilyAdapter:
         against the referee (``task``), for the families that judge one
         (``games``)."""
         raise NotImplementedError
+
+    # -- comparing agents over episodes (`hier_agents.compare.report`) ---------
+
+    #: The comparison's per-episode metric (`episode_score`), as its tables say it.
+    metric = "success"
+    #: What `metric` counts, one clause (the comparison's JSON).
+    metric_definition = "100 x the share of episodes that succeeded"
+    #: The tables' and the plot's heading of the metric, in percent.
+    metric_heading = "success %"
+    #: Every episode scores 0 or 1 (a binomial proportion: Wilson intervals apply).
+    binary_metric = True
+
+    def episode_score(self, row: dict) -> float:
+        """An episode row's (`score`) value in [0, 1] for comparisons: here
+        1.0 for a success (``solved``, else a won game), 0.0 otherwise."""
+        return float(bool(row["solved"]) if "solved" in row else row.get("outcome") == "win")
+
+    def outcome_shares(self, rows) -> dict | None:
+        """The shares of ``rows`` won, drawn and lost (``{"win", "draw",
+        "loss"}`` -> fraction, summing to 1) for families whose episodes are
+        games; None otherwise."""
+        return None
 
     # -- the end-to-end agents' inputs and auxiliary task ---------------------
 
@@ -263,6 +290,12 @@ class SokobanAdapter(FamilyAdapter):
 
     def success(self, task) -> bool:
         return bool(task.solved)
+
+    metric_definition = "100 x the share of episodes solved"
+
+    def episode_score(self, row: dict) -> float:
+        """1.0 for a solved level, 0.0 otherwise."""
+        return float(bool(row["solved"]))
 
     discounts = (0.99, 0.9)
     proprio_keys = (
@@ -405,6 +438,26 @@ class BoardAdapter(FamilyAdapter):
     def success(self, task) -> bool:
         return task.outcome == "win"  # a resignation by the opponent included
 
+    # Against MuJoXO's optimal opponent nobody wins: a draw is the best
+    # result, so the comparison scores games, not wins.
+    metric = "game score"
+    metric_definition = "100 x the mean over episodes of 1 for a win, 1/2 for a draw, 0 for a loss"
+    metric_heading = "game score % (per game: win 1, draw 1/2, loss 0)"
+    binary_metric = False
+    #: A row's ``outcome`` -> its `episode_score`.
+    OUTCOME_SCORES = {"win": 1.0, "draw": 0.5, "loss": 0.0}
+
+    def episode_score(self, row: dict) -> float:
+        """1.0 for a won game (the opponent's resignation included), 0.5 for
+        a draw, 0.0 for a loss (a row without an outcome: a game that never
+        finished, lost)."""
+        return self.OUTCOME_SCORES.get(row.get("outcome") or "loss", 0.0)
+
+    def outcome_shares(self, rows) -> dict | None:
+        rows = list(rows)
+        outcomes = [r.get("outcome") or "loss" for r in rows]
+        return {k: outcomes.count(k) / len(rows) if rows else 0.0 for k in self.OUTCOME_SCORES}
+
     def estimate_right(self, task, scene) -> bool:
         """Whether the agent's ``scene`` has the referee's board (every
         point's owner) and player to move."""
@@ -500,6 +553,15 @@ def adapter(name: str) -> FamilyAdapter:
 
 #: The adapter of tasks outside the families: no deviation or end-of-episode rule.
 GENERIC = FamilyAdapter()
+
+
+def env_adapter(env_name: str) -> FamilyAdapter:
+    """The adapter of an environment name (`adapter`), `GENERIC` for an
+    environment outside the families."""
+    try:
+        return adapter(env_name)
+    except ValueError:
+        return GENERIC
 
 
 def adapter_for(description) -> FamilyAdapter:
