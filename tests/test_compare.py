@@ -191,6 +191,25 @@ def test_shipped_specs_load():
         assert spec.cache.resolve().is_relative_to(ROOT)
 
 
+def test_the_boards_spec_trains_every_series_to_the_same_budgets():
+    """`experiments/boards.toml`: every trained series (IMPALA vanilla and
+    expert-planner with the board as state, SB3 PPO) at 250,000 and
+    1,000,000 frames on each board game; the modular agent that reads the
+    game record only as a labelled reference; at least 50 episodes a seed."""
+    spec = load(ROOT / "experiments" / "boards.toml")
+    assert spec.envs == ["mujoxo/optimal", "mujoxo/mixture", "mujogo/7x7"]
+    trained = [a for a in spec.agents if a.kind == "train"]
+    assert {a.trainer for a in trained} == {"impala", "sb3"} and len(trained) == 3
+    for agent in trained:
+        assert all(agent.budgets_for(e) == (250_000, 1_000_000) for e in spec.envs)
+    modular = {a.label: a.modular for a in spec.agents if a.kind == "modular"}
+    assert [m.get("estimator") for m in modular.values()] == ["camera", None]
+    assert list(modular)[1].endswith("(game record)")
+    assert all(a.episodes >= 50 and a.seeds == (0, 1, 2) for a in spec.agents)
+    planned = jobs_mod.plan(spec)
+    assert sum(j.kind == "train" for j in planned) == 3 * 3 * 3
+
+
 # -- job keys -------------------------------------------------------------------------------
 
 leaves = st.one_of(
