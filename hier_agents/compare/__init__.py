@@ -12,8 +12,9 @@ variants by component names, end-to-end agents by their trainer's table,
 evaluation episodes. The command plans the training and evaluation jobs
 (`hier_agents.compare.jobs`), runs those not done on a local pool of
 processes or a Ray cluster (`hier_agents.compare.backends`), and writes
-``comparison.json`` (points with the mean and the IQM across seeds and
-their intervals, aggregates across environments, per-seed values, CPU
+``comparison.json`` (points with the mean and the IQM across seeds of the
+environment family's metric, MuJoBan's success or the board games' game
+score, and their intervals, aggregates across environments, per-seed values, CPU
 hours, provenance), ``comparison.txt`` (the table) and ``comparison.png``
 (learning curves, one panel per environment and one for the aggregate)
 into the cache folder (`hier_agents.compare.report`, `hier_agents.stats`).
