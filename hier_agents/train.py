@@ -3,6 +3,7 @@
     python -m hier_agents.train mujoban/level1 --condition expert-planner --frames 2000000
     python -m hier_agents.train mujoban/level1 --frames 2000000 --logdir runs/vanilla
     python -m hier_agents.train mujoban/level1 --preset cpu --frames 200000 --logdir runs/cpu
+    python -m hier_agents.train mujoban/level1 --observations proprio --state --preset small-batches
     python -m hier_agents.train mujoxo/mixture --condition random-planner --backend ray
     tensorboard --logdir runs                       # the curves
     python -m hier_agents.run mujoban/level1 --agent checkpoint:runs/impala   # evaluate
@@ -33,6 +34,12 @@ On a 2-core, 23 GB machine (mujoban/level1, vanilla, 2 actors, batches of
 stepped 358); the defaults, the paper's (sized for an accelerator), 22
 frames/s (actors alone 68; 5 CPU minutes per update), and their actors held
 9 GB of memory each (about 250 MB per environment that renders).
+
+``--preset small-batches``: updates of 16 unrolls of 20 steps (320 frames)
+instead of the paper's 128 (MuJoBan) or 64 (board games) unrolls of 100
+steps, so a budget of a few hundred thousand frames makes hundreds of
+updates rather than a few dozen; the comparison's end-to-end agents train
+with it (experiments/mujoban.toml, docs/results/comparison.md).
 
 Budget: ``--frames`` environment frames (control steps) in total, at least
 one unroll (``--unroll-length``); met exactly when it is a multiple of the

@@ -147,12 +147,17 @@ def test_another_trainers_run_directory_is_refused_in_one_line(tiny_impala_run, 
             dict(image_size=64, envs_per_actor=4, env_overrides={"egocentric_camera": None}),
         ),
         (["--observations", "proprio", "--state"], dict(cameras=False, state=True)),
+        ([], dict(unroll_length=100, batch_size=None)),  # the paper's: 128 x 100 on MuJoBan
+        (["--preset", "small-batches"], dict(unroll_length=20, batch_size=16)),
+        (["--preset", "small-batches", "--batch-size", "8"], dict(unroll_length=20, batch_size=8)),
     ],
 )
 def test_the_default_agent_sees_the_cameras_and_presets_lighten_it(argv, expected):
     config = train_cli.config_from_args(train_cli.parse_args(["mujoban/level1", *argv]))
     for key, value in expected.items():
         assert getattr(config, key) == value, key
+    if argv == []:
+        assert config.resolved_batch() == 128
 
 
 def test_the_board_games_main_camera_is_their_only_one():

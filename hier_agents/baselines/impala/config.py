@@ -21,7 +21,14 @@ from hier_agents.modular.options import T_ABS
 #: ``observations`` values.
 OBSERVATIONS = ("cameras", "main-camera", "proprio")
 #: ``preset`` values: option defaults they replace (explicit options still win).
-PRESETS = {"cpu": {"observations": "main-camera", "image_size": 48, "envs_per_actor": 8}}
+#: ``small-batches``: updates of 16 unrolls of 20 steps (320 frames) instead of
+#: the paper's 128 (MuJoBan) or 64 (board games) of 100 steps, so a budget of a
+#: few hundred thousand frames makes hundreds of updates, not a few dozen
+#: (measured in docs/results/comparison.md, "Tuning the end-to-end agent").
+PRESETS = {
+    "cpu": {"observations": "main-camera", "image_size": 48, "envs_per_actor": 8},
+    "small-batches": {"unroll_length": 20, "batch_size": 16},
+}
 #: Options (flags with ``_`` for ``-``) -> (`TrainConfig` field, type); ``None``
 #: for the options `from_options` turns into other fields.
 OPTIONS = {
