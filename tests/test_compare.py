@@ -1223,3 +1223,16 @@ def test_the_shipped_comparison_is_what_its_committed_job_records_give(tmp_path,
     made.pop("provenance"), committed.pop("provenance")
     assert made == committed
     assert (cache / "comparison.txt").read_text() == (shipped / "comparison.txt").read_text()
+
+
+def test_a_series_evaluated_with_its_policy_sampled_says_so(tmp_path):
+    text = SPEC + (
+        '\n[[agent]]\nlabel = "e2e"\ntrain = { observations = "proprio", state = true }\n'
+        "budgets = [200]\nstochastic = STOCHASTIC\n"
+    )
+    summary = {"observations": ["proprio", "state"], "privileged": True}
+    for stochastic, expected in [("true", True), ("false", False)]:
+        agent = load(write_spec(tmp_path, text.replace("STOCHASTIC", stochastic))).agents[-1]
+        observed, privileged = report._observations(agent, summary)
+        assert privileged and observed.startswith("proprio, state (PRIVILEGED)")
+        assert observed.endswith("; policy sampled") is expected

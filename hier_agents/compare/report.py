@@ -83,7 +83,8 @@ def _headings(envs) -> list[str]:
 
 
 def _observations(agent, summary: dict) -> tuple[str, bool]:
-    """What a point's agent observed, in words, and whether it was privileged,
+    """What a point's agent observed, in words (with "; policy sampled" for
+    an agent evaluated with ``stochastic``), and whether it was privileged,
     from the evaluation summary (`hier_agents.run.run`)."""
     if agent.kind == "random":
         return "none", False
@@ -94,8 +95,10 @@ def _observations(agent, summary: dict) -> tuple[str, bool]:
         return f"cameras + proprioception ({name} estimator)", False
     keys = summary.get("observations") or []
     privileged = bool(summary.get("privileged"))
-    text = ", ".join(keys) if keys else "?"
-    return text + (" (PRIVILEGED)" if privileged else ""), privileged
+    text = (", ".join(keys) if keys else "?") + (" (PRIVILEGED)" if privileged else "")
+    if agent.stochastic:  # evaluated with its policy sampled, not its mean
+        text += "; policy sampled"
+    return text, privileged
 
 
 def points(spec, jobs, records) -> list[dict]:
