@@ -26,7 +26,7 @@ import numpy as np
 
 from physics_planning.cli import UsageError
 
-__all__ = ["Agent", "AgentKind", "AgentSetup", "ACCESS"]
+__all__ = ["Agent", "AgentKind", "AgentSetup", "ACCESS", "TrainedKind"]
 
 
 class Agent(Protocol):
@@ -158,3 +158,40 @@ class AgentKind:
         """The accepted forms, for listings (``NAME``, ``NAME:METAVAR``)."""
         bare = [] if self.arg_required else [self.name]
         return bare + ([f"{self.name}:{self.metavar}"] if self.metavar else [])
+
+
+class TrainedKind(AgentKind):
+    """The shape shared by the kinds that play a trained model from a file
+    (``NAME:PATH``, the ``stochastic`` option to sample its policy): they
+    need a path, and describe a run's summary alike.
+
+    ``describe`` reads the summary's ``condition``, ``training_frames``,
+    ``trained_env``, ``observations`` and ``privileged``; a summary without
+    ``condition`` (interrupted before a worker reported) is just its agent.
+    """
+
+    metavar = "PATH"
+    arg_required = True
+    options: tuple = ("stochastic",)
+
+    def parse(self, text: str) -> str:
+        if not text:
+            raise UsageError(f"--agent {self.name}:PATH needs a path")
+        return text
+
+    def describe(self, summary: dict) -> str:
+        from physics_planning.cli import plural
+
+        if "condition" not in summary:
+            return str(summary["agent"])
+        who = (
+            f"{summary['agent']} ({summary['condition']}, trained "
+            f"{plural(summary['training_frames'], 'frame', spec=',')} on "
+            f"{summary['trained_env']}"
+        )
+        if summary.get("observations"):
+            who += f"; reads {', '.join(summary['observations'])}"
+        who += ")"
+        if summary.get("privileged"):
+            who += " (PRIVILEGED: reads the simulator)"
+        return who

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from hier_agents.agents.base import AgentKind, AgentSetup
+from hier_agents.agents.base import AgentKind, AgentSetup, TrainedKind
 from hier_agents.agents.sb3 import Sb3Kind
 from physics_planning.cli import UsageError, plural
 
@@ -98,19 +98,11 @@ class ModularKind(AgentKind):
         return None, {k: inputs[k] for k in self.options if k in inputs}
 
 
-class CheckpointKind(AgentKind):
+class CheckpointKind(TrainedKind):
     """A trained end-to-end agent (module docstring)."""
 
     name = "checkpoint"
     help = "a trained end-to-end agent: a python -m hier_agents.train run directory or file"
-    metavar = "PATH"
-    arg_required = True
-    options = ("stochastic",)
-
-    def parse(self, text: str) -> str:
-        if not text:
-            raise UsageError("--agent checkpoint:PATH needs a path")
-        return text
 
     def check(self, env_name: str, arg, options: dict) -> None:
         if not Path(arg).exists():
@@ -123,21 +115,6 @@ class CheckpointKind(AgentKind):
         from hier_agents.agents.checkpoint import checkpoint_setup
 
         return checkpoint_setup(env_name, arg, bool(options.get("stochastic", False)))
-
-    def describe(self, summary: dict) -> str:
-        if "condition" not in summary:  # interrupted before a worker reported
-            return str(summary["agent"])
-        who = (
-            f"{summary['agent']} ({summary['condition']}, trained "
-            f"{plural(summary['training_frames'], 'frame', spec=',')} on "
-            f"{summary['trained_env']}"
-        )
-        if summary.get("observations"):
-            who += f"; reads {', '.join(summary['observations'])}"
-        who += ")"
-        if summary.get("privileged"):
-            who += " (PRIVILEGED: reads the simulator)"
-        return who
 
 
 class RandomKind(AgentKind):

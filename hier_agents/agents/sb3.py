@@ -24,9 +24,9 @@ from typing import Any
 
 import numpy as np
 
-from hier_agents.agents.base import AgentKind, AgentSetup
+from hier_agents.agents.base import AgentSetup, TrainedKind
 from hier_agents.modular.agent import OptionStats
-from physics_planning.cli import UsageError, plural
+from physics_planning.cli import UsageError
 
 __all__ = ["Sb3Agent", "Sb3Kind", "Sb3Run", "load_run"]
 
@@ -100,19 +100,11 @@ def load_run(path: str) -> Sb3Run:
     return Sb3Run(model, config, counters)
 
 
-class Sb3Kind(AgentKind):
+class Sb3Kind(TrainedKind):
     """A Stable-Baselines3 model (module docstring)."""
 
     name = "sb3"
     help = "a Stable-Baselines3 model: a python -m hier_agents.baselines.sb3 run directory or .zip"
-    metavar = "PATH"
-    arg_required = True
-    options = ("stochastic",)
-
-    def parse(self, text: str) -> str:
-        if not text:
-            raise UsageError("--agent sb3:PATH needs a path")
-        return text
 
     def check(self, env_name: str, arg, options: dict) -> None:
         _check_family(load_run(arg), env_name, arg)
@@ -143,21 +135,6 @@ class Sb3Kind(AgentKind):
             build,
             fixed=frozenset(name for name in overrides if name.endswith("_camera")),
         )
-
-    def describe(self, summary: dict) -> str:
-        if "condition" not in summary:  # interrupted before a worker reported
-            return str(summary["agent"])
-        who = (
-            f"{summary['agent']} ({summary['condition']}, trained "
-            f"{plural(summary['training_frames'], 'frame', spec=',')} on "
-            f"{summary['trained_env']}"
-        )
-        if summary.get("observations"):
-            who += f"; reads {', '.join(summary['observations'])}"
-        who += ")"
-        if summary.get("privileged"):
-            who += " (PRIVILEGED: reads the simulator)"
-        return who
 
     def job_inputs(self, env_name: str, arg, options: dict) -> dict:
         """``{"kind": "sb3", "arg": "sb3:PATH", the options, "model_sha256"}``:

@@ -25,7 +25,7 @@ OBSERVATIONS = ("cameras", "main-camera", "proprio")
 #: the paper's 128 (MuJoBan) or 64 (board games) of 100 steps, so a budget of a
 #: few hundred thousand frames makes hundreds of updates, not a few dozen
 #: (measured in docs/results/comparison.md, "Tuning the end-to-end agent").
-PRESETS = {
+PRESETS: dict[str, dict[str, object]] = {
     "cpu": {"observations": "main-camera", "image_size": 48, "envs_per_actor": 8},
     "small-batches": {"unroll_length": 20, "batch_size": 16},
 }
