@@ -24,7 +24,8 @@ For each run directory (a ``--logdir`` of `hier_agents.train`):
    the planner's target.
 
 Prints the tables and, with ``--json``, writes
-``{"runs": [{"logdir", "env", "condition", "training": [...], "evaluation": [...]}]}``.
+``{"runs": [{"logdir", "env", "condition", "settings", "training": [...],
+"evaluation": [...]}]}`` (``settings``: the run's `SETTINGS` from its config).
 """
 
 from __future__ import annotations
@@ -242,6 +243,7 @@ def _main(argv=None) -> int:
             "logdir": str(logdir),
             "env": config["env"],
             "condition": config["condition"],
+            "settings": {k: config.get(k, "?") for k in SETTINGS},
             "training": training_curve(logdir, args.every_frames),
             "evaluation": [],
         }
@@ -295,6 +297,21 @@ def _main(argv=None) -> int:
             },
         )
     return 0
+
+
+#: The training settings each run's JSON entry repeats from its config.
+SETTINGS = (
+    "unroll_length",
+    "batch_size",
+    "learning_rate",
+    "entropy_cost",
+    "actors",
+    "envs_per_actor",
+    "seed",
+    "state",
+    "cameras",
+    "steps",
+)
 
 
 def main(argv=None) -> int:
