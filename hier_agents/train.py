@@ -185,6 +185,13 @@ def _add_learning_args(parser: Parser, default: dict) -> None:
         + ")",
     )
     add(
+        "--passes",
+        type=positive_int,
+        default=default["passes"],
+        help="gradient steps on each batch (V-trace corrects the later ones for the "
+        "policy's change; the paper's: 1)",
+    )
+    add(
         "--learning-rate",
         type=positive_float,
         default=default["learning_rate"],

@@ -58,6 +58,24 @@ def test_a_tiny_run_updates_logs_and_checkpoints(tmp_path):
 
 
 @pytest.mark.slow
+def test_passes_take_that_many_gradient_steps_on_each_batch(tmp_path, monkeypatch):
+    from hier_agents.baselines.impala import learner
+
+    steps = []
+    real = learner.learner_step
+
+    def counting(net, optimizer, batch, config, value_states=None):
+        steps.append(value_states is not None)
+        return real(net, optimizer, batch, config, value_states)
+
+    monkeypatch.setattr(learner, "learner_step", counting)
+    counters = train(TrainConfig(steps=20, passes=3, logdir=str(tmp_path), **TINY))
+    # 20 frames at 2 unrolls x 5 steps per update: 2 updates of 3 steps each,
+    # the value core's carried states taken from each update's last step.
+    assert counters["updates"] == 2
+    assert steps == [False, False, True] * 2
+
+
 def test_a_resumed_run_continues_from_its_step_count(tmp_path):
     train(TrainConfig(condition="vanilla", steps=20, logdir=str(tmp_path), **TINY))
     first = load_checkpoint(tmp_path)
@@ -167,6 +185,7 @@ def test_a_state_input_run_trains_resumes_only_as_state_and_plays(tmp_path):
         (["mujoban/nope"], "mujoban/level1"),
         (["mujoban/level1", "--backend", "mpi"], "ray"),
         (["mujoban/level1", "--frames", "0"], "--frames"),
+        (["mujoban/level1", "--passes", "0"], "--passes"),
     ],
 )
 def test_train_cli_rejects_bad_arguments(argv, message, capsys):

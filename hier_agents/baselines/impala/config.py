@@ -45,6 +45,7 @@ OPTIONS = {
     "logdir": ("logdir", str),
     "unroll_length": ("unroll_length", int),
     "batch_size": ("batch_size", int),
+    "passes": ("passes", int),
     "learning_rate": ("learning_rate", float),
     "entropy_cost": ("entropy_cost", float),
     "abs_reward": ("abs_reward", float),
@@ -79,6 +80,7 @@ class TrainConfig:
     logdir: str = "runs/impala"
     unroll_length: int = 100
     batch_size: int | None = None  # None: the paper's (64 board games, 128 MuJoBan)
+    passes: int = 1  # gradient steps on each batch (the paper's: 1)
     learning_rate: float = 3e-4
     rmsprop_alpha: float = 0.99
     rmsprop_eps: float = 1e-5
@@ -147,7 +149,15 @@ class TrainConfig:
         choice("environment", self.env, envs.names())
         choice("condition", self.condition, CONDITIONS)
         choice("backend", self.backend, ("local", "ray"))
-        for name in ("steps", "actors", "envs_per_actor", "unroll_length", "image_size", "t_abs"):
+        for name in (
+            "steps",
+            "actors",
+            "envs_per_actor",
+            "unroll_length",
+            "image_size",
+            "t_abs",
+            "passes",
+        ):
             if int(getattr(self, name)) < 1:
                 raise UsageError(f"{name} must be >= 1, got {getattr(self, name)!r}")
         if self.batch_size is not None and self.batch_size < 1:

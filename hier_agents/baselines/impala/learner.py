@@ -415,7 +415,10 @@ class _Training:
         # Updates between the weights an unroll was acted with and now.
         self.lags.extend(self.published - int(u.get("policy_version", 0)) for u in batch_unrolls)
         batch = make_batch(batch_unrolls, self.net, self.value_states)
-        self.stats = learner_step(self.net, self.optimizer, batch, self.config, self.value_states)
+        for k in range(self.config.passes):  # the value states of the last pass carry on
+            last = k == self.config.passes - 1
+            states = self.value_states if last else None
+            self.stats = learner_step(self.net, self.optimizer, batch, self.config, states)
         self.published += 1
         self.counters["updates"] += 1
         new_frames = self.config.unroll_length * len(batch_unrolls)
