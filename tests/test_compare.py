@@ -1236,3 +1236,27 @@ def test_a_series_evaluated_with_its_policy_sampled_says_so(tmp_path):
         observed, privileged = report._observations(agent, summary)
         assert privileged and observed.startswith("proprio, state (PRIVILEGED)")
         assert observed.endswith("; policy sampled") is expected
+
+
+@pytest.mark.slow
+def test_a_shipped_checkpoint_replays_its_committed_rows():
+    """The shipped SB3 PPO checkpoint at 250,000 frames (seed 0) plays the
+    first episodes of its committed evaluation again, row for row."""
+    import dataclasses
+
+    spec = load(ROOT / "experiments" / "mujoban.toml")
+    job = next(
+        j
+        for j in jobs_mod.plan(spec)
+        if j.kind == "eval"
+        and j.point["agent"] == "sb3 PPO: state"
+        and j.point.get("budget") == 250_000
+        and j.inputs["seed"] == 0
+        and j.inputs["first_episode"] == 0
+    )
+    record = jobs_mod.load_record(spec.cache, job.key)
+    assert record is not None, "the committed evaluation record is missing"
+    assert jobs_mod.needed_checkpoint(spec.cache, job).is_file(), "the checkpoint is not shipped"
+    short = dataclasses.replace(job, inputs={**job.inputs, "episodes": 3})
+    rows = jobs_mod.execute(short, spec.cache)["rows"]
+    assert strip(rows) == strip(record["result"]["rows"][:3])
