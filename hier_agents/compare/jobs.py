@@ -118,7 +118,12 @@ def job_key(kind: str, inputs: dict) -> str:
 def series_key(trainer: str, env: str, table: dict, seed: int) -> str:
     """The key of a training series: its trainer's name, environment, the
     trainer's table and seed, not its budgets (the run directory
-    ``CACHE/train/KEY`` and every evaluation of the series name it)."""
+    ``CACHE/train/KEY`` and every evaluation of the series name it).
+
+    The key holds the table as the spec gives it, not the trainer's
+    defaults: a change of a default that changes what a table trains must
+    bump `CACHE_VERSION` (or come as a new option or preset, as
+    ``--preset small-batches`` did), else old runs would stand for new ones."""
     return job_key("series", {"trainer": trainer, "env": env, "table": table, "seed": seed})
 
 
