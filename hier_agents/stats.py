@@ -147,18 +147,9 @@ def stratified_replicates(
     """
     import numpy as np
 
-    if resamples < 1:
-        raise ValueError(f"resamples must be >= 1, got {resamples!r}")
     reduce = ROW_STATISTICS[statistic]
-    rng = np.random.default_rng(seed)
-    rates = np.stack(
-        [
-            x[rng.integers(0, x.size, size=(resamples, x.size))].mean(axis=1)
-            for x in _strata(episodes_by_seed, "seed's episodes")
-        ],
-        axis=1,
-    )
-    return reduce(rates)
+    drawn = _draw_within(episodes_by_seed, "seed's episodes", resamples, seed)
+    return reduce(np.stack([x.mean(axis=1) for x in drawn], axis=1))
 
 
 def stratified_interval(
@@ -197,18 +188,25 @@ def aggregate_replicates(
     """
     import numpy as np
 
+    reduce = ROW_STATISTICS[statistic]
+    drawn = _draw_within(runs_by_env, "environment's runs", resamples, seed)
+    return reduce(np.concatenate(drawn, axis=1))
+
+
+def _draw_within(strata, what: str, resamples: int, seed: int) -> list:
+    """Each stratum's values drawn with replacement within the stratum: one
+    ``[resamples, n]`` array per stratum of ``n`` values, in the given
+    order, from ``numpy.random.default_rng(seed)``.
+
+    Raises:
+      ValueError: ``resamples`` < 1, or as `_strata` (``what`` names a stratum).
+    """
+    import numpy as np
+
     if resamples < 1:
         raise ValueError(f"resamples must be >= 1, got {resamples!r}")
-    reduce = ROW_STATISTICS[statistic]
     rng = np.random.default_rng(seed)
-    drawn = np.concatenate(
-        [
-            x[rng.integers(0, x.size, size=(resamples, x.size))]
-            for x in _strata(runs_by_env, "environment's runs")
-        ],
-        axis=1,
-    )
-    return reduce(drawn)
+    return [x[rng.integers(0, x.size, size=(resamples, x.size))] for x in _strata(strata, what)]
 
 
 def aggregate_interval(
