@@ -98,6 +98,19 @@ class AgentSetup:
     fixed: frozenset = field(default_factory=frozenset)
 
 
+def trained_setup(overrides: dict, summary: dict, build: Callable[..., Agent]) -> AgentSetup:
+    """The `AgentSetup` of a trained model (`TrainedKind`): it reads the
+    simulator when ``summary["privileged"]``, else observations only, and its
+    cameras (the ``*_camera`` names of ``overrides``, its inputs) are fixed."""
+    return AgentSetup(
+        overrides,
+        "simulator" if summary.get("privileged") else "observations",
+        summary,
+        build,
+        fixed=frozenset(name for name in overrides if name.endswith("_camera")),
+    )
+
+
 class AgentKind:
     """A kind of agent, named ``NAME`` or ``NAME:ARG`` (module docstring).
 

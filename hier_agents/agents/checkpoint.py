@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hier_agents.agents.base import AgentSetup
+from hier_agents.agents.base import AgentSetup, trained_setup
 from hier_agents.modular.agent import OptionStats
 from physics_planning.cli import UsageError
 
@@ -63,13 +63,7 @@ def checkpoint_setup(env_name: str, path: str, stochastic: bool = False) -> Agen
     def build(view, seed, simulator):
         return CheckpointAgent(ckpt, view, seed, simulator, stochastic=stochastic)
 
-    return AgentSetup(
-        overrides,
-        "simulator" if privileged else "observations",
-        summary,
-        build,
-        fixed=frozenset(name for name in overrides if name.endswith("_camera")),
-    )
+    return trained_setup(overrides, summary, build)
 
 
 class CheckpointAgent:

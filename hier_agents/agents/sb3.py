@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from hier_agents.agents.base import AgentSetup, TrainedKind
+from hier_agents.agents.base import AgentSetup, trained_setup, TrainedKind
 from hier_agents.modular.agent import OptionStats
 from physics_planning.cli import UsageError
 
@@ -128,13 +128,7 @@ class Sb3Kind(TrainedKind):
         def build(view, seed, simulator):
             return Sb3Agent(run, view, stochastic=stochastic)
 
-        return AgentSetup(
-            overrides,
-            "simulator" if privileged else "observations",
-            summary,
-            build,
-            fixed=frozenset(name for name in overrides if name.endswith("_camera")),
-        )
+        return trained_setup(overrides, summary, build)
 
     def job_inputs(self, env_name: str, arg, options: dict) -> dict:
         """``{"kind": "sb3", "arg": "sb3:PATH", the options, "model_sha256"}``:
