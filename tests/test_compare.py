@@ -657,6 +657,7 @@ def test_the_shipped_cache_commits_kept_checkpoints_and_config_only():
         assert (out.returncode == 0) == ignored, path
 
 
+@pytest.mark.slow  # about 20 s: two real trainings
 def test_an_impala_series_grows_from_its_last_checkpoint_and_ships_weights_only(tmp_path):
     """A real (tiny) IMPALA series trained to 100 frames, then its spec
     grown to 200: the second job resumes at 100 frames in the same run
