@@ -204,6 +204,13 @@ def _add_learning_args(parser: Parser, default: dict) -> None:
         help="weight of the policy's entropy bonus",
     )
     add(
+        "--state-channels",
+        type=positive_int,
+        default=default["state_channels"],
+        help="convolution channels of the --state encoder (the planner encoder's 100; "
+        "fewer make its linear layer smaller)",
+    )
+    add(
         "--abs-reward",
         type=non_negative_float,
         default=default["abs_reward"],

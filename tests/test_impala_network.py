@@ -11,11 +11,13 @@ from torch import nn
 
 from hier_agents.baselines.impala.agent_env import InputSpec
 from hier_agents.baselines.impala.network import (
+    PLANNER_CHANNELS,
     ImpalaNet,
     NetOutput,
     PlannerEncoder,
     gaussian_entropy,
     gaussian_log_prob,
+    net_for,
 )
 
 CAM = (3, 96, 96)
@@ -317,3 +319,29 @@ def test_the_planner_cache_follows_weight_updates():
     expected, _ = net(obs, torch.zeros(1, 2, dtype=torch.bool), state)
     np.testing.assert_allclose(after, expected.mean[0].detach().numpy(), rtol=1e-5, atol=1e-6)
     assert not np.allclose(after, before)
+
+
+def test_state_channels_size_the_state_encoder_only():
+    spec = InputSpec(
+        images=(),
+        proprio_dim=5,
+        planner_shape=(4, 10, 10),
+        planner_action_dim=4,
+        action_dim=2,
+        state_shape=(4, 10, 10),
+    )
+    slim = net_for(spec, {"condition": "expert-planner", "state_channels": 16})
+    assert slim.state_encoder.conv.out_channels == 16
+    assert slim.state_encoder.linear.in_features == 16 * 10 * 10
+    assert slim.planner_encoder.conv.out_channels == PLANNER_CHANNELS  # the paper's
+    assert slim.value_abs_head is not None
+    obs = make_obs(spec, 3, 2)
+    obs["state"] = (torch.rand(3, 2, 4, 10, 10) < 0.3).float()
+    out, _ = slim(obs, _no_first(3, 2))
+    assert out.mean.shape == (3, 2, 2)
+    # A checkpoint's config from before the option: the paper's width, no auxiliary head.
+    old = net_for(spec, {"condition": "vanilla"})
+    assert old.state_encoder.conv.out_channels == PLANNER_CHANNELS
+    assert old.value_abs_head is None
+    with pytest.raises(ValueError, match="channels must be >= 1"):
+        PlannerEncoder((4, 3, 3), channels=0)

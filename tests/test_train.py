@@ -152,14 +152,17 @@ def test_the_checkpoint_plays_through_hier_agents_run(tmp_path, capsys):
 
 def test_a_state_input_run_trains_resumes_only_as_state_and_plays(tmp_path):
     logdir = tmp_path / "run"
-    train(TrainConfig(condition="vanilla", steps=10, logdir=str(logdir), state=True, **TINY))
+    config = dict(condition="vanilla", logdir=str(logdir), state=True, state_channels=8, **TINY)
+    train(TrainConfig(steps=10, **config))
     ckpt = load_checkpoint(logdir / "checkpoint.pt")
     assert ckpt["config"]["state"] is True
     assert tuple(ckpt["input_spec"]["state_shape"]) == (4, 10, 10)
     net, spec = net_from_checkpoint(ckpt)
-    assert spec.state_shape == (4, 10, 10) and net.state_encoder is not None
+    assert spec.state_shape == (4, 10, 10) and net.state_encoder.conv.out_channels == 8
     with pytest.raises(ValueError, match="state"):
-        train(TrainConfig(condition="vanilla", steps=20, logdir=str(logdir), state=False, **TINY))
+        train(TrainConfig(steps=20, **{**config, "state": False}))
+    with pytest.raises(ValueError, match="state_channels"):
+        train(TrainConfig(steps=20, **{**config, "state_channels": 100}))
     out = tmp_path / "eval.json"
     assert (
         run_lib.main(
@@ -186,6 +189,7 @@ def test_a_state_input_run_trains_resumes_only_as_state_and_plays(tmp_path):
         (["mujoban/level1", "--backend", "mpi"], "ray"),
         (["mujoban/level1", "--frames", "0"], "--frames"),
         (["mujoban/level1", "--passes", "0"], "--passes"),
+        (["mujoban/level1", "--state-channels", "0"], "--state-channels"),
     ],
 )
 def test_train_cli_rejects_bad_arguments(argv, message, capsys):

@@ -85,7 +85,7 @@ class Actor:
         import torch
 
         from hier_agents.baselines.impala.agent_env import AgentEnv
-        from hier_agents.baselines.impala.network import ImpalaNet
+        from hier_agents.baselines.impala.network import net_for
 
         torch.set_num_threads(1)
         self.config, self.actor_id = config, actor_id
@@ -105,7 +105,7 @@ class Actor:
             for i in range(config.envs_per_actor)
         ]
         self.spec = self.envs[0].input_spec
-        self.net = ImpalaNet(self.spec, two_values=config.condition != "vanilla")
+        self.net = net_for(self.spec, config)
         self.net.eval()
         self._generator = torch.Generator().manual_seed(base + 7)
         n = len(self.envs)

@@ -37,6 +37,7 @@ OPTIONS = {
     "observations": (None, str),
     "image_size": ("image_size", int),
     "state": ("state", bool),
+    "state_channels": ("state_channels", int),
     "preset": (None, str),
     "actors": ("actors", int),
     "envs_per_actor": ("envs_per_actor", int),
@@ -91,6 +92,7 @@ class TrainConfig:
     cameras: bool = True
     image_size: int = 96
     state: bool = False  # observe the current abstract state (AgentEnv(state=True))
+    state_channels: int = 100  # the state encoder's conv channels (the planner encoder's)
     t_abs: int = T_ABS
     abs_reward: float = 1.0
     seed: int = 0
@@ -157,6 +159,7 @@ class TrainConfig:
             "image_size",
             "t_abs",
             "passes",
+            "state_channels",
         ):
             if int(getattr(self, name)) < 1:
                 raise UsageError(f"{name} must be >= 1, got {getattr(self, name)!r}")

@@ -206,10 +206,10 @@ def _spec_from_dict(d: dict):
 
 def net_from_checkpoint(ckpt: dict):
     """The trained `ImpalaNet` (eval mode) and its `InputSpec` from a checkpoint."""
-    from hier_agents.baselines.impala.network import ImpalaNet
+    from hier_agents.baselines.impala.network import net_for
 
     spec = _spec_from_dict(ckpt["input_spec"])
-    net = ImpalaNet(spec, two_values=ckpt["config"]["condition"] != "vanilla")
+    net = net_for(spec, ckpt["config"])
     net.load_state_dict(ckpt["model"])
     net.eval()
     return net, spec
@@ -219,7 +219,7 @@ def net_from_checkpoint(ckpt: dict):
 
 #: Configuration keys a resumed run must share with its run directory (the
 #: first identifies a run of this trainer made before runs recorded it).
-FIXED = ("condition", "env", "cameras", "image_size", "state", "env_overrides")
+FIXED = ("condition", "env", "cameras", "image_size", "state", "state_channels", "env_overrides")
 
 
 def observed(config: dict, spec) -> tuple[list[str], bool]:
@@ -240,7 +240,7 @@ def _build(config: TrainConfig, run: RunDir):
     import torch
 
     from hier_agents.baselines.impala.agent_env import AgentEnv
-    from hier_agents.baselines.impala.network import ImpalaNet
+    from hier_agents.baselines.impala.network import net_for
 
     # The input spec comes from one environment built here (closed at once).
     probe = AgentEnv(
@@ -257,7 +257,7 @@ def _build(config: TrainConfig, run: RunDir):
     spec = probe.input_spec
     probe.close()
     run.record(observations=list(spec.keys), privileged=spec.privileged)
-    net = ImpalaNet(spec, two_values=config.condition != "vanilla")
+    net = net_for(spec, config)
     optimizer = torch.optim.RMSprop(
         net.parameters(),
         lr=config.learning_rate,

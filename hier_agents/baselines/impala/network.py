@@ -25,7 +25,8 @@ a diagonal Gaussian policy and one or two value estimates:
 * **state** (float ``(C, H, W)`` planes, the current abstract state at every
   step, only when the environment observes it: ``AgentEnv(state=True)``,
   not in the paper): an encoder of the planner state's shape (its own
-  weights).
+  weights) with ``state_channels`` convolution channels (the planner
+  encoder's 100 unless told; fewer make a smaller linear layer).
 
 All encodings are concatenated and fed to two separate LSTM cores: a value
 core (256 units) and a policy core (128 units). The policy head turns the
@@ -57,7 +58,7 @@ from torch.nn import functional as F
 
 from hier_agents.baselines.impala.network_parts import (
     ENCODING_SIZE,  # noqa: F401
-    PLANNER_CHANNELS,  # noqa: F401
+    PLANNER_CHANNELS,
     ImageEncoder,
     LSTMCore,
     PlannerEncoder,
@@ -116,7 +117,9 @@ class ImpalaNet(nn.Module):
     ``[B, 256]``, ``[B, 256]``, ``[B, 128]``, ``[B, 128]`` float tensors.
     """
 
-    def __init__(self, spec: "InputSpec", *, two_values: bool):
+    def __init__(
+        self, spec: "InputSpec", *, two_values: bool, state_channels: int = PLANNER_CHANNELS
+    ):
         super().__init__()
         self.spec = spec
         self.two_values = bool(two_values)
@@ -142,7 +145,7 @@ class ImpalaNet(nn.Module):
         self.state_encoder = None
         state_shape = getattr(spec, "state_shape", None)
         if state_shape is not None:
-            self.state_encoder = PlannerEncoder(tuple(state_shape))
+            self.state_encoder = PlannerEncoder(tuple(state_shape), channels=state_channels)
             size += ENCODING_SIZE
         if size == 0:
             raise ValueError(f"{spec} gives the network no input")
@@ -306,6 +309,22 @@ class ImpalaNet(nn.Module):
             log_probs.cpu().numpy().astype(np.float32, copy=False),
             new_state,
         )
+
+
+def net_for(spec: "InputSpec", config) -> ImpalaNet:
+    """The `ImpalaNet` a run's configuration asks for.
+
+    ``config``: a `TrainConfig` or its saved form (a checkpoint's
+    ``config`` dict). ``condition`` other than ``"vanilla"`` adds the
+    auxiliary value head; ``state_channels`` (absent in runs saved before it
+    existed: the paper's 100) sizes the state encoder.
+    """
+    fields = config if isinstance(config, dict) else vars(config)
+    return ImpalaNet(
+        spec,
+        two_values=fields["condition"] != "vanilla",
+        state_channels=int(fields.get("state_channels", PLANNER_CHANNELS)),
+    )
 
 
 # -- Gaussian helpers -------------------------------------------------------------------------

@@ -122,13 +122,14 @@ class ImageEncoder(nn.Module):
 
 
 class PlannerEncoder(nn.Module):
-    """Abstract planes ``[N, C, H, W]`` -> conv 4x4 (100, "same") + ReLU -> linear 256 + ReLU.
+    """Abstract planes ``[N, C, H, W]`` -> conv 4x4 (``channels``, the paper's
+    100, "same") + ReLU -> linear 256 + ReLU.
 
     "Same" padding for the even kernel: one zero row/column before and two
     after (TensorFlow's convention), so a 3x3 board stays 3x3.
 
-    Speed: the flattened conv output is large (100 * H * W, 10,000 for a
-    10x10 MuJoBan grid), so the linear layer dominates the whole network's
+    Speed: the flattened conv output is large (channels * H * W: 10,000 for
+    100 channels on a 10x10 MuJoBan grid), so the linear layer dominates the whole network's
     cost without cameras. The planner planes stay the same for many steps
     (the abstract state and target change rarely), so for ``N >= 64`` rows
     the encoder runs on the distinct rows only and copies their encodings
@@ -140,12 +141,19 @@ class PlannerEncoder(nn.Module):
     #: Encodings kept for inference (see `forward`).
     cache_size = 4096
 
-    def __init__(self, shape: Sequence[int], out_size: int = ENCODING_SIZE):
+    def __init__(
+        self,
+        shape: Sequence[int],
+        out_size: int = ENCODING_SIZE,
+        channels: int = PLANNER_CHANNELS,
+    ):
         super().__init__()
         c, h, w = (int(s) for s in shape)
+        if int(channels) < 1:
+            raise ValueError(f"channels must be >= 1, got {channels!r}")
         self.pad = nn.ZeroPad2d((1, 2, 1, 2))  # (left, right, top, bottom)
-        self.conv = nn.Conv2d(c, PLANNER_CHANNELS, 4)
-        self.linear = nn.Linear(PLANNER_CHANNELS * h * w, out_size)
+        self.conv = nn.Conv2d(c, int(channels), 4)
+        self.linear = nn.Linear(int(channels) * h * w, out_size)
         self.deduplicate = True
         self._cache: dict[bytes, torch.Tensor] = {}
         self._cache_key: tuple = ()
@@ -158,7 +166,7 @@ class PlannerEncoder(nn.Module):
         """Inference only: each distinct row is encoded once per weights version.
 
         Actors see the same planner planes for a whole sub-episode (up to
-        T_abs steps), so almost every step is a cache hit and the 100 * H * W
+        T_abs steps), so almost every step is a cache hit and the channels * H * W
         -> 256 linear layer drops out of the actors' per-step cost.
         """
         version = self._weights_version()
