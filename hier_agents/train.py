@@ -174,7 +174,13 @@ def _add_learning_args(parser: Parser, default: dict) -> None:
         "--unroll-length",
         type=positive_int,
         default=default["unroll_length"],
-        help="control steps per unroll",
+        help="agent steps per unroll",
+    )
+    add(
+        "--action-repeat",
+        type=positive_int,
+        default=default["action_repeat"],
+        help="control steps each action is held for; frames count control steps (the paper's 1)",
     )
     add(
         "--batch-size",

@@ -373,3 +373,30 @@ def test_state_input_is_the_current_abstract_state_at_every_step(name, key, cond
                 obs = env.reset()
     with AgentEnv(name, condition, seed=3, cameras=False) as env:
         assert env.input_spec.state_shape is None and "state" not in env.reset()
+
+
+def test_action_repeat_holds_each_action_until_the_episode_or_subepisode_ends():
+    rng = np.random.default_rng(3)
+    kwargs = dict(seed=0, cameras=False, time_limit=1.0)  # 20 control steps
+    with (
+        AgentEnv("mujoban/level1", "vanilla", action_repeat=3, **kwargs) as held,
+        AgentEnv("mujoban/level1", "vanilla", **kwargs) as single,
+    ):
+        held.reset(), single.reset()
+        for k in range(7):  # 6 holds of 3 control steps, the last cut to 2 by the episode's end
+            action = rng.uniform(-1, 1, 2)
+            result = held.step(action)
+            steps = [single.step(action) for _ in range(min(3, 20 - 3 * k))]
+            assert result.reward_env == pytest.approx(sum(s.reward_env for s in steps))
+            np.testing.assert_array_equal(result.obs["proprio"], steps[-1].obs["proprio"])
+            assert result.last == (k == 6)
+        assert result.discount_env == 0.0 and result.info["episode_steps"] == 20
+    with AgentEnv("mujoban/level1", "expert-planner", t_abs=4, action_repeat=3, **kwargs) as env:
+        env.reset()
+        first = env.subgoal
+        assert env.step(np.zeros(2)).discount_abs == pytest.approx(0.9)
+        assert env.env.step_count == 3 and env.subgoal is first
+        assert env.step(np.zeros(2)).discount_abs == 0.0  # the sub-episode's 4th step
+        assert env.env.step_count == 4 and env.subgoal is not first
+    with pytest.raises(ValueError, match="action_repeat"):
+        AgentEnv("mujoban/level1", action_repeat=0, cameras=False)

@@ -521,3 +521,29 @@ def test_learner_speed_benchmark_writes_its_row(tmp_path):
     assert row["ratio_to_parallel"] == pytest.approx(
         row["learner_frames_per_s"] / row["parallel_env_steps_per_s"]
     )
+
+
+def test_action_repeat_counts_control_steps_and_the_checkpoint_agent_holds(tmp_path):
+    from hier_agents.agents.runner import Play, Player
+
+    logdir = tmp_path / "run"
+    counters = train(TrainConfig(steps=20, action_repeat=2, logdir=str(logdir), **TINY))
+    assert counters["frames"] == 20 and counters["updates"] == 1  # 2 unrolls of 5 x 2 frames
+    with pytest.raises(ValueError, match="multiple of the frames of one unroll"):
+        TrainConfig(steps=40, action_repeat=2, save_at=(25,), **TINY).validate()
+    player = Player(
+        Play("mujoban/level1", agent=f"checkpoint:{logdir}", options={"stochastic": True})
+    )
+    try:
+        agent, timestep = player.agent, player.env.reset()
+        agent.reset(player.description, timestep, seed=0)
+        actions = []
+        for _ in range(6):
+            actions.append(agent.act(timestep))
+            timestep = player.env.step(actions[-1])
+        for k in (0, 2, 4):  # each sampled action is held for 2 control steps
+            np.testing.assert_array_equal(actions[k], actions[k + 1])
+        assert not np.array_equal(actions[0], actions[2])
+        assert not np.array_equal(actions[2], actions[4])
+    finally:
+        player.close()

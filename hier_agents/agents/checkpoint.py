@@ -4,7 +4,8 @@ The agent reads what its network was trained on, built by the same
 `hier_agents.baselines.impala.inputs.AgentInputs` as the actors' training
 environment (cameras, proprioception and, for the planner conditions and
 ``state``, the privileged abstract state), and acts with the policy's mean
-(or samples, ``stochastic``). `checkpoint_setup` is the
+(or samples, ``stochastic``), holding each action for the run's
+``action_repeat`` control steps as its actors did. `checkpoint_setup` is the
 ``checkpoint:PATH`` agent kind's plan: the environment settings the run was
 trained with (its cameras at its image size, its overrides), whether it is
 privileged and what the run summary says of it.
@@ -124,6 +125,11 @@ class CheckpointAgent:
         self._generator = torch.Generator()
         self._state = self.net.initial_state(1)
         self._first = np.ones(1, dtype=bool)
+        # A run trained with --action-repeat K decides every K control steps
+        # (sooner when an auxiliary sub-episode ends), as its actors did.
+        self.action_repeat = int(config.get("action_repeat", 1))
+        self._held: np.ndarray | None = None
+        self._hold = 0
 
     @property
     def episode_stats(self) -> OptionStats:
@@ -137,10 +143,16 @@ class CheckpointAgent:
         self.inputs.reset(timestep, seed)
         self._state = self.net.initial_state(1)
         self._first[0] = True
+        self._held, self._hold = None, 0
 
     def act(self, timestep) -> np.ndarray:
         if not self._first[0]:
-            self.inputs.after_step(timestep)
+            _, discount_abs = self.inputs.after_step(timestep)
+            if self.inputs.planning and discount_abs == 0.0:
+                self._hold = 0  # a new target: decide now
+        if self._held is not None and self._hold > 0:
+            self._hold -= 1
+            return self._held
         obs = self.inputs.observe(timestep.observation)
         batch = {k: v[None] for k, v in obs.items()}
         action, _, self._state = self.net.act(
@@ -151,7 +163,8 @@ class CheckpointAgent:
             generator=self._generator,
         )
         self._first[0] = False
-        return self.actions(action[0])
+        self._held, self._hold = self.actions(action[0]), self.action_repeat - 1
+        return self._held
 
     def end_episode(self, timestep) -> None:
         """Counts the auxiliary target the last step reached."""

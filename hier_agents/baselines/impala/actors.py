@@ -100,6 +100,7 @@ class Actor:
                 state=config.state,
                 t_abs=config.t_abs,
                 abs_reward=config.abs_reward,
+                action_repeat=config.action_repeat,
                 **config.env_overrides,
             )
             for i in range(config.envs_per_actor)
@@ -163,7 +164,7 @@ class Actor:
                 else:
                     self._obs[i] = res.obs
                     self._first[i] = False
-        self.frames += T * n
+        self.frames += T * n * self.config.action_repeat
         cpu_s = time.process_time()  # this actor process's CPU seconds so far
         out = []
         for i in range(n):

@@ -153,6 +153,11 @@ class AgentEnv:
       abs_reward: auxiliary reward for reaching a target.
       gamma_env, gamma_abs: discounts; None takes the family adapter's
         ``discounts`` (the paper's).
+      action_repeat: control steps each `step` holds its action for (the
+        paper's 1). The repeat stops early when the episode ends, or when an
+        auxiliary sub-episode ends (so the next action sees the new
+        target); rewards add up over the held steps, ``discount_env`` and
+        ``discount_abs`` are those of one agent step.
       **overrides: passed to ``envs.load`` (``envs.overrides(env_name)``).
 
     Attributes:
@@ -177,6 +182,7 @@ class AgentEnv:
         abs_reward: float = 1.0,
         gamma_env: float | None = None,
         gamma_abs: float | None = None,
+        action_repeat: int = 1,
         **overrides,
     ):
         if condition not in CONDITIONS:
@@ -188,6 +194,9 @@ class AgentEnv:
             raise ValueError(f"t_abs must be a positive number of control steps, got {t_abs!r}")
         if int(image_size) < 1:
             raise ValueError(f"image_size must be a positive number of pixels, got {image_size!r}")
+        if int(action_repeat) < 1:
+            raise ValueError(f"action_repeat must be >= 1, got {action_repeat!r}")
+        self.action_repeat = int(action_repeat)
         self.env_name, self.condition = env_name, condition
         self.seed = None if seed is None else int(seed)
         discounts = adapter(env_name).discounts
@@ -245,19 +254,27 @@ class AgentEnv:
         return self.inputs.observe(timestep.observation)
 
     def step(self, action) -> StepResult:
-        """One control step with ``action`` in [-1, 1]^A (clipped, then mapped)."""
+        """One agent step: ``action`` in [-1, 1]^A (clipped, then mapped) held
+        for ``action_repeat`` control steps (fewer when the episode or an
+        auxiliary sub-episode ends)."""
         if self._needs_reset:
             raise RuntimeError(
                 "call reset() first: no episode is running "
                 "(before the first reset, or after the last step)"
             )
-        timestep = self.timestep = self.env.step(self._actions(action))
-        reward = float(timestep.reward)
+        mapped = self._actions(action)
+        reward = reward_abs = 0.0
+        for _ in range(self.action_repeat):
+            timestep = self.timestep = self.env.step(mapped)
+            reward += float(timestep.reward)
+            self._steps += 1
+            step_abs, discount_abs = self.inputs.after_step(timestep)
+            reward_abs += step_abs
+            if timestep.last() or (self.inputs.planning and discount_abs == 0.0):
+                break
         self._return += reward
-        self._steps += 1
         last = timestep.last()
         discount_env = 0.0 if last else self.gamma_env * float(timestep.discount)
-        reward_abs, discount_abs = self.inputs.after_step(timestep)
         info = {}
         if last:
             self._needs_reset = True

@@ -45,6 +45,7 @@ OPTIONS = {
     "ray_address": ("ray_address", str),
     "logdir": ("logdir", str),
     "unroll_length": ("unroll_length", int),
+    "action_repeat": ("action_repeat", int),
     "batch_size": ("batch_size", int),
     "passes": ("passes", int),
     "learning_rate": ("learning_rate", float),
@@ -67,7 +68,10 @@ class TrainConfig:
     (``image_size`` squared; ``env_overrides`` may turn views off, e.g.
     `main_camera_only`); ``state`` the current abstract state (privileged);
     the planner conditions add the planner's planes (see `AgentEnv`).
-    ``steps`` is the frame budget (`hier_agents.baselines.impala.learner`).
+    ``steps`` is the frame budget (`hier_agents.baselines.impala.learner`):
+    control steps, ``frames_per_unroll`` per unroll (an action held
+    ``action_repeat`` times counts that many frames, also when an episode's
+    end cuts the hold short).
     The actors get it as it is, with ``seed`` their own (`actor_config`).
     """
 
@@ -79,7 +83,8 @@ class TrainConfig:
     backend: str = "local"
     ray_address: str | None = None
     logdir: str = "runs/impala"
-    unroll_length: int = 100
+    unroll_length: int = 100  # agent steps per unroll
+    action_repeat: int = 1  # control steps each action is held for (the paper's 1)
     batch_size: int | None = None  # None: the paper's (64 board games, 128 MuJoBan)
     passes: int = 1  # gradient steps on each batch (the paper's: 1)
     learning_rate: float = 3e-4
@@ -160,6 +165,7 @@ class TrainConfig:
             "t_abs",
             "passes",
             "state_channels",
+            "action_repeat",
         ):
             if int(getattr(self, name)) < 1:
                 raise UsageError(f"{name} must be >= 1, got {getattr(self, name)!r}")
@@ -176,19 +182,25 @@ class TrainConfig:
             value = getattr(self, name)
             if value < low or (strict and value == low):
                 raise UsageError(f"{name} must be {'>' if strict else '>='} {low}, got {value!r}")
+        unroll = self.frames_per_unroll
         for budget in self.save_at:
-            if int(budget) < 1 or int(budget) > self.steps or int(budget) % self.unroll_length:
+            if int(budget) < 1 or int(budget) > self.steps or int(budget) % unroll:
                 raise UsageError(
-                    f"save_at {budget!r}: each must be a multiple of the unroll "
-                    f"length ({self.unroll_length}) within the budget "
+                    f"save_at {budget!r}: each must be a multiple of the frames "
+                    f"of one unroll ({unroll}) within the budget "
                     f"({self.steps} frames)"
                 )
-        if self.steps < self.unroll_length:
+        if self.steps < unroll:
             raise UsageError(
                 f"a budget of {plural(self.steps, 'frame')} is less than one unroll "
-                f"of {plural(self.unroll_length, 'frame')}: give --frames >= "
-                f"{self.unroll_length} or a shorter --unroll-length"
+                f"of {plural(unroll, 'frame')}: give --frames >= "
+                f"{unroll} or a shorter --unroll-length"
             )
+
+    @property
+    def frames_per_unroll(self) -> int:
+        """Control steps one unroll counts: ``unroll_length * action_repeat``."""
+        return int(self.unroll_length) * int(self.action_repeat)
 
     def resolved_batch(self) -> int:
         """Unrolls per update: ``batch_size``, or the paper's for the

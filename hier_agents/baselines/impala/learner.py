@@ -21,10 +21,11 @@
    input spec, config, counters), not the optimiser state or the random
    states (`KEPT_WITHOUT`): a run resumes from ``checkpoint.pt`` only.
 
-Frames are environment control steps consumed by the learner. The budget
-``steps`` is met exactly when it is a multiple of ``unroll_length`` (else
-overshot by less than one unroll): every update takes ``batch_size`` unrolls
-of ``unroll_length`` steps, except that the last one takes only the unrolls
+Frames are environment control steps consumed by the learner: an unroll of
+``unroll_length`` agent steps counts ``frames_per_unroll`` (times
+``action_repeat``). The budget ``steps`` is met exactly when it is a
+multiple of ``frames_per_unroll`` (else overshot by less than one unroll):
+every update takes ``batch_size`` unrolls, except that the last one takes only the unrolls
 the budget still needs (so a budget below one batch trains one smaller
 batch); a budget below one unroll is refused.
 
@@ -219,7 +220,16 @@ def net_from_checkpoint(ckpt: dict):
 
 #: Configuration keys a resumed run must share with its run directory (the
 #: first identifies a run of this trainer made before runs recorded it).
-FIXED = ("condition", "env", "cameras", "image_size", "state", "state_channels", "env_overrides")
+FIXED = (
+    "condition",
+    "env",
+    "cameras",
+    "image_size",
+    "state",
+    "state_channels",
+    "action_repeat",
+    "env_overrides",
+)
 
 
 def observed(config: dict, spec) -> tuple[list[str], bool]:
@@ -407,7 +417,7 @@ class _Training:
         or the next ``save_at`` point, still needs."""
         frames = self.counters["frames"]
         target = min([b for b in self.save_at if b > frames] + [self.config.steps])
-        return min(batch_size, math.ceil((target - frames) / self.config.unroll_length))
+        return min(batch_size, math.ceil((target - frames) / self.config.frames_per_unroll))
 
     def update(self, take: int) -> int:
         """One learner step on the first ``take`` pending unrolls; returns the frames."""
@@ -421,7 +431,7 @@ class _Training:
             self.stats = learner_step(self.net, self.optimizer, batch, self.config, states)
         self.published += 1
         self.counters["updates"] += 1
-        new_frames = self.config.unroll_length * len(batch_unrolls)
+        new_frames = self.config.frames_per_unroll * len(batch_unrolls)
         self.counters["frames"] += new_frames
         self.clock()
         return new_frames
