@@ -232,7 +232,7 @@ def _add_learning_args(parser: Parser, default: dict) -> None:
 
 def _add_logging_args(parser: Parser, default: dict) -> None:
     """Checkpoints, logging and the progress bar."""
-    from physics_planning.cli import non_negative_float
+    from physics_planning.cli import add_save_at, non_negative_float
 
     add = parser.add_argument
     add(
@@ -247,14 +247,10 @@ def _add_logging_args(parser: Parser, default: dict) -> None:
         help="also keep every checkpoint as LOGDIR/checkpoints/frames-N.pt "
         "(for benchmarks/learning_curve.py)",
     )
-    add(
-        "--save-at",
-        type=positive_int,
-        nargs="+",
-        default=[],
-        metavar="FRAMES",
-        help="also keep a checkpoint LOGDIR/checkpoints/frames-N.pt exactly at each of these "
-        "frame counts (multiples of the unroll length; evaluation at equal budgets)",
+    add_save_at(
+        parser,
+        "a checkpoint LOGDIR/checkpoints/frames-N.pt",
+        "multiples of the frames of one unroll: --unroll-length x --action-repeat",
     )
     add(
         "--log-every",

@@ -207,6 +207,22 @@ non_negative_float = _number(float, lambda v: v >= 0 and v != float("inf"), "a n
 fraction = _number(float, lambda v: 0.0 <= v <= 1.0, "a number in [0, 1]")
 
 
+def add_save_at(parser: argparse.ArgumentParser, kept: str, rule: str = "") -> None:
+    """Adds a trainer's ``--save-at FRAMES [FRAMES ...]`` (positive integers,
+    default none): keep ``kept`` (a path with ``N``, e.g.
+    ``LOGDIR/checkpoints/frames-N.pt``) exactly at each frame count; ``rule``
+    says which counts the trainer accepts."""
+    parser.add_argument(
+        "--save-at",
+        type=positive_int,
+        nargs="+",
+        default=[],
+        metavar="FRAMES",
+        help=f"also keep {kept} exactly at each of these frame counts "
+        f"({rule + '; ' if rule else ''}evaluation at equal budgets)",
+    )
+
+
 def existing_file(text: str) -> Path:
     """argparse type: a path to a file that exists."""
     path = Path(text)

@@ -38,6 +38,7 @@ import sys
 from physics_planning.cli import (
     Parser,
     UsageError,
+    add_save_at,
     non_negative_int,
     positive_int,
     run_main,
@@ -103,14 +104,7 @@ def build_parser() -> Parser:
         help="the algorithm's constructor arguments, a JSON object or TOML inline table",
     )
     add("--frames", type=positive_int, default=default.frames, help="the frame budget, in total")
-    add(
-        "--save-at",
-        type=positive_int,
-        nargs="+",
-        default=[],
-        metavar="FRAMES",
-        help="keep LOGDIR/checkpoints/frames-N.zip exactly at each of these frame counts",
-    )
+    add_save_at(parser, "LOGDIR/checkpoints/frames-N.zip")
     add("--seed", type=non_negative_int, default=default.seed, help="the run's seed")
     add("--logdir", default=default.logdir, help="the run directory (the same one continues it)")
     add("--no-progress", action="store_true", help="no progress lines on stderr")
