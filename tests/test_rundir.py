@@ -135,7 +135,9 @@ def test_an_interrupted_save_leaves_the_previous_checkpoint_whole(tmp_path, monk
         assert torch.load(tmp_path / "checkpoints" / "step-3.pt", weights_only=True)["step"] == 3
         # A lean kept copy leaves out what only resuming reads; checkpoint.pt keeps it all.
         run.save(
-            {"step": 4, "optimizer": {"m": 1}}, keep="step-4", keep_without=("optimizer", "rng")
+            {"step": 4, "optimizer": {"m": 1}},
+            keep="step-4",
+            lean=lambda data: {k: v for k, v in data.items() if k not in ("optimizer", "rng")},
         )
         lean = torch.load(tmp_path / "checkpoints" / "step-4.pt", weights_only=True)
         assert lean["step"] == 4 and "optimizer" not in lean and "rng" not in lean

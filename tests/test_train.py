@@ -393,6 +393,15 @@ def test_kept_checkpoints_give_a_learning_curve(tmp_path, capsys):
     )
     kept = sorted(p.name for p in (run_dir / "checkpoints").glob("*.pt"))
     assert kept == ["frames-10.pt", "frames-20.pt"]
+    # Kept copies store float16 weights (and no optimiser); the network loads as float32.
+    copy = load_checkpoint(run_dir / "checkpoints" / "frames-20.pt")
+    assert "optimizer" not in copy and "optimizer" in load_checkpoint(run_dir)
+    assert {t.dtype for t in copy["model"].values()} == {torch.float16}
+    net, _ = net_from_checkpoint(copy)
+    full = torch.load(run_dir / "checkpoint.pt", weights_only=False)["model"]
+    for name, weight in net.state_dict().items():
+        assert weight.dtype == torch.float32
+        torch.testing.assert_close(weight, full[name].half().float())
     root = Path(__file__).resolve().parents[1]
     out = tmp_path / "curve.json"
     subprocess.run(
@@ -547,3 +556,38 @@ def test_action_repeat_counts_control_steps_and_the_checkpoint_agent_holds(tmp_p
         assert not np.array_equal(actions[2], actions[4])
     finally:
         player.close()
+
+
+def test_a_kept_copy_holds_float16_weights_that_load_as_float32():
+    import dataclasses
+
+    from hier_agents.baselines.impala.agent_env import InputSpec
+    from hier_agents.baselines.impala.learner import kept_copy
+    from hier_agents.baselines.impala.network import net_for
+
+    spec = InputSpec(
+        images=(),
+        proprio_dim=5,
+        planner_shape=None,
+        planner_action_dim=0,
+        action_dim=2,
+        state_shape=(4, 3, 3),
+    )
+    config = {"condition": "vanilla", "state_channels": 8}
+    model = net_for(spec, config).state_dict()
+    data = {
+        "model": model,
+        "optimizer": {"m": 1},
+        "rng": 0,
+        "config": config,
+        "input_spec": dataclasses.asdict(spec),
+        "counters": {"frames": 10},
+    }
+    copy = kept_copy(data)
+    assert set(copy) == {"model", "config", "input_spec", "counters"}
+    assert {t.dtype for t in copy["model"].values()} == {torch.float16}
+    assert model["proprio_encoder.weight"].dtype == torch.float32  # the data is left as it was
+    net, _ = net_from_checkpoint(copy)
+    for name, weight in net.state_dict().items():
+        assert weight.dtype == torch.float32
+        torch.testing.assert_close(weight, model[name].half().float())

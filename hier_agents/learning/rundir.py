@@ -294,19 +294,19 @@ class RunDir:
             set_rng_state(data["rng"])
         return data
 
-    def save(self, payload: dict, keep: str | None = None, keep_without=()) -> Path:
+    def save(self, payload: dict, keep: str | None = None, lean=None) -> Path:
         """Writes ``payload`` + ``config`` + ``rng`` atomically to ``checkpoint.pt``;
-        ``keep``: also as ``checkpoints/KEEP.pt``, a copy without the keys
-        ``keep_without`` (e.g. ``("optimizer", "rng")``: a kept copy for
-        evaluation, which resuming never reads). Returns the checkpoint's path."""
+        ``keep``: also as ``checkpoints/KEEP.pt``, the same data or, with
+        ``lean`` (a function of the data), ``lean(data)`` (e.g. without the
+        optimiser: a kept copy for evaluation, which resuming never reads).
+        Returns the checkpoint's path."""
         data = {**payload, "config": self.config, "rng": rng_state()}
         atomic_save(data, self.checkpoint_path)
         if keep is not None:
             kept = self.path / KEPT
             kept.mkdir(exist_ok=True)
-            if keep_without:
-                lean = {k: v for k, v in data.items() if k not in keep_without}
-                atomic_save(lean, kept / f"{keep}.pt")
+            if lean is not None:
+                atomic_save(lean(data), kept / f"{keep}.pt")
             else:
                 atomic_write(
                     kept / f"{keep}.pt", lambda tmp: shutil.copyfile(self.checkpoint_path, tmp)

@@ -18,8 +18,9 @@
    a kept copy ``checkpoints/frames-B.pt`` exactly at each budget B (updates
    are cut so the frame count meets it: evaluation at equal budgets,
    `hier_agents.compare`). Kept copies hold what evaluation reads (weights,
-   input spec, config, counters), not the optimiser state or the random
-   states (`KEPT_WITHOUT`): a run resumes from ``checkpoint.pt`` only.
+   input spec, config, counters; weights as float16), not the optimiser
+   state or the random states (`kept_copy`): a run resumes from
+   ``checkpoint.pt`` only.
 
 Frames are environment control steps consumed by the learner: an unroll of
 ``unroll_length`` agent steps counts ``frames_per_unroll`` (times
@@ -61,6 +62,23 @@ KEPT_CHECKPOINTS = KEPT  # folder of `keep_checkpoints` copies, frames-N.pt
 #: run resumes from ``checkpoint.pt`` alone (a kept copy is for evaluation:
 #: `load_checkpoint`, `net_from_checkpoint`; it is what a comparison ships).
 KEPT_WITHOUT = ("optimizer", "rng")
+
+
+def kept_copy(data: dict) -> dict:
+    """A kept copy of checkpoint ``data``: without `KEPT_WITHOUT`, its weights
+    stored as float16 (half the bytes). `net_from_checkpoint` loads them as
+    float32, so every evaluation of a kept copy plays the same rounded
+    weights."""
+    import torch
+
+    lean = {k: v for k, v in data.items() if k not in KEPT_WITHOUT}
+    lean["model"] = {
+        name: t.to(torch.float16) if t.is_floating_point() else t
+        for name, t in data["model"].items()
+    }
+    return lean
+
+
 #: The trainer recorded in its run directories (`RunDir`'s ``trainer``).
 TRAINER = "python -m hier_agents.train"
 
@@ -206,7 +224,8 @@ def _spec_from_dict(d: dict):
 
 
 def net_from_checkpoint(ckpt: dict):
-    """The trained `ImpalaNet` (eval mode) and its `InputSpec` from a checkpoint."""
+    """The trained `ImpalaNet` (eval mode, float32 weights, also from a kept
+    copy's float16 ones) and its `InputSpec` from a checkpoint."""
     from hier_agents.baselines.impala.network import net_for
 
     spec = _spec_from_dict(ckpt["input_spec"])
@@ -475,7 +494,7 @@ class _Training:
                 "input_spec": dataclasses.asdict(self.spec),
             },
             keep=f"frames-{int(counters['frames'])}" if keep else None,
-            keep_without=KEPT_WITHOUT,
+            lean=kept_copy,
         )
 
 
