@@ -169,7 +169,7 @@ def test_bad_train_tables_are_refused_before_anything_runs(tmp_path):
             load(write_spec(tmp_path, base + f"train = {train}\n"))
     with pytest.raises(UsageError, match="needs budgets"):
         load(write_spec(tmp_path, SPEC + '\n[[agent]]\nlabel = "e2e"\ntrain = {}\n'))
-    with pytest.raises(UsageError, match="multiple of the unroll"):
+    with pytest.raises(UsageError, match="multiple of the frames of one unroll"):
         load(write_spec(tmp_path, base.replace("[200]", "[250]") + "train = {}\n"))
 
 
