@@ -484,6 +484,26 @@ def option_policy(results: Path) -> list[str]:
     return lines
 
 
+def _points_to_come(data: dict) -> list[str]:
+    """``AGENT on ENV at B1, B2 frames`` for each spec budget without a point
+    of all its seeds in ``data`` (a comparison.json)."""
+    done = {
+        (p["agent"], p["env"], p["budget"]) for p in data["points"] if not p["missing_seeds"]
+    }
+    out = []
+    for agent in data["spec"]["agent"]:
+        budgets = agent.get("budgets")
+        if not budgets:
+            continue
+        for env in agent.get("envs") or data["spec"]["envs"]:
+            wanted = budgets.get(env, []) if isinstance(budgets, dict) else budgets
+            todo = [b for b in wanted if (agent["label"], env, b) not in done]
+            if todo:
+                frames = ", ".join(f"{b:,}" for b in todo)
+                out.append(f"{agent['label']} on `{env}` at {frames} frames")
+    return out
+
+
 @table("compare-mujoban")
 def compare_mujoban(results: Path) -> list[str]:
     """The shipped comparison (``python -m hier_agents.compare experiments/mujoban.toml``):
@@ -493,12 +513,10 @@ def compare_mujoban(results: Path) -> list[str]:
     data = _load(results / "compare" / "mujoban" / "comparison.json")
     lines = report.format_markdown(data["spec"]["envs"], data["points"], data["series_cost"])
     if data["jobs_missing"]:
-        shown = {p["agent"] for p in data["points"] if not p["missing_seeds"]}
-        missing = [a["label"] for a in data["spec"]["agent"] if a["label"] not in shown]
         lines += [
             "",
             f"*{data['jobs_missing']} of {data['jobs']} jobs not run yet; "
-            f"not complete: {', '.join(missing)}.*",
+            f"points still to come: {'; '.join(_points_to_come(data))}.*",
         ]
     lines += [
         "",
