@@ -113,3 +113,27 @@ def test_check_files_reports_missing_and_unknown_markers_across_files():
         "(run `python benchmarks/readme_tables.py --write`)",
         "table 'two': no <!-- table:two --> markers in the README or docs/x.md",
     ]
+
+
+def test_the_comparison_note_names_each_budget_still_to_come():
+    data = {
+        "spec": {
+            "envs": ["a", "b"],
+            "agent": [
+                {"label": "modular"},
+                {"label": "e2e", "budgets": {"a": [10, 20], "b": [10]}},
+                {"label": "ppo", "envs": ["a"], "budgets": [10, 20]},
+            ],
+        },
+        "points": [
+            {"agent": "modular", "env": "a", "budget": 0, "missing_seeds": []},
+            {"agent": "e2e", "env": "a", "budget": 10, "missing_seeds": []},
+            {"agent": "e2e", "env": "b", "budget": 10, "missing_seeds": [2]},
+            {"agent": "ppo", "env": "a", "budget": 10, "missing_seeds": []},
+            {"agent": "ppo", "env": "a", "budget": 20, "missing_seeds": []},
+        ],
+    }
+    assert readme_tables._points_to_come(data) == [
+        "e2e on `a` at 20 frames",
+        "e2e on `b` at 10 frames",
+    ]
