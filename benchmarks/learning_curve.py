@@ -252,7 +252,8 @@ def _main(argv=None) -> int:
                 row["subgoals_reached"] = None
         print(
             f"\n{logdir}: {config['env']} {config['condition']} "
-            f"(batch {config['batch_size'] or 'paper'}, lr {config['learning_rate']}, "
+            f"(batch {config['batch_size'] or 'paper'}, unroll {config['unroll_length']}, "
+            f"action repeat {config.get('action_repeat', 1)}, lr {config['learning_rate']}, "
             f"{config['actors']} actors x {config['envs_per_actor']} envs)"
         )
         print(
@@ -303,12 +304,15 @@ def _main(argv=None) -> int:
 SETTINGS = (
     "unroll_length",
     "batch_size",
+    "passes",
+    "action_repeat",
     "learning_rate",
     "entropy_cost",
     "actors",
     "envs_per_actor",
     "seed",
     "state",
+    "state_channels",
     "cameras",
     "steps",
 )

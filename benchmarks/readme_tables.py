@@ -487,9 +487,7 @@ def option_policy(results: Path) -> list[str]:
 def _points_to_come(data: dict) -> list[str]:
     """``AGENT on ENV at B1, B2 frames`` for each spec budget without a point
     of all its seeds in ``data`` (a comparison.json)."""
-    done = {
-        (p["agent"], p["env"], p["budget"]) for p in data["points"] if not p["missing_seeds"]
-    }
+    done = {(p["agent"], p["env"], p["budget"]) for p in data["points"] if not p["missing_seeds"]}
     out = []
     for agent in data["spec"]["agent"]:
         budgets = agent.get("budgets")
