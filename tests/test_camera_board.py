@@ -73,7 +73,6 @@ def test_the_first_frame_reads_as_the_referees_board(name, request):
     env.close()
 
 
-@pytest.mark.slow  # about 16 s: 30 rendered first frames
 def test_mujoxo_markers_anywhere_on_their_pad_are_read_from_the_first_frame():
     """MuJoXO's markers are small (half a half-spacing) and land anywhere on
     their touch pad, so they may miss the disc around their point: its cells

@@ -1014,7 +1014,6 @@ def test_shards_cover_every_episode_once_in_order():
             assert all(pieces)
 
 
-@pytest.mark.slow  # about 10 s: three runs
 def test_two_workers_give_the_rows_of_one(tmp_path):
     one = run("mujoban/level1", 6, 3, agent="random:10", progress=False)
     two = run("mujoban/level1", 6, 3, agent="random:10", progress=False, workers=2)
@@ -1024,7 +1023,6 @@ def test_two_workers_give_the_rows_of_one(tmp_path):
     assert strip(tail["rows"]) == strip(one["rows"][3:])
 
 
-@pytest.mark.slow  # about 12 s: worker processes
 def test_a_worker_killed_mid_run_is_replaced_and_the_rows_are_those_of_one_worker(capfd):
     """A worker process that dies (here SIGKILL after the first shard; in CI
     once, glibc's abort on a corrupted heap) does not lose the run: the
@@ -1088,7 +1086,6 @@ class _AbortingWorker:
         os.abort()
 
 
-@pytest.mark.slow  # about 16 s: two Boxoban medium episodes
 def test_a_modular_episode_plays_the_same_whatever_the_episodes_before():
     """What the skill carries between subgoals (drive direction, yaw rate,
     back-offs) is dropped at each episode start: an episode played after
