@@ -164,7 +164,7 @@ class Actor:
                 else:
                     self._obs[i] = res.obs
                     self._first[i] = False
-        self.frames += T * n * self.config.action_repeat
+        self.frames += self.config.frames_per_unroll * n
         cpu_s = time.process_time()  # this actor process's CPU seconds so far
         out = []
         for i in range(n):
