@@ -21,6 +21,10 @@ Privileged observations (ground truth the task declares in
 and ``move_history``) are in ``"state"`` and ``"full"`` only; in ``"full"``
 their keys start with ``privileged/``.
 
+Action repeat: ``ActionRepeat(gymnasium.make(name, obs="state"), 4)`` holds
+each action for 4 control steps and returns the summed reward, as the IMPALA
+agent's ``--action-repeat 4`` does.
+
 Vector environments: ``gymnasium.vector.SyncVectorEnv`` and
 ``AsyncVectorEnv`` take ``lambda: gymnasium.make(name, ...)`` thunks. The
 environments are built with lazy cameras, so no OpenGL context exists before
@@ -301,6 +305,36 @@ class GymnasiumEnv(gymnasium.Env):
         """Closes the wrapped environment (idempotent); gymnasium envs are
         context managers: ``with gymnasium.make(name) as env:``."""
         self._env.close()
+
+
+class ActionRepeat(gymnasium.Wrapper):
+    """Each ``step`` holds its action for ``repeat`` control steps of the
+    wrapped environment (fewer when the episode ends first), as the IMPALA
+    agent's ``--action-repeat`` does: the reward is the sum over the held
+    steps, ``terminated``, ``truncated`` and ``info`` are those of the last
+    one, and ``info["held"]`` says how many steps the action was held.
+
+    A learner counting this environment's steps counts agent decisions;
+    ``repeat`` times that is the control steps (the frames) it saw, short by
+    the steps a hold lost at each episode's end.
+
+    Raises:
+      ValueError: ``repeat`` below 1.
+    """
+
+    def __init__(self, env: gymnasium.Env, repeat: int):
+        if isinstance(repeat, bool) or not isinstance(repeat, int) or repeat < 1:
+            raise ValueError(f"repeat must be an integer >= 1 control steps, got {repeat!r}")
+        super().__init__(env)
+        self.repeat = repeat
+
+    def step(self, action):
+        total, held, terminated, truncated = 0.0, 0, False, False
+        while held < self.repeat and not (terminated or truncated):
+            observation, reward, terminated, truncated, info = self.env.step(action)
+            total += float(reward)
+            held += 1
+        return observation, total, terminated, truncated, {**info, "held": held}
 
 
 def register_all() -> None:

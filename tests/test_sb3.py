@@ -185,3 +185,84 @@ def test_a_copied_run_without_config_is_refused(trained, tmp_path):
     shutil.copy(logdir / "model.zip", tmp_path / "lonely.zip")
     with pytest.raises(UsageError, match="not a model of"):
         load_run(str(tmp_path / "lonely.zip"))
+
+
+class _Counting(gymnasium.Env):
+    """Reward 1 per step; the episode ends after ``length`` steps."""
+
+    observation_space = gymnasium.spaces.Box(-1, 1, (1,), np.float32)
+    action_space = gymnasium.spaces.Box(-1, 1, (1,), np.float32)
+
+    def __init__(self, length: int):
+        self.length, self.steps, self.actions = length, 0, []
+
+    def reset(self, *, seed=None, options=None):
+        self.steps = 0
+        return np.zeros(1, np.float32), {}
+
+    def step(self, action):
+        self.steps += 1
+        self.actions.append(float(action[0]))
+        done = self.steps >= self.length
+        return np.zeros(1, np.float32), 1.0, done, False, {"steps": self.steps}
+
+
+def test_action_repeat_holds_until_the_episode_ends():
+    from envs.gymnasium_env import ActionRepeat
+
+    inner = _Counting(length=10)
+    env = ActionRepeat(inner, 4)
+    env.reset()
+    results = [env.step(np.array([i / 10], np.float32)) for i in range(3)]
+    assert [r[1] for r in results] == [4.0, 4.0, 2.0]  # rewards summed, last hold cut
+    assert [r[4]["held"] for r in results] == [4, 4, 2]
+    assert [r[2] for r in results] == [False, False, True]
+    assert inner.actions == pytest.approx([0.0] * 4 + [0.1] * 4 + [0.2] * 2)
+    for repeat in (0, 1.5, True):
+        with pytest.raises(ValueError, match="repeat must be an integer >= 1"):
+            ActionRepeat(_Counting(1), repeat)
+
+
+def test_action_repeat_counts_control_steps_and_the_agent_holds(tmp_path):
+    """With action_repeat 4, SB3's num_timesteps counts decisions and frames
+    are 4 times them; budgets are multiples of a rollout of 32 x 2 x 4 frames;
+    the sb3: agent decides every 4 control steps, as in training."""
+    from hier_agents.agents.sb3 import Sb3Agent, load_run
+
+    with pytest.raises(UsageError, match=r"multiple of one rollout \(256 frames\)"):
+        Sb3Config.from_options(
+            ENV,
+            {
+                **SMALL,
+                "hyperparameters": HYPER["PPO"],
+                "action_repeat": 4,
+                "frames": 512,
+                "save_at": [128],
+            },
+        )
+    counters = _train("PPO", tmp_path, frames=512, save_at=(256,), action_repeat=4)
+    assert counters["frames"] == 512
+    kept = load_run(str(tmp_path / "checkpoints" / "frames-256.zip"))
+    assert kept.counters["frames"] == 256 and kept.config["action_repeat"] == 4
+    env = envs.load(ENV, **kept.env_overrides())
+    try:
+        agent = Sb3Agent(kept, env)
+        assert agent.training_frames == 256  # 64 decisions x 4
+        calls = []
+        predict = agent.model.predict
+        agent.model.predict = lambda *a, **k: calls.append(1) or predict(*a, **k)
+        timestep = env.reset()
+        agent.reset(None, timestep, seed=0)
+        actions = []
+        for _ in range(9):
+            actions.append(agent.act(timestep))
+            timestep = env.step(actions[-1])
+        assert len(calls) == 3  # steps 0, 4 and 8
+        assert all(a is actions[0] for a in actions[:4]) and actions[4] is not actions[0]
+        agent.reset(None, env.reset(), seed=0)
+        agent.act(timestep)
+        assert len(calls) == 4  # a new episode decides at once
+    finally:
+        env.close()
+    with pytest.raises(UsageError, match="action_repeat=4, not 1"):
+        _train("PPO", tmp_path, frames=1024, save_at=())

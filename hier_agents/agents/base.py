@@ -26,7 +26,7 @@ import numpy as np
 
 from physics_planning.cli import UsageError
 
-__all__ = ["Agent", "AgentKind", "AgentSetup", "ACCESS", "TrainedKind"]
+__all__ = ["Agent", "AgentKind", "AgentSetup", "ACCESS", "HeldAction", "TrainedKind"]
 
 
 class Agent(Protocol):
@@ -109,6 +109,45 @@ def trained_setup(overrides: dict, summary: dict, build: Callable[..., Agent]) -
         build,
         fixed=frozenset(name for name in overrides if name.endswith("_camera")),
     )
+
+
+class HeldAction:
+    """An action held for ``repeat`` control steps: a trained agent whose
+    learner decided every ``repeat`` steps (``action_repeat``) plays the
+    same way.
+
+    `next` gives the held action while the hold lasts, else None (the agent
+    decides, then `hold` s the new action); `release` ends the hold early
+    (the next step decides); `reset` at each episode's start.
+
+    Raises:
+      ValueError: ``repeat`` below 1.
+    """
+
+    def __init__(self, repeat: int = 1):
+        if int(repeat) < 1:
+            raise ValueError(f"action_repeat must be >= 1 control steps, got {repeat!r}")
+        self.repeat = int(repeat)
+        self.reset()
+
+    def reset(self) -> None:
+        self._action: np.ndarray | None = None
+        self._left = 0
+
+    def release(self) -> None:
+        self._left = 0
+
+    def next(self) -> np.ndarray | None:
+        """The held action, counting one step of the hold; None when the hold is over."""
+        if self._action is None or self._left <= 0:
+            return None
+        self._left -= 1
+        return self._action
+
+    def hold(self, action: np.ndarray) -> np.ndarray:
+        """Holds ``action`` for this step and the ``repeat - 1`` next ones; returns it."""
+        self._action, self._left = action, self.repeat - 1
+        return action
 
 
 class AgentKind:

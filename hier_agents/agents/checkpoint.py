@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hier_agents.agents.base import AgentSetup, trained_setup
+from hier_agents.agents.base import AgentSetup, HeldAction, trained_setup
 from hier_agents.modular.agent import OptionStats
 from physics_planning.cli import UsageError
 
@@ -127,9 +127,7 @@ class CheckpointAgent:
         self._first = np.ones(1, dtype=bool)
         # A run trained with --action-repeat K decides every K control steps
         # (sooner when an auxiliary sub-episode ends), as its actors did.
-        self.action_repeat = int(config.get("action_repeat", 1))
-        self._held: np.ndarray | None = None
-        self._hold = 0
+        self.held = HeldAction(config.get("action_repeat", 1))
 
     @property
     def episode_stats(self) -> OptionStats:
@@ -143,16 +141,16 @@ class CheckpointAgent:
         self.inputs.reset(timestep, seed)
         self._state = self.net.initial_state(1)
         self._first[0] = True
-        self._held, self._hold = None, 0
+        self.held.reset()
 
     def act(self, timestep) -> np.ndarray:
         if not self._first[0]:
             _, discount_abs = self.inputs.after_step(timestep)
             if self.inputs.planning and discount_abs == 0.0:
-                self._hold = 0  # a new target: decide now
-        if self._held is not None and self._hold > 0:
-            self._hold -= 1
-            return self._held
+                self.held.release()  # a new target: decide now
+        held = self.held.next()
+        if held is not None:
+            return held
         obs = self.inputs.observe(timestep.observation)
         batch = {k: v[None] for k, v in obs.items()}
         action, _, self._state = self.net.act(
@@ -161,10 +159,10 @@ class CheckpointAgent:
             self._state,
             deterministic=not self.stochastic,
             generator=self._generator,
+            policy_only=True,  # acting needs no value
         )
         self._first[0] = False
-        self._held, self._hold = self.actions(action[0]), self.action_repeat - 1
-        return self._held
+        return self.held.hold(self.actions(action[0]))
 
     def end_episode(self, timestep) -> None:
         """Counts the auxiliary target the last step reached."""

@@ -7,7 +7,8 @@ policy reads; the agent builds that observation from each timestep with the
 gymnasium wrapper's own conversion (`envs.gymnasium_env.convert_observation`
 of the recorded ``observation_keys``), so it sees what the policy saw in
 training, and passes ``model.predict``'s action to the environment as the
-wrapper does (unchanged). A policy trained on ``obs="state"`` reads the
+wrapper does (unchanged), held for the run's ``action_repeat`` control
+steps as in training. A policy trained on ``obs="state"`` reads the
 privileged abstract state: it plays with the simulator's observations and is
 reported PRIVILEGED; the others play behind the observation boundary. The
 ``stochastic`` option samples the policy (seeded by each episode's seed)
@@ -24,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from hier_agents.agents.base import AgentSetup, trained_setup, TrainedKind
+from hier_agents.agents.base import AgentSetup, HeldAction, trained_setup, TrainedKind
 from hier_agents.modular.agent import OptionStats
 from physics_planning.cli import UsageError
 
@@ -185,7 +186,8 @@ class Sb3Agent:
         self.keys = run.keys()
         _check_shapes(self.keys, view.observation_spec(), self.model.observation_space)
         self.privileged = bool(run.config.get("privileged", False))
-        self.training_frames = int(self.model.num_timesteps)
+        self.held = HeldAction(run.config.get("action_repeat", 1))
+        self.training_frames = int(self.model.num_timesteps) * self.held.repeat
         self.stochastic = bool(stochastic)
         self.episode_stats = OptionStats()
 
@@ -196,16 +198,20 @@ class Sb3Agent:
         return convert_observation(self.keys, timestep.observation)
 
     def reset(self, description, timestep, seed: int | None = None) -> None:
+        self.held.reset()
         if self.stochastic:
             import torch
 
             torch.manual_seed(0 if seed is None else int(seed))
 
     def act(self, timestep) -> np.ndarray:
+        held = self.held.next()
+        if held is not None:
+            return held
         action, _ = self.model.predict(
             self.observation(timestep), deterministic=not self.stochastic
         )
-        return np.asarray(action)
+        return self.held.hold(np.asarray(action))
 
     def end_episode(self, timestep) -> None:
         pass

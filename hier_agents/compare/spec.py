@@ -46,7 +46,7 @@ or a table giving each environment its own list, e.g.
 of ``python -m hier_agents.train`` with ``_`` for ``-``, e.g.
 ``condition``, ``observations``, ``image_size``, ``state``, ``preset``,
 ``actors``, ``envs_per_actor``, ``batch_size``, ``learning_rate``) or
-``sb3`` (Stable-Baselines3: ``algo``, ``policy``, ``obs``, ``n_envs``,
+``sb3`` (Stable-Baselines3: ``algo``, ``policy``, ``obs``, ``n_envs``, ``action_repeat``,
 ``hyperparameters``; `hier_agents.baselines.sb3.Sb3Config`), neither
 giving ``frames``, ``seed``, ``logdir``, ``save_at``, which the plan
 sets; or ``random`` (the hold, control steps per draw; the same as

@@ -22,8 +22,9 @@ simulator, so the agent is PRIVILEGED (config.json says so); ``sensors``
 proprioception; ``pixels`` (CnnPolicy) the main camera alone.
 
 Budget: ``--frames`` environment frames (control steps over all
-``--n-envs`` environments), met exactly when a multiple of one collection
-(else overshot by less than one); ``--save-at`` budgets (multiples of one
+``--n-envs`` environments; with ``--action-repeat K`` each of the
+algorithm's steps is K frames), met exactly when a multiple of one
+collection (else overshot by less than one); ``--save-at`` budgets (multiples of one
 collection) keep LOGDIR/checkpoints/frames-B.zip exactly at B. Running the
 same command again with the same ``--logdir`` continues the run from
 LOGDIR/model.zip; a larger ``--frames`` extends it.
@@ -88,6 +89,13 @@ def build_parser() -> Parser:
     )
     add("--obs", default=default.obs, help=f"the observation: {', '.join(OBSERVATIONS)}")
     add("--n-envs", type=positive_int, default=default.n_envs, help="environments stepped together")
+    add(
+        "--action-repeat",
+        type=positive_int,
+        default=default.action_repeat,
+        metavar="K",
+        help="hold each action for K control steps (frames still count control steps)",
+    )
     add("--vec", default=default.vec, help="subproc (a process per environment) or dummy")
     add(
         "--env-option",

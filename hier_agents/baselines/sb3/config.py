@@ -31,6 +31,7 @@ OPTIONS = {
     "policy": (str, "a string"),
     "obs": (str, "a string"),
     "n_envs": (int, "an integer"),
+    "action_repeat": (int, "an integer"),
     "vec": (str, "a string"),
     "env_options": (dict, "a table"),
     "hyperparameters": (dict, "a table"),
@@ -65,6 +66,10 @@ class Sb3Config:
         ``"state"`` reads the task's privileged abstract state.
       n_envs: environments stepped together; vec: ``"subproc"`` (one
         process each) or ``"dummy"`` (in this process).
+      action_repeat: control steps each of the algorithm's steps holds its
+        action for (`envs.gymnasium_env.ActionRepeat`; 1: none). SB3's
+        ``num_timesteps`` counts the algorithm's steps; frames are that
+        times ``action_repeat``, as for the IMPALA agent.
       env_options: `envs.load` overrides (default for ``obs="state"``: every
         camera off; ``"pixels"``: every camera but the main one off).
       hyperparameters: keyword arguments of the algorithm's constructor.
@@ -84,6 +89,7 @@ class Sb3Config:
     policy: str = ""
     obs: str = "state"
     n_envs: int = 8
+    action_repeat: int = 1
     vec: str = "subproc"
     env_options: dict = dataclasses.field(default_factory=dict)
     hyperparameters: dict = dataclasses.field(default_factory=dict)
@@ -123,12 +129,13 @@ class Sb3Config:
 
     def granularity(self) -> int:
         """Frames between two points where training can stop: one rollout
-        (``n_steps`` x ``n_envs``) on-policy, one collection (``train_freq``
-        x ``n_envs``) off-policy."""
+        (``n_steps`` x ``n_envs`` x ``action_repeat``) on-policy, one
+        collection (``train_freq`` x ``n_envs`` x ``action_repeat``)
+        off-policy."""
         defaults = _constructor_defaults(self.algorithm())
         name = "n_steps" if ALGORITHMS[self.algo] == "on" else "train_freq"
         steps = self.hyperparameters.get(name, defaults[name])
-        return int(steps) * self.n_envs
+        return int(steps) * self.n_envs * self.action_repeat
 
     def validate(self) -> None:
         """Checks the configuration without building anything.
@@ -154,7 +161,7 @@ class Sb3Config:
                 f"({'a Dict' if self.obs == 'sensors' else 'an array'}); "
                 f"use {POLICIES[self.obs]!r}"
             )
-        for name in ("n_envs", "frames"):
+        for name in ("n_envs", "action_repeat", "frames"):
             if int(getattr(self, name)) < 1:
                 raise UsageError(f"{name} must be >= 1, got {getattr(self, name)!r}")
         if self.seed < 0:

@@ -26,7 +26,8 @@ The run directory ``logdir`` holds:
   ``cpu_s``.
 
 Frames are environment control steps summed over the ``n_envs``
-environments (SB3's ``num_timesteps``). Running the same config again on the
+environments: SB3's ``num_timesteps`` (the algorithm's steps) times
+``action_repeat`` (`envs.gymnasium_env.ActionRepeat`). Running the same config again on the
 same ``logdir`` continues from ``model.zip`` (and the replay buffer) at its
 frame count, with environments seeded anew for the new part: a larger
 ``frames`` extends the run. ``wall_s`` and ``cpu_s`` (this process plus the
@@ -60,28 +61,40 @@ TRAINER = "python -m hier_agents.baselines.sb3"
 #: The latest model's file in the run directory; the replay buffer's.
 MODEL, REPLAY = "model.zip", "replay_buffer.pkl"
 #: Config keys a continued run must share with the saved one.
-FIXED = ("env", "algo", "policy", "obs", "n_envs", "env_options", "hyperparameters", "seed")
+FIXED = (
+    "env",
+    "algo",
+    "policy",
+    "obs",
+    "n_envs",
+    "action_repeat",
+    "env_options",
+    "hyperparameters",
+    "seed",
+)
 #: Seconds between progress lines and between scalars rows.
 _PROGRESS_S, _LOG_S = 30.0, 10.0
 
 
-def make_env(env: str, obs: str, env_options: dict):
+def make_env(env: str, obs: str, env_options: dict, action_repeat: int = 1):
     """The `envs.gymnasium_env.GymnasiumEnv` of ``env`` with observation
     ``obs`` and `envs.load` overrides ``env_options`` (JSON lists become
-    tuples: camera sizes)."""
-    from envs.gymnasium_env import GymnasiumEnv
+    tuples: camera sizes), each action held ``action_repeat`` control steps
+    (`envs.gymnasium_env.ActionRepeat`) when above 1."""
+    from envs.gymnasium_env import ActionRepeat, GymnasiumEnv
 
     options: dict[str, Any] = {
         k: tuple(v) if isinstance(v, list) else v for k, v in env_options.items()
     }
-    return GymnasiumEnv(env, obs=obs, **options)
+    made = GymnasiumEnv(env, obs=obs, **options)
+    return made if action_repeat == 1 else ActionRepeat(made, action_repeat)
 
 
 def train(config: Sb3Config) -> dict:
     """Trains (or continues) ``config``'s run to ``config.frames`` frames.
 
     Returns:
-      The counters: ``frames`` (SB3's ``num_timesteps``), ``episodes``,
+      The counters: ``frames`` (SB3's ``num_timesteps`` x ``action_repeat``), ``episodes``,
       ``wall_s``, ``cpu_s`` (over every part of the run), ``return`` and
       ``success_rate`` (means over the last 100 episodes, when any ended).
 
@@ -153,7 +166,7 @@ class _Session:
         self._record_observations()
         self._build()
         assert self.model is not None
-        frames = int(self.model.num_timesteps)
+        frames = self.frames()
         self.counters["frames"] = frames
         if frames >= self.config.frames:
             print(
@@ -203,7 +216,7 @@ class _Session:
         from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor
 
         config = self.config
-        thunk = partial(make_env, config.env, config.obs, config.env_options)
+        thunk = partial(make_env, config.env, config.obs, config.env_options, config.action_repeat)
         vec = SubprocVecEnv if config.vec == "subproc" else DummyVecEnv
         self.venv = VecMonitor(vec([thunk] * config.n_envs))
         if config.vec == "subproc":
@@ -217,10 +230,7 @@ class _Session:
                 replay = self.run.path / REPLAY
                 if ALGORITHMS[config.algo] == "off" and replay.is_file():
                     self.model.load_replay_buffer(replay)
-                print(
-                    f"resuming {model_path} at {plural(self.model.num_timesteps, 'frame')}",
-                    file=sys.stderr,
-                )
+                print(f"resuming {model_path} at {plural(self.frames(), 'frame')}", file=sys.stderr)
             else:
                 self.model = algorithm(
                     config.policy,
@@ -233,27 +243,33 @@ class _Session:
         except (TypeError, ValueError, AssertionError) as exc:
             self._close()
             raise UsageError(f"{config.algo} refused the run: {exc}") from None
-        self.model.set_random_seed(_part_seed(config.seed, int(self.model.num_timesteps)))
+        self.model.set_random_seed(_part_seed(config.seed, self.frames()))
+
+    def frames(self) -> int:
+        """The frames the model has trained on: its ``num_timesteps`` (the
+        algorithm's steps) times ``action_repeat``."""
+        assert self.model is not None
+        return int(self.model.num_timesteps) * self.config.action_repeat
 
     def _learn(self) -> None:
         """``learn`` in segments, one per remaining ``save_at`` budget and the last."""
         config, model = self.config, self.model
         assert model is not None
         callback = _Callback(self)
-        for target in [b for b in config.save_at if b > model.num_timesteps] + [config.frames]:
-            if model.num_timesteps >= target:
+        for target in [b for b in config.save_at if b > self.frames()] + [config.frames]:
+            if self.frames() >= target:
                 continue
             model.learn(
-                target - model.num_timesteps,
+                -(-(target - self.frames()) // config.action_repeat),  # steps, rounded up
                 callback=callback,
                 reset_num_timesteps=False,
                 progress_bar=False,
             )
-            self.counters["frames"] = int(model.num_timesteps)
+            self.counters["frames"] = self.frames()
             callback.log()
             if self.run.stop_requested:
                 print(
-                    f"interrupted: saved at {plural(model.num_timesteps, 'frame')}; run the "
+                    f"interrupted: saved at {plural(self.frames(), 'frame')}; run the "
                     f"same command to resume",
                     file=sys.stderr,
                 )
@@ -264,7 +280,7 @@ class _Session:
     def _save(self, path: Path) -> None:
         """The model at ``path`` (atomically) and its counters at ``path`` .json."""
         assert self.model is not None
-        self.counters["frames"] = int(self.model.num_timesteps)
+        self.counters["frames"] = self.frames()
         buffer = io.BytesIO()
         self.model.save(buffer)
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -306,7 +322,7 @@ class _Callback(BaseCallback):
     def _on_step(self) -> bool:
         session = self.session
         session.counters["episodes"] += int(np.sum(self.locals.get("dones", 0)))
-        session.counters["frames"] = int(self.num_timesteps)
+        session.counters["frames"] = session.frames()
         now = time.perf_counter()
         if now - self.last_log >= _LOG_S:
             self.log()
