@@ -393,13 +393,16 @@ def test_kept_checkpoints_give_a_learning_curve(tmp_path, capsys):
     )
     kept = sorted(p.name for p in (run_dir / "checkpoints").glob("*.pt"))
     assert kept == ["frames-10.pt", "frames-20.pt"]
-    # Kept copies store float16 weights (and no optimiser); the network loads as float32.
+    # Kept copies are policies: float16 weights without the value side (and no
+    # optimiser); the network loads them as float32.
     copy = load_checkpoint(run_dir / "checkpoints" / "frames-20.pt")
     assert "optimizer" not in copy and "optimizer" in load_checkpoint(run_dir)
+    assert copy["policy_only"] and not any(k.startswith("value_") for k in copy["model"])
     assert {t.dtype for t in copy["model"].values()} == {torch.float16}
     net, _ = net_from_checkpoint(copy)
     full = torch.load(run_dir / "checkpoint.pt", weights_only=False)["model"]
-    for name, weight in net.state_dict().items():
+    for name in copy["model"]:
+        weight = net.state_dict()[name]
         assert weight.dtype == torch.float32
         torch.testing.assert_close(weight, full[name].half().float())
     root = Path(__file__).resolve().parents[1]
@@ -558,7 +561,7 @@ def test_action_repeat_counts_control_steps_and_the_checkpoint_agent_holds(tmp_p
         player.close()
 
 
-def test_a_kept_copy_holds_float16_weights_that_load_as_float32():
+def test_a_kept_copy_is_a_float16_policy_that_loads_as_float32_and_acts_the_same():
     import dataclasses
 
     from hier_agents.baselines.impala.agent_env import InputSpec
@@ -584,10 +587,26 @@ def test_a_kept_copy_holds_float16_weights_that_load_as_float32():
         "counters": {"frames": 10},
     }
     copy = kept_copy(data)
-    assert set(copy) == {"model", "config", "input_spec", "counters"}
+    assert set(copy) == {"model", "config", "input_spec", "counters", "policy_only"}
     assert {t.dtype for t in copy["model"].values()} == {torch.float16}
+    assert set(copy["model"]) == {k for k in model if not k.startswith("value_")}
     assert model["proprio_encoder.weight"].dtype == torch.float32  # the data is left as it was
+    assert kept_copy(copy)["model"].keys() == copy["model"].keys()  # a copy of a copy: the same
     net, _ = net_from_checkpoint(copy)
-    for name, weight in net.state_dict().items():
-        assert weight.dtype == torch.float32
-        torch.testing.assert_close(weight, model[name].half().float())
+    assert net.policy_only
+    for name in copy["model"]:
+        assert net.state_dict()[name].dtype == torch.float32
+        torch.testing.assert_close(net.state_dict()[name], model[name].half().float())
+    # It acts as the full network with the same rounded weights does; it has no values.
+    full, _ = net_from_checkpoint({**data, "model": {k: v.half() for k, v in model.items()}})
+    obs = {"proprio": np.ones((1, 5), np.float32), "state": np.zeros((1, 4, 3, 3), np.float32)}
+    first = np.ones(1, bool)
+    a, _, _ = net.act(obs, first, net.initial_state(1), deterministic=True)
+    b, _, _ = full.act(obs, first, full.initial_state(1), deterministic=True)
+    np.testing.assert_array_equal(a, b)
+    batch = {k: torch.as_tensor(v)[None] for k, v in obs.items()}
+    with pytest.raises(RuntimeError, match="policy-only"):
+        net(batch, torch.ones(1, 1, dtype=torch.bool))
+    broken = {**copy, "model": {k: v for k, v in copy["model"].items() if "mean_head" not in k}}
+    with pytest.raises(RuntimeError, match="missing"):
+        net_from_checkpoint(broken)

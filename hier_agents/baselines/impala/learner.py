@@ -65,17 +65,24 @@ KEPT_WITHOUT = ("optimizer", "rng")
 
 
 def kept_copy(data: dict) -> dict:
-    """A kept copy of checkpoint ``data``: without `KEPT_WITHOUT`, its weights
-    stored as float16 (half the bytes). `net_from_checkpoint` loads them as
-    float32, so every evaluation of a kept copy plays the same rounded
-    weights."""
+    """A kept copy of checkpoint ``data`` (also of a kept copy: the same):
+    a policy, for evaluation. It has no `KEPT_WITHOUT` and no value weights
+    (`network.VALUE_PARTS`; ``"policy_only": True``), and its weights are
+    stored as float16: about a quarter of a full checkpoint's bytes.
+    `net_from_checkpoint` loads them as float32, so every evaluation of a
+    kept copy plays the same rounded weights. Training resumes from the run's
+    full ``checkpoint.pt``, not from a kept copy."""
     import torch
+
+    from hier_agents.baselines.impala.network import VALUE_PARTS
 
     lean = {k: v for k, v in data.items() if k not in KEPT_WITHOUT}
     lean["model"] = {
         name: t.to(torch.float16) if t.is_floating_point() else t
         for name, t in data["model"].items()
+        if not name.startswith(VALUE_PARTS)
     }
+    lean["policy_only"] = True
     return lean
 
 
@@ -225,12 +232,26 @@ def _spec_from_dict(d: dict):
 
 def net_from_checkpoint(ckpt: dict):
     """The trained `ImpalaNet` (eval mode, float32 weights, also from a kept
-    copy's float16 ones) and its `InputSpec` from a checkpoint."""
-    from hier_agents.baselines.impala.network import net_for
+    copy's float16 ones) and its `InputSpec` from a checkpoint. A kept copy
+    (``policy_only``) gives a network without value weights
+    (``net.policy_only``: it acts, its values are not computed).
+
+    Raises:
+      RuntimeError: the weights do not fit the network the config describes.
+    """
+    from hier_agents.baselines.impala.network import VALUE_PARTS, net_for
 
     spec = _spec_from_dict(ckpt["input_spec"])
     net = net_for(spec, ckpt["config"])
-    net.load_state_dict(ckpt["model"])
+    policy_only = bool(ckpt.get("policy_only", False))
+    result = net.load_state_dict(ckpt["model"], strict=not policy_only)
+    missing = [k for k in result.missing_keys if not k.startswith(VALUE_PARTS)]
+    if result.unexpected_keys or missing:
+        raise RuntimeError(
+            f"the checkpoint's weights do not fit its network: missing {missing}, "
+            f"unexpected {list(result.unexpected_keys)}"
+        )
+    net.policy_only = policy_only
     net.eval()
     return net, spec
 

@@ -72,6 +72,9 @@ if TYPE_CHECKING:  # the network needs only the spec's fields, not its module
 VALUE_CORE_SIZE = 256
 POLICY_CORE_SIZE = 128
 MIN_VARIANCE = 0.1
+#: Parameter-name prefixes of the value side (the value core and heads), which
+#: acting does not use.
+VALUE_PARTS = ("value_core.", "value_env_head.", "value_abs_head.")
 _LOG_2PI = math.log(2.0 * math.pi)
 
 
@@ -115,6 +118,11 @@ class ImpalaNet(nn.Module):
 
     Core state: a tuple ``(h_value, c_value, h_policy, c_policy)`` of
     ``[B, 256]``, ``[B, 256]``, ``[B, 128]``, ``[B, 128]`` float tensors.
+
+    ``policy_only`` is True for a network loaded without its value weights
+    (`VALUE_PARTS`; a kept checkpoint, `learner.kept_copy`): it acts
+    (`act`, `forward` with ``with_value=False``), and `forward` with the
+    values raises RuntimeError.
     """
 
     def __init__(
@@ -157,6 +165,7 @@ class ImpalaNet(nn.Module):
         self.variance_head = nn.Linear(POLICY_CORE_SIZE, self.action_dim)
         self.value_env_head = nn.Linear(VALUE_CORE_SIZE, 1)
         self.value_abs_head = nn.Linear(VALUE_CORE_SIZE, 1) if self.two_values else None
+        self.policy_only = False
 
     # -- state ------------------------------------------------------------------------------
 
@@ -215,6 +224,11 @@ class ImpalaNet(nn.Module):
         stream in one batch. The value core then runs column group by column
         group, in chain order.
         """
+        if with_value and self.policy_only:
+            raise RuntimeError(
+                "this network was loaded from a policy-only checkpoint (a kept copy): "
+                "it has no value weights; call it with with_value=False"
+            )
         T, B = first.shape
         if state is None:
             state = self.initial_state(B)
@@ -286,15 +300,17 @@ class ImpalaNet(nn.Module):
         std)`` with ``generator`` (or returns ``mean`` when ``deterministic``).
         Returns ``(actions float32 [B, A], log_probs float32 [B], new_state)``;
         actions are unclipped (the environment clips) and ``log_probs`` are
-        those of the returned actions under the policy. ``policy_only`` skips
-        the value core (its state is passed through unchanged).
+        those of the returned actions under the policy. ``policy_only`` (always,
+        for a `policy_only` network) skips the value core (its state is passed
+        through unchanged).
         """
         device = self.mean_head.weight.device
         batch = {
             k: torch.as_tensor(_writable(v), device=device).unsqueeze(0) for k, v in obs.items()
         }
         first_t = torch.as_tensor(np.asarray(first), dtype=torch.bool, device=device).view(1, -1)
-        out, new_state = self.forward(batch, first_t, state, with_value=not policy_only)
+        with_value = not (policy_only or self.policy_only)
+        out, new_state = self.forward(batch, first_t, state, with_value=with_value)
         mean, std = out.mean[0], out.std[0]
         if deterministic:
             actions = mean
