@@ -290,7 +290,7 @@ def test_the_originals_second_view_is_observed_only_when_asked_for():
 
 @pytest.mark.parametrize("name", BOARD_NAMES)
 def test_every_board_name_passes_gymnasium_check_env(name):
-    env = gymnasium.make(name, render_mode="rgb_array", front_camera=(32, 32))
+    env = gymnasium.make(name, render_mode="rgb_array", front_camera=(32, 32), render_size=(32, 32))
     check_env(env.unwrapped, skip_render_check=False)
     env.close()
 

@@ -83,21 +83,22 @@ def test_mujoxo_markers_anywhere_on_their_pad_are_read_from_the_first_frame():
     assert not BoardView(*_view_args("mujoboard/othello-8x8")).square
     seeds = sorted(set(range(0, 100, 4)) | {5, 29, 59, 71, 94})
     wrong, read, markers = [], 0, 0
-    for seed in seeds:
-        env = envs.load(
-            "mujoxo/optimal", seed=seed, agent_player=1, **env_overrides("mujoxo/optimal", "camera")
-        )
-        view = BoundaryEnv(env, strip=env.privileged_observations)
-        timestep = view.reset()
-        estimator = BoardCameraEstimator()
-        estimator.reset(view.description(), timestep)
-        assert estimator._view.square
-        cells, _ = estimator.read(timestep)
-        truth = env.task.game.players(env.task.state)
-        seen = cells != UNSEEN
-        read, markers = read + seen.sum(), markers + seen[truth >= 0].sum()
-        if not np.array_equal(cells[seen], truth[seen]):
-            wrong.append(seed)
+    env = envs.load("mujoxo/optimal", agent_player=1, **env_overrides("mujoxo/optimal", "camera"))
+    view = BoundaryEnv(env, strip=env.privileged_observations)
+    try:
+        for seed in seeds:
+            env.seed(seed)  # the episode of an environment built with this seed
+            timestep = view.reset()
+            estimator = BoardCameraEstimator()
+            estimator.reset(view.description(), timestep)
+            assert estimator._view.square
+            cells, _ = estimator.read(timestep)
+            truth = env.task.game.players(env.task.state)
+            seen = cells != UNSEEN
+            read, markers = read + seen.sum(), markers + seen[truth >= 0].sum()
+            if not np.array_equal(cells[seen], truth[seen]):
+                wrong.append(seed)
+    finally:
         env.close()
     assert not wrong, f"first frames read wrong for seeds {wrong}"
     assert read > 0.7 * 9 * len(seeds) and markers > 0.8 * len(seeds)

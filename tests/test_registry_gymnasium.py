@@ -36,12 +36,19 @@ def test_unknown_override_lists_the_valid_ones():
 
 @pytest.mark.parametrize("name", MUJOBAN_NAMES)
 def test_every_name_passes_gymnasium_check_env(name):
+    # render() at the default size (256 x 256) for the first name, at the
+    # cameras' for the others: one renderer per environment, not two.
+    size = (256, 256) if name == MUJOBAN_NAMES[0] else (32, 32)
     env = gymnasium.make(
-        name, render_mode="rgb_array", top_camera=(32, 32), egocentric_camera=(32, 32)
+        name,
+        render_mode="rgb_array",
+        top_camera=(32, 32),
+        egocentric_camera=(32, 32),
+        **({} if size == (256, 256) else {"render_size": size}),
     )
     check_env(env.unwrapped, skip_render_check=False)
     frame = env.unwrapped.render()
-    assert frame.shape == (256, 256, 3) and frame.dtype == np.uint8
+    assert frame.shape == (*size, 3) and frame.dtype == np.uint8
     env.close()
 
 
