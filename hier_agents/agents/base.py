@@ -116,9 +116,9 @@ class HeldAction:
     learner decided every ``repeat`` steps (``action_repeat``) plays the
     same way.
 
-    `next` gives the held action while the hold lasts, else None (the agent
-    decides, then `hold` s the new action); `release` ends the hold early
-    (the next step decides); `reset` at each episode's start.
+    `next` gives the held action while the hold lasts, else None: the agent
+    then decides and passes its new action to `hold`. `release` ends the hold
+    early (the next step decides); `reset` starts each episode without one.
 
     Raises:
       ValueError: ``repeat`` below 1.
