@@ -1243,9 +1243,18 @@ def test_a_series_evaluated_with_its_policy_sampled_says_so(tmp_path):
 
 
 @pytest.mark.slow
-def test_a_shipped_checkpoint_replays_its_committed_rows():
-    """The shipped SB3 PPO checkpoint at 250,000 frames (seed 0) plays the
-    first episodes of its committed evaluation again, row for row."""
+@pytest.mark.parametrize(
+    "agent, env",
+    [
+        ("sb3 PPO: state", "mujoban/level1"),
+        ("e2e vanilla: state, action repeat 4", "mujoban/level1"),
+        ("e2e vanilla: state, action repeat 4", "mujoban/level2"),
+    ],
+)
+def test_a_shipped_checkpoint_replays_its_committed_rows(agent, env):
+    """A shipped checkpoint at 250,000 frames (seed 0: SB3 PPO's model, the
+    IMPALA row's policy-only kept copy) plays the first episodes of its
+    committed evaluation again, row for row."""
     import dataclasses
 
     spec = load(ROOT / "experiments" / "mujoban.toml")
@@ -1253,7 +1262,8 @@ def test_a_shipped_checkpoint_replays_its_committed_rows():
         j
         for j in jobs_mod.plan(spec)
         if j.kind == "eval"
-        and j.point["agent"] == "sb3 PPO: state"
+        and j.point["agent"] == agent
+        and j.inputs["env"] == env
         and j.point.get("budget") == 250_000
         and j.inputs["seed"] == 0
         and j.inputs["first_episode"] == 0
