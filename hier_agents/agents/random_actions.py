@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from hier_agents.agents.base import HeldAction
 from hier_agents.modular.agent import OptionStats
 
 __all__ = ["RandomAgent"]
@@ -33,22 +34,21 @@ class RandomAgent:
         if int(hold) < 1:
             raise ValueError(f"hold must be >= 1 control steps, got {hold!r}")
         self.hold = int(hold)
+        self._held = HeldAction(self.hold)
         self._low = np.broadcast_to(action_spec.minimum, action_spec.shape)
         self._high = np.broadcast_to(action_spec.maximum, action_spec.shape)
         self.episode_stats = OptionStats()
         self._rng = np.random.default_rng(_ACTIONS)
-        self._steps = 0
-        self._action = np.zeros(action_spec.shape)
 
     def reset(self, description, timestep, seed: int | None = None) -> None:
         self._rng = np.random.default_rng([seed, _ACTIONS] if seed is not None else None)
-        self._steps = 0
+        self._held.reset()
 
     def act(self, timestep) -> np.ndarray:
-        if self._steps % self.hold == 0:
-            self._action = self._rng.uniform(self._low, self._high)
-        self._steps += 1
-        return self._action
+        held = self._held.next()
+        if held is not None:
+            return held
+        return self._held.hold(self._rng.uniform(self._low, self._high))
 
     def end_episode(self, timestep) -> None:
         pass
