@@ -81,7 +81,7 @@ def target_sensitivity(path: Path, seed: int, steps: int = 300) -> float | None:
     import torch
 
     from hier_agents.baselines.impala.agent_env import AgentEnv
-    from hier_agents.baselines.impala.learner import load_checkpoint, net_from_checkpoint
+    from hier_agents.baselines.impala.checkpoints import load_checkpoint, net_from_checkpoint
 
     ckpt = load_checkpoint(path)
     config = ckpt["config"]
@@ -121,7 +121,7 @@ def target_sensitivity(path: Path, seed: int, steps: int = 300) -> float | None:
 def evaluation_curve(
     logdir: Path, env: str, episodes: int, seed: int, stochastic: bool, workers: int = 1
 ) -> list[dict]:
-    from hier_agents.baselines.impala.learner import CHECKPOINT, KEPT_CHECKPOINTS
+    from hier_agents.baselines.impala.checkpoints import CHECKPOINT, KEPT_CHECKPOINTS
     from hier_agents.run import run
 
     def frames_of(p: Path) -> int:
@@ -221,7 +221,7 @@ def _main(argv=None) -> int:
             )
     cli.output_file(args.json, "--json")
 
-    from hier_agents.baselines.impala.learner import load_checkpoint
+    from hier_agents.baselines.impala.checkpoints import load_checkpoint
 
     out = []
     for logdir in args.runs:

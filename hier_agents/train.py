@@ -46,6 +46,11 @@ one unroll (``--unroll-length``); met exactly when it is a multiple of the
 unroll length (else overshot by less than one unroll): each update takes
 ``--batch-size`` unrolls, the last only those the budget still needs.
 
+The learner's objective: the paper's V-trace policy gradient with RMSProp by
+default; ``--optimizer adam``, ``--normalize-advantages`` and ``--clip-ratio``
+(PPO's clipped surrogate, with ``--passes`` above 1) bring PPO's ingredients
+in (docs/results/comparison.md, "Tuning the end-to-end agent", measures them).
+
 Running the same command again with the same ``--logdir`` resumes from its
 checkpoint (saved every ``--checkpoint-every`` seconds, at the end and on
 Ctrl-C); a logdir holding another run (another environment, condition,
@@ -166,6 +171,7 @@ def _add_scale_args(parser: Parser, default: dict) -> None:
 
 def _add_learning_args(parser: Parser, default: dict) -> None:
     """The learner's unrolls, batches and losses, and the seed."""
+    from hier_agents.baselines.impala.config import OPTIMIZERS
     from hier_agents.modular.families import FAMILIES
     from physics_planning.cli import non_negative_float
 
@@ -201,7 +207,25 @@ def _add_learning_args(parser: Parser, default: dict) -> None:
         "--learning-rate",
         type=positive_float,
         default=default["learning_rate"],
-        help="RMSProp learning rate",
+        help="the optimiser's learning rate",
+    )
+    add(
+        "--optimizer",
+        choices=OPTIMIZERS,
+        default=default["optimizer"],
+        help="rmsprop (the paper's) or adam",
+    )
+    add(
+        "--normalize-advantages",
+        action="store_true",
+        help="shift and scale the policy gradient's advantages to mean 0, std 1 per batch",
+    )
+    add(
+        "--clip-ratio",
+        type=non_negative_float,
+        default=default["clip_ratio"],
+        help="PPO's clipped surrogate with this epsilon, e.g. 0.2, for --passes > 1 "
+        "(0: off, the paper's policy gradient)",
     )
     add(
         "--entropy-cost",

@@ -666,7 +666,7 @@ def test_an_impala_series_grows_from_its_last_checkpoint_and_ships_weights_only(
     checkpoint.pt keeps it); each plays as a checkpoint agent."""
     import torch
 
-    from hier_agents.baselines.impala.learner import load_checkpoint, net_from_checkpoint
+    from hier_agents.baselines.impala.checkpoints import load_checkpoint, net_from_checkpoint
 
     table = (
         '{ observations = "proprio", state = true, actors = 1, envs_per_actor = 2, '

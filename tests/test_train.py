@@ -11,12 +11,8 @@ import torch
 
 from hier_agents import run as run_lib
 from hier_agents import train as train_cli
-from hier_agents.baselines.impala.learner import (
-    TrainConfig,
-    load_checkpoint,
-    net_from_checkpoint,
-    train,
-)
+from hier_agents.baselines.impala.checkpoints import load_checkpoint, net_from_checkpoint
+from hier_agents.baselines.impala.learner import TrainConfig, train
 
 TINY = dict(
     env="mujoban/level1",
@@ -55,6 +51,21 @@ def test_a_tiny_run_updates_logs_and_checkpoints(tmp_path):
     assert config["condition"] == "expert-planner" and config["steps"] == 30
     assert ckpt["config"] == config and set(ckpt["rng"]) == {"torch", "numpy", "python"}
     assert not list(tmp_path.glob("*.tmp")), "a temporary checkpoint was left behind"
+
+
+def test_ppos_ingredients_train_and_the_optimizer_is_part_of_the_run(tmp_path):
+    ppo = dict(optimizer="adam", clip_ratio=0.2, normalize_advantages=True, passes=2)
+    counters = train(
+        TrainConfig(condition="vanilla", steps=20, logdir=str(tmp_path), **ppo, **TINY)
+    )
+    assert counters["updates"] == 2
+    assert np.isfinite(counters["last_stats"]["loss"])
+    assert 0 <= counters["last_stats"]["ratio_clipped_fraction"] <= 1
+    ckpt = load_checkpoint(tmp_path)
+    assert all("exp_avg" in s for s in ckpt["optimizer"]["state"].values())  # Adam's moments
+    # The optimiser's state cannot continue as another optimiser's.
+    with pytest.raises(ValueError, match="optimizer='adam'"):
+        train(TrainConfig(condition="vanilla", steps=40, logdir=str(tmp_path), **TINY))
 
 
 @pytest.mark.slow
@@ -190,6 +201,9 @@ def test_a_state_input_run_trains_resumes_only_as_state_and_plays(tmp_path):
         (["mujoban/level1", "--frames", "0"], "--frames"),
         (["mujoban/level1", "--passes", "0"], "--passes"),
         (["mujoban/level1", "--state-channels", "0"], "--state-channels"),
+        (["mujoban/level1", "--optimizer", "sgd"], "adam"),
+        (["mujoban/level1", "--clip-ratio", "1"], "clip_ratio must be < 1"),
+        (["mujoban/level1", "--clip-ratio", "-0.2"], "--clip-ratio"),
     ],
 )
 def test_train_cli_rejects_bad_arguments(argv, message, capsys):
@@ -565,7 +579,7 @@ def test_a_kept_copy_is_a_float16_policy_that_loads_as_float32_and_acts_the_same
     import dataclasses
 
     from hier_agents.baselines.impala.agent_env import InputSpec
-    from hier_agents.baselines.impala.learner import kept_copy
+    from hier_agents.baselines.impala.checkpoints import kept_copy
     from hier_agents.baselines.impala.network import net_for
 
     spec = InputSpec(

@@ -248,3 +248,74 @@ def test_gradients_reach_every_network_parameter(two_values):
     for name, p in net.named_parameters():
         assert p.grad is not None and p.grad.abs().sum() > 0, name
     assert (net.value_abs_head is not None) == two_values
+
+
+# -- PPO's ingredients: the clipped surrogate, normalised advantages ---------------------------
+
+
+def _single(out):
+    return out._replace(value_abs=None)
+
+
+def test_clipped_surrogate_is_ppos_objective_on_vtrace_advantages():
+    out, bootstrap, b = synthetic(seed=3)
+    out, eps = _single(out), 0.2
+    g = torch.Generator().manual_seed(3)
+    near = gaussian_log_prob(out.mean, out.std, b["actions"]).detach()
+    b["behaviour_log_probs"] = near + 0.3 * torch.randn(near.shape, generator=g)
+    loss, stats = _loss(out, bootstrap, b, clip_ratio=eps, entropy_cost=0.0, baseline_cost=0.0)
+    log_probs = gaussian_log_prob(out.mean, out.std, b["actions"])
+    log_rhos = log_probs.detach() - b["behaviour_log_probs"]
+    # The advantages carry no importance weight: the ratio weighs them.
+    targets = vtrace(
+        log_rhos, b["discounts_env"], b["rewards_env"], out.value_env, bootstrap.value_env
+    )
+    unweighted = targets.pg_advantages / torch.clamp(torch.exp(log_rhos), max=1.0)
+    ratio = torch.exp(log_probs - b["behaviour_log_probs"])
+    expected = -torch.minimum(
+        ratio * unweighted, torch.clamp(ratio, 1 - eps, 1 + eps) * unweighted
+    ).mean()
+    torch.testing.assert_close(loss, expected)
+    clipped = ((ratio.detach() - 1).abs() > eps).float().mean()
+    assert stats["ratio_clipped_fraction"] == pytest.approx(float(clipped))
+    assert 0 < stats["ratio_clipped_fraction"] < 1  # the case covers both branches
+
+
+def test_clipped_surrogate_stops_the_gradient_beyond_the_clip():
+    out, bootstrap, b = synthetic(seed=4)
+    out = _single(out)
+    log_probs = gaussian_log_prob(out.mean, out.std, b["actions"]).detach()
+    # The actors' policy is the learner's at half the steps (ratio 1: the
+    # plain policy gradient) and far below it at the others (ratio e^3).
+    far = torch.zeros_like(log_probs, dtype=torch.bool)
+    far[::2] = True
+    b["behaviour_log_probs"] = torch.where(far, log_probs - 3.0, log_probs)
+    b["rewards_env"] = torch.full_like(b["rewards_env"], 5.0)  # advantages > 0
+    with torch.no_grad():
+        out.value_env.fill_(0.0)
+    loss, _ = _loss(out, bootstrap, b, clip_ratio=0.2, entropy_cost=0.0, baseline_cost=0.0)
+    (grad,) = torch.autograd.grad(loss, [out.mean])
+    assert grad[far].abs().max() == 0  # ratio above 1 + eps, advantage > 0: no push
+    assert grad[~far].abs().max() > 0
+    # At ratio 1 the surrogate's gradient is the policy gradient's.
+    near_loss, _ = _loss(out, bootstrap, b, entropy_cost=0.0, baseline_cost=0.0)
+    (plain,) = torch.autograd.grad(near_loss, [out.mean])
+    torch.testing.assert_close(grad[~far], plain[~far])
+
+
+def test_normalized_advantages_make_the_policy_gradient_scale_free():
+    out, bootstrap, b = synthetic(seed=5)
+    out = _single(out)
+    kw = dict(normalize_advantages=True, entropy_cost=0.0, baseline_cost=0.0)
+    base, _ = _loss(out, bootstrap, b, **kw)
+    (g1,) = torch.autograd.grad(base, [out.mean])
+    scaled_out = out._replace(value_env=(10.0 * out.value_env).detach().requires_grad_())
+    scaled_boot = bootstrap._replace(value_env=10.0 * bootstrap.value_env)
+    scaled_b = dict(b, rewards_env=10.0 * b["rewards_env"])
+    scaled, _ = _loss(scaled_out, scaled_boot, scaled_b, **kw)
+    (g10,) = torch.autograd.grad(scaled, [out.mean])
+    torch.testing.assert_close(g10, g1, rtol=1e-4, atol=1e-6)
+    # Without normalising, the gradient grows with the rewards' scale.
+    raw, _ = _loss(scaled_out, scaled_boot, scaled_b, entropy_cost=0.0, baseline_cost=0.0)
+    (graw,) = torch.autograd.grad(raw, [out.mean])
+    assert graw.abs().sum() > 5 * g1.abs().sum()

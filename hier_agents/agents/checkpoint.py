@@ -31,7 +31,7 @@ def checkpoint_setup(env_name: str, path: str, stochastic: bool = False) -> Agen
         another family's environment.
     """
     import envs
-    from hier_agents.baselines.impala.learner import load_checkpoint, observed
+    from hier_agents.baselines.impala.checkpoints import load_checkpoint, observed
     from hier_agents.modular.families import family
 
     ckpt = load_checkpoint(path)
@@ -48,7 +48,7 @@ def checkpoint_setup(env_name: str, path: str, stochastic: bool = False) -> Agen
         if name.endswith("_camera")
     }
     overrides.update(config.get("env_overrides", {}))
-    from hier_agents.baselines.impala.learner import net_from_checkpoint
+    from hier_agents.baselines.impala.checkpoints import net_from_checkpoint
 
     _, spec = net_from_checkpoint(ckpt)
     observations, privileged = observed(config, spec)
@@ -72,7 +72,7 @@ class CheckpointAgent:
     `hier_agents.agents.base.Agent` contract).
 
     Args:
-      ckpt: a loaded checkpoint (`hier_agents.baselines.impala.learner.load_checkpoint`).
+      ckpt: a loaded checkpoint (`hier_agents.baselines.impala.checkpoints.load_checkpoint`).
       view: the environment as the agent sees it (specs, ``description()``).
       seed: the run's seed (the auxiliary planner's; each episode's own seed
         reseeds the policy's samples and the planner).
@@ -94,7 +94,7 @@ class CheckpointAgent:
         import torch
 
         from hier_agents.baselines.impala.inputs import ActionMap, AgentInputs, make_auxiliary
-        from hier_agents.baselines.impala.learner import net_from_checkpoint
+        from hier_agents.baselines.impala.checkpoints import net_from_checkpoint
 
         config = ckpt["config"]
         self.net, spec = net_from_checkpoint(ckpt)

@@ -107,7 +107,7 @@ class CheckpointKind(TrainedKind):
     def check(self, env_name: str, arg, options: dict) -> None:
         if not Path(arg).exists():
             raise UsageError(f"--agent checkpoint:{arg}: no checkpoint or run directory at {arg!r}")
-        from hier_agents.baselines.impala.learner import load_checkpoint
+        from hier_agents.baselines.impala.checkpoints import load_checkpoint
 
         load_checkpoint(arg)
 

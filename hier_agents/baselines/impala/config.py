@@ -29,6 +29,9 @@ PRESETS: dict[str, dict[str, object]] = {
     "cpu": {"observations": "main-camera", "image_size": 48, "envs_per_actor": 8},
     "small-batches": {"unroll_length": 20, "batch_size": 16},
 }
+#: ``optimizer`` values: the paper's RMSProp, or Adam (``adam_eps``, PyTorch's
+#: betas), the optimiser of most PPO implementations.
+OPTIMIZERS = ("rmsprop", "adam")
 #: Options (flags with ``_`` for ``-``) -> (`TrainConfig` field, type); ``None``
 #: for the options `from_options` turns into other fields.
 OPTIONS = {
@@ -49,6 +52,9 @@ OPTIONS = {
     "batch_size": ("batch_size", int),
     "passes": ("passes", int),
     "learning_rate": ("learning_rate", float),
+    "optimizer": ("optimizer", str),
+    "normalize_advantages": ("normalize_advantages", bool),
+    "clip_ratio": ("clip_ratio", float),
     "entropy_cost": ("entropy_cost", float),
     "abs_reward": ("abs_reward", float),
     "seed": ("seed", int),
@@ -88,6 +94,10 @@ class TrainConfig:
     batch_size: int | None = None  # None: the paper's (64 board games, 128 MuJoBan)
     passes: int = 1  # gradient steps on each batch (the paper's: 1)
     learning_rate: float = 3e-4
+    optimizer: str = "rmsprop"  # one of `OPTIMIZERS` (the paper's: RMSProp)
+    normalize_advantages: bool = False  # advantages to mean 0, std 1 per batch
+    clip_ratio: float = 0.0  # > 0: the clipped surrogate with this epsilon (0: off)
+    adam_eps: float = 1e-5
     rmsprop_alpha: float = 0.99
     rmsprop_eps: float = 1e-5
     rmsprop_momentum: float = 0.0
@@ -148,7 +158,8 @@ class TrainConfig:
         Raises:
           UsageError: an unknown environment, condition or backend (with the
             closest valid name), a count below 1, a seed below 0, a rate or
-            period out of range, or a budget (``steps``) below one unroll.
+            period out of range, a clip ratio of 1 or more, or a budget
+            (``steps``) below one unroll.
         """
         import envs
         from hier_agents.baselines.impala.agent_env import CONDITIONS
@@ -156,6 +167,7 @@ class TrainConfig:
         choice("environment", self.env, envs.names())
         choice("condition", self.condition, CONDITIONS)
         choice("backend", self.backend, ("local", "ray"))
+        choice("optimizer", self.optimizer, OPTIMIZERS)
         for name in (
             "steps",
             "actors",
@@ -175,6 +187,7 @@ class TrainConfig:
             ("seed", 0, False),
             ("learning_rate", 0, True),
             ("entropy_cost", 0, False),
+            ("clip_ratio", 0, False),
             ("abs_reward", 0, False),
             ("checkpoint_every_s", 0, False),  # 0: a checkpoint after every update
             ("log_every_s", 0, False),
@@ -182,6 +195,8 @@ class TrainConfig:
             value = getattr(self, name)
             if value < low or (strict and value == low):
                 raise UsageError(f"{name} must be {'>' if strict else '>='} {low}, got {value!r}")
+        if self.clip_ratio >= 1:
+            raise UsageError(f"clip_ratio must be < 1 (0: off), got {self.clip_ratio!r}")
         unroll = self.frames_per_unroll
         for budget in self.save_at:
             if int(budget) < 1 or int(budget) > self.steps or int(budget) % unroll:

@@ -1,4 +1,4 @@
-"""The learner: batches actors' unrolls, V-trace loss, RMSProp, checkpoints, logs.
+"""The learner: batches actors' unrolls, V-trace loss, optimiser, checkpoints, logs.
 
 `train(config)` is the whole loop:
 
@@ -8,8 +8,9 @@
    unrolls; the last update only the unrolls the budget has left), stack
    them ``[T + 1, B, ...]`` and replay them through the network from the
    actors' recorded core states;
-3. one RMSProp step on `impala_loss` (V-trace; two value heads and the sum of
-   both advantage terms for the planner conditions), gradient norm clipped;
+3. ``passes`` optimiser steps (`make_optimizer`: RMSProp, the paper's, or
+   Adam) on `impala_loss` (V-trace; two value heads and the sum of both
+   advantage terms for the planner conditions), gradient norm clipped;
 4. publish the new weights; log scalars (`hier_agents.learning.rundir`: the
    run directory's ``scalars.jsonl`` and TensorBoard); save ``checkpoint.pt``
    every ``checkpoint_every_s`` seconds, at the end and on Ctrl-C (with
@@ -19,7 +20,7 @@
    are cut so the frame count meets it: evaluation at equal budgets,
    `hier_agents.compare`). Kept copies hold what evaluation reads (weights,
    input spec, config, counters; weights as float16), not the optimiser
-   state or the random states (`kept_copy`): a run resumes from
+   state or the random states (`checkpoints.kept_copy`): a run resumes from
    ``checkpoint.pt`` only.
 
 Frames are environment control steps consumed by the learner: an unroll of
@@ -48,48 +49,14 @@ import math
 import sys
 import time
 from collections import deque
-from pathlib import Path
 
 import numpy as np
 
-from physics_planning.cli import UsageError, plural
+from physics_planning.cli import plural
 from hier_agents.baselines.impala.actors import LocalActors, RayActors, stack_states
 from hier_agents.baselines.impala.config import TrainConfig  # noqa: F401
-from hier_agents.learning.rundir import CHECKPOINT, KEPT, RunDir
-
-KEPT_CHECKPOINTS = KEPT  # folder of `keep_checkpoints` copies, frames-N.pt
-#: What a kept copy ``frames-N.pt`` leaves out: only resuming reads them, and a
-#: run resumes from ``checkpoint.pt`` alone (a kept copy is for evaluation:
-#: `load_checkpoint`, `net_from_checkpoint`; it is what a comparison ships).
-KEPT_WITHOUT = ("optimizer", "rng")
-
-
-def kept_copy(data: dict) -> dict:
-    """A kept copy of checkpoint ``data`` (also of a kept copy: the same):
-    a policy, for evaluation. It has no `KEPT_WITHOUT` and no value weights
-    (`network.VALUE_PARTS`; ``"policy_only": True``), and its weights are
-    stored as float16: an eighth of a full checkpoint's bytes for the
-    comparison's MuJoBan row (1.5 MB against 12.3 MB).
-    `net_from_checkpoint` loads them as float32, so every evaluation of a
-    kept copy plays the same rounded weights. Training resumes from the run's
-    full ``checkpoint.pt``, not from a kept copy."""
-    import torch
-
-    from hier_agents.baselines.impala.network import VALUE_PARTS
-
-    lean = {k: v for k, v in data.items() if k not in KEPT_WITHOUT}
-    lean["model"] = {
-        name: t.to(torch.float16) if t.is_floating_point() else t
-        for name, t in data["model"].items()
-        if not name.startswith(VALUE_PARTS)
-    }
-    lean["policy_only"] = True
-    return lean
-
-
-#: The trainer recorded in its run directories (`RunDir`'s ``trainer``).
-TRAINER = "python -m hier_agents.train"
-
+from hier_agents.baselines.impala.checkpoints import TRAINER, kept_copy
+from hier_agents.learning.rundir import RunDir
 
 # -- batching ---------------------------------------------------------------------------------
 
@@ -174,6 +141,8 @@ def learner_step(
         batch["discounts_abs"],
         baseline_cost=config.baseline_cost,
         entropy_cost=config.entropy_cost,
+        normalize_advantages=config.normalize_advantages,
+        clip_ratio=config.clip_ratio,
     )
     optimizer.zero_grad(set_to_none=True)
     loss.backward()
@@ -183,78 +152,6 @@ def learner_step(
     stats["loss"] = float(loss.detach())
     stats["grad_norm"] = float(grad_norm)
     return stats
-
-
-# -- checkpoints ------------------------------------------------------------------------------
-
-
-def load_checkpoint(path: str | Path) -> dict:
-    """The checkpoint of a `train` run: ``path`` is its file or its run directory.
-
-    Raises:
-      FileNotFoundError: no checkpoint there.
-      UsageError: the file is not a checkpoint of this trainer (unreadable, or
-        another trainer's: no ``model``, ``input_spec``, ``config`` or
-        ``counters``).
-    """
-    import torch
-
-    path = Path(path)
-    if path.is_dir():
-        path = path / CHECKPOINT
-    if not path.exists():
-        raise FileNotFoundError(f"no checkpoint at {path}")
-    try:
-        ckpt = torch.load(path, map_location="cpu", weights_only=False)
-    except Exception as exc:  # noqa: BLE001 - whatever is wrong with the file, it is the input
-        raise UsageError(f"{path} is not a readable checkpoint ({type(exc).__name__})") from None
-    missing = [
-        k
-        for k in ("model", "input_spec", "config", "counters")
-        if not isinstance(ckpt, dict) or k not in ckpt
-    ]
-    if missing:
-        raise UsageError(
-            f"{path} is not a checkpoint of {TRAINER} (it has no {', '.join(missing)})"
-        )
-    return ckpt
-
-
-def _spec_from_dict(d: dict):
-    from hier_agents.baselines.impala.agent_env import InputSpec
-
-    d = dict(d)
-    d["images"] = tuple((name, tuple(shape)) for name, shape in d["images"])
-    for key in ("planner_shape", "state_shape"):
-        if d.get(key) is not None:
-            d[key] = tuple(d[key])
-    return InputSpec(**d)
-
-
-def net_from_checkpoint(ckpt: dict):
-    """The trained `ImpalaNet` (eval mode, float32 weights, also from a kept
-    copy's float16 ones) and its `InputSpec` from a checkpoint. A kept copy
-    (``policy_only``) gives a network without value weights
-    (``net.policy_only``: it acts, its values are not computed).
-
-    Raises:
-      RuntimeError: the weights do not fit the network the config describes.
-    """
-    from hier_agents.baselines.impala.network import VALUE_PARTS, net_for
-
-    spec = _spec_from_dict(ckpt["input_spec"])
-    net = net_for(spec, ckpt["config"])
-    policy_only = bool(ckpt.get("policy_only", False))
-    result = net.load_state_dict(ckpt["model"], strict=not policy_only)
-    missing = [k for k in result.missing_keys if not k.startswith(VALUE_PARTS)]
-    if result.unexpected_keys or missing:
-        raise RuntimeError(
-            f"the checkpoint's weights do not fit its network: missing {missing}, "
-            f"unexpected {list(result.unexpected_keys)}"
-        )
-    net.policy_only = policy_only
-    net.eval()
-    return net, spec
 
 
 # -- the loop ---------------------------------------------------------------------------------
@@ -270,25 +167,30 @@ FIXED = (
     "state_channels",
     "action_repeat",
     "env_overrides",
+    "optimizer",
 )
 
 
-def observed(config: dict, spec) -> tuple[list[str], bool]:
-    """What a run's agent observed: (input keys, privileged), from its
-    ``config.json`` when it recorded them, else inferred from its `InputSpec`
-    (runs made before config.json recorded them)."""
-    keys = config.get("observations")
-    privileged = config.get("privileged")
-    return (
-        list(spec.keys) if keys is None else list(keys),
-        bool(spec.privileged if privileged is None else privileged),
+def make_optimizer(net, config: TrainConfig):
+    """``config.optimizer`` over ``net``'s parameters: RMSProp (``rmsprop_alpha``,
+    ``rmsprop_eps``, ``rmsprop_momentum``) or Adam (``adam_eps``), both at
+    ``learning_rate``."""
+    import torch
+
+    if config.optimizer == "adam":
+        return torch.optim.Adam(net.parameters(), lr=config.learning_rate, eps=config.adam_eps)
+    return torch.optim.RMSprop(
+        net.parameters(),
+        lr=config.learning_rate,
+        alpha=config.rmsprop_alpha,
+        eps=config.rmsprop_eps,
+        momentum=config.rmsprop_momentum,
     )
 
 
 def _build(config: TrainConfig, run: RunDir):
     """(net, optimiser, input spec, counters, recent episodes), resumed from
     ``run``'s checkpoint when there is one."""
-    import torch
 
     from hier_agents.baselines.impala.agent_env import AgentEnv
     from hier_agents.baselines.impala.network import net_for
@@ -309,13 +211,7 @@ def _build(config: TrainConfig, run: RunDir):
     probe.close()
     run.record(observations=list(spec.keys), privileged=spec.privileged)
     net = net_for(spec, config)
-    optimizer = torch.optim.RMSprop(
-        net.parameters(),
-        lr=config.learning_rate,
-        alpha=config.rmsprop_alpha,
-        eps=config.rmsprop_eps,
-        momentum=config.rmsprop_momentum,
-    )
+    optimizer = make_optimizer(net, config)
     counters = {"frames": 0, "updates": 0, "episodes": 0, "wall_s": 0.0, "cpu_s": 0.0}
     recent: deque = deque(maxlen=100)
     ckpt = run.load()

@@ -120,7 +120,7 @@ class ImpalaNet(nn.Module):
     ``[B, 256]``, ``[B, 256]``, ``[B, 128]``, ``[B, 128]`` float tensors.
 
     ``policy_only`` is True for a network loaded without its value weights
-    (`VALUE_PARTS`; a kept checkpoint, `learner.kept_copy`): it acts
+    (`VALUE_PARTS`; a kept checkpoint, `checkpoints.kept_copy`): it acts
     (`act`, `forward` with ``with_value=False``), and `forward` with the
     values raises RuntimeError.
     """

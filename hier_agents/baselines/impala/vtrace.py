@@ -54,13 +54,16 @@ def vtrace(
     clip_rho: float | None = 1.0,
     clip_pg_rho: float | None = 1.0,
     clip_c: float | None = 1.0,
+    weight_pg: bool = True,
 ) -> VTrace:
     """V-trace targets and policy-gradient advantages (no gradients flow).
 
     ``log_rhos``: ``log pi(a_t|x_t) - log mu(a_t|x_t)``; ``discounts``:
     ``gamma_t`` (zero at terminations); ``rewards``: ``r_t``; ``values``:
     ``V(x_t)`` -- all ``[T, B]``. ``bootstrap_value``: ``V(x_T)`` ``[B]``.
-    A clip of None means no truncation.
+    A clip of None means no truncation. ``weight_pg`` False leaves the
+    advantages without their importance weight ``min(clip_pg_rho, rho_s)``
+    (a clipped surrogate weighs them itself).
     """
     log_rhos, discounts, rewards, values, bootstrap_value = (
         x.detach().to(torch.float32)
@@ -82,7 +85,9 @@ def vtrace(
     vs = values + corrections
 
     vs_next = torch.cat([vs[1:], bootstrap_value.unsqueeze(0)], dim=0)
-    pg_advantages = _clip(rhos, clip_pg_rho) * (rewards + discounts * vs_next - values)
+    pg_advantages = rewards + discounts * vs_next - values
+    if weight_pg:
+        pg_advantages = _clip(rhos, clip_pg_rho) * pg_advantages
     return VTrace(vs, pg_advantages)
 
 
@@ -119,6 +124,8 @@ def impala_loss(
     clip_rho: float | None = 1.0,
     clip_pg_rho: float | None = 1.0,
     clip_c: float | None = 1.0,
+    normalize_advantages: bool = False,
+    clip_ratio: float = 0.0,
 ):
     """The IMPALA actor-critic loss for one unroll batch; returns ``(loss, stats)``.
 
@@ -134,7 +141,13 @@ def impala_loss(
     steps (means rather than sums, so the scale does not depend on the batch
     or unroll size),
 
-    * ``pg = -mean(log pi(a|x) * (A_env [+ A_abs]))`` with V-trace advantages;
+    * ``pg = -mean(log pi(a|x) * (A_env [+ A_abs]))`` with V-trace advantages
+      ``A``; with ``clip_ratio`` ``eps > 0``, PPO's clipped surrogate instead,
+      ``pg = -mean(min(rho A, clip(rho, 1 - eps, 1 + eps) A))`` with ``rho``
+      the ratio of the learner's policy to the actors' (gradients flow
+      through it; ``A`` then without its importance weight, which ``rho``
+      carries); with ``normalize_advantages``, ``A`` is first shifted and
+      scaled to mean 0 and standard deviation 1 over the batch;
     * ``baseline = 0.5 * baseline_cost * mean((vs_env - V_env)^2)
       [+ the same for abs]``;
     * ``entropy = -entropy_cost * mean(H(pi))`` (an entropy bonus).
@@ -145,7 +158,7 @@ def impala_loss(
     """
     log_probs = gaussian_log_prob(out.mean, out.std, actions)
     log_rhos = log_probs.detach() - behaviour_log_probs
-    kw = dict(clip_rho=clip_rho, clip_pg_rho=clip_pg_rho, clip_c=clip_c)
+    kw = dict(clip_rho=clip_rho, clip_pg_rho=clip_pg_rho, clip_c=clip_c, weight_pg=not clip_ratio)
 
     streams = [("env", out.value_env, bootstrap.value_env, rewards_env, discounts_env)]
     if out.value_abs is not None:
@@ -155,7 +168,15 @@ def impala_loss(
 
     stats: dict[str, float] = {}
     advantages, baseline_loss = _value_streams(streams, log_rhos, baseline_cost, stats, kw)
-    pg_loss = -(log_probs * advantages).mean()
+    if normalize_advantages:
+        advantages = (advantages - advantages.mean()) / (advantages.std() + 1e-8)
+    if clip_ratio:
+        ratio = torch.exp(log_probs - behaviour_log_probs)
+        clipped = torch.clamp(ratio, 1.0 - clip_ratio, 1.0 + clip_ratio)
+        pg_loss = -torch.minimum(ratio * advantages, clipped * advantages).mean()
+        stats["ratio_clipped_fraction"] = float(((ratio - 1).abs() > clip_ratio).float().mean())
+    else:
+        pg_loss = -(log_probs * advantages).mean()
     entropy = gaussian_entropy(out.std).mean()
     entropy_loss = -entropy_cost * entropy
     loss = pg_loss + baseline_loss + entropy_loss
