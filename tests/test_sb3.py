@@ -5,6 +5,7 @@ the episode runner, and its observations equal to the gymnasium wrapper's."""
 from __future__ import annotations
 
 import json
+import tempfile
 import shutil
 
 import gymnasium
@@ -103,9 +104,13 @@ def test_the_agent_observes_what_the_gymnasium_env_gives(trained):
         env.close()
 
 
-def test_resuming_extends_the_run(tmp_path):
+def test_resuming_extends_the_run(tmp_path, monkeypatch):
+    scratch = tmp_path / "tmp"
+    scratch.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(scratch))
     first = _train("PPO", tmp_path, frames=128, save_at=(128,))
     second = _train("PPO", tmp_path, frames=256, save_at=(128, 256))
+    assert not list(scratch.glob("SB3-*"))  # the logs are the run's: no SB3-<date> folders
     assert (first["frames"], second["frames"]) == (128, 256)
     assert second["cpu_s"] > first["cpu_s"] and second["wall_s"] > first["wall_s"]
     assert json.loads((tmp_path / "checkpoints" / "frames-256.json").read_text())["frames"] == 256

@@ -213,6 +213,7 @@ class _Session:
 
     def _build(self) -> None:
         """The vector environment and the model, new or loaded from the run."""
+        from stable_baselines3.common.logger import Logger
         from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor
 
         config = self.config
@@ -243,6 +244,10 @@ class _Session:
         except (TypeError, ValueError, AssertionError) as exc:
             self._close()
             raise UsageError(f"{config.algo} refused the run: {exc}") from None
+        # The run directory holds the logs (`_Callback`); SB3's own logger
+        # would make an empty folder SB3-<date> in the temporary directory
+        # at every `learn`.
+        self.model.set_logger(Logger(folder=None, output_formats=[]))
         self.model.set_random_seed(_part_seed(config.seed, self.frames()))
 
     def frames(self) -> int:
