@@ -1023,6 +1023,7 @@ def test_two_workers_give_the_rows_of_one(tmp_path):
     assert strip(tail["rows"]) == strip(one["rows"][3:])
 
 
+@pytest.mark.slow
 def test_a_worker_killed_mid_run_is_replaced_and_the_rows_are_those_of_one_worker(capfd):
     """A worker process that dies (here SIGKILL after the first shard; in CI
     once, glibc's abort on a corrupted heap) does not lose the run: the
@@ -1063,6 +1064,7 @@ def test_a_dead_pool_names_how_its_worker_died_not_the_sigterm_sent_to_the_rest(
     assert death([None, 0]) == "exit status unknown"
 
 
+@pytest.mark.slow
 def test_workers_that_keep_dying_stop_the_run_with_a_clear_error(monkeypatch, capfd):
     from hier_agents import players
 
@@ -1086,6 +1088,7 @@ class _AbortingWorker:
         os.abort()
 
 
+@pytest.mark.slow
 def test_a_modular_episode_plays_the_same_whatever_the_episodes_before():
     """What the skill carries between subgoals (drive direction, yaw rate,
     back-offs) is dropped at each episode start: an episode played after

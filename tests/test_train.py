@@ -466,6 +466,7 @@ def test_random_agents_play_through_hier_agents_run(tmp_path, capsys):
         assert "random" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_a_killed_actor_is_replaced_and_a_failing_one_stops_the_learner(capfd):
     import os
     import signal
