@@ -52,7 +52,9 @@ by its family adapter.
 
 MuJoBan rows report the solved fraction; board games win/draw/loss rates. All
 rates carry 95% Wilson intervals. JSON keys: env, episodes, estimator,
-privileged, success_rate, win_rate, draw_rate, loss_rate (board games),
+privileged and reads (modular agents: what the estimator reads, "simulator",
+"record" -- a board game's referee's record -- or "observations"; the first
+two are privileged), success_rate, win_rate, draw_rate, loss_rate (board games),
 mean_return, mean_steps, subgoal_success_rate, episode_failures (reason ->
 count), wall_s, control_steps_per_s, plus planner, skill, seed, env_options,
 levels, episodes_requested, interrupted, finished, worker_restarts (how many

@@ -175,9 +175,9 @@ def print_components() -> None:
     for kind in KINDS.values():
         print(f"  {' | '.join(kind.forms()):<28} {kind.help}")
     for fam in PLANNERS:
+        reads = {"simulator": " (privileged: the simulator)", "record": " (privileged: the record)"}
         estimators = [
-            f"{name} (privileged)" if getattr(factory, "privileged", False) else name
-            for name, factory in ESTIMATORS[fam].items()
+            name + reads.get(components.access(fam, name), "") for name in ESTIMATORS[fam]
         ]
         print(f"{fam}:")
         print(f"  planners    {', '.join(components.forms('planner', fam))}")

@@ -84,9 +84,13 @@ def test_the_option_layer_rejects_a_bad_t_abs():
 
 
 def test_mujoxo_against_the_optimal_opponent_never_loses():
-    summary = run_lib.run("mujoxo/optimal", 2, seed=0, progress=False)
+    summary = run_lib.run("mujoxo/optimal", 2, seed=0, progress=False, estimator="board")
     assert summary["loss_rate"] == 0.0 and summary["draw_rate"] == 1.0
     assert summary["subgoal_success_rate"] == 1.0
+    # The board estimator reads the referee's record: privileged, and said so.
+    assert summary["privileged"] is True and summary["reads"] == "record"
+    camera = run_lib.run("mujoxo/optimal", 1, seed=0, progress=False, estimator="camera")
+    assert camera["privileged"] is False and camera["reads"] == "observations"
 
 
 def test_mujogo_with_the_gnugo_planner_wins_and_every_touch_registers_the_plan(gnugo):

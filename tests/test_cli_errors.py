@@ -345,9 +345,13 @@ def test_list_shows_the_parameterised_forms(capsys):
         "learned-arm:PATH",
         "mcts:N",
         "gnugo:LEVEL",
-        "oracle (privileged)",
+        "oracle (privileged: the simulator)",
     ):
         assert form in out, form
+    # Every board family's record estimator is marked; the camera one is not.
+    families = out.split("\nmujoxo:")[1]
+    assert families.count("board (privileged: the record)") == 3
+    assert "camera (privileged" not in out
 
 
 def test_one_parser_reads_component_names_everywhere():

@@ -193,17 +193,20 @@ def test_shipped_specs_load():
 
 def test_the_boards_spec_trains_every_series_to_the_same_budgets():
     """`experiments/boards.toml`: every trained series (IMPALA vanilla and
-    expert-planner with the board as state, SB3 PPO) at 250,000 and
-    1,000,000 frames on each board game; the modular agent that reads the
-    game record only as a labelled reference; at least 50 episodes a seed."""
+    expert-planner with the board as state, SB3 PPO, all holding each action
+    for 4 control steps) at 250,000 and 1,000,000 frames on each board game;
+    the modular agent that reads the game record (named, whatever the
+    default estimator) only as a labelled reference; at least 50 episodes a
+    seed."""
     spec = load(ROOT / "experiments" / "boards.toml")
     assert spec.envs == ["mujoxo/optimal", "mujoxo/mixture", "mujogo/7x7"]
     trained = [a for a in spec.agents if a.kind == "train"]
     assert {a.trainer for a in trained} == {"impala", "sb3"} and len(trained) == 3
     for agent in trained:
         assert all(agent.budgets_for(e) == (250_000, 1_000_000) for e in spec.envs)
+        assert agent.train["action_repeat"] == 4, agent.label
     modular = {a.label: a.modular for a in spec.agents if a.kind == "modular"}
-    assert [m.get("estimator") for m in modular.values()] == ["camera", None]
+    assert [m.get("estimator") for m in modular.values()] == ["camera", "board"]
     assert list(modular)[1].endswith("(game record)")
     assert all(a.episodes >= 50 and a.seeds == (0, 1, 2) for a in spec.agents)
     planned = jobs_mod.plan(spec)
@@ -921,6 +924,29 @@ def test_board_points_score_games_a_win_one_a_draw_half_a_loss_zero(tmp_path):
     assert (tmp_path / "p.png").stat().st_size > 1000
 
 
+def test_a_modular_points_observations_follow_its_estimator():
+    """The record estimator's rows are privileged in the report, also from
+    records whose summaries predate the ``reads`` key (they said False)."""
+    from types import SimpleNamespace
+
+    agent = SimpleNamespace(kind="modular", stochastic=False)
+    old_record = {"estimator": "board", "privileged": False}
+    assert report._observations(agent, "mujoxo/optimal", old_record) == (
+        "game record via the board estimator (PRIVILEGED) + proprioception",
+        True,
+    )
+    camera = {"estimator": "camera", "privileged": False, "reads": "observations"}
+    assert report._observations(agent, "mujogo/7x7", camera) == (
+        "cameras + proprioception (camera estimator)",
+        False,
+    )
+    oracle = {"estimator": "oracle", "privileged": True}
+    assert report._observations(agent, "mujoban/level1", oracle) == (
+        "simulator via the oracle estimator (PRIVILEGED) + proprioception",
+        True,
+    )
+
+
 def test_the_json_names_each_environments_metric_and_mixed_metrics_never_aggregate(tmp_path):
     """comparison.json's ``metric`` maps each environment to its family's
     metric; a spec over MuJoBan and a board game has a header line per
@@ -1240,7 +1266,7 @@ def test_a_series_evaluated_with_its_policy_sampled_says_so(tmp_path):
     summary = {"observations": ["proprio", "state"], "privileged": True}
     for stochastic, expected in [("true", True), ("false", False)]:
         agent = load(write_spec(tmp_path, text.replace("STOCHASTIC", stochastic))).agents[-1]
-        observed, privileged = report._observations(agent, summary)
+        observed, privileged = report._observations(agent, "mujoban/level1", summary)
         assert privileged and observed.startswith("proprio, state (PRIVILEGED)")
         assert observed.endswith("; policy sampled") is expected
 

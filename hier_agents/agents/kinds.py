@@ -49,14 +49,7 @@ class ModularKind(AgentKind):
         fam = components.family(env_name)
         parts = {part: options.get(part) for part in self.options}
         estimator = parts["estimator"]
-        privileged = components.is_privileged(fam, estimator)
-        access = (
-            "simulator"
-            if privileged
-            else "record"
-            if components.reads_record(fam, estimator)
-            else "observations"
-        )
+        access = components.access(fam, estimator)
 
         def build(view, seed, simulator):
             return components.make_agent(
@@ -68,14 +61,15 @@ class ModularKind(AgentKind):
             "planner": parts["planner"] or next(iter(components.PLANNERS[fam])),
             "skill": parts["skill"] or next(iter(components.SKILLS[fam])),
             "estimator": components.estimator_name(fam, estimator),
-            "privileged": privileged,
+            "privileged": access != "observations",
+            "reads": access,
         }
         return AgentSetup(components.env_overrides(env_name, estimator), access, summary, build)
 
     def describe(self, summary: dict) -> str:
         who = (
             f"estimator {summary.get('estimator', '?')}"
-            f"{' (PRIVILEGED: reads the simulator)' if summary.get('privileged') else ''}, "
+            f"{_privilege(summary)}, "
             f"planner {summary['planner']}, skill {summary['skill']}"
         )
         if summary.get("training_frames"):
@@ -96,6 +90,14 @@ class ModularKind(AgentKind):
 
     def from_job_inputs(self, inputs: dict) -> tuple[object, dict]:
         return None, {k: inputs[k] for k in self.options if k in inputs}
+
+
+def _privilege(summary: dict) -> str:
+    """ " (PRIVILEGED: reads ...)" for a privileged modular run's summary, else ""."""
+    if not summary.get("privileged"):
+        return ""
+    what = "the referee's record" if summary.get("reads") == "record" else "the simulator"
+    return f" (PRIVILEGED: reads {what})"
 
 
 class CheckpointKind(TrainedKind):

@@ -82,15 +82,22 @@ def _headings(envs) -> list[str]:
     return list(dict.fromkeys(env_adapter(e).metric_heading for e in envs))
 
 
-def _observations(agent, summary: dict) -> tuple[str, bool]:
-    """What a point's agent observed, in words (with "; policy sampled" for
-    an agent evaluated with ``stochastic``), and whether it was privileged,
-    from the evaluation summary (`hier_agents.run.run`)."""
+def _observations(agent, env: str, summary: dict) -> tuple[str, bool]:
+    """What a point's agent observed on ``env``, in words (with "; policy
+    sampled" for an agent evaluated with ``stochastic``), and whether it was
+    privileged, from the evaluation summary (`hier_agents.run.run`); a
+    modular agent's from its estimator (`components.access`)."""
     if agent.kind == "random":
         return "none", False
     if agent.kind == "modular":
-        name, privileged = summary.get("estimator", "?"), bool(summary.get("privileged"))
-        if privileged:
+        from hier_agents.modular.components import access, family
+
+        name = summary.get("estimator", "?")
+        # The registry's word, also for records made before summaries said it.
+        reads = access(family(env), name) if name != "?" else summary.get("reads")
+        if reads == "record":
+            return f"game record via the {name} estimator (PRIVILEGED) + proprioception", True
+        if reads == "simulator" or summary.get("privileged"):
             return f"simulator via the {name} estimator (PRIVILEGED) + proprioception", True
         return f"cameras + proprioception ({name} estimator)", False
     keys = summary.get("observations") or []
@@ -139,7 +146,7 @@ def _point(agent, env: str, budget, complete: dict, summary: dict) -> dict:
     values = list(per_seed.values())
     pooled = [x for seed in scores for x in seed]
     episodes = len(pooled)
-    observed, privileged = _observations(agent, summary)
+    observed, privileged = _observations(agent, env, summary)
     frames = int(summary.get("training_frames", budget or 0) or 0)
     point = {
         "agent": agent.label,

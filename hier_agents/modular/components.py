@@ -74,6 +74,7 @@ __all__ = [
     "file_hash",
     "forms",
     "is_privileged",
+    "access",
     "learned_files",
     "make_agent",
     "reads_record",
@@ -512,6 +513,17 @@ def reads_record(fam: str, estimator: str | None) -> bool:
     privileged: the ``board`` estimators. Every other observation-only
     estimator is run with all of a task's privileged observations removed."""
     return bool(getattr(resolve("estimator", fam, estimator).factory, "reads_record", False))
+
+
+def access(fam: str, estimator: str | None) -> str:
+    """What the named estimator (None: the default) reads, one of
+    `hier_agents.agents.base.ACCESS`: ``"simulator"`` (`is_privileged`),
+    ``"record"`` (`reads_record`: the observations a board game's task
+    declares privileged) or ``"observations"`` (what a robot has). Either of
+    the first two makes the agent privileged wherever it is reported."""
+    if is_privileged(fam, estimator):
+        return "simulator"
+    return "record" if reads_record(fam, estimator) else "observations"
 
 
 def estimator_name(fam: str, estimator: str | None) -> str:
