@@ -169,16 +169,17 @@ def print_components() -> None:
     skills and estimators in the form the flags take them (``NAME``,
     ``NAME:ARG``; the first is the default; privileged estimators marked)."""
     from hier_agents.agents import KINDS, forms
+    from hier_agents.agents.base import READS
 
     forms()  # registers the shipped kinds
     print("agents:")
     for kind in KINDS.values():
         print(f"  {' | '.join(kind.forms()):<28} {kind.help}")
     for fam in PLANNERS:
-        reads = {"simulator": " (privileged: the simulator)", "record": " (privileged: the record)"}
-        estimators = [
-            name + reads.get(components.access(fam, name), "") for name in ESTIMATORS[fam]
-        ]
+        estimators = []
+        for name in ESTIMATORS[fam]:
+            access = components.access(fam, name)
+            estimators.append(f"{name} (privileged: {READS[access]})" if access in READS else name)
         print(f"{fam}:")
         print(f"  planners    {', '.join(components.forms('planner', fam))}")
         print(f"  skills      {', '.join(components.forms('skill', fam))}")

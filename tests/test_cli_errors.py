@@ -350,7 +350,7 @@ def test_list_shows_the_parameterised_forms(capsys):
         assert form in out, form
     # Every board family's record estimator is marked; the camera one is not.
     families = out.split("\nmujoxo:")[1]
-    assert families.count("board (privileged: the record)") == 3
+    assert families.count("board (privileged: the referee's record)") == 3
     assert "camera (privileged" not in out
 
 

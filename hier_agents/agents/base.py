@@ -73,6 +73,13 @@ class Agent(Protocol):
 #: removed, `hier_agents.boundary.BoundaryEnv`).
 ACCESS = ("simulator", "record", "observations")
 
+#: A privileged access in words, the one vocabulary of run lines, ``--list``
+#: and comparison tables: ``READS[access]`` is what the agent reads ("the
+#: referee's record"), ``SOURCE[access]`` the source a table's column names
+#: ("game record"). An ``"observations"`` agent has neither.
+READS = {"simulator": "the simulator", "record": "the referee's record"}
+SOURCE = {"simulator": "simulator", "record": "game record"}
+
 
 @dataclass
 class AgentSetup:
@@ -245,5 +252,5 @@ class TrainedKind(AgentKind):
             who += f"; reads {', '.join(summary['observations'])}"
         who += ")"
         if summary.get("privileged"):
-            who += " (PRIVILEGED: reads the simulator)"
+            who += f" (PRIVILEGED: reads {READS['simulator']})"
         return who

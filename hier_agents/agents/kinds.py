@@ -21,7 +21,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from hier_agents.agents.base import AgentKind, AgentSetup, TrainedKind
+from hier_agents.agents.base import READS, AgentKind, AgentSetup, TrainedKind
 from hier_agents.agents.sb3 import Sb3Kind
 from physics_planning.cli import UsageError, plural
 
@@ -96,8 +96,7 @@ def _privilege(summary: dict) -> str:
     """ " (PRIVILEGED: reads ...)" for a privileged modular run's summary, else ""."""
     if not summary.get("privileged"):
         return ""
-    what = "the referee's record" if summary.get("reads") == "record" else "the simulator"
-    return f" (PRIVILEGED: reads {what})"
+    return f" (PRIVILEGED: reads {READS[summary.get('reads', 'simulator')]})"
 
 
 class CheckpointKind(TrainedKind):

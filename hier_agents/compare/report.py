@@ -50,6 +50,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from hier_agents.agents.base import SOURCE
 from hier_agents.modular.families import env_adapter
 from hier_agents.stats import (
     aggregate_interval,
@@ -95,10 +96,10 @@ def _observations(agent, env: str, summary: dict) -> tuple[str, bool]:
         name = summary.get("estimator", "?")
         # The registry's word, also for records made before summaries said it.
         reads = access(family(env), name) if name != "?" else summary.get("reads")
-        if reads == "record":
-            return f"game record via the {name} estimator (PRIVILEGED) + proprioception", True
-        if reads == "simulator" or summary.get("privileged"):
-            return f"simulator via the {name} estimator (PRIVILEGED) + proprioception", True
+        if reads not in SOURCE and summary.get("privileged"):
+            reads = "simulator"  # a record made before summaries said what it read
+        if reads in SOURCE:
+            return f"{SOURCE[reads]} via the {name} estimator (PRIVILEGED) + proprioception", True
         return f"cameras + proprioception ({name} estimator)", False
     keys = summary.get("observations") or []
     privileged = bool(summary.get("privileged"))
