@@ -109,6 +109,22 @@ def _value_streams(streams, log_rhos, baseline_cost: float, stats: dict, kw: dic
     return advantages, baseline_loss
 
 
+def _policy_loss(log_probs, behaviour_log_probs, advantages, normalize, clip_ratio, stats):
+    """The policy-gradient term of `impala_loss` from the learner's
+    ``log_probs`` and the actors' ``behaviour_log_probs`` ``[T, B]`` and the
+    (detached) ``advantages`` ``[T, B]``: normalised over the batch when
+    ``normalize``, PPO's clipped surrogate when ``clip_ratio > 0`` (then
+    ``stats["ratio_clipped_fraction"]`` is set), else ``-mean(log_probs * A)``."""
+    if normalize:
+        advantages = (advantages - advantages.mean()) / (advantages.std() + 1e-8)
+    if not clip_ratio:
+        return -(log_probs * advantages).mean()
+    ratio = torch.exp(log_probs - behaviour_log_probs)
+    clipped = torch.clamp(ratio, 1.0 - clip_ratio, 1.0 + clip_ratio)
+    stats["ratio_clipped_fraction"] = float(((ratio - 1).abs() > clip_ratio).float().mean())
+    return -torch.minimum(ratio * advantages, clipped * advantages).mean()
+
+
 def impala_loss(
     out,
     bootstrap,
@@ -168,15 +184,9 @@ def impala_loss(
 
     stats: dict[str, float] = {}
     advantages, baseline_loss = _value_streams(streams, log_rhos, baseline_cost, stats, kw)
-    if normalize_advantages:
-        advantages = (advantages - advantages.mean()) / (advantages.std() + 1e-8)
-    if clip_ratio:
-        ratio = torch.exp(log_probs - behaviour_log_probs)
-        clipped = torch.clamp(ratio, 1.0 - clip_ratio, 1.0 + clip_ratio)
-        pg_loss = -torch.minimum(ratio * advantages, clipped * advantages).mean()
-        stats["ratio_clipped_fraction"] = float(((ratio - 1).abs() > clip_ratio).float().mean())
-    else:
-        pg_loss = -(log_probs * advantages).mean()
+    pg_loss = _policy_loss(
+        log_probs, behaviour_log_probs, advantages, normalize_advantages, clip_ratio, stats
+    )
     entropy = gaussian_entropy(out.std).mean()
     entropy_loss = -entropy_cost * entropy
     loss = pg_loss + baseline_loss + entropy_loss
