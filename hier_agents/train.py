@@ -85,7 +85,8 @@ def build_parser() -> Parser:
     _add_task_args(parser, default)
     _add_observation_args(parser, default)
     _add_scale_args(parser, default)
-    _add_learning_args(parser, default)
+    _add_batch_args(parser, default)
+    _add_loss_args(parser, default)
     _add_logging_args(parser, default)
     return parser
 
@@ -169,11 +170,9 @@ def _add_scale_args(parser: Parser, default: dict) -> None:
     )
 
 
-def _add_learning_args(parser: Parser, default: dict) -> None:
-    """The learner's unrolls, batches and losses, and the seed."""
-    from hier_agents.baselines.impala.config import OPTIMIZERS
+def _add_batch_args(parser: Parser, default: dict) -> None:
+    """The learner's unrolls and batches, and how often each batch is used."""
     from hier_agents.modular.families import FAMILIES
-    from physics_planning.cli import non_negative_float
 
     add = parser.add_argument
     add(
@@ -203,6 +202,14 @@ def _add_learning_args(parser: Parser, default: dict) -> None:
         help="gradient steps on each batch (V-trace corrects the later ones for the "
         "policy's change; the paper's: 1)",
     )
+
+
+def _add_loss_args(parser: Parser, default: dict) -> None:
+    """The optimiser, the losses and their weights, the state encoder, and the seed."""
+    from hier_agents.baselines.impala.config import OPTIMIZERS
+    from physics_planning.cli import non_negative_float
+
+    add = parser.add_argument
     add(
         "--learning-rate",
         type=positive_float,
