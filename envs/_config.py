@@ -82,8 +82,13 @@ def check_pair(name: str, value, low: int, high: int) -> tuple[int, int]:
 
 
 def check_camera(name: str, value) -> None:
-    if value is not None:
+    """A camera's ``(height, width)``, or None: off (`envs.load` takes False too)."""
+    if value is None:
+        return
+    try:
         check_pair(name, value, 1, MAX_IMAGE_SIDE)
+    except (TypeError, ValueError) as exc:
+        raise type(exc)(f"{exc}; None (false in TOML) switches it off") from None
 
 
 def check_timing(time_limit, control_timestep, physics_timestep) -> None:

@@ -74,6 +74,17 @@ def no_cameras(name: str) -> dict[str, None]:
     return {k: None for k in overrides(name) if k.endswith("_camera")}
 
 
+def _cameras_off(kwargs: dict) -> dict:
+    """``kwargs`` with a camera override of False made None (off): TOML, which
+    has no null, switches a camera off with ``false``."""
+    return {k: None if v is False and _is_camera(k) else v for k, v in kwargs.items()}
+
+
+def _is_camera(key: str) -> bool:
+    """Whether the override ``key`` sizes a camera (``top_camera``, ``front_camera_2``)."""
+    return key.endswith("_camera") or "_camera_" in key
+
+
 def check(name: str, seed: int | None = None, **kwargs) -> None:
     """Checks a configuration as `load` would, without building anything (no
     model compiled, no GL context, no engine started): microseconds.
@@ -91,7 +102,7 @@ def check(name: str, seed: int | None = None, **kwargs) -> None:
     if unknown:
         raise TypeError(unknown_keywords_message(name, unknown, valid, "override"))
     if entry.validate is not None:
-        entry.validate(seed=seed, **entry.kwargs, **kwargs)
+        entry.validate(seed=seed, **entry.kwargs, **_cameras_off(kwargs))
 
 
 def unknown_keywords_message(name: str, unknown, valid, kind: str) -> str:
@@ -108,7 +119,8 @@ def load(name: str, seed: int | None = None, **kwargs) -> Environment:
       name: one of `names()`, e.g. ``"mujoban/level5-pegs"``.
       seed: seed of the environment's random generator.
       **kwargs: overrides of the environment's settings, e.g.
-        ``levels="file.txt"``, ``top_camera=None``; `overrides(name)` lists them.
+        ``levels="file.txt"``, ``top_camera=None`` (or False: a camera off);
+        `overrides(name)` lists them.
 
     Raises:
       KeyError: unknown name (the message lists the known ones;
@@ -119,7 +131,7 @@ def load(name: str, seed: int | None = None, **kwargs) -> Environment:
     """
     check(name, seed, **kwargs)
     entry = _entry(name)
-    return entry.factory(seed=seed, **entry.kwargs, **kwargs)
+    return entry.factory(seed=seed, **entry.kwargs, **_cameras_off(kwargs))
 
 
 class UnknownEnvironmentError(UsageError, KeyError):

@@ -34,6 +34,19 @@ def test_unknown_override_lists_the_valid_ones():
         envs.load("mujoban/level1", colour="red")
 
 
+def test_false_switches_a_camera_off_as_none_does():
+    # TOML has no null: a spec's env_options say false.
+    env = envs.load("mujoban/level1", egocentric_camera=False, top_camera=[16, 16])
+    try:
+        keys = set(env.observation_spec())
+    finally:
+        env.close()
+    assert "top_camera" in keys and "egocentric_camera" not in keys
+    envs.check("mujoxo/optimal", front_camera=False)
+    with pytest.raises(TypeError, match=r"got True; None \(false in TOML\) switches it off"):
+        envs.check("mujoban/level1", top_camera=True)
+
+
 @pytest.mark.parametrize("name", MUJOBAN_NAMES)
 def test_every_name_passes_gymnasium_check_env(name):
     # render() at the default size (256 x 256) for the first name, at the

@@ -271,3 +271,25 @@ def test_action_repeat_counts_control_steps_and_the_agent_holds(tmp_path):
         env.close()
     with pytest.raises(UsageError, match="action_repeat=4, not 1"):
         _train("PPO", tmp_path, frames=1024, save_at=())
+
+
+def test_a_spec_sees_the_main_camera_and_proprioception_as_the_cpu_preset():
+    # TOML has no null: false switches the egocentric camera off, so the
+    # sensors are the top camera and proprioception (IMPALA's main-camera).
+    import tomllib
+
+    from hier_agents.baselines.sb3.trainer import make_env
+
+    table = tomllib.loads(
+        'sb3 = { obs = "sensors", '
+        "env_options = { egocentric_camera = false, top_camera = [48, 48] } }"
+    )["sb3"]
+    config = Sb3Config.from_options(ENV, {**SMALL, **table})
+    assert config.policy == "MultiInputPolicy"
+    env = make_env(config.env, config.obs, config.env_options)
+    try:
+        spaces = env.observation_space.spaces
+    finally:
+        env.close()
+    assert spaces["top_camera"].shape == (48, 48, 3) and "egocentric_camera" not in spaces
+    assert {key for key in spaces if key.startswith("walker/")}
