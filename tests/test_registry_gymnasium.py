@@ -47,7 +47,15 @@ def test_false_switches_a_camera_off_as_none_does():
         envs.check("mujoban/level1", top_camera=True)
 
 
-@pytest.mark.parametrize("name", MUJOBAN_NAMES)
+#: The names the fast tests check (plain, pegs, the curriculum); the others
+#: differ from these only in difficulty and are checked with the slow tests.
+FAST_NAMES = ("mujoban/level1", "mujoban/level5-pegs", "mujoban/curriculum")
+
+
+@pytest.mark.parametrize(
+    "name",
+    [n if n in FAST_NAMES else pytest.param(n, marks=pytest.mark.slow) for n in MUJOBAN_NAMES],
+)
 def test_every_name_passes_gymnasium_check_env(name):
     # render() at the default size (256 x 256) for the first name, at the
     # cameras' for the others: one renderer per environment, not two.
