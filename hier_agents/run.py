@@ -16,9 +16,10 @@
 
 The modular agent sits behind the observation boundary: it is given the
 task's public description (``env.description()``) and timesteps. The
-default estimators are observation-only (MuJoBan: ``camera``, the top
-camera and proprioception; board games: ``board``); ``--estimator oracle``
-or ``entity-layer`` read the simulator and every table and JSON says
+default estimators are observation-only (``camera``: MuJoBan's top camera,
+the board games' high front camera, and proprioception); ``--estimator
+oracle`` or ``entity-layer`` read the simulator, and a board game's
+``--estimator board`` reads the referee's record: every table and JSON says
 ``privileged``.
 
 Episode ``e`` of a run seeded ``s`` is seeded from ``(s, e)``: its level

@@ -89,8 +89,10 @@ def test_mujoxo_against_the_optimal_opponent_never_loses():
     assert summary["subgoal_success_rate"] == 1.0
     # The board estimator reads the referee's record: privileged, and said so.
     assert summary["privileged"] is True and summary["reads"] == "record"
-    camera = run_lib.run("mujoxo/optimal", 1, seed=0, progress=False, estimator="camera")
-    assert camera["privileged"] is False and camera["reads"] == "observations"
+    # The default reads the camera: observation-only.
+    default = run_lib.run("mujoxo/optimal", 1, seed=0, progress=False)
+    assert default["estimator"] == "camera"
+    assert default["privileged"] is False and default["reads"] == "observations"
 
 
 def test_mujogo_with_the_gnugo_planner_wins_and_every_touch_registers_the_plan(gnugo):

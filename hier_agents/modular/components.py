@@ -433,10 +433,10 @@ ESTIMATORS: dict[str, ComponentTable[Estimator]] = {
             "entity-layer": _privileged(EntityLayerEstimator),
         },
     ),
-    "mujoxo": ComponentTable("estimator", "mujoxo", {"board": _board, "camera": _board_camera}),
-    "mujogo": ComponentTable("estimator", "mujogo", {"board": _board, "camera": _board_camera}),
+    "mujoxo": ComponentTable("estimator", "mujoxo", {"camera": _board_camera, "board": _board}),
+    "mujogo": ComponentTable("estimator", "mujogo", {"camera": _board_camera, "board": _board}),
     "mujoboard": ComponentTable(
-        "estimator", "mujoboard", {"board": _board, "camera": _board_camera}
+        "estimator", "mujoboard", {"camera": _board_camera, "board": _board}
     ),
 }
 
