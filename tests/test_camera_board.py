@@ -311,3 +311,64 @@ def test_cells_seen_in_different_frames_between_two_moves_confirm_the_estimate()
     estimator.estimate(view.step(still))
     assert [a.history() for a in estimator._anchors] == [[], [mine, reply]]
     env.close()
+
+
+def _go_estimator(request):
+    request.getfixturevalue("gnugo")
+    env, view = _env("mujogo/7x7")
+    estimator = BoardCameraEstimator()
+    estimator.reset(view.description(), view.reset())
+    return env, estimator, BoardGame.from_description(view.description())
+
+
+def test_a_pass_is_confirmed_only_when_every_empty_cell_was_read(request):
+    """Go: the agent's stone seen, one empty cell hidden (a reply could lie
+    there): the opponent's pass explains the frame but is not confirmed
+    until that cell is read."""
+    env, estimator, game = _go_estimator(request)
+    mine, hidden = 24, 37
+    cells, shares = _frame(game, {mine: 0}, hidden=[hidden])
+    state = estimator._explain(cells, shares, over=False)
+    assert state.history() == [mine, game.pass_action]
+    assert [a.history() for a in estimator._anchors] == [[]]  # not confirmed
+    cells, shares = _frame(game, {mine: 0})
+    estimator._explain(cells, shares, over=False)
+    assert estimator._anchors[-1].history() == [mine, game.pass_action]
+    env.close()
+
+
+def test_a_press_the_game_refused_shows_the_reply_under_the_hand(request):
+    """Go: the opponent's reply hidden under the hand is first taken for a
+    pass; the hand standing blocked on that point, with no arm reset, says
+    the game refused the move there: the reply is found."""
+    from hier_agents.estimators import camera_board
+
+    env, estimator, game = _go_estimator(request)
+    mine, reply = 24, 37
+    cells, shares = _frame(game, {mine: 0}, hidden=[reply])
+    assert estimator._explain(cells, shares, over=False).history() == [mine, game.pass_action]
+    estimator._belief = estimator._explain(cells, shares, over=False)
+    top = estimator._zone_top[reply]
+
+    class Blocked:
+        """The hand over ``reply``, standing still just above its top."""
+
+        def touched_zone(self, qpos, zones):
+            return reply
+
+        def pinch(self, qpos):
+            return np.array([0.0, 0.0, top + 0.01])
+
+    real = estimator._view.silhouette
+    estimator._view.silhouette = Blocked()
+    try:
+        refused = [
+            estimator._refuse(np.zeros(9), False) for _ in range(camera_board.STALL_STEPS + 2)
+        ]
+    finally:
+        estimator._view.silhouette = real
+    assert refused.count(True) == 1 and refused[camera_board.STALL_STEPS]
+    assert estimator._explain(cells, shares, over=False).history() == [mine, reply]
+    # An arm reset (a registered move) forgets the refusal.
+    assert not estimator._refuse(np.zeros(9), True) and not estimator._refused
+    env.close()

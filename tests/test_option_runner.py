@@ -142,6 +142,30 @@ def test_sokoban_deviation_and_the_solving_push():
     assert runner.result.outcome is Outcome.REACHED
 
 
+def test_a_board_subgoal_planned_on_a_rewritten_estimate_deviates():
+    """Go: a move planned after the opponent's pass, then the estimate finds
+    the reply the pass stood for: the option fails as a deviation (the agent
+    plans again); the agent's own move extending the record does not."""
+    import pyspiel
+
+    state = pyspiel.load_game("go", {"board_size": 7}).new_initial_state()
+    for action in (24, 49):  # the agent's stone, the opponent's pass
+        state.apply_action(action)
+    subgoal = Subgoal(25, state.child(25))
+    adapter = FAMILIES["mujogo"]
+    expected = adapter.expected(state, subgoal)
+    revised = state.clone()
+    revised.undo_action(1, 49)  # the pass was a reply at 37
+    revised.apply_action(37)
+    assert adapter.deviates(expected, types.SimpleNamespace(state=revised))
+    assert not adapter.deviates(expected, types.SimpleNamespace(state=subgoal.state))
+    runner = OptionRunner(_Scripted(), adapter, check_every=1)
+    runner.start(None, subgoal, types.SimpleNamespace(state=state))
+    assert runner.act(dm_env.restart(None), types.SimpleNamespace(state=state)) is not None
+    assert runner.act(dm_env.transition(0.0, None), types.SimpleNamespace(state=revised)) is None
+    assert runner.result.outcome is Outcome.FAILED and runner.result.reason == "deviation"
+
+
 def _ball_case(skill_name):
     import envs
     from abstract_planners.sokoban_solver import SokobanSolverPlanner

@@ -76,14 +76,18 @@ class ArmSilhouette:
             )
         return None
 
+    def pinch(self, qpos) -> np.ndarray:
+        """The pinch site's world position (x, y, z; m) with the arm at ``qpos``."""
+        d = self.data
+        d.qpos[:] = np.asarray(qpos, float)
+        self._mujoco.mj_kinematics(self.model, d)
+        return d.site_xpos[self._pinch].copy()
+
     def touched_zone(self, qpos, zones) -> int | None:
         """The zone under the pinch site with the arm at ``qpos``: the index
         of the first of ``zones`` ((centre x, y), (half x, y)) holding its
         (x, y), else the nearest zone centre within 1.5 half-sizes, else None."""
-        d = self.data
-        d.qpos[:] = np.asarray(qpos, float)
-        self._mujoco.mj_kinematics(self.model, d)
-        xy = d.site_xpos[self._pinch][:2]
+        xy = self.pinch(qpos)[:2]
         for i, (centre, half) in enumerate(zones):
             if np.all(np.abs(xy - centre) <= half):
                 return i

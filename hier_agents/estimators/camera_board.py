@@ -35,7 +35,8 @@ a little), then keeping the moves already estimated (two orders of the
 same moves can give one board; the skill and the planner read the
 record), then fewest changed cells not read surely, then fewest moves.
 It becomes the anchor when it contradicts no cell read surely and every
-cell it changed was read surely, in this frame or in a later one before
+cell it changed (and, after the opponent's pass, every empty cell, where a
+reply could lie) was read surely, in this frame or in a later one before
 the next registered move (the board stands still in between: the opponent
 replies at once and the arm resets). When the last anchor's continuations
 contradict a cell read surely (a move taken for a pass, or for another
@@ -60,6 +61,14 @@ joints). The next search then ranks continuations that start with the
 move that touch plays (`envs.boards.games.BoardGame.zone_effects`) above
 the others, after what the cells show and the moves already estimated:
 the agent's own piece is often still hidden by the arm.
+
+Presses tell too: the hand standing blocked on one zone (`STALL_STEPS`)
+with no arm reset means the game refused that move (its point is taken,
+under the hand where the camera cannot see it). Until the next reset, a
+continuation in which that move is legal counts as contradicting a cell
+read surely, so an opponent's reply hidden by the hand is not kept for a
+pass. A pass is confirmed only once every empty cell, where a reply could
+lie, was read surely.
 
 Its camera (``env_overrides``): ``front_camera_2`` at `FRAME_SHAPE`, the
 other camera off, rendered only when read (``lazy_cameras=True``).
@@ -104,13 +113,24 @@ BACKTRACK = 3
 #: and looking `DEEP_MOVES` moves ahead.
 DEEP_BEAM = 16
 DEEP_MOVES = 16
+#: A move the game refused: the hand blocked over one zone, its pinch site
+#: within `PRESS_HEIGHT` (m) of the zone's top and moving less than
+#: `STALL_MOVE` (m) a step for `STALL_STEPS` steps in a row, with no arm
+#: reset (which follows a registered move). A press that misses goes down
+#: and up again; a blocked one stands on what holds it. The move is then not
+#: legal in the game as it stands (its point is taken), and the estimate
+#: must agree.
+PRESS_HEIGHT = 0.035
+STALL_MOVE = 0.002
+STALL_STEPS = 4
 
 
 def _confirmed(score) -> bool:
     """Whether a `BoardCameraEstimator._search` score explains the frame: not
-    unfinished at the game's end, and no cell read surely contradicted or
-    changed."""
-    return not score[0] and score[1] == 0 and score[5] == 0
+    unfinished at the game's end, no cell read surely contradicted, every
+    changed cell read surely, and after an opponent's pass every empty cell
+    read surely (a reply could lie there)."""
+    return not score[0] and score[1] == 0 and score[5] == 0 and score[6] == 0
 
 
 class BoardCameraEstimator(Estimator):
@@ -155,16 +175,23 @@ class BoardCameraEstimator(Estimator):
         self._since, self._qpos = self.frame_every, None  # the first estimate reads
         self._touched = None
         self._vouched = None
-        # Each touch zone's centre (x, y) and half-sizes: the points, then the pass areas.
+        # The zone the hand stands blocked on, its pinch site's height and for
+        # how many steps; the moves refused since the last arm reset.
+        self._press: tuple[int | None, float, int] = (None, 0.0, 0)
+        self._refused: set[int] = set()
+        # Each touch zone's centre (x, y) and half-sizes: the points, then the
+        # pass areas; and each zone's top (z).
         half = view.half
         self._zones = [
             (np.asarray(p[:2], float), np.array([half, half])) for p in description.point_positions
         ]
+        self._zone_top = [float(p[2]) for p in description.point_positions]
         if description.pass_action is not None:
             self._zones += [
                 (np.asarray(z["centre"][:2], float), np.asarray(z["half"], float))
                 for z in description.pass_zones.values()
             ]
+            self._zone_top += [float(z["centre"][2]) for z in description.pass_zones.values()]
         # The empty board's colours, per patch sample: learnt from the first
         # frame (the cells empty in the game's initial position, unless their
         # colour is far from their parity's median: a piece the opponent has
@@ -289,9 +316,11 @@ class BoardCameraEstimator(Estimator):
             # played it was under the hand before the jump.
             self._touched = self._view.silhouette.touched_zone(self._qpos, self._zones)
         self._qpos = qpos
+        refused = self._refuse(qpos, jumped)
         if (
             self._since < self.frame_every
             and not jumped
+            and not refused
             and not timestep.last()
             and self._belief.history() == self._anchor.history()
             and self._settled(self._belief)
@@ -311,6 +340,7 @@ class BoardCameraEstimator(Estimator):
             or not self._settled(self._belief)
             or (over and not self._belief.is_terminal())
             or self._touched is not None
+            or refused
         ):
             self._belief = self._explain(cells, np.where(hidden[:, None], np.nan, fractions), over)
             self._touched = None
@@ -321,7 +351,9 @@ class BoardCameraEstimator(Estimator):
             # surely in any frame since the estimate was made vouch for it.
             self._vouched = seen if self._vouched is None else self._vouched | seen
             changed = game.players(self._anchor) != players
-            if not np.any(changed & ~self._vouched):
+            if not np.any(changed & ~self._vouched) and not self._unseen_replies(
+                self._anchor, self._belief, players, self._vouched
+            ):
                 self._confirm(self._belief)
         if (
             self._belief.history() == self._anchor.history()
@@ -334,6 +366,35 @@ class BoardCameraEstimator(Estimator):
             )
         self._selected = self._selection(selection, hidden)
         return self._scene(qpos, obs)
+
+    def _refuse(self, qpos, jumped: bool) -> bool:
+        """Follows presses (see `STALL_STEPS`); True when the press at
+        ``qpos`` has just shown the game refused a move the estimate allows
+        (the move joins ``_refused`` until the next arm reset: ``jumped``).
+        Only games whose every touch plays a move (not a piece's selection)."""
+        if jumped:
+            self._press, self._refused = (None, 0.0, 0), set()
+            return False
+        game, belief = self._game, self._belief
+        if game.rules.input == "move":
+            return False
+        silhouette = self._view.silhouette
+        zone = silhouette.touched_zone(qpos, self._zones)
+        height = float(silhouette.pinch(qpos)[2])
+        if zone is not None and height > self._zone_top[zone] + PRESS_HEIGHT:
+            zone = None
+        last, last_height, steps = self._press
+        still = zone is not None and zone == last and abs(height - last_height) < STALL_MOVE
+        self._press = (zone, height, steps + 1 if still else 0)
+        if zone is None or self._press[2] != STALL_STEPS:
+            return False
+        if belief.is_terminal() or belief.current_player() != self._agent:
+            return False
+        action = int(game.zone_effects(belief, self._selected)[0][min(zone, game.num_zones - 1)])
+        if action < 0 or action == game.pass_action or action not in belief.legal_actions():
+            return False
+        self._refused.add(action)
+        return True
 
     def _scene(self, qpos, obs) -> ArmScene:
         state = self._belief.clone()
@@ -379,7 +440,7 @@ class BoardCameraEstimator(Estimator):
             state, score = self._search(self._anchor, cells, fractions, over, DEEP_MOVES, DEEP_BEAM)
             tried.append((score, 0, state))
         score, back, state = min(tried, key=lambda t: (t[0], t[1]))
-        if not score[0] and score[1] == 0 and score[5] == 0:
+        if _confirmed(score):
             self._confirm(state)
         return state
 
@@ -414,6 +475,7 @@ class BoardCameraEstimator(Estimator):
             beam,
             cells.tobytes(),
             self._touched,
+            tuple(sorted(self._refused)),
             self._selected,
             np.round(np.nan_to_num(fractions, nan=-1.0) * 20).astype(np.int8).tobytes(),
             over,
@@ -437,7 +499,7 @@ class BoardCameraEstimator(Estimator):
                 break
             frontier = self._beam(children, beam)
         if best is None:  # nothing settled within reach: keep the estimate, unconfirmed
-            result = (self._belief.clone(), (True, len(cells), 0.0, 0, 1, len(cells)))
+            result = (self._belief.clone(), (True, len(cells), 0.0, 0, 1, len(cells), 0))
         else:
             result = (best[2], best[0])
         if len(self._cache) > 256:
@@ -448,11 +510,14 @@ class BoardCameraEstimator(Estimator):
     def _scorer(self, anchor, cells, fractions, over: bool):
         """The score `_search` ranks a continuation ``state`` of ``anchor`` by,
         lower is better: (not finished though the game is over, cells read
-        surely and contradicted, how far the visible cells' colour shares are
+        surely and contradicted (and moves the game refused, `_refuse`, that
+        the state allows), how far the visible cells' colour shares are
         from the state's pieces, rewriting moves of the current estimate (two
         orders of the same moves can give one board), not starting with the
         move the touch before an arm reset played, changed cells not read
-        surely)."""
+        surely, after an opponent's pass the empty cells not read surely
+        (`_unseen_replies`): only a tie-break, it holds back the pass's
+        confirmation, not the pass)."""
         game = self._game
         visible = ~np.isnan(fractions[:, 0])
         seen = cells != UNSEEN
@@ -465,10 +530,21 @@ class BoardCameraEstimator(Estimator):
             played = int(action) if action >= 0 else None
         start_len = len(anchor.history())
         believed = list(self._belief.history())
+        refused = tuple(self._refused)
+        by_point = game.rules.input == "point"
 
         def score(state):
             players = game.players(state)
             wrong = int(np.count_nonzero(players[seen] != cells[seen]))
+            if refused:  # the game runs, and refused them: as cells read surely
+                if state.is_terminal() or state.current_player() != self._agent:
+                    wrong += len(refused)
+                else:
+                    legal = set(state.legal_actions())
+                    wrong += sum(action in legal for action in refused)
+                    if by_point:  # no piece of the agent's is put down without an arm reset
+                        own = (players == self._agent) & (base != self._agent)
+                        wrong += sum(bool(own[a]) for a in refused if a < len(own))
             pieces = np.stack([players[visible] == 0, players[visible] == 1], axis=1)
             soft = round(float(np.abs(shares - pieces).sum()), 3)
             history = state.history()
@@ -476,11 +552,36 @@ class BoardCameraEstimator(Estimator):
                 len(history) <= start_len or history[start_len] != played
             )
             blind = int(np.count_nonzero((players != base) & ~seen))
+            replies = self._unseen_replies(anchor, state, players, seen)
             common = min(len(history), len(believed))
             rewrite = history[:common] != believed[:common]
-            return (over and not state.is_terminal()), wrong, soft, int(rewrite), int(miss), blind
+            return (
+                (over and not state.is_terminal()),
+                wrong,
+                soft,
+                int(rewrite),
+                int(miss),
+                blind,
+                replies,
+            )
 
         return score
+
+    def _unseen_replies(self, anchor, state, players, seen) -> int:
+        """After an opponent's pass since ``anchor`` in ``state`` (games with
+        a pass area: Go), the empty cells of ``state`` (``players``) not in
+        ``seen``: a reply could lie there, so the pass is not yet told from
+        a move; else 0."""
+        pass_action = self._game.pass_action
+        tail = state.history()[len(anchor.history()) :]
+        if pass_action is None or pass_action not in tail:
+            return 0
+        replay = anchor.clone()
+        for action in tail:
+            if action == pass_action and replay.current_player() != self._agent:
+                return int(np.count_nonzero((players < 0) & ~seen))
+            replay.apply_action(action)
+        return 0
 
     def _expand(self, frontier, score) -> list:
         """Every legal move's child of the unfinished states of ``frontier``,

@@ -87,7 +87,7 @@ class FamilyAdapter:
 
     # -- the option runner and the agent --------------------------------------
 
-    def expected(self, state, subgoal) -> frozenset | None:
+    def expected(self, state, subgoal) -> object | None:
         """What the deviation check compares against (None: no check)."""
         return None
 
@@ -394,6 +394,16 @@ class BoardAdapter(FamilyAdapter):
         action = next((a for a in points if not _own_eye(game, players, mover, a)), points[0])
         info = dict(subgoal.info, replaced_pass=True)
         return Subgoal(action, state.child(action), info=info)
+
+    def expected(self, state, subgoal) -> tuple:
+        """The moves the subgoal was planned after (the estimate's record)."""
+        return tuple(state.history())
+
+    def deviates(self, expected, scene) -> bool:
+        """True when the estimate has since rewritten one of those moves (an
+        opponent's reply first taken for a pass, or for another move): the
+        subgoal was planned on a board that was not the game's."""
+        return tuple(scene.state.history()[: len(expected)]) != expected
 
     def spaces(self, description, state):
         game = state.get_game()

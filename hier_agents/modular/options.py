@@ -29,7 +29,8 @@ the option's last action produced):
 4. ``t_abs`` control steps taken -> **cut off**;
 5. the family adapter's deviation check (every ``check_every`` steps; Sokoban:
    the boxes are neither where the option started nor where its moves put
-   them) -> **failed** (reason ``"deviation"``).
+   them; board games: the estimate rewrote a move the subgoal was planned
+   after) -> **failed** (reason ``"deviation"``).
 
 ``interrupt(reason)`` ends a running option from outside (**interrupted**).
 
