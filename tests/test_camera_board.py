@@ -47,16 +47,19 @@ def test_the_camera_estimator_needs_no_record_and_asks_for_its_camera():
     env.close()
 
 
-@pytest.mark.parametrize("name", BOARDS)
-def test_the_first_frame_reads_as_the_referees_board(name, request):
+@pytest.mark.parametrize("player", [0, 1], ids=["first", "second"])
+@pytest.mark.parametrize("name", ["mujoxo/optimal", *BOARDS])
+def test_the_first_frame_reads_as_the_referees_board(name, player, request):
     """Every cell read (not under the arm, not unsure) is the referee's, most
-    cells are read, and as second player the first estimate already holds
-    the opponent's first move (othello's and the move games' initial pieces
-    are drawn from the first frame)."""
+    cells are read, and the first estimate is the referee's game: as second
+    player it already holds the opponent's first move (othello's and the
+    move games' initial pieces are drawn from the first frame)."""
     if name.startswith("mujogo"):  # the opponent is GNU Go
         request.getfixturevalue("gnugo")
     env, view = _env(
-        name, agent_player=1, **({"opponent": "random"} if name.startswith("mujoboard") else {})
+        name,
+        agent_player=player,
+        **({"opponent": "random"} if name.startswith("mujoboard") else {}),
     )
     timestep = view.reset()
     description = view.description()
@@ -68,8 +71,8 @@ def test_the_first_frame_reads_as_the_referees_board(name, request):
     assert seen.mean() > 0.7, f"only {seen.sum()} of {len(cells)} cells read"
     np.testing.assert_array_equal(cells[seen], truth[seen])
     scene = estimator.estimate(timestep)
-    assert len(env.task.moves) >= 1 and _right(env, scene)
-    assert scene.agent == 1 and scene.moves == tuple(env.task.state.history())
+    assert len(env.task.moves) >= player and _right(env, scene)
+    assert scene.agent == player and scene.moves == tuple(env.task.state.history())
     env.close()
 
 
