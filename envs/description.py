@@ -263,6 +263,8 @@ class BoardDescription:
       control_timestep, time_limit_steps: as in `MujobanDescription`.
       arm: the arm's kinematic model.
       front_camera: the front camera (``shape`` None when off).
+      shadow_light: the world (x, y, z) of a point light that casts shadows
+        (the arm's fall on the board), or None when no light does.
       front_camera_2: the original code's second, higher view, the whole
         board in view (``shape`` None when off, the default).
       rows, cols: the board's points per column and per row (``board_size``
@@ -305,6 +307,7 @@ class BoardDescription:
     front_camera_2: CameraDescription | None = None
     piece_radius: float = 0.0
     piece_spread: float = 0.0
+    shadow_light: tuple[float, float, float] | None = None
 
     def point_position(self, action: int) -> np.ndarray:
         """World (x, y, z) of board point ``action`` on the board's top."""

@@ -138,6 +138,35 @@ def test_the_arm_hides_the_cells_under_the_hand():
     env.close()
 
 
+def test_under_a_light_that_casts_shadows_the_arms_shadow_hides_cells_too():
+    """MuJoXO with the original's shadows: the description names the light,
+    and the cells the arm's shadow falls on (the light straight above the
+    board, the shadow under the arm) are hidden as well as those under it."""
+    from hier_agents.estimators.arm_silhouette import ArmSilhouette
+
+    env, view = _env("mujoxo/optimal", shadows=True)
+    timestep = view.reset()
+    description = view.description()
+    assert description.shadow_light is not None
+    plain_env, plain_view = _env("mujoxo/optimal")
+    assert plain_view.description().shadow_light is None
+    plain_env.close()
+    board = BoardView(
+        description, BoardGame.from_description(description), description.front_camera_2
+    )
+    qpos = timestep.observation["arm/joints_pos"]
+    plain = ArmSilhouette(description.arm, description.front_camera_2, board.shape)
+    shaded = board.silhouette.hidden(qpos, board.centres, board.radius)
+    assert len(board.silhouette.outlines(qpos)) > len(plain.outlines(qpos))
+    assert np.all(shaded >= plain.hidden(qpos, board.centres, board.radius))
+    # A point on the board straight below the light, in line with a geom:
+    # the shadow's centre is drawn where the light casts that geom.
+    geom = board.silhouette._shadow(np.array([[0.0, 0.0, 0.5], [0.01, 0.0, 0.5], [0.0, 0.01, 0.5]]))
+    np.testing.assert_allclose(geom[:, 2], board.silhouette.plane_z)
+    np.testing.assert_allclose(geom[0, :2], [0.0, 0.0])
+    env.close()
+
+
 @pytest.mark.parametrize(
     "name", ["mujoboard/hex-7x7", "mujoboard/othello-8x8", "mujoboard/breakthrough-6x6"]
 )

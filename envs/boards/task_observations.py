@@ -85,6 +85,7 @@ class ObservationsMixin:
             piece_spread=float(
                 max(self._piece_noise, float(game.rules.input == "point")) * arena.pad_half
             ),
+            shadow_light=arena.shadow_light,
         )
 
     def _describe_arm(self):

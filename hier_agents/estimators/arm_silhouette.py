@@ -2,7 +2,8 @@
 
 The arm's own kinematic model (`envs.description.ArmDescription`) is posed
 at observed joints; each of its geoms' convex hulls is projected with a
-described camera (`envs.description.CameraDescription`). Used by the board
+described camera (`envs.description.CameraDescription`), and, under a light
+that casts shadows, so is each geom's shadow on the board's plane. Used by the board
 games' camera estimator (`hier_agents.estimators.board_view`).
 """
 
@@ -22,9 +23,11 @@ class ArmSilhouette:
       arm: the arm's description (its model compiles on its own).
       camera: the `envs.description.CameraDescription` of the frames.
       shape: (height, width) of the frames.
+      light: world (x, y, z) of a point light casting shadows, or None.
+      plane_z: the height (m) of the plane the shadows fall on (the board's top).
     """
 
-    def __init__(self, arm, camera, shape) -> None:
+    def __init__(self, arm, camera, shape, light=None, plane_z: float = 0.0) -> None:
         import mujoco
         from scipy.spatial import ConvexHull
 
@@ -34,6 +37,8 @@ class ArmSilhouette:
         self.data = mujoco.MjData(self.model)
         self._pinch = self.model.site(arm.pinch_site).id
         self.camera, self.shape = camera, tuple(shape)
+        self.light = None if light is None else np.asarray(light, float)
+        self.plane_z = float(plane_z)
         m = self.model
         self._geoms, self._local = [], []
         for g in range(m.ngeom):
@@ -96,21 +101,39 @@ class ArmSilhouette:
         return best if dist[best] <= 1.5 else None
 
     def outlines(self, qpos) -> list[np.ndarray]:
-        """Per geom, its projected outline: (k, 2) pixel (row, col) vertices of
-        a convex polygon, counter-clockwise in (col, row)."""
+        """Per geom, its projected outline, and with a ``light`` its shadow's:
+        (k, 2) pixel (row, col) vertices of a convex polygon,
+        counter-clockwise in (col, row)."""
         m, d = self.model, self.data
         d.qpos[:] = np.asarray(qpos, float)
         self._mujoco.mj_kinematics(m, d)
         out = []
         for g, local in zip(self._geoms, self._local):
             world = d.geom_xpos[g] + local @ d.geom_xmat[g].reshape(3, 3).T
-            px = self.camera.project(world, self.shape)
-            try:
-                hull = self._hull2d(px[:, ::-1])
-            except Exception:  # a degenerate projection (edge-on): skip it
-                continue
-            out.append(px[hull.vertices])
+            shapes = [world]
+            if self.light is not None:
+                shapes.append(self._shadow(world))
+            for points in shapes:
+                if len(points) < 3:
+                    continue
+                px = self.camera.project(points, self.shape)
+                try:
+                    hull = self._hull2d(px[:, ::-1])
+                except Exception:  # a degenerate projection (edge-on): skip it
+                    continue
+                out.append(px[hull.vertices])
         return out
+
+    def _shadow(self, world: np.ndarray) -> np.ndarray:
+        """Where the light casts the points ``world`` (k, 3) on the plane
+        ``plane_z``: the central projection from the light (points at or
+        above the light, or below the plane, cast none)."""
+        light = self.light
+        assert light is not None  # called only with a light
+        above = (world[:, 2] < light[2] - 1e-6) & (world[:, 2] >= self.plane_z)
+        points = world[above]
+        t = (self.plane_z - light[2]) / (points[:, 2] - light[2])
+        return light + t[:, None] * (points - light)
 
     def hidden(self, qpos, centres, radius) -> np.ndarray:
         """(n,) bool: which discs (``centres`` (n, 2) pixel row, col and

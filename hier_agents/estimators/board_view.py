@@ -169,7 +169,13 @@ class BoardView:
         self.row = np.arange(n) // description.cols
         self.parity = (self.row + np.arange(n) % description.cols) % 2
         self.selection_rgb = np.array(SELECTION_RGBA[:3], float) * 255.0
-        self.silhouette = ArmSilhouette(description.arm, camera, self.shape)
+        self.silhouette = ArmSilhouette(
+            description.arm,
+            camera,
+            self.shape,
+            light=getattr(description, "shadow_light", None),
+            plane_z=float(np.median(points[:, 2])),
+        )
 
     def clear(self, qpos, cells=None) -> np.ndarray:
         """(n, k) bool: the patch samples that show the board, not the arm

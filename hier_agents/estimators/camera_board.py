@@ -152,14 +152,14 @@ class BoardCameraEstimator(Estimator):
         if not isinstance(frame_every, int) or isinstance(frame_every, bool) or frame_every < 1:
             raise ValueError(f"frame_every must be an integer >= 1, got {frame_every!r}")
         self.frame_every = frame_every
-        self._views: dict[tuple[BoardGame, object], BoardView] = {}
+        self._views: dict[tuple[BoardGame, object, object], BoardView] = {}
         self._view: BoardView | None = None
         self.searches = 0
 
     def reset(self, description, timestep) -> None:
         game = BoardGame.from_description(description)
         camera = getattr(description, CAMERA, None)
-        key = (game, camera)
+        key = (game, camera, getattr(description, "shadow_light", None))
         if key not in self._views:
             self._views[key] = BoardView(description, game, camera)
         view = self._view = self._views[key]
@@ -509,7 +509,7 @@ class BoardCameraEstimator(Estimator):
 
     def _scorer(self, anchor, cells, fractions, over: bool):
         """The score `_search` ranks a continuation ``state`` of ``anchor`` by,
-        lower is better: (not finished though the game is over, cells read
+        lower is better: (finished or not unlike the episode, cells read
         surely and contradicted (and moves the game refused, `_refuse`, that
         the state allows), how far the visible cells' colour shares are
         from the state's pieces, rewriting moves of the current estimate (two
@@ -556,7 +556,7 @@ class BoardCameraEstimator(Estimator):
             common = min(len(history), len(believed))
             rewrite = history[:common] != believed[:common]
             return (
-                (over and not state.is_terminal()),
+                over != state.is_terminal(),  # the game ends when the episode does
                 wrong,
                 soft,
                 int(rewrite),
