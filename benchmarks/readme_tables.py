@@ -697,6 +697,31 @@ def original_env(results: Path) -> list[str]:
     return lines
 
 
+@table("original-boards")
+def original_boards(results: Path) -> list[str]:
+    """Our default camera agent on the original MuJoXO and MuJoGo
+    (`benchmarks/original_boards.py`)."""
+    d = _load(results / "original_boards.json")
+    lines = [
+        "| the original | its looks | games | agent (observation-only) | won / drawn / lost "
+        "| not lost [95% CI] | its estimates right | mean steps |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- |",
+    ]
+    for run in d["runs"]:
+        s = run["summary"]
+        other = s["games"] - s["win"] - s["draw"] - s["loss"]
+        looks = "as it is (shadows)" if run["shadows"] else "shadows off"
+        lines.append(
+            f"| `{run['original_task']}` | {looks} | {s['games']} | camera estimator, "
+            f"{'minimax' if run['game'] == 'xo' else 'gnugo'}, arm-touch "
+            f"| {s['win']} / {s['draw']} / {s['loss']}"
+            f"{f' (+{other} unfinished)' if other else ''} "
+            f"| {_ci(s['not_lost_rate'], s['not_lost_interval'])} "
+            f"| {100 * s['estimate_board_accuracy']:.1f}% | {s['mean_steps']:.0f} |"
+        )
+    return lines
+
+
 @table("estimator-accuracy")
 def estimator_accuracy(results: Path) -> list[str]:
     """`benchmarks/estimator_accuracy.py`: whole-grid accuracy and errors per estimator."""

@@ -378,6 +378,7 @@ class BoardCameraEstimator(Estimator):
         game, belief = self._game, self._belief
         if game.rules.input == "move":
             return False
+        assert self._view is not None  # set by `reset`
         silhouette = self._view.silhouette
         zone = silhouette.touched_zone(qpos, self._zones)
         height = float(silhouette.pinch(qpos)[2])
