@@ -155,7 +155,11 @@ def test_base_roles_have_a_harmless_close():
 
 # -- runs that raise at every stage leave no process ---------------------------
 
-GO_RUN = dict(episodes=2, seed=0, progress=False, env_options={"time_limit": 2.0})
+#: Failures of the planner, the skill and the engine, not of perception: the
+#: record estimator (the fastest).
+GO_RUN = dict(
+    episodes=2, seed=0, progress=False, env_options={"time_limit": 2.0}, estimator="board"
+)
 
 
 def _raise(exc_type, text):
@@ -239,7 +243,12 @@ def test_a_real_gnugo_run_with_a_failing_skill_leaves_no_gnugo(gnugo, no_finalis
 
     monkeypatch.setattr(ArmTouchSkill, "act", patched)
     summary = run_lib.run(
-        "mujogo/7x7", episodes=1, seed=0, progress=False, env_options={"time_limit": 6.0}
+        "mujogo/7x7",
+        episodes=1,
+        seed=0,
+        progress=False,
+        estimator="board",  # failures of the engine and the skill, not of perception
+        env_options={"time_limit": 6.0},
     )
     assert summary["rows"][0]["error"] == "RuntimeError: injected skill"
     assert_no_new_children(no_finalisers)
@@ -273,6 +282,7 @@ def test_a_run_counts_an_opponent_resignation_as_a_win(no_finalisers):
         seed=0,
         progress=False,
         planner="random",
+        estimator="board",  # the engine's faults, not perception: the fastest estimator
         env_options={"gnugo_command": fake_engine("resign")},
     )
     row = summary["rows"][0]
@@ -404,6 +414,7 @@ def test_an_engine_that_dies_once_mid_game_is_replayed_and_the_run_goes_on(tmp_p
         seed=0,
         progress=False,
         planner="random",
+        estimator="board",  # the engine's faults, not perception: the fastest estimator
         env_options={"gnugo_command": fake_engine(f"die-once:{marker}"), "time_limit": 4.0},
     )
     assert marker.exists()  # the engine did die
@@ -422,6 +433,7 @@ def test_an_engine_that_hangs_fails_that_episode_and_the_next_gets_a_new_engine(
         seed=0,
         progress=False,
         planner="random",
+        estimator="board",  # the engine's faults, not perception: the fastest estimator
         env_options={
             "gnugo_command": fake_engine(f"hang-once:{marker}"),
             "gnugo_timeout": 1.0,
