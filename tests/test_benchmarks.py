@@ -5,6 +5,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -134,6 +136,7 @@ def test_sokoban_solver_benchmark_with_the_time_planner_never_estimates_slower(t
     )
 
 
+@pytest.mark.slow
 def test_render_profile_rows_for_every_camera(tmp_path):
     out = tmp_path / "profile.json"
     subprocess.run(

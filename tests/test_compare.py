@@ -1040,6 +1040,7 @@ def test_shards_cover_every_episode_once_in_order():
             assert all(pieces)
 
 
+@pytest.mark.slow
 def test_two_workers_give_the_rows_of_one(tmp_path):
     one = run("mujoban/level1", 6, 3, agent="random:10", progress=False)
     two = run("mujoban/level1", 6, 3, agent="random:10", progress=False, workers=2)

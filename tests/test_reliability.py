@@ -447,6 +447,7 @@ def test_an_engine_that_hangs_fails_that_episode_and_the_next_gets_a_new_engine(
     assert_no_new_children(no_finalisers)
 
 
+@pytest.mark.slow
 def test_the_soak_benchmark_samples_and_closes_everything(tmp_path, gnugo):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
     import soak

@@ -87,6 +87,7 @@ def test_passes_take_that_many_gradient_steps_on_each_batch(tmp_path, monkeypatc
     assert steps == [False, False, True] * 2
 
 
+@pytest.mark.slow
 def test_a_resumed_run_continues_from_its_step_count(tmp_path):
     train(TrainConfig(condition="vanilla", steps=20, logdir=str(tmp_path), **TINY))
     first = load_checkpoint(tmp_path)
@@ -161,6 +162,7 @@ def test_the_checkpoint_plays_through_hier_agents_run(tmp_path, capsys):
     assert "checkpoint:" in capsys.readouterr().out
 
 
+@pytest.mark.slow
 def test_a_state_input_run_trains_resumes_only_as_state_and_plays(tmp_path):
     logdir = tmp_path / "run"
     config = dict(condition="vanilla", logdir=str(logdir), state=True, state_channels=8, **TINY)

@@ -81,6 +81,7 @@ def test_a_budget_below_one_batch_trains_one_smaller_batch_that_moves_the_policy
     assert len(calls) == 1 and calls[0]["changed"] == {"mean_head.weight", "mean_head.bias"}
 
 
+@pytest.mark.slow
 def test_the_run_records_what_the_agent_observed_and_play_reports_it(tiny_impala_run, tmp_path):
     from envs.mujoban.levels import BOXOBAN_DIR
 
