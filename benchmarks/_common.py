@@ -35,6 +35,7 @@ __all__ = [
     "run_in_tree",
     "baseline_worktree",
     "remove_worktree",
+    "described_camera",
 ]
 
 
@@ -123,4 +124,31 @@ def remove_worktree(path: Path) -> None:
     root = Path(__file__).resolve().parents[1]
     subprocess.run(
         ["git", "-C", str(root), "worktree", "remove", "--force", str(path)], capture_output=True
+    )
+
+
+def described_camera(physics, element, name: str, shape):
+    """The `envs.description.CameraDescription` of a camera of a compiled
+    model other than ours (the original environments'): its world pose and
+    field of view as ``physics`` holds them after a forward pass.
+
+    Args:
+      physics: the environment's `dm_control.mjcf.Physics`.
+      element: the camera's MJCF element.
+      name: the observation key of its frames.
+      shape: (height, width) of the frames read, or None.
+    Returns the description, with the model's offscreen multisamples."""
+    import numpy as np
+
+    from envs.description import CameraDescription
+
+    cam = physics.bind(element)
+    xmat = np.asarray(cam.xmat).reshape(3, 3)
+    return CameraDescription(
+        name,
+        tuple(float(v) for v in cam.xpos),
+        tuple(float(v) for v in np.r_[xmat[:, 0], xmat[:, 1]]),
+        float(cam.fovy),
+        shape,
+        multisamples=int(physics.model.vis.quality.offsamples),
     )

@@ -48,17 +48,13 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from _common import cli, make_parser, prog, write_json  # noqa: E402
+from _common import cli, described_camera, make_parser, prog, write_json  # noqa: E402
 
 import numpy as np  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
 from envs.boards.games import BoardGame  # noqa: E402
-from envs.description import (  # noqa: E402
-    ArmDescription,
-    BoardDescription,
-    CameraDescription,
-)
+from envs.description import ArmDescription, BoardDescription  # noqa: E402
 from hier_agents.modular.components import make_agent  # noqa: E402
 from hier_agents.stats import wilson_interval  # noqa: E402
 
@@ -210,19 +206,6 @@ def _arm_description(env) -> ArmDescription:
     )
 
 
-def _camera(physics, element, name: str, shape) -> CameraDescription:
-    cam = physics.bind(element)
-    xmat = np.asarray(cam.xmat).reshape(3, 3)
-    return CameraDescription(
-        name,
-        tuple(float(v) for v in cam.xpos),
-        tuple(float(v) for v in np.r_[xmat[:, 0], xmat[:, 1]]),
-        float(cam.fovy),
-        shape,
-        multisamples=int(physics.model.vis.quality.offsamples),
-    )
-
-
 def original_description(env, time_limit: float) -> BoardDescription:
     """The public `BoardDescription` of an `original_env`, read from the
     original's compiled model and constants (not from ours): each point is
@@ -280,8 +263,8 @@ def original_description(env, time_limit: float) -> BoardDescription:
         control_timestep=control,
         time_limit_steps=int(round(time_limit / control)),
         arm=_arm_description(env),
-        front_camera=_camera(physics, arena.front_camera, "front_camera", None),
-        front_camera_2=_camera(physics, arena.front_camera_2, CAMERA, FRAME),
+        front_camera=described_camera(physics, arena.front_camera, "front_camera", None),
+        front_camera_2=described_camera(physics, arena.front_camera_2, CAMERA, FRAME),
         rows=int(rows),
         cols=int(cols),
         input="point",

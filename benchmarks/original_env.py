@@ -38,13 +38,13 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from _common import env_cli, cli, make_parser, prog, write_json  # noqa: E402
+from _common import described_camera, env_cli, cli, make_parser, prog, write_json  # noqa: E402
 
 import numpy as np  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
 import envs  # noqa: E402
-from envs.description import CameraDescription, MujobanDescription, MujobanLooks  # noqa: E402
+from envs.description import MujobanDescription, MujobanLooks  # noqa: E402
 from envs.mujoban.levels import BOXOBAN_DIR, read_levels, write_levels  # noqa: E402
 from hier_agents.boundary import PRIVILEGED_OBSERVATIONS  # noqa: E402
 from hier_agents.modular.components import make_agent  # noqa: E402
@@ -101,17 +101,13 @@ def original_description(env, pegs: bool) -> MujobanDescription:
     constants (not from ours)."""
     _, _, original, _ = _import_original()
     physics, task = env.physics, env.task
-    cam = physics.bind(task._arena.top_camera)  # pylint: disable=protected-access
-    maze = task._maze  # pylint: disable=protected-access
-    xmat = np.asarray(cam.xmat).reshape(3, 3)
-    top = CameraDescription(
+    top = described_camera(
+        physics,
+        task._arena.top_camera,
         "top_camera",
-        tuple(float(v) for v in cam.xpos),
-        tuple(float(v) for v in np.r_[xmat[:, 0], xmat[:, 1]]),
-        float(cam.fovy),
-        FRAME,
-        multisamples=int(physics.model.vis.quality.offsamples),
+        FRAME,  # pylint: disable=protected-access
     )
+    maze = task._maze  # pylint: disable=protected-access
     ears = [
         site
         for site in task._walker.mjcf_model.find_all("site")  # pylint: disable=protected-access

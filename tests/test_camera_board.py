@@ -369,37 +369,67 @@ def test_a_pass_is_confirmed_only_when_every_empty_cell_was_read(request):
     env.close()
 
 
+def test_touch_zones_see_a_blocked_press_once_and_never_a_press_that_moves():
+    """`TouchZones`: the zone under a point (its square, else the nearest
+    within 1.5 half-sizes); a hand standing still just above a zone's top is
+    blocked once, at exactly `STALL_STEPS` steps; one that goes down and up,
+    or stands higher than `PRESS_HEIGHT`, never is; `reset` starts again."""
+    from types import SimpleNamespace
+
+    from hier_agents.estimators.presses import PRESS_HEIGHT, STALL_STEPS, TouchZones
+
+    description = SimpleNamespace(
+        point_positions=[(0.0, 0.0, 0.1), (0.1, 0.0, 0.1)],
+        pass_action=2,
+        pass_zones={"left": {"centre": (-0.2, 0.0, 0.05), "half": (0.03, 0.1)}},
+    )
+    at = {"point": np.zeros(3)}
+    zones = TouchZones(description, 0.04, lambda qpos: at["point"])
+    assert zones.under((0.03, 0.03)) == 0 and zones.under((0.1, -0.039)) == 1
+    assert zones.under((-0.21, 0.09, 0.0)) == 2  # the pass area, then its number
+    assert zones.under((0.05 + 0.001, 0.0)) == 1  # between squares: the nearest
+    assert zones.under((0.0, 0.07)) is None  # beyond 1.5 half-sizes of every zone
+
+    def follow(heights, x=0.1):
+        out = []
+        for z in heights:
+            at["point"] = np.array([x, 0.0, z])
+            out.append(zones.blocked(None))
+        return out
+
+    still = follow([0.1 + 0.01] * (STALL_STEPS + 3))
+    assert [i for i, z in enumerate(still) if z is not None] == [STALL_STEPS] and still[
+        STALL_STEPS
+    ] == 1
+    zones.reset()
+    bounce = [0.14, 0.12, 0.11, 0.105, 0.11, 0.12, 0.14, 0.16]
+    assert follow(bounce) == [None] * len(bounce)
+    high = 0.1 + PRESS_HEIGHT + 0.005
+    assert follow([high] * (STALL_STEPS + 3)) == [None] * (STALL_STEPS + 3)
+    assert zones.touched(None) == 1
+
+
 def test_a_press_the_game_refused_shows_the_reply_under_the_hand(request):
     """Go: the opponent's reply hidden under the hand is first taken for a
     pass; the hand standing blocked on that point, with no arm reset, says
     the game refused the move there: the reply is found."""
-    from hier_agents.estimators import camera_board
+    from hier_agents.estimators import presses
 
     env, estimator, game = _go_estimator(request)
     mine, reply = 24, 37
     cells, shares = _frame(game, {mine: 0}, hidden=[reply])
     assert estimator._explain(cells, shares, over=False).history() == [mine, game.pass_action]
     estimator._belief = estimator._explain(cells, shares, over=False)
-    top = estimator._zone_top[reply]
-
-    class Blocked:
-        """The hand over ``reply``, standing still just above its top."""
-
-        def touched_zone(self, qpos, zones):
-            return reply
-
-        def pinch(self, qpos):
-            return np.array([0.0, 0.0, top + 0.01])
-
-    real = estimator._view.silhouette
-    estimator._view.silhouette = Blocked()
+    zones = estimator._zones
+    # The hand over ``reply``, standing still just above its top.
+    over_reply = np.r_[zones.centres[reply], zones.tops[reply] + 0.01]
+    real = zones.pinch
+    zones.pinch = lambda qpos: over_reply
     try:
-        refused = [
-            estimator._refuse(np.zeros(9), False) for _ in range(camera_board.STALL_STEPS + 2)
-        ]
+        refused = [estimator._refuse(np.zeros(9), False) for _ in range(presses.STALL_STEPS + 2)]
     finally:
-        estimator._view.silhouette = real
-    assert refused.count(True) == 1 and refused[camera_board.STALL_STEPS]
+        zones.pinch = real
+    assert refused.count(True) == 1 and refused[presses.STALL_STEPS]
     assert estimator._explain(cells, shares, over=False).history() == [mine, reply]
     # An arm reset (a registered move) forgets the refusal.
     assert not estimator._refuse(np.zeros(9), True) and not estimator._refused

@@ -88,18 +88,6 @@ class ArmSilhouette:
         self._mujoco.mj_kinematics(self.model, d)
         return d.site_xpos[self._pinch].copy()
 
-    def touched_zone(self, qpos, zones) -> int | None:
-        """The zone under the pinch site with the arm at ``qpos``: the index
-        of the first of ``zones`` ((centre x, y), (half x, y)) holding its
-        (x, y), else the nearest zone centre within 1.5 half-sizes, else None."""
-        xy = self.pinch(qpos)[:2]
-        for i, (centre, half) in enumerate(zones):
-            if np.all(np.abs(xy - centre) <= half):
-                return i
-        dist = [np.max(np.abs(xy - c) / h) for c, h in zones]
-        best = int(np.argmin(dist))
-        return best if dist[best] <= 1.5 else None
-
     def outlines(self, qpos) -> list[np.ndarray]:
         """Per geom, its projected outline, and with a ``light`` its shadow's:
         (k, 2) pixel (row, col) vertices of a convex polygon,

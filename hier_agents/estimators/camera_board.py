@@ -62,12 +62,12 @@ move that touch plays (`envs.boards.games.BoardGame.zone_effects`) above
 the others, after what the cells show and the moves already estimated:
 the agent's own piece is often still hidden by the arm.
 
-Presses tell too: the hand standing blocked on one zone (`STALL_STEPS`)
-with no arm reset means the game refused that move (its point is taken,
-under the hand where the camera cannot see it). Until the next reset, a
-continuation in which that move is legal counts as contradicting a cell
-read surely, so an opponent's reply hidden by the hand is not kept for a
-pass. A pass is confirmed only once every empty cell, where a reply could
+Presses tell too: the hand standing blocked on one zone with no arm reset
+(`hier_agents.estimators.presses`) means the game refused that move (its
+point is taken, under the hand where the camera cannot see it). Until the
+next reset, a continuation in which that move is legal counts as
+contradicting a cell read surely, so an opponent's reply hidden by the
+hand is not kept for a pass. A pass is confirmed only once every empty cell, where a reply could
 lie, was read surely.
 
 Its camera (``env_overrides``): ``front_camera_2`` at `FRAME_SHAPE`, the
@@ -85,6 +85,7 @@ from envs.boards.games import BoardGame
 from hier_agents.estimators.base import Estimator
 from hier_agents.estimators.board import scalar
 from hier_agents.estimators.board_view import EMPTY_CELL, SELECTED, UNSEEN, BoardView
+from hier_agents.estimators.presses import TouchZones
 from skills.scene import ArmScene
 
 __all__ = ["BoardCameraEstimator", "CAMERA", "FRAME_SHAPE"]
@@ -113,16 +114,6 @@ BACKTRACK = 3
 #: and looking `DEEP_MOVES` moves ahead.
 DEEP_BEAM = 16
 DEEP_MOVES = 16
-#: A move the game refused: the hand blocked over one zone, its pinch site
-#: within `PRESS_HEIGHT` (m) of the zone's top and moving less than
-#: `STALL_MOVE` (m) a step for `STALL_STEPS` steps in a row, with no arm
-#: reset (which follows a registered move). A press that misses goes down
-#: and up again; a blocked one stands on what holds it. The move is then not
-#: legal in the game as it stands (its point is taken), and the estimate
-#: must agree.
-PRESS_HEIGHT = 0.035
-STALL_MOVE = 0.002
-STALL_STEPS = 4
 
 
 def _confirmed(score) -> bool:
@@ -175,23 +166,10 @@ class BoardCameraEstimator(Estimator):
         self._since, self._qpos = self.frame_every, None  # the first estimate reads
         self._touched = None
         self._vouched = None
-        # The zone the hand stands blocked on, its pinch site's height and for
-        # how many steps; the moves refused since the last arm reset.
-        self._press: tuple[int | None, float, int] = (None, 0.0, 0)
+        # The touch zones and the hand over them; the moves refused since
+        # the last arm reset.
+        self._zones = TouchZones(description, view.half, view.silhouette.pinch)
         self._refused: set[int] = set()
-        # Each touch zone's centre (x, y) and half-sizes: the points, then the
-        # pass areas; and each zone's top (z).
-        half = view.half
-        self._zones = [
-            (np.asarray(p[:2], float), np.array([half, half])) for p in description.point_positions
-        ]
-        self._zone_top = [float(p[2]) for p in description.point_positions]
-        if description.pass_action is not None:
-            self._zones += [
-                (np.asarray(z["centre"][:2], float), np.asarray(z["half"], float))
-                for z in description.pass_zones.values()
-            ]
-            self._zone_top += [float(z["centre"][2]) for z in description.pass_zones.values()]
         # The empty board's colours, per patch sample: learnt from the first
         # frame (the cells empty in the game's initial position, unless their
         # colour is far from their parity's median: a piece the opponent has
@@ -314,7 +292,7 @@ class BoardCameraEstimator(Estimator):
         if jumped:
             # The arm is reset only after a registered move: the touch that
             # played it was under the hand before the jump.
-            self._touched = self._view.silhouette.touched_zone(self._qpos, self._zones)
+            self._touched = self._zones.touched(self._qpos)
         self._qpos = qpos
         refused = self._refuse(qpos, jumped)
         if (
@@ -368,28 +346,19 @@ class BoardCameraEstimator(Estimator):
         return self._scene(qpos, obs)
 
     def _refuse(self, qpos, jumped: bool) -> bool:
-        """Follows presses (see `STALL_STEPS`); True when the press at
+        """Follows presses (`TouchZones.blocked`); True when the press at
         ``qpos`` has just shown the game refused a move the estimate allows
         (the move joins ``_refused`` until the next arm reset: ``jumped``).
         Only games whose every touch plays a move (not a piece's selection)."""
         if jumped:
-            self._press, self._refused = (None, 0.0, 0), set()
+            self._zones.reset()
+            self._refused = set()
             return False
         game, belief = self._game, self._belief
         if game.rules.input == "move":
             return False
-        assert self._view is not None  # set by `reset`
-        silhouette = self._view.silhouette
-        zone = silhouette.touched_zone(qpos, self._zones)
-        height = float(silhouette.pinch(qpos)[2])
-        if zone is not None and height > self._zone_top[zone] + PRESS_HEIGHT:
-            zone = None
-        last, last_height, steps = self._press
-        still = zone is not None and zone == last and abs(height - last_height) < STALL_MOVE
-        self._press = (zone, height, steps + 1 if still else 0)
-        if zone is None or self._press[2] != STALL_STEPS:
-            return False
-        if belief.is_terminal() or belief.current_player() != self._agent:
+        zone = self._zones.blocked(qpos)
+        if zone is None or belief.is_terminal() or belief.current_player() != self._agent:
             return False
         action = int(game.zone_effects(belief, self._selected)[0][min(zone, game.num_zones - 1)])
         if action < 0 or action == game.pass_action or action not in belief.legal_actions():

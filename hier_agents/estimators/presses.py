@@ -1,0 +1,90 @@
+"""`TouchZones`: where the hand touches a board's zones, and where it stands
+blocked, from the arm's joints alone.
+
+The pinch site's position comes from the arm's own kinematic model
+(`hier_agents.estimators.arm_silhouette.ArmSilhouette.pinch`); the zones
+from the public `envs.description.BoardDescription`: each point a square of
+the board's half-spacing around its position, then each pass area.
+
+A press that misses goes down and up again; a blocked one stands on what
+holds it. The hand blocked over one zone (its pinch site within
+`PRESS_HEIGHT` of the zone's top, moving less than `STALL_MOVE` a step for
+`STALL_STEPS` steps in a row) with no arm reset (which follows a
+registered move) means the game refused the move that zone plays: its
+point is taken, under the hand where the camera cannot see it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+__all__ = ["TouchZones", "PRESS_HEIGHT", "STALL_MOVE", "STALL_STEPS"]
+
+#: Height (m) above a zone's top within which the pinch site presses it.
+PRESS_HEIGHT = 0.035
+#: Largest movement (m) of the pinch site in a step that still stands.
+STALL_MOVE = 0.002
+#: Steps the hand stands pressing one zone before the press is blocked.
+STALL_STEPS = 4
+
+
+class TouchZones:
+    """A board's touch zones and the hand over them.
+
+    Args:
+      description: the board's `envs.description.BoardDescription`
+        (``point_positions``, ``pass_action``, ``pass_zones``).
+      half: a point zone's half-size (m): half the spacing of points.
+      pinch: the pinch site's world position (x, y, z; m) for the arm's
+        joint positions (`ArmSilhouette.pinch`).
+    Zones are numbered as the game's touch zones: the points in order, then
+    the pass areas.
+    """
+
+    def __init__(self, description, half: float, pinch: Callable[[np.ndarray], np.ndarray]):
+        self.pinch = pinch
+        points = [np.asarray(p, float) for p in description.point_positions]
+        self.centres = [p[:2] for p in points]
+        self.halves = [np.array([half, half], float) for _ in points]
+        self.tops = [float(p[2]) for p in points]
+        if description.pass_action is not None:
+            for zone in description.pass_zones.values():
+                self.centres.append(np.asarray(zone["centre"][:2], float))
+                self.halves.append(np.asarray(zone["half"], float))
+                self.tops.append(float(zone["centre"][2]))
+        self.reset()
+
+    def reset(self) -> None:
+        """Forgets the press being followed (at an arm reset)."""
+        self._press: tuple[int | None, float, int] = (None, 0.0, 0)
+
+    def under(self, point) -> int | None:
+        """The zone under a point (x, y[, z]; m): the first zone holding its
+        (x, y), else the nearest zone centre within 1.5 half-sizes, else None."""
+        xy = np.asarray(point, float)[:2]
+        for i, (centre, half) in enumerate(zip(self.centres, self.halves)):
+            if np.all(np.abs(xy - centre) <= half):
+                return i
+        dist = [np.max(np.abs(xy - c) / h) for c, h in zip(self.centres, self.halves)]
+        best = int(np.argmin(dist))
+        return best if dist[best] <= 1.5 else None
+
+    def touched(self, qpos) -> int | None:
+        """The zone under the pinch site with the arm at ``qpos``."""
+        return self.under(self.pinch(qpos))
+
+    def blocked(self, qpos) -> int | None:
+        """Follows the hand, one call per control step: the zone the hand
+        has stood blocked on for exactly `STALL_STEPS` steps with the arm at
+        ``qpos`` (once per press), else None."""
+        pinch = np.asarray(self.pinch(qpos), float)
+        zone = self.under(pinch)
+        height = float(pinch[2])
+        if zone is not None and height > self.tops[zone] + PRESS_HEIGHT:
+            zone = None
+        last, last_height, steps = self._press
+        still = zone is not None and zone == last and abs(height - last_height) < STALL_MOVE
+        self._press = (zone, height, steps + 1 if still else 0)
+        return zone if zone is not None and self._press[2] == STALL_STEPS else None
