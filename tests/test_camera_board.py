@@ -433,4 +433,15 @@ def test_a_press_the_game_refused_shows_the_reply_under_the_hand(request):
     assert estimator._explain(cells, shares, over=False).history() == [mine, reply]
     # An arm reset (a registered move) forgets the refusal.
     assert not estimator._refuse(np.zeros(9), True) and not estimator._refused
+    # A point read surely empty since that reset is empty still (the board
+    # stands still between registered moves): a press blocked there failed
+    # to register, the game refused nothing.
+    estimator._belief = estimator._explain(cells, shares, over=False)
+    estimator._seen_empty[reply] = True
+    zones.pinch = lambda qpos: over_reply
+    try:
+        refused = [estimator._refuse(np.zeros(9), False) for _ in range(presses.STALL_STEPS + 2)]
+    finally:
+        zones.pinch = real
+    assert not any(refused) and not estimator._refused
     env.close()

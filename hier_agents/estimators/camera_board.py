@@ -64,10 +64,12 @@ the agent's own piece is often still hidden by the arm.
 
 Presses tell too: the hand standing blocked on one zone with no arm reset
 (`hier_agents.estimators.presses`) means the game refused that move (its
-point is taken, under the hand where the camera cannot see it). Until the
-next reset, a continuation in which that move is legal counts as
-contradicting a cell read surely, so an opponent's reply hidden by the
-hand is not kept for a pass. A pass is confirmed only once every empty cell, where a reply could
+point is taken, under the hand where the camera cannot see it), unless the
+point was read surely empty since the last arm reset (the board stands
+still in between: the press failed to register). Until the next reset, a
+continuation in which that move is legal counts as contradicting a cell
+read surely, so an opponent's reply hidden by the hand is not kept for a
+pass. A pass is confirmed only once every empty cell, where a reply could
 lie, was read surely.
 
 Its camera (``env_overrides``): ``front_camera_2`` at `FRAME_SHAPE`, the
@@ -167,9 +169,10 @@ class BoardCameraEstimator(Estimator):
         self._touched = None
         self._vouched = None
         # The touch zones and the hand over them; the moves refused since
-        # the last arm reset.
+        # the last arm reset, and the cells read surely empty since then.
         self._zones = TouchZones(description, view.half, view.silhouette.pinch)
         self._refused: set[int] = set()
+        self._seen_empty = np.zeros(len(description.point_positions), bool)
         # The empty board's colours, per patch sample: learnt from the first
         # frame (the cells empty in the game's initial position, unless their
         # colour is far from their parity's median: a piece the opponent has
@@ -309,6 +312,7 @@ class BoardCameraEstimator(Estimator):
             obs[CAMERA], qpos, self._filled_background()
         )
         seen = cells != UNSEEN
+        self._seen_empty |= cells == EMPTY_CELL
         game = self._game
         players = game.players(self._belief)
         # The episode ended with the game (not at the time limit): the game is over.
@@ -348,17 +352,24 @@ class BoardCameraEstimator(Estimator):
     def _refuse(self, qpos, jumped: bool) -> bool:
         """Follows presses (`TouchZones.blocked`); True when the press at
         ``qpos`` has just shown the game refused a move the estimate allows
-        (the move joins ``_refused`` until the next arm reset: ``jumped``).
-        Only games whose every touch plays a move (not a piece's selection)."""
+        (the move joins ``_refused`` until the next arm reset: ``jumped``):
+        not on a point read surely empty since that reset. Only games whose
+        every touch plays a move (not a piece's selection)."""
         if jumped:
             self._zones.reset()
             self._refused = set()
+            self._seen_empty[:] = False
             return False
         game, belief = self._game, self._belief
         if game.rules.input == "move":
             return False
         zone = self._zones.blocked(qpos)
         if zone is None or belief.is_terminal() or belief.current_player() != self._agent:
+            return False
+        if zone < len(self._seen_empty) and self._seen_empty[zone]:
+            # The board stands still between registered moves: a point read
+            # empty since the last one is empty still (and its column not
+            # full); the press failed to register, the game refused nothing.
             return False
         action = int(game.zone_effects(belief, self._selected)[0][min(zone, game.num_zones - 1)])
         if action < 0 or action == game.pass_action or action not in belief.legal_actions():
