@@ -10,8 +10,12 @@ A press that misses goes down and up again; a blocked one stands on what
 holds it. The hand blocked over one zone (its pinch site within
 `PRESS_HEIGHT` of the zone's top, moving less than `STALL_MOVE` a step for
 `STALL_STEPS` steps in a row) with no arm reset (which follows a
-registered move) means the game refused the move that zone plays: its
-point is taken, under the hand where the camera cannot see it.
+registered move) most often means the game refused the move that zone
+plays: its point is taken, under the hand where the camera cannot see it.
+Not always: the hand also stands still just above a point without touching
+it (seen on MuJoGo 1.9-3.2 cm above an empty point, as high as on a stone),
+so `BoardCameraEstimator` takes a blocked press for a refusal only where
+the camera has not read the point empty since the last registered move.
 """
 
 from __future__ import annotations
