@@ -534,32 +534,45 @@ def compare_mujoban(results: Path) -> list[str]:
     return lines
 
 
+#: The MuJoBoard games with camera rows both ways (gomoku has only its
+#: agent-first row, checkers none yet).
+CAMERA_BOARDS = (
+    "connect_four",
+    "hex-7x7",
+    "othello-8x8",
+    "breakthrough-6x6",
+    "clobber-5x6",
+)
+
+
 @table("mujoboard-camera")
 def mujoboard_camera(results: Path) -> list[str]:
     """The observation-only board rows (``--estimator camera``), first and
-    second: the three MuJoBoard target games, then MuJoXO against the optimal
-    opponent."""
+    second: the MuJoBoard games measured with the camera (`CAMERA_BOARDS`),
+    MuJoXO against the optimal opponent, then MuJoGo 7x7 (agent first)."""
     lines = [
         "| game | agent moves | won / drawn / lost [95% CI of won] | estimated board right "
         "| wrong move | other failed touches | cut-off options | control steps / s |",
         "| --- | --- | --- | --- | --- | --- | --- | --- |",
     ]
-    boards = [f"mujoboard/{game}" for game in ("connect_four", "hex-7x7", "othello-8x8")]
-    for env in boards + ["mujoxo/optimal"]:
-        for side in ("first", "second"):
-            name = f"{env.replace('/', '_')}_camera_{side}.json"
-            s = _load(results / "agent" / name)
-            if s.get("estimator") != "camera" or s.get("privileged") or s.get("env") != env:
-                raise ValueError(f"{name}: not a camera row of {env}")
-            failures = s["subgoals"]["failures"]
-            wrong = sum(v for k, v in failures.items() if k.startswith("wrong move"))
-            other = sum(failures.values()) - wrong
-            lines.append(
-                f"| `{env}` | {side} | {_ci(s['win_rate'], s['win_interval'])} / "
-                f"{100 * s['draw_rate']:.0f}% / {100 * s['loss_rate']:.0f}% "
-                f"| {100 * s['estimate_accuracy']:.2f}% | {wrong} | {other} "
-                f"| {s['subgoals']['cut_off']} | {s['control_steps_per_s']:.0f} |"
-            )
+    rows = [
+        (env, side, f"{env.replace('/', '_')}_camera_{side}.json")
+        for env in [f"mujoboard/{game}" for game in CAMERA_BOARDS] + ["mujoxo/optimal"]
+        for side in ("first", "second")
+    ] + [("mujogo/7x7", "first", "mujogo_7x7_camera.json")]
+    for env, side, name in rows:
+        s = _load(results / "agent" / name)
+        if s.get("estimator") != "camera" or s.get("privileged") or s.get("env") != env:
+            raise ValueError(f"{name}: not a camera row of {env}")
+        failures = s["subgoals"]["failures"]
+        wrong = sum(v for k, v in failures.items() if k.startswith("wrong move"))
+        other = sum(failures.values()) - wrong
+        lines.append(
+            f"| `{env}` | {side} | {_ci(s['win_rate'], s['win_interval'])} / "
+            f"{100 * s['draw_rate']:.0f}% / {100 * s['loss_rate']:.0f}% "
+            f"| {100 * s['estimate_accuracy']:.2f}% | {wrong} | {other} "
+            f"| {s['subgoals']['cut_off']} | {s['control_steps_per_s']:.0f} |"
+        )
     return lines
 
 
