@@ -107,6 +107,32 @@ def test_mujoxo_markers_anywhere_on_their_pad_are_read_from_the_first_frame():
     assert read > 0.7 * 9 * len(seeds) and markers > 0.8 * len(seeds)
 
 
+def test_a_board_full_of_see_through_pieces_is_read_with_either_colour_anywhere():
+    """Clobber starts with a piece on every point, so no empty cell shows
+    the board: its colour as the pieces' colour model sees it is taken
+    through the first frame's pieces. Every cell in view is then read right
+    with the colours swapped (each parity held one colour) and without
+    pieces."""
+    env, view = _env("mujoboard/clobber-5x6", opponent="random")
+    timestep = view.reset()
+    estimator = BoardCameraEstimator()
+    estimator.reset(view.description(), timestep)
+    assert np.isnan(estimator._background).all()  # no empty cell to learn from
+    truth = env.task.game.players(env.task.state)
+    still = np.zeros(env.action_spec().shape)
+    pieces = [env.physics.bind(piece) for piece in env.task.arena.pieces]
+    colours = env.task.arena.colours
+    for piece, player in zip(pieces, truth):
+        piece.rgba = colours[1 - player]
+    cells, hidden = estimator.read(view.step(still))
+    np.testing.assert_array_equal(cells[~hidden], 1 - truth[~hidden])
+    for piece in pieces:
+        piece.rgba[3] = 0.0
+    cells, hidden = estimator.read(view.step(still))
+    assert (cells[~hidden] == -1).all(), cells
+    env.close()
+
+
 def _view_args(name):
     env = envs.load(name, **env_overrides(name, "camera"))
     description = env.description()
@@ -307,6 +333,32 @@ def test_a_game_far_ahead_of_the_last_anchor_is_found_by_the_deeper_search():
     state = estimator._explain(cells, shares, over=False)
     np.testing.assert_array_equal(game.players(state), cells)
     assert state.current_player() == 0 and len(estimator._anchors) == 2
+    env.close()
+
+
+def test_a_frame_is_explained_from_the_unconfirmed_estimate_when_the_anchor_is_too_far():
+    """Hex: the estimate ran 16 moves ahead of the last anchor, unconfirmed
+    (a changed cell never read surely); two more moves are then seen. No
+    search from the anchor looks that far (`DEEP_MOVES`), one from the
+    estimate does (in othello the beam can drop the true continuation
+    from the anchor even within reach: its later moves flip what its
+    earlier ones contradict)."""
+    from hier_agents.estimators import camera_board
+
+    env, view = _env("mujoboard/hex-7x7", opponent="random")
+    estimator = BoardCameraEstimator()
+    estimator.reset(view.description(), view.reset())
+    game = BoardGame.from_description(view.description())
+    moves = [0, 8, 2, 10, 4, 12, 6, 22, 14, 24, 16, 26, 18, 36, 20, 38, 28, 40]
+    assert len(moves) - 2 == camera_board.DEEP_MOVES
+    believed = estimator._anchor.clone()
+    for move in moves[:-2]:
+        believed.apply_action(move)
+    estimator._belief = believed
+    cells, shares = _frame(game, {m: i % 2 for i, m in enumerate(moves)})
+    state = estimator._explain(cells, shares, over=False)
+    assert state.history() == moves
+    assert [len(a.history()) for a in estimator._anchors] == [0, len(moves)]
     env.close()
 
 

@@ -127,6 +127,10 @@ class BoardView:
             self.scale, self.hidden_empty = 1.0, 1.0
             reach = PATCH
         self.occupied, self.empty = OCCUPIED * self.scale, EMPTY * self.scale
+        #: (k,) each patch sample's distance from its point on the board (m),
+        #: and a piece's radius there.
+        self.sample_reach = reach * half * np.linalg.norm(offsets, axis=1)
+        self.piece_radius = piece_radius
         world = (
             points[:, None, :]
             + np.c_[reach * half * offsets, np.full(len(offsets), PATCH_HEIGHT)][None]

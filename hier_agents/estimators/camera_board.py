@@ -21,7 +21,9 @@ pieces against the empty board, the selection disc). What it learns:
   confirmed state says are empty), where the arm leaves it in view
   (`BoardView.clear`); a sample not learnt borrows the same sample of
   the nearest cell that has it, of the same checkerboard parity, in its
-  row if it can.
+  row if it can. Where no cell has it (a board full of pieces at the
+  start: clobber), it is taken through the first frame's see-through
+  pieces (`BoardCameraEstimator._unmixed`).
 
 How it keeps the game (`estimate`): the OpenSpiel state of the last
 *anchor* (a state every visible cell confirmed, with no hidden cell
@@ -42,6 +44,9 @@ replies at once and the arm resets). When the last anchor's continuations
 contradict a cell read surely (a move taken for a pass, or for another
 under the arm), the `BACKTRACK` anchors before it are tried; later anchors
 are dropped only when an earlier one's continuation explains the frame.
+The continuations of the current estimate, when it extends the last
+anchor unconfirmed, are searched too: the beam ranks half-played
+continuations by what they already explain and can drop the true one.
 The search keeps `BEAM` states per move and looks at most `MAX_MOVES`
 moves ahead; when no anchor's does explain the frame (the game ran on
 while the changed cells stayed hidden), one search from the last anchor
@@ -106,6 +111,13 @@ BACKGROUND_ODD = 0.3
 #: at an episode's last step.
 FRAME_EVERY = 3
 ARM_JUMP = 0.3
+#: The board under the first frame's pieces (`BoardCameraEstimator._unmixed`):
+#: pieces more see-through than opacity `UNMIX_ALPHA` show it; samples
+#: nearer their point than `UNMIX_INSIDE` of a piece's radius see it through
+#: the piece, samples farther than `UNMIX_OUTSIDE` see it bare.
+UNMIX_ALPHA = 0.6
+UNMIX_INSIDE = 0.9
+UNMIX_OUTSIDE = 1.15
 #: Search: states kept per move, moves looked ahead of an anchor, and
 #: anchors tried back from the last.
 BEAM = 8
@@ -180,6 +192,7 @@ class BoardCameraEstimator(Estimator):
         obs = timestep.observation
         samples = view.samples(obs[CAMERA])
         self._background = np.full(samples.shape, np.nan)
+        self._prior = self._unmixed(samples, view.clear(obs["arm/joints_pos"]))
         # Nothing can stand out when the agent moves first: no move was played.
         self._learn(
             self._anchor,
@@ -270,9 +283,53 @@ class BoardCameraEstimator(Estimator):
                     break
             else:
                 out[cell][missing] = (
-                    np.median(bg[cell][known[cell]], axis=0) if known[cell].any() else 0.0
+                    np.median(bg[cell][known[cell]], axis=0)
+                    if known[cell].any()
+                    else self._prior[cell][missing]
                 )
         return out
+
+    def _unmixed(self, samples, keep) -> np.ndarray:
+        """(n, k, 3): the empty board's colour, as the pieces' colour model
+        (`BoardView.distances`) sees it, from the first frame's pieces where
+        they are see-through (opacity below `UNMIX_ALPHA`): a board full of
+        pieces (clobber's) leaves no empty cell to learn from. Per parity,
+        sample by sample, the median over the cells holding such a piece of
+        the samples kept (``keep``, out of the arm's way): within
+        `UNMIX_INSIDE` of a piece's radius from the point a sample shows
+        alpha * piece + (1 - alpha) * board, beyond `UNMIX_OUTSIDE` the board
+        itself; in between, the median of the others. Black where no such piece lies
+        (opaque pieces hide the board; with square patches a piece may lie
+        anywhere on its square)."""
+        view = self._view
+        assert view is not None, "called after reset"
+        prior = np.zeros(samples.shape)
+        if view.square:
+            return prior
+        players = self._game.players(self._anchors[0])
+        inside = view.sample_reach < UNMIX_INSIDE * view.piece_radius
+        outside = view.sample_reach > UNMIX_OUTSIDE * view.piece_radius
+        for parity in np.unique(view.parity):
+            layers = []
+            for player in (0, 1):
+                alpha = view.piece_alpha[player]
+                cells = np.flatnonzero((players == player) & (view.parity == parity))
+                if alpha >= UNMIX_ALPHA or not len(cells):
+                    continue
+                board = np.full(samples[cells].shape, np.nan)
+                board[:, inside] = (samples[cells][:, inside] - alpha * view.piece_rgb[player]) / (
+                    1.0 - alpha
+                )
+                board[:, outside] = samples[cells][:, outside]
+                layers.append(np.where(keep[cells][..., None], board, np.nan))
+            if not layers:
+                continue
+            with warnings.catch_warnings():  # a sample every such cell hides
+                warnings.simplefilter("ignore", RuntimeWarning)
+                median = np.nanmedian(np.concatenate(layers), axis=0)
+                median = np.where(np.isnan(median), np.nanmedian(median, axis=0), median)
+            prior[view.parity == parity] = np.clip(np.nan_to_num(median), 0.0, 255.0)
+        return prior
 
     def _settle(self, state) -> None:
         """Plays the passes the referee plays (`BoardGame.forced_pass`)."""
@@ -409,11 +466,20 @@ class BoardCameraEstimator(Estimator):
         for another under the arm); later anchors are then dropped. A
         confirmed state becomes the last anchor."""
         tried = []
+        believed = self._belief.history()
         for back in range(min(BACKTRACK, len(self._anchors))):
             anchor = self._anchors[-1 - back]
             state, score = self._search(anchor, cells, fractions, over)
             tried.append((score, back, state))
-            if not score[0] and score[1] == 0:
+            before = anchor.history()
+            if back == 0 and len(believed) > len(before) and believed[: len(before)] == before:
+                # The beam ranks half-played continuations by the cells they
+                # already explain, and can drop the true one when its next
+                # moves flip cells it contradicts: from the current estimate
+                # that continuation is moves shorter.
+                state, score = self._search(anchor, cells, fractions, over, start=self._belief)
+                tried.append((score, back, state))
+            if any(not s[0] and s[1] == 0 for s, _, _ in tried):
                 break
         else:
             # Nothing near explains the frame: the game ran further ahead
@@ -444,14 +510,19 @@ class BoardCameraEstimator(Estimator):
         over: bool = False,
         max_moves: int = MAX_MOVES,
         beam: int = BEAM,
+        start=None,
     ):
         """(state, score): the best-explaining continuation of ``anchor`` and
         its score (see the module docstring).
         ``fractions`` (n, 2): each visible cell's share of each piece colour
         (NaN under the arm); with ``over`` (the episode ended with the game)
-        only a finished game is accepted, if one is found."""
+        only a finished game is accepted, if one is found. ``start``: a
+        settled continuation of ``anchor`` (the current estimate) to search
+        from instead; the score still counts what changed since ``anchor``."""
+        start = anchor if start is None else start
         key = (
             tuple(anchor.history()),
+            tuple(start.history()),
             max_moves,
             beam,
             cells.tobytes(),
@@ -465,8 +536,8 @@ class BoardCameraEstimator(Estimator):
             state, score = self._cache[key]
             return state.clone(), score
         self.searches += 1
-        score = self._scorer(anchor, cells, fractions, over)
-        start = anchor.clone()
+        score = self._scorer(anchor, start, cells, fractions, over)
+        start = start.clone()
         best = (score(start), 0, start) if self._settled(start) else None
         frontier = [start]
         for depth in range(1, max_moves + 1):
@@ -488,28 +559,29 @@ class BoardCameraEstimator(Estimator):
         self._cache[key] = (result[0].clone(), result[1])
         return result
 
-    def _scorer(self, anchor, cells, fractions, over: bool):
-        """The score `_search` ranks a continuation ``state`` of ``anchor`` by,
-        lower is better: (finished or not unlike the episode, cells read
-        surely and contradicted (and moves the game refused, `_refuse`, that
-        the state allows), how far the visible cells' colour shares are
-        from the state's pieces, rewriting moves of the current estimate (two
-        orders of the same moves can give one board), not starting with the
-        move the touch before an arm reset played, changed cells not read
-        surely, after an opponent's pass the empty cells not read surely
-        (`_unseen_replies`): only a tie-break, it holds back the pass's
-        confirmation, not the pass)."""
+    def _scorer(self, anchor, start, cells, fractions, over: bool):
+        """The score `_search` ranks a continuation ``state`` of ``start`` (a
+        continuation of ``anchor``, or ``anchor``) by, lower is better:
+        (finished or not unlike the episode, cells read surely and
+        contradicted (and moves the game refused, `_refuse`, that the state
+        allows), how far the visible cells' colour shares are from the
+        state's pieces, rewriting moves of the current estimate (two orders
+        of the same moves can give one board), not continuing ``start``
+        with the move the touch before an arm reset played, cells changed
+        since ``anchor`` not read surely, after an opponent's pass since
+        ``anchor`` the empty cells not read surely (`_unseen_replies`): only
+        a tie-break, it holds back the pass's confirmation, not the pass)."""
         game = self._game
         visible = ~np.isnan(fractions[:, 0])
         seen = cells != UNSEEN
         base = game.players(anchor)
         shares = fractions[visible]
         played = None  # the action the touch before an arm reset played
-        if self._touched is not None and anchor.current_player() == self._agent:
+        if self._touched is not None and start.current_player() == self._agent:
             zone = min(self._touched, game.num_zones - 1)
-            action = game.zone_effects(anchor, self._selected)[0][zone]
+            action = game.zone_effects(start, self._selected)[0][zone]
             played = int(action) if action >= 0 else None
-        start_len = len(anchor.history())
+        start_len = len(start.history())
         believed = list(self._belief.history())
         refused = tuple(self._refused)
         by_point = game.rules.input == "point"
