@@ -193,6 +193,47 @@ def test_under_a_light_that_casts_shadows_the_arms_shadow_hides_cells_too():
     env.close()
 
 
+@pytest.mark.parametrize("name", ["mujoxo/optimal", "mujoboard/othello-8x8"])
+def test_under_shadows_the_cells_in_the_arms_shadow_are_read_too(name):
+    """At the original's looks (a light casting shadows, 4 samples per
+    pixel) the share of light the arm's shadow leaves is measured on the
+    first frame's empty cells under it; cells in the shadow are then read,
+    and read right, as are pieces, which shade the board they show through
+    (the opponent's first piece; othello's four)."""
+    extra = {"opponent": "random"} if name.startswith("mujoboard") else {}
+    env = envs.load(
+        name,
+        agent_player=1,
+        shadows=True,
+        multisamples=4,
+        **extra,
+        **env_overrides(name, "camera"),
+    )
+    view = BoundaryEnv(env, strip=env.privileged_observations)
+    seeds = range(0, 40, 4)
+    shaded, pieces = 0, 0
+    try:
+        for seed in seeds:
+            env.seed(seed)
+            timestep = view.reset()
+            estimator = BoardCameraEstimator()
+            estimator.reset(view.description(), timestep)
+            assert estimator._shade is not None and 0.3 < estimator._shade < 0.9
+            cells, _ = estimator.read(timestep)
+            obs = timestep.observation
+            unshaded, _, _, _ = estimator._view.read(
+                obs[CAMERA], obs["arm/joints_pos"], estimator._filled_background()
+            )
+            truth = env.task.game.players(env.task.state)
+            seen = cells != UNSEEN
+            np.testing.assert_array_equal(cells[seen], truth[seen], err_msg=f"seed {seed}")
+            shaded += int((seen & (unshaded == UNSEEN)).sum())
+            pieces += int((seen & (truth >= 0)).sum())
+    finally:
+        env.close()
+    assert shaded >= len(seeds) and pieces >= len(seeds), (shaded, pieces)
+
+
 @pytest.mark.parametrize(
     "name", ["mujoboard/hex-7x7", "mujoboard/othello-8x8", "mujoboard/breakthrough-6x6"]
 )

@@ -11,7 +11,10 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["ArmSilhouette"]
+__all__ = ["ArmSilhouette", "PARTS"]
+
+#: What an outline may be of: the arm, its shadow, or both.
+PARTS = ("all", "arm", "shadow")
 
 
 class ArmSilhouette:
@@ -88,18 +91,20 @@ class ArmSilhouette:
         self._mujoco.mj_kinematics(self.model, d)
         return d.site_xpos[self._pinch].copy()
 
-    def outlines(self, qpos) -> list[np.ndarray]:
-        """Per geom, its projected outline, and with a ``light`` its shadow's:
-        (k, 2) pixel (row, col) vertices of a convex polygon,
-        counter-clockwise in (col, row)."""
+    def outlines(self, qpos, part: str = "all") -> list[np.ndarray]:
+        """Per geom, its projected outline (``part`` "arm" or "all"), and with
+        a ``light`` its shadow's ("shadow" or "all"): (k, 2) pixel (row, col)
+        vertices of a convex polygon, counter-clockwise in (col, row)."""
+        if part not in PARTS:
+            raise ValueError(f"part must be one of {PARTS}, got {part!r}")
         m, d = self.model, self.data
         d.qpos[:] = np.asarray(qpos, float)
         self._mujoco.mj_kinematics(m, d)
         out = []
         for g, local in zip(self._geoms, self._local):
             world = d.geom_xpos[g] + local @ d.geom_xmat[g].reshape(3, 3).T
-            shapes = [world]
-            if self.light is not None:
+            shapes = [world] if part != "shadow" else []
+            if self.light is not None and part != "arm":
                 shapes.append(self._shadow(world))
             for points in shapes:
                 if len(points) < 3:
@@ -123,15 +128,17 @@ class ArmSilhouette:
         t = (self.plane_z - light[2]) / (points[:, 2] - light[2])
         return light + t[:, None] * (points - light)
 
-    def hidden(self, qpos, centres, radius) -> np.ndarray:
+    def hidden(self, qpos, centres, radius, part: str = "all") -> np.ndarray:
         """(n,) bool: which discs (``centres`` (n, 2) pixel row, col and
-        ``radius`` (n,) pixels) an outline covers or comes within their
-        radius of (a convex polygon's largest signed edge distance)."""
+        ``radius`` (n,) pixels) an outline of ``part`` (`outlines`) covers
+        or comes within their radius of (a convex polygon's largest signed
+        edge distance); a negative radius asks for the centres that deep
+        inside one outline."""
         centres = np.asarray(centres, float)
         radius = np.broadcast_to(np.asarray(radius, float), (len(centres),))
         hidden = np.zeros(len(centres), bool)
         reach = radius.max(initial=0.0)
-        for poly in self.outlines(qpos):
+        for poly in self.outlines(qpos, part):
             low, high = poly.min(axis=0) - reach, poly.max(axis=0) + reach
             near = np.flatnonzero(np.all((centres >= low) & (centres <= high), axis=1))
             if not len(near):

@@ -81,7 +81,19 @@ REFERENCE_SHARE = (0.7 / PATCH) ** 2
 HIDDEN_PIECE = 0.6
 MERGED = 1.6
 
+#: Background samples darker than this (RGB norm) tell nothing of a shadow's share.
+SHADE_FLOOR = 60.0
+
 UNSEEN = -2  # a cell not read this frame (hidden or unsure)
+
+
+def _lit_distance(px, colour, shade: float) -> np.ndarray:
+    """RGB distance of ``px`` (..., 3) from ``colour`` (broadcast) under the
+    share of light in [``shade``, 1] that brings it nearest."""
+    fit = (px * colour).sum(-1) / np.maximum((colour**2).sum(-1), 1.0)
+    return np.linalg.norm(px - np.clip(fit, shade, 1.0)[..., None] * colour, axis=-1)
+
+
 EMPTY_CELL = -1
 
 
@@ -186,16 +198,20 @@ class BoardView:
         posed at ``qpos``, and may be learnt as the empty board: with disc
         patches all of each cell wholly clear of the arm (none of it within
         `radius` pixels of its centre), or of each cell in ``cells`` (n,)
-        bool when given (a cell read empty); with square patches each
+        bool when given (a cell read empty) clear of the arm's shadow; with
+        square patches each
         sample farther than `ARM_MARGIN` pixels from it, of the cells
         (``cells``, else those with at least `MIN_VISIBLE` of them)."""
         n, k = self.index.shape
         if not self.square:
-            whole = (
-                ~self.silhouette.hidden(qpos, self.centres, self.radius)
-                if cells is None
-                else np.asarray(cells, bool)
-            )
+            if cells is None:
+                whole = ~self.silhouette.hidden(qpos, self.centres, self.radius)
+            else:
+                whole = np.asarray(cells, bool)
+                if self.silhouette.light is not None:  # read in the shadow: not as the board
+                    whole = whole & ~self.silhouette.hidden(
+                        qpos, self.centres, self.radius, part="shadow"
+                    )
             return np.repeat(whole[:, None], k, axis=1)
         shown = ~self.silhouette.hidden(
             qpos, self.sample_px.reshape(-1, 2), ARM_MARGIN + 0.5
@@ -213,26 +229,42 @@ class BoardView:
             )
         return img[self.index]
 
-    def distances(self, px, background):
+    def distances(self, px, background, shade: float | None = None):
         """(d_bg, d_pieces): the RGB distances of samples ``px`` (..., 3) from
         ``background`` (same shape) and, stacked on a first axis of 2, from
-        each player's piece over it (its rgba blended with alpha)."""
-        d_bg = np.linalg.norm(px - background, axis=-1)
+        each player's piece over it (its rgba blended with alpha). Under a
+        light that casts shadows (``shade``: the share of light a shadow
+        leaves), each colour is taken at the light between ``shade`` and
+        all that brings it nearest (in the arm's shadow, at its edge, or
+        lit), and a piece may shade the board it shows through: the
+        nearer of the two."""
         alpha = self.piece_alpha.reshape((2,) + (1,) * px.ndim)
-        expected = (
-            alpha * self.piece_rgb.reshape((2,) + (1,) * (px.ndim - 1) + (3,))
-            + (1 - alpha) * background[None]
+        own = alpha * self.piece_rgb.reshape((2,) + (1,) * (px.ndim - 1) + (3,))
+        pieces = own + (1 - alpha) * background[None]
+        if shade is None:
+            return (
+                np.linalg.norm(px - background, axis=-1),
+                np.linalg.norm(px[None] - pieces, axis=-1),
+            )
+        shaded = own + (1 - alpha) * shade * background[None]
+        return _lit_distance(px, background, shade), np.minimum(
+            _lit_distance(px[None], pieces, shade), _lit_distance(px[None], shaded, shade)
         )
-        return d_bg, np.linalg.norm(px[None] - expected, axis=-1)
 
-    def read(self, frame, qpos, background):
+    def read(self, frame, qpos, background, shade: float | None = None):
         """(cells, hidden, selection, fractions) of one frame.
 
         ``background`` (n, k, 3): each patch sample's colour on the empty
         board (a selected cell's is the selection disc). A sample shows
         player p's piece when it is nearer to that piece's colour over the
         background (its rgba blended with alpha) than to the background and
-        to the other piece, and within `PIECE_RADIUS` of it.
+        to the other piece, and within `PIECE_RADIUS` of it. Under a light
+        that casts shadows the samples in the arm's shadow are read when
+        ``shade`` (the share of light the shadow leaves: `shade_ratios`)
+        is given, each colour at the light that fits it best (`distances`),
+        but not where the board's colour is unknown (NaN in ``background``),
+        and are hidden with the arm's when it is None. Elsewhere an unknown
+        board sample is read as black.
 
         Returns ``cells`` (n,) int8: 0 or 1 (a player's piece), -1 (empty)
         or `UNSEEN` (hidden or unsure); ``hidden`` (n,) bool: under the arm;
@@ -241,6 +273,8 @@ class BoardView:
         each patch showing each player's piece (divided by `scale`, at most 1).
         """
         px = self.samples(frame)
+        unknown = np.isnan(background[..., 0])
+        background = np.nan_to_num(background)
         img = np.asarray(frame, float).reshape(-1, 3)
         selection = (
             np.linalg.norm(img[self.ring] - self.selection_rgb, axis=-1) < SELECTION_RADIUS
@@ -249,13 +283,20 @@ class BoardView:
         background = np.where(
             (selection >= SELECTED)[:, None, None], self.selection_rgb, background
         )
-        d_bg, (d0, d1) = self.distances(px, background)
-        # Samples under the arm (within ARM_MARGIN pixels of its outline) are
-        # not read; a cell with less than MIN_VISIBLE of its samples left is hidden.
+        # Samples under the arm or its shadow (within ARM_MARGIN pixels of an
+        # outline) are not read, unless deep in the shadow with a known
+        # ``shade``; a cell with less than MIN_VISIBLE of its samples left is hidden.
         n, k = self.index.shape
         covered = self.silhouette.hidden(
             qpos, self.sample_px.reshape(-1, 2), ARM_MARGIN + 0.5
         ).reshape(n, k)
+        if self.silhouette.light is None:
+            shade = None
+        elif shade is not None:  # read in the shadow too (`distances`)
+            covered = unknown | self.silhouette.hidden(
+                qpos, self.sample_px.reshape(-1, 2), ARM_MARGIN + 0.5, part="arm"
+            ).reshape(n, k)
+        d_bg, (d0, d1) = self.distances(px, background, shade)
         shown = (~covered).sum(axis=1)
         hidden = shown < MIN_VISIBLE * k
         is0 = (d0 < PIECE_RADIUS) & (d0 < d_bg) & (d0 < d1) & ~covered
@@ -273,6 +314,27 @@ class BoardView:
         cells[hidden] = UNSEEN
         fractions = np.stack([f0, f1], axis=1)
         return cells, hidden, selection, np.minimum(fractions / self.scale, 1.0)
+
+    def shaded(self, qpos) -> np.ndarray:
+        """(n, k) bool: the patch samples wholly in the arm's shadow (more
+        than `ARM_MARGIN` pixels inside it) and clear of the arm itself;
+        none without a light casting shadows."""
+        n, k = self.index.shape
+        if self.silhouette.light is None:
+            return np.zeros((n, k), bool)
+        flat, margin = self.sample_px.reshape(-1, 2), ARM_MARGIN + 0.5
+        deep = self.silhouette.hidden(qpos, flat, -margin, part="shadow")
+        return (deep & ~self.silhouette.hidden(qpos, flat, margin, part="arm")).reshape(n, k)
+
+    def shade_ratios(self, frame, qpos, background, cells) -> np.ndarray:
+        """The brightness (RGB norm) of the samples `shaded` in ``frame`` of
+        the ``cells`` (n,) bool known empty, over their ``background``'s:
+        each a measure of the share of light the arm's shadow leaves."""
+        mask = self.shaded(qpos) & np.asarray(cells, bool)[:, None]
+        lit = np.linalg.norm(background[mask], axis=-1)
+        dark = np.linalg.norm(self.samples(frame)[mask], axis=-1)
+        keep = lit > SHADE_FLOOR
+        return dark[keep] / lit[keep]
 
     def _by_centre(self, mask) -> np.ndarray:
         """(n,) samples of piece colour per cell, square patches: each patch of

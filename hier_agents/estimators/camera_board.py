@@ -24,6 +24,13 @@ pieces against the empty board, the selection disc). What it learns:
   row if it can. Where no cell has it (a board full of pieces at the
   start: clobber), it is taken through the first frame's see-through
   pieces (`BoardCameraEstimator._unmixed`).
+* **The arm's shadow** (under a light that casts shadows, the original's
+  looks: the description's ``shadow_light``). Its share of light is
+  measured on cells known empty in it (`BoardView.shade_ratios`), first in
+  the first frame; until `SHADE_SAMPLES` samples are in, the cells in the
+  shadow are hidden as those under the arm, then read, each colour at the
+  light between that share and all that fits it best
+  (`BoardView.distances`): the predicted shadow's edge need not be exact.
 
 How it keeps the game (`estimate`): the OpenSpiel state of the last
 *anchor* (a state every visible cell confirmed, with no hidden cell
@@ -118,6 +125,11 @@ ARM_JUMP = 0.3
 UNMIX_ALPHA = 0.6
 UNMIX_INSIDE = 0.9
 UNMIX_OUTSIDE = 1.15
+#: The arm's shadow (under a light that casts shadows): samples measured
+#: before shadowed samples are read, and the range its share of light is
+#: kept in (`BoardCameraEstimator._learn_shade`).
+SHADE_SAMPLES = 50
+SHADE_RANGE = (0.2, 0.95)
 #: Search: states kept per move, moves looked ahead of an anchor, and
 #: anchors tried back from the last.
 BEAM = 8
@@ -200,6 +212,17 @@ class BoardCameraEstimator(Estimator):
             view.clear(obs["arm/joints_pos"]),
             check=not self._settled(self._anchor),
         )
+        # The share of light the arm's shadow leaves (under a light that
+        # casts shadows): the ratios measured so far, their median once
+        # there are `SHADE_SAMPLES`.
+        self._shade_ratios: list[np.ndarray] = []
+        self._shade: float | None = None
+        self._learn_shade(
+            obs[CAMERA],
+            obs["arm/joints_pos"],
+            self._filled_background(),
+            self._game.players(self._anchor) < 0,
+        )
 
     def read(self, timestep):
         """(cells, hidden) of ``timestep``'s frame as `estimate` reads it
@@ -209,7 +232,7 @@ class BoardCameraEstimator(Estimator):
             raise RuntimeError("BoardCameraEstimator.read called before reset")
         obs = timestep.observation
         cells, hidden, _, _ = self._view.read(
-            obs[CAMERA], obs["arm/joints_pos"], self._filled_background()
+            obs[CAMERA], obs["arm/joints_pos"], self._filled_background(), self._shade
         )
         return cells, hidden
 
@@ -253,12 +276,28 @@ class BoardCameraEstimator(Estimator):
                 keep[group][..., None], samples[group], self._background[group]
             )
 
+    def _learn_shade(self, frame, qpos, background, empty) -> None:
+        """Measures how dark the arm's shadow makes the ``empty`` cells (n,)
+        bool of ``frame`` (`BoardView.shade_ratios`) until `SHADE_SAMPLES`
+        samples are in: then ``_shade`` is their median, and shadowed
+        samples are read (`BoardView.read`). Nothing without a light that
+        casts shadows."""
+        view = self._view
+        assert view is not None, "called after reset"
+        if self._shade is not None or view.silhouette.light is None:
+            return
+        self._shade_ratios.append(view.shade_ratios(frame, qpos, background, empty))
+        ratios = np.concatenate(self._shade_ratios)
+        if len(ratios) >= SHADE_SAMPLES:
+            self._shade = float(np.clip(np.median(ratios), *SHADE_RANGE))
+
     def _filled_background(self) -> np.ndarray:
         """The background, each sample not learnt borrowed from the same
         sample of the nearest cell that has it learnt: of its parity in its
         row, else of its parity, else any (the samples lie at the same
         offsets from each point, so a wooden board's lines fall on the same
-        samples); else its cell's median, else black."""
+        samples); else its cell's median, else the board seen through the
+        first frame's pieces (`_unmixed`), else NaN (unknown: `BoardView.read`)."""
         bg = self._background
         known = ~np.isnan(bg[..., 0])
         if known.all():
@@ -298,12 +337,12 @@ class BoardCameraEstimator(Estimator):
         the samples kept (``keep``, out of the arm's way): within
         `UNMIX_INSIDE` of a piece's radius from the point a sample shows
         alpha * piece + (1 - alpha) * board, beyond `UNMIX_OUTSIDE` the board
-        itself; in between, the median of the others. Black where no such piece lies
-        (opaque pieces hide the board; with square patches a piece may lie
-        anywhere on its square)."""
+        itself; in between, the median of the others. NaN (unknown) where no
+        such piece lies (opaque pieces hide the board; with square patches a
+        piece may lie anywhere on its square)."""
         view = self._view
         assert view is not None, "called after reset"
-        prior = np.zeros(samples.shape)
+        prior = np.full(samples.shape, np.nan)
         if view.square:
             return prior
         players = self._game.players(self._anchors[0])
@@ -365,8 +404,9 @@ class BoardCameraEstimator(Estimator):
         ):
             return self._scene(qpos, obs)  # between frames: as last read
         self._since = 0
+        background = self._filled_background()
         cells, hidden, selection, fractions = self._view.read(
-            obs[CAMERA], qpos, self._filled_background()
+            obs[CAMERA], qpos, background, self._shade
         )
         seen = cells != UNSEEN
         self._seen_empty |= cells == EMPTY_CELL
@@ -394,15 +434,14 @@ class BoardCameraEstimator(Estimator):
                 self._anchor, self._belief, players, self._vouched
             ):
                 self._confirm(self._belief)
-        if (
-            self._belief.history() == self._anchor.history()
-            and np.isnan(self._background[..., 0]).any()
-        ):
-            self._learn(
-                self._anchor,
-                self._view.samples(obs[CAMERA]),
-                self._view.clear(qpos, cells == EMPTY_CELL),
-            )
+        if self._belief.history() == self._anchor.history():
+            if np.isnan(self._background[..., 0]).any():
+                self._learn(
+                    self._anchor,
+                    self._view.samples(obs[CAMERA]),
+                    self._view.clear(qpos, cells == EMPTY_CELL),
+                )
+            self._learn_shade(obs[CAMERA], qpos, background, game.players(self._anchor) < 0)
         self._selected = self._selection(selection, hidden)
         return self._scene(qpos, obs)
 
