@@ -292,9 +292,11 @@ class BoardView:
         ).reshape(n, k)
         if self.silhouette.light is None:
             shade = None
-        elif shade is not None:  # read in the shadow too (`distances`)
+        elif shade is not None:  # read in the shadow too (`distances`), not near the arm
+            # (twice the margin: a finger drawn off its model, dark as a black
+            # stone, is no longer kept apart by its shadow's)
             covered = unknown | self.silhouette.hidden(
-                qpos, self.sample_px.reshape(-1, 2), ARM_MARGIN + 0.5, part="arm"
+                qpos, self.sample_px.reshape(-1, 2), 2 * ARM_MARGIN + 0.5, part="arm"
             ).reshape(n, k)
         d_bg, (d0, d1) = self.distances(px, background, shade)
         shown = (~covered).sum(axis=1)
