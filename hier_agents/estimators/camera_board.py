@@ -51,9 +51,10 @@ replies at once and the arm resets). When the last anchor's continuations
 contradict a cell read surely (a move taken for a pass, or for another
 under the arm), the `BACKTRACK` anchors before it are tried; later anchors
 are dropped only when an earlier one's continuation explains the frame.
-The continuations of the current estimate, when it extends the last
-anchor unconfirmed, are searched too: the beam ranks half-played
-continuations by what they already explain and can drop the true one.
+When the last anchor's continuations contradict a cell read surely, those
+of the current estimate (extending that anchor, unconfirmed) are searched
+too: the beam ranks half-played continuations by what they already
+explain and can drop the true one.
 The search keeps `BEAM` states per move and looks at most `MAX_MOVES`
 moves ahead; when no anchor's does explain the frame (the game ran on
 while the changed cells stayed hidden), one search from the last anchor
@@ -511,11 +512,18 @@ class BoardCameraEstimator(Estimator):
             state, score = self._search(anchor, cells, fractions, over)
             tried.append((score, back, state))
             before = anchor.history()
-            if back == 0 and len(believed) > len(before) and believed[: len(before)] == before:
+            if (
+                (score[0] or score[1])
+                and back == 0
+                and len(believed) > len(before)
+                and believed[: len(before)] == before
+            ):
                 # The beam ranks half-played continuations by the cells they
                 # already explain, and can drop the true one when its next
                 # moves flip cells it contradicts: from the current estimate
-                # that continuation is moves shorter.
+                # that continuation is moves shorter. Only when the last
+                # anchor's search contradicts a cell read surely (always, it
+                # kept MuJoGo's unconfirmed mistakes).
                 state, score = self._search(anchor, cells, fractions, over, start=self._belief)
                 tried.append((score, back, state))
             if any(not s[0] and s[1] == 0 for s, _, _ in tried):
