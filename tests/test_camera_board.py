@@ -117,7 +117,7 @@ def test_a_board_full_of_see_through_pieces_is_read_with_either_colour_anywhere(
     timestep = view.reset()
     estimator = BoardCameraEstimator()
     estimator.reset(view.description(), timestep)
-    assert np.isnan(estimator._background).all()  # no empty cell to learn from
+    assert np.isnan(estimator._colours.background).all()  # no empty cell to learn from
     truth = env.task.game.players(env.task.state)
     still = np.zeros(env.action_spec().shape)
     pieces = [env.physics.bind(piece) for piece in env.task.arena.pieces]
@@ -218,11 +218,11 @@ def test_under_shadows_the_cells_in_the_arms_shadow_are_read_too(name):
             timestep = view.reset()
             estimator = BoardCameraEstimator()
             estimator.reset(view.description(), timestep)
-            assert estimator._shade is not None and 0.3 < estimator._shade < 0.9
+            assert estimator._colours.shade is not None and 0.3 < estimator._colours.shade < 0.9
             cells, _ = estimator.read(timestep)
             obs = timestep.observation
             unshaded, _, _, _ = estimator._view.read(
-                obs[CAMERA], obs["arm/joints_pos"], estimator._filled_background()
+                obs[CAMERA], obs["arm/joints_pos"], estimator._colours.filled()
             )
             truth = env.task.game.players(env.task.state)
             seen = cells != UNSEEN

@@ -33,8 +33,9 @@ from the arena's look (`envs.boards.arena.SELECTION_RGBA`).
   piece) shows the most of the selection disc's colour, at least `SELECTED`
   of it; a selection hidden under the arm is remembered.
 
-The empty board's colour per patch sample (``background``) is the
-caller's: the estimator learns it.
+The empty board's colour per patch sample (``background``) and the share
+of light the arm's shadow leaves (``shade``) are the caller's: the
+estimator learns them (`hier_agents.estimators.board_colours.BoardColours`).
 """
 
 from __future__ import annotations
@@ -85,6 +86,7 @@ MERGED = 1.6
 SHADE_FLOOR = 60.0
 
 UNSEEN = -2  # a cell not read this frame (hidden or unsure)
+EMPTY_CELL = -1  # a cell read empty
 
 
 def _lit_distance(px, colour, shade: float) -> np.ndarray:
@@ -92,9 +94,6 @@ def _lit_distance(px, colour, shade: float) -> np.ndarray:
     share of light in [``shade``, 1] that brings it nearest."""
     fit = (px * colour).sum(-1) / np.maximum((colour**2).sum(-1), 1.0)
     return np.linalg.norm(px - np.clip(fit, shade, 1.0)[..., None] * colour, axis=-1)
-
-
-EMPTY_CELL = -1
 
 
 class BoardView:
@@ -262,9 +261,8 @@ class BoardView:
         that casts shadows the samples in the arm's shadow are read when
         ``shade`` (the share of light the shadow leaves: `shade_ratios`)
         is given, each colour at the light that fits it best (`distances`),
-        but not where the board's colour is unknown (NaN in ``background``),
-        and are hidden with the arm's when it is None. Elsewhere an unknown
-        board sample is read as black.
+        and are hidden with the arm's when it is None. A sample whose board
+        colour is unknown (NaN in ``background``) is not read.
 
         Returns ``cells`` (n,) int8: 0 or 1 (a player's piece), -1 (empty)
         or `UNSEEN` (hidden or unsure); ``hidden`` (n,) bool: under the arm;
@@ -283,21 +281,22 @@ class BoardView:
         background = np.where(
             (selection >= SELECTED)[:, None, None], self.selection_rgb, background
         )
-        # Samples under the arm or its shadow (within ARM_MARGIN pixels of an
-        # outline) are not read, unless deep in the shadow with a known
-        # ``shade``; a cell with less than MIN_VISIBLE of its samples left is hidden.
+        # Not read: samples where the board's colour is unknown, and those
+        # within ARM_MARGIN pixels of the arm's outline or its shadow's; with
+        # a known ``shade``, those in the shadow are read (`distances`), but
+        # not within twice the margin of the arm itself (a finger drawn off
+        # its model, dark as a black stone, is no longer kept apart by its
+        # shadow's outline). A cell with less than MIN_VISIBLE of its
+        # samples read is hidden.
         n, k = self.index.shape
-        covered = self.silhouette.hidden(
-            qpos, self.sample_px.reshape(-1, 2), ARM_MARGIN + 0.5
-        ).reshape(n, k)
+        flat = self.sample_px.reshape(-1, 2)
         if self.silhouette.light is None:
             shade = None
-        elif shade is not None:  # read in the shadow too (`distances`), not near the arm
-            # (twice the margin: a finger drawn off its model, dark as a black
-            # stone, is no longer kept apart by its shadow's)
-            covered = unknown | self.silhouette.hidden(
-                qpos, self.sample_px.reshape(-1, 2), 2 * ARM_MARGIN + 0.5, part="arm"
-            ).reshape(n, k)
+        if shade is None:
+            near = self.silhouette.hidden(qpos, flat, ARM_MARGIN + 0.5)
+        else:
+            near = self.silhouette.hidden(qpos, flat, 2 * ARM_MARGIN + 0.5, part="arm")
+        covered = unknown | near.reshape(n, k)
         d_bg, (d0, d1) = self.distances(px, background, shade)
         shown = (~covered).sum(axis=1)
         hidden = shown < MIN_VISIBLE * k

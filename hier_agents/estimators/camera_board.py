@@ -12,25 +12,11 @@ description names, the selection disc's colour from the arena's look
 
 How it reads a frame: `hier_agents.estimators.board_view.BoardView` (cells
 projected from the described camera, the arm hidden with its own model,
-pieces against the empty board, the selection disc). What it learns:
-
-* **The empty board.** Each patch sample's colour on the empty board is
-  learnt from the first frame (the cells empty in the game's initial
-  position; when the opponent has moved first, less any that stand out
-  from their row: a piece it played) and from later frames (cells a
-  confirmed state says are empty), where the arm leaves it in view
-  (`BoardView.clear`); a sample not learnt borrows the same sample of
-  the nearest cell that has it, of the same checkerboard parity, in its
-  row if it can. Where no cell has it (a board full of pieces at the
-  start: clobber), it is taken through the first frame's see-through
-  pieces (`BoardCameraEstimator._unmixed`).
-* **The arm's shadow** (under a light that casts shadows, the original's
-  looks: the description's ``shadow_light``). Its share of light is
-  measured on cells known empty in it (`BoardView.shade_ratios`), first in
-  the first frame; until `SHADE_SAMPLES` samples are in, the cells in the
-  shadow are hidden as those under the arm, then read, each colour at the
-  light between that share and all that fits it best
-  (`BoardView.distances`): the predicted shadow's edge need not be exact.
+pieces against the empty board, the selection disc).
+`hier_agents.estimators.board_colours.BoardColours` learns the empty
+board's colour per patch sample (from the first frame, and from cells a
+confirmed state says are empty) and, under a light that casts shadows (the
+original's looks), the share of light the arm's shadow leaves.
 
 How it keeps the game (`estimate`): the OpenSpiel state of the last
 *anchor* (a state every visible cell confirmed, with no hidden cell
@@ -91,7 +77,6 @@ other camera off, rendered only when read (``lazy_cameras=True``).
 
 from __future__ import annotations
 
-import warnings
 from typing import Any
 
 import numpy as np
@@ -99,6 +84,7 @@ import numpy as np
 from envs.boards.games import BoardGame
 from hier_agents.estimators.base import Estimator
 from hier_agents.estimators.board import scalar
+from hier_agents.estimators.board_colours import BoardColours
 from hier_agents.estimators.board_view import EMPTY_CELL, SELECTED, UNSEEN, BoardView
 from hier_agents.estimators.presses import TouchZones
 from skills.scene import ArmScene
@@ -108,29 +94,12 @@ __all__ = ["BoardCameraEstimator", "CAMERA", "FRAME_SHAPE"]
 #: The camera read and its frame size (height, width).
 CAMERA = "front_camera_2"
 FRAME_SHAPE = (128, 128)
-#: Learning the empty board (`BoardCameraEstimator._learn`): RGB distance
-#: from the row's median beyond which a sample is odd, and the largest
-#: fraction of odd samples of a cell learnt.
-BACKGROUND_SPREAD = 60.0
-BACKGROUND_ODD = 0.3
 #: Frame schedule: a frame is read every `FRAME_EVERY` steps, and at once
 #: when a joint moved more than `ARM_JUMP` (rad) in a step (the arm reset
 #: that follows a registered move), while the estimate is unconfirmed, and
 #: at an episode's last step.
 FRAME_EVERY = 3
 ARM_JUMP = 0.3
-#: The board under the first frame's pieces (`BoardCameraEstimator._unmixed`):
-#: pieces more see-through than opacity `UNMIX_ALPHA` show it; samples
-#: nearer their point than `UNMIX_INSIDE` of a piece's radius see it through
-#: the piece, samples farther than `UNMIX_OUTSIDE` see it bare.
-UNMIX_ALPHA = 0.6
-UNMIX_INSIDE = 0.9
-UNMIX_OUTSIDE = 1.15
-#: The arm's shadow (under a light that casts shadows): samples measured
-#: before shadowed samples are read, and the range its share of light is
-#: kept in (`BoardCameraEstimator._learn_shade`).
-SHADE_SAMPLES = 50
-SHADE_RANGE = (0.2, 0.95)
 #: Search: states kept per move, moves looked ahead of an anchor, and
 #: anchors tried back from the last.
 BEAM = 8
@@ -198,32 +167,20 @@ class BoardCameraEstimator(Estimator):
         self._zones = TouchZones(description, view.half, view.silhouette.pinch)
         self._refused: set[int] = set()
         self._seen_empty = np.zeros(len(description.point_positions), bool)
-        # The empty board's colours, per patch sample: learnt from the first
-        # frame (the cells empty in the game's initial position, unless their
-        # colour is far from their parity's median: a piece the opponent has
-        # already put there) and later from cells a confirmed state says are empty.
+        # The empty board's colours and the arm shadow's share of light, from
+        # the first frame on (nothing can stand out when the agent moves
+        # first: no move was played).
         obs = timestep.observation
-        samples = view.samples(obs[CAMERA])
-        self._background = np.full(samples.shape, np.nan)
-        self._prior = self._unmixed(samples, view.clear(obs["arm/joints_pos"]))
-        # Nothing can stand out when the agent moves first: no move was played.
-        self._learn(
+        qpos = obs["arm/joints_pos"]
+        self._colours = BoardColours(
+            view,
+            game,
             self._anchor,
-            samples,
-            view.clear(obs["arm/joints_pos"]),
+            view.samples(obs[CAMERA]),
+            view.clear(qpos),
             check=not self._settled(self._anchor),
         )
-        # The share of light the arm's shadow leaves (under a light that
-        # casts shadows): the ratios measured so far, their median once
-        # there are `SHADE_SAMPLES`.
-        self._shade_ratios: list[np.ndarray] = []
-        self._shade: float | None = None
-        self._learn_shade(
-            obs[CAMERA],
-            obs["arm/joints_pos"],
-            self._filled_background(),
-            self._game.players(self._anchor) < 0,
-        )
+        self._colours.learn_shade(obs[CAMERA], qpos, self._colours.filled(), self._anchor)
 
     def read(self, timestep):
         """(cells, hidden) of ``timestep``'s frame as `estimate` reads it
@@ -233,143 +190,9 @@ class BoardCameraEstimator(Estimator):
             raise RuntimeError("BoardCameraEstimator.read called before reset")
         obs = timestep.observation
         cells, hidden, _, _ = self._view.read(
-            obs[CAMERA], obs["arm/joints_pos"], self._filled_background(), self._shade
+            obs[CAMERA], obs["arm/joints_pos"], self._colours.filled(), self._colours.shade
         )
         return cells, hidden
-
-    def _learn(self, state, samples, keep, check: bool = False) -> None:
-        """Learns the background of the cells ``state`` says are empty, from
-        their samples ``keep`` (n, k) not learnt yet (`BoardView.clear`).
-        With ``check``, a cell is learnt only if at most `BACKGROUND_ODD`
-        (times the view's `BoardView.scale`) of its samples kept lie farther
-        than `BACKGROUND_SPREAD` from their median over the candidate cells
-        of its row and parity (all of its parity's in a row with fewer than
-        three): a piece already there is not taken for the board. With two
-        such cells, only the samples that lie towards a piece's colour
-        count; a lone cell is not learnt here."""
-        view = self._view
-        assert view is not None, "called after reset"
-        keep = keep & np.isnan(self._background[..., 0])
-        new = keep.any(axis=1) & (self._game.players(state) < 0)
-        shown = np.where(keep[..., None], samples, np.nan)
-        for key in set(zip(view.row[new], view.parity[new])):
-            group = np.flatnonzero(new & (view.row == key[0]) & (view.parity == key[1]))
-            # Compared with its row's cells of its parity, or in a short row
-            # with all of its parity's.
-            pool = group if len(group) >= 3 else np.flatnonzero(new & (view.parity == key[1]))
-            if check and len(pool) >= 2:
-                with warnings.catch_warnings():  # a sample no cell of the pool shows
-                    warnings.simplefilter("ignore", RuntimeWarning)
-                    median = np.nanmedian(shown[pool], axis=0)
-                odd = np.linalg.norm(samples[group] - median, axis=-1) > BACKGROUND_SPREAD
-                if len(pool) == 2:
-                    # The median is halfway between the two cells: the odd
-                    # samples of the one holding a piece lie towards its colour.
-                    d_bg, d_pieces = view.distances(
-                        samples[group], np.broadcast_to(median, samples[group].shape)
-                    )
-                    odd &= d_pieces.min(axis=0) < d_bg
-                odd = (odd & keep[group]).sum(axis=1) / keep[group].sum(axis=1)
-                group = group[odd <= BACKGROUND_ODD * view.scale]
-            elif check:
-                continue  # a lone cell cannot be checked: learnt once confirmed empty
-            self._background[group] = np.where(
-                keep[group][..., None], samples[group], self._background[group]
-            )
-
-    def _learn_shade(self, frame, qpos, background, empty) -> None:
-        """Measures how dark the arm's shadow makes the ``empty`` cells (n,)
-        bool of ``frame`` (`BoardView.shade_ratios`) until `SHADE_SAMPLES`
-        samples are in: then ``_shade`` is their median, and shadowed
-        samples are read (`BoardView.read`). Nothing without a light that
-        casts shadows."""
-        view = self._view
-        assert view is not None, "called after reset"
-        if self._shade is not None or view.silhouette.light is None:
-            return
-        self._shade_ratios.append(view.shade_ratios(frame, qpos, background, empty))
-        ratios = np.concatenate(self._shade_ratios)
-        if len(ratios) >= SHADE_SAMPLES:
-            self._shade = float(np.clip(np.median(ratios), *SHADE_RANGE))
-
-    def _filled_background(self) -> np.ndarray:
-        """The background, each sample not learnt borrowed from the same
-        sample of the nearest cell that has it learnt: of its parity in its
-        row, else of its parity, else any (the samples lie at the same
-        offsets from each point, so a wooden board's lines fall on the same
-        samples); else its cell's median, else the board seen through the
-        first frame's pieces (`_unmixed`), else NaN (unknown: `BoardView.read`)."""
-        bg = self._background
-        known = ~np.isnan(bg[..., 0])
-        if known.all():
-            return bg
-        out = bg.copy()
-        view = self._view
-        assert view is not None, "called after reset"
-        some = known.any(axis=1)
-        for cell in np.flatnonzero(~known.all(axis=1)):
-            missing = ~known[cell]
-            same = some & (view.parity == view.parity[cell])
-            donors = []
-            for pool in (same & (view.row == view.row[cell]), same, some):
-                pool = [c for c in np.flatnonzero(pool) if c != cell and c not in donors]
-                distance = np.linalg.norm(view.centres[pool] - view.centres[cell], axis=1)
-                donors += [pool[i] for i in np.argsort(distance, kind="stable")]
-            for donor in donors:
-                fill = missing & known[donor]
-                out[cell][fill] = bg[donor][fill]
-                missing &= ~fill
-                if not missing.any():
-                    break
-            else:
-                out[cell][missing] = (
-                    np.median(bg[cell][known[cell]], axis=0)
-                    if known[cell].any()
-                    else self._prior[cell][missing]
-                )
-        return out
-
-    def _unmixed(self, samples, keep) -> np.ndarray:
-        """(n, k, 3): the empty board's colour, as the pieces' colour model
-        (`BoardView.distances`) sees it, from the first frame's pieces where
-        they are see-through (opacity below `UNMIX_ALPHA`): a board full of
-        pieces (clobber's) leaves no empty cell to learn from. Per parity,
-        sample by sample, the median over the cells holding such a piece of
-        the samples kept (``keep``, out of the arm's way): within
-        `UNMIX_INSIDE` of a piece's radius from the point a sample shows
-        alpha * piece + (1 - alpha) * board, beyond `UNMIX_OUTSIDE` the board
-        itself; in between, the median of the others. NaN (unknown) where no
-        such piece lies (opaque pieces hide the board; with square patches a
-        piece may lie anywhere on its square)."""
-        view = self._view
-        assert view is not None, "called after reset"
-        prior = np.full(samples.shape, np.nan)
-        if view.square:
-            return prior
-        players = self._game.players(self._anchors[0])
-        inside = view.sample_reach < UNMIX_INSIDE * view.piece_radius
-        outside = view.sample_reach > UNMIX_OUTSIDE * view.piece_radius
-        for parity in np.unique(view.parity):
-            layers = []
-            for player in (0, 1):
-                alpha = view.piece_alpha[player]
-                cells = np.flatnonzero((players == player) & (view.parity == parity))
-                if alpha >= UNMIX_ALPHA or not len(cells):
-                    continue
-                board = np.full(samples[cells].shape, np.nan)
-                board[:, inside] = (samples[cells][:, inside] - alpha * view.piece_rgb[player]) / (
-                    1.0 - alpha
-                )
-                board[:, outside] = samples[cells][:, outside]
-                layers.append(np.where(keep[cells][..., None], board, np.nan))
-            if not layers:
-                continue
-            with warnings.catch_warnings():  # a sample every such cell hides
-                warnings.simplefilter("ignore", RuntimeWarning)
-                median = np.nanmedian(np.concatenate(layers), axis=0)
-                median = np.where(np.isnan(median), np.nanmedian(median, axis=0), median)
-            prior[view.parity == parity] = np.clip(np.nan_to_num(median), 0.0, 255.0)
-        return prior
 
     def _settle(self, state) -> None:
         """Plays the passes the referee plays (`BoardGame.forced_pass`)."""
@@ -405,9 +228,10 @@ class BoardCameraEstimator(Estimator):
         ):
             return self._scene(qpos, obs)  # between frames: as last read
         self._since = 0
-        background = self._filled_background()
+        colours = self._colours
+        background = colours.filled()
         cells, hidden, selection, fractions = self._view.read(
-            obs[CAMERA], qpos, background, self._shade
+            obs[CAMERA], qpos, background, colours.shade
         )
         seen = cells != UNSEEN
         self._seen_empty |= cells == EMPTY_CELL
@@ -436,13 +260,13 @@ class BoardCameraEstimator(Estimator):
             ):
                 self._confirm(self._belief)
         if self._belief.history() == self._anchor.history():
-            if np.isnan(self._background[..., 0]).any():
-                self._learn(
+            if not colours.complete:
+                colours.learn(
                     self._anchor,
                     self._view.samples(obs[CAMERA]),
                     self._view.clear(qpos, cells == EMPTY_CELL),
                 )
-            self._learn_shade(obs[CAMERA], qpos, background, game.players(self._anchor) < 0)
+            colours.learn_shade(obs[CAMERA], qpos, background, self._anchor)
         self._selected = self._selection(selection, hidden)
         return self._scene(qpos, obs)
 
