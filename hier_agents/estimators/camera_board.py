@@ -56,10 +56,12 @@ last estimate is returned with the new joints.
 
 The arm reset tells more: a move was registered, by the touch under the
 pinch site just before the jump (the arm's own model at the previous
-joints). The next search then ranks continuations that start with the
-move that touch plays (`envs.boards.games.BoardGame.zone_effects`) above
-the others, after what the cells show and the moves already estimated:
-the agent's own piece is often still hidden by the arm.
+joints), acting on the current estimate. The next search then ranks
+continuations in which the agent's move after that estimate is the move
+that touch plays (`envs.boards.games.BoardGame.zone_effects`) above the
+others, after what the cells show and the moves already estimated: the
+agent's own piece is often still hidden by the arm, and the estimate may
+run unconfirmed ahead of the last anchor (a move under the hand).
 
 Presses tell too: the hand standing blocked on one zone with no arm reset
 (`hier_agents.estimators.presses`) means the game refused that move (its
@@ -394,6 +396,7 @@ class BoardCameraEstimator(Estimator):
         key = (
             tuple(anchor.history()),
             tuple(start.history()),
+            tuple(self._belief.history()),  # the score's reference (`_scorer`)
             max_moves,
             beam,
             cells.tobytes(),
@@ -407,7 +410,7 @@ class BoardCameraEstimator(Estimator):
             state, score = self._cache[key]
             return state.clone(), score
         self.searches += 1
-        score = self._scorer(anchor, start, cells, fractions, over)
+        score = self._scorer(anchor, cells, fractions, over)
         start = start.clone()
         best = (score(start), 0, start) if self._settled(start) else None
         frontier = [start]
@@ -430,15 +433,17 @@ class BoardCameraEstimator(Estimator):
         self._cache[key] = (result[0].clone(), result[1])
         return result
 
-    def _scorer(self, anchor, start, cells, fractions, over: bool):
-        """The score `_search` ranks a continuation ``state`` of ``start`` (a
-        continuation of ``anchor``, or ``anchor``) by, lower is better:
+    def _scorer(self, anchor, cells, fractions, over: bool):
+        """The score `_search` ranks a continuation ``state`` of ``anchor`` by,
+        lower is better:
         (finished or not unlike the episode, cells read surely and
         contradicted (and moves the game refused, `_refuse`, that the state
         allows), how far the visible cells' colour shares are from the
         state's pieces, rewriting moves of the current estimate (two orders
-        of the same moves can give one board), not continuing ``start``
-        with the move the touch before an arm reset played, cells changed
+        of the same moves can give one board), not continuing the current
+        estimate with the move the touch before an arm reset played (the
+        agent acted on that estimate: an unconfirmed part of it may lie
+        between ``anchor`` and that move), cells changed
         since ``anchor`` not read surely, after an opponent's pass since
         ``anchor`` the empty cells not read surely (`_unseen_replies`): only
         a tie-break, it holds back the pass's confirmation, not the pass)."""
@@ -447,13 +452,14 @@ class BoardCameraEstimator(Estimator):
         seen = cells != UNSEEN
         base = game.players(anchor)
         shares = fractions[visible]
-        played = None  # the action the touch before an arm reset played
-        if self._touched is not None and start.current_player() == self._agent:
-            zone = min(self._touched, game.num_zones - 1)
-            action = game.zone_effects(start, self._selected)[0][zone]
-            played = int(action) if action >= 0 else None
-        start_len = len(start.history())
+        # The action the touch before an arm reset played, and its place in
+        # the game: the agent touched it acting on the current estimate.
         believed = list(self._belief.history())
+        played, ply = None, len(believed)
+        if self._touched is not None and self._belief.current_player() == self._agent:
+            zone = min(self._touched, game.num_zones - 1)
+            action = game.zone_effects(self._belief, self._selected)[0][zone]
+            played = int(action) if action >= 0 else None
         refused = tuple(self._refused)
         by_point = game.rules.input == "point"
 
@@ -472,9 +478,7 @@ class BoardCameraEstimator(Estimator):
             pieces = np.stack([players[visible] == 0, players[visible] == 1], axis=1)
             soft = round(float(np.abs(shares - pieces).sum()), 3)
             history = state.history()
-            miss = played is not None and (
-                len(history) <= start_len or history[start_len] != played
-            )
+            miss = played is not None and (len(history) <= ply or history[ply] != played)
             blind = int(np.count_nonzero((players != base) & ~seen))
             replies = self._unseen_replies(anchor, state, players, seen)
             common = min(len(history), len(believed))
