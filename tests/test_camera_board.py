@@ -323,6 +323,30 @@ def test_a_stone_first_taken_for_a_pass_is_found_when_seen(request):
     env.close()
 
 
+def test_the_touched_move_is_looked_for_after_the_unconfirmed_estimate(request):
+    """Go: the agent's stone A stays hidden by the arm at rest, so the
+    estimate [A, B] runs unconfirmed ahead of the last anchor (the empty
+    board). The agent then touches C, the arm resets and D replies, C hidden
+    too: the touch played C after [A, B], not at the anchor, so the estimate
+    is [A, B, C, D], not [A, B, pass, D] (which changes fewer hidden cells)."""
+    request.getfixturevalue("gnugo")
+    env, view = _env("mujogo/7x7")
+    estimator = BoardCameraEstimator()
+    estimator.reset(view.description(), view.reset())
+    game = BoardGame.from_description(view.description())
+    a, b, c, d = 24, 25, 10, 40
+    estimator._touched = a
+    cells, shares = _frame(game, {a: 0, b: 1}, hidden=[a])
+    estimator._belief = estimator._explain(cells, shares, over=False)
+    assert estimator._belief.history() == [a, b]
+    assert [s.history() for s in estimator._anchors] == [[]]  # A was never seen
+    assert game.zone_effects(estimator._belief, -1)[0][c] == c
+    estimator._touched = c
+    cells, shares = _frame(game, {a: 0, b: 1, c: 0, d: 1}, hidden=[a, c])
+    assert estimator._explain(cells, shares, over=False).history() == [a, b, c, d]
+    env.close()
+
+
 def test_a_frame_the_last_anchor_cannot_explain_is_explained_from_an_earlier_one():
     """Hex: a reply first read at B (confirmed), then seen at C with B empty:
     no continuation of the first explanation fits, the one before it does."""
