@@ -54,6 +54,14 @@ class ArmSilhouette:
                 local = local[ConvexHull(local).vertices]
             self._geoms.append(g)
             self._local.append(local)
+        # All geoms' points in one array (posed and projected at once), and
+        # each geom's slice of it.
+        counts = [len(local) for local in self._local]
+        self._points = np.concatenate(self._local) if counts else np.zeros((0, 3))
+        self._owner = np.repeat(np.arange(len(counts)), counts)
+        self._slices = [slice(a, b) for a, b in zip(np.cumsum([0] + counts), np.cumsum(counts))]
+        # The last posture's outlines: (qpos bytes, arm outlines, shadow outlines).
+        self._posed: tuple[bytes, list, list] | None = None
 
     @staticmethod
     def _geom_points(m, g) -> np.ndarray | None:
@@ -94,39 +102,69 @@ class ArmSilhouette:
     def outlines(self, qpos, part: str = "all") -> list[np.ndarray]:
         """Per geom, its projected outline (``part`` "arm" or "all"), and with
         a ``light`` its shadow's ("shadow" or "all"): (k, 2) pixel (row, col)
-        vertices of a convex polygon, counter-clockwise in (col, row)."""
+        vertices of a convex polygon, counter-clockwise in (col, row). A geom
+        seen edge-on (a degenerate outline) has none."""
         if part not in PARTS:
             raise ValueError(f"part must be one of {PARTS}, got {part!r}")
-        m, d = self.model, self.data
-        d.qpos[:] = np.asarray(qpos, float)
-        self._mujoco.mj_kinematics(m, d)
+        arm, shadow = self._posed_outlines(np.asarray(qpos, float))
         out = []
-        for g, local in zip(self._geoms, self._local):
-            world = d.geom_xpos[g] + local @ d.geom_xmat[g].reshape(3, 3).T
-            shapes = [world] if part != "shadow" else []
-            if self.light is not None and part != "arm":
-                shapes.append(self._shadow(world))
-            for points in shapes:
-                if len(points) < 3:
-                    continue
-                px = self.camera.project(points, self.shape)
-                try:
-                    hull = self._hull2d(px[:, ::-1])
-                except Exception:  # a degenerate projection (edge-on): skip it
-                    continue
-                out.append(px[hull.vertices])
+        for g in range(len(self._geoms)):
+            if part != "shadow" and arm[g] is not None:
+                out.append(arm[g])
+            if part != "arm" and shadow[g] is not None:
+                out.append(shadow[g])
         return out
 
-    def _shadow(self, world: np.ndarray) -> np.ndarray:
-        """Where the light casts the points ``world`` (k, 3) on the plane
-        ``plane_z``: the central projection from the light (points at or
-        above the light, or below the plane, cast none)."""
+    def _posed_outlines(self, qpos: np.ndarray) -> tuple[list, list]:
+        """Per geom, its outline and its shadow's (None: none) with the arm
+        at ``qpos``; the last posture's are kept (a frame asks for several
+        parts)."""
+        key = qpos.tobytes()
+        if self._posed is not None and self._posed[0] == key:
+            return self._posed[1], self._posed[2]
+        m, d = self.model, self.data
+        d.qpos[:] = qpos
+        self._mujoco.mj_kinematics(m, d)
+        geoms = self._geoms
+        rotations = d.geom_xmat[geoms].reshape(-1, 3, 3)[self._owner]
+        world = d.geom_xpos[geoms][self._owner] + np.einsum("nij,nj->ni", rotations, self._points)
+        arm = self._hulls(self.camera.project(world, self.shape), None)
+        shadow = [None] * len(geoms)
+        if self.light is not None:
+            cast, casting = self._shadow(world)
+            shadow = self._hulls(self.camera.project(cast, self.shape), casting)
+        self._posed = (key, arm, shadow)
+        return arm, shadow
+
+    def _hulls(self, px: np.ndarray, keep) -> list:
+        """Per geom, the convex hull of its projected points ``px`` (those
+        ``keep`` marks, all when None): (k, 2) vertices, counter-clockwise in
+        (col, row), or None when fewer than 3 points or degenerate."""
+        out = []
+        for part in self._slices:
+            points = px[part] if keep is None else px[part][keep[part]]
+            hull = None
+            if len(points) >= 3:
+                try:
+                    hull = points[self._hull2d(points[:, ::-1]).vertices]
+                except Exception:  # a degenerate projection (edge-on): none
+                    hull = None
+            out.append(hull)
+        return out
+
+    def _shadow(self, world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(cast, casting): where the light casts the points ``world`` (k, 3)
+        on the plane ``plane_z`` (the central projection from the light),
+        and which points cast one: not those at or above the light, nor
+        below the plane (their rows of ``cast`` are the points themselves)."""
         light = self.light
         assert light is not None  # called only with a light
-        above = (world[:, 2] < light[2] - 1e-6) & (world[:, 2] >= self.plane_z)
-        points = world[above]
+        casting = (world[:, 2] < light[2] - 1e-6) & (world[:, 2] >= self.plane_z)
+        points = world[casting]
         t = (self.plane_z - light[2]) / (points[:, 2] - light[2])
-        return light + t[:, None] * (points - light)
+        cast = world.copy()
+        cast[casting] = light + t[:, None] * (points - light)
+        return cast, casting
 
     def hidden(self, qpos, centres, radius, part: str = "all") -> np.ndarray:
         """(n,) bool: which discs (``centres`` (n, 2) pixel row, col and
