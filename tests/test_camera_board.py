@@ -200,7 +200,10 @@ def test_under_a_light_that_casts_shadows_the_arms_shadow_hides_cells_too():
     assert np.all(shaded >= plain.hidden(qpos, board.centres, board.radius))
     # A point on the board straight below the light, in line with a geom:
     # the shadow's centre is drawn where the light casts that geom.
-    geom = board.silhouette._shadow(np.array([[0.0, 0.0, 0.5], [0.01, 0.0, 0.5], [0.0, 0.01, 0.5]]))
+    geom, casting = board.silhouette._shadow(
+        np.array([[0.0, 0.0, 0.5], [0.01, 0.0, 0.5], [0.0, 0.01, 0.5]])
+    )
+    assert casting.all()
     np.testing.assert_allclose(geom[:, 2], board.silhouette.plane_z)
     np.testing.assert_allclose(geom[0, :2], [0.0, 0.0])
     env.close()
