@@ -18,10 +18,11 @@ default 1000 simulations, 1 rollout). ``--no-cleanup`` makes GNU Go use plain
 For every Black spec (against the one White spec) it prints a row: games,
 Black wins, Black's win rate with a 95% Wilson interval, mean game length in
 moves, the median and 95th-percentile wall time of GNU Go's genmove (ms, over
-both colours' GNU Go moves) and of the other planners' moves. ``--json``
+both colours' GNU Go moves) and the median and mean of Black's moves (ms, what
+an agent planning with it waits per move). ``--json``
 writes ``{"provenance", "rows"}`` with these rows (keys: black, white,
 board_size, komi, games, black_wins, win_rate, ci_low, ci_high, mean_moves,
-gnugo_ms_median, gnugo_ms_p95, black_ms_median, seconds).
+gnugo_ms_median, gnugo_ms_p95, black_ms_median, black_ms_mean, seconds).
 
 ``--mcts-sweep 100,300,1000,...`` adds Black specs ``mcts:N`` for each N
 (against ``--white``, GNU Go level 10 by default) and then reports the
@@ -100,7 +101,7 @@ def wilson_interval(wins: int, n: int, z: float = 1.959964) -> tuple[float, floa
 
 
 def play_game(game, black, white, seed: int) -> tuple[float, int, list[float], list[float]]:
-    """One seeded game; returns (Black's return, moves, GNU Go ms, other planners' Black ms)."""
+    """One seeded game; returns (Black's return, moves, GNU Go's genmove ms, Black's ms)."""
     black.reset(seed)
     white.reset(seed + 1)
     state = game.new_initial_state()
@@ -209,6 +210,7 @@ def _main(argv=None) -> int:
                     gnugo_ms_median=float(np.median(gnugo_ms)) if gnugo_ms else None,
                     gnugo_ms_p95=float(np.percentile(gnugo_ms, 95)) if gnugo_ms else None,
                     black_ms_median=float(np.median(black_ms)) if black_ms else None,
+                    black_ms_mean=float(np.mean(black_ms)) if black_ms else None,
                     seconds=time.perf_counter() - start,
                 )
             )
@@ -222,7 +224,7 @@ def _main(argv=None) -> int:
     )
     header = (
         f"{'black':<14}{'games':>6}{'wins':>6}{'win rate':>10}{'95% CI':>15}"
-        f"{'moves':>7}{'gnugo ms med':>14}{'p95':>8}{'black ms med':>14}"
+        f"{'moves':>7}{'gnugo ms med':>14}{'p95':>8}{'black ms med':>14}{'mean':>8}"
     )
     print(header)
     print("-" * len(header))
@@ -232,6 +234,7 @@ def _main(argv=None) -> int:
             f"{row['black']:<14}{row['games']:>6}{row['black_wins']:>6}{row['win_rate']:>10.2f}"
             f"{ci:>15}{row['mean_moves']:>7.1f}{_fmt(row['gnugo_ms_median'], 1):>14}"
             f"{_fmt(row['gnugo_ms_p95'], 0):>8}{_fmt(row['black_ms_median'], 1):>14}"
+            f"{_fmt(row['black_ms_mean'], 0):>8}"
         )
     if sweep:
         sweep_rows = [row for row in rows if row["black"] in {f"mcts:{n}" for n in sweep}]
