@@ -391,9 +391,8 @@ def test_a_frame_the_last_anchor_cannot_explain_is_explained_from_an_earlier_one
 def test_a_confirmed_estimate_reads_no_frame_after_the_arm_resets():
     """Hex (every touch plays a move): a frame every `FRAME_EVERY` steps
     until the arm is seen to reset after a registered move; from then on,
-    once the estimate is confirmed with a move more than before the reset,
-    none (the board stands still until the next reset), and the estimate
-    stays right."""
+    once the estimate is confirmed, none (the board stands still until the
+    next reset), and the estimate stays right."""
     from hier_agents.estimators import camera_board
 
     env, view = _env("mujoboard/hex-7x7", opponent="random")
@@ -422,28 +421,6 @@ def test_a_confirmed_estimate_reads_no_frame_after_the_arm_resets():
     for _ in range(steps):
         assert _right(env, estimator.estimate(view.step(still)))
     assert len(reads) == before
-    # A reset whose move nothing shows (every cell hidden, the touch not
-    # found): the estimate without it is stale, so frames are read on, and
-    # the move is found once the cells show.
-    blind = [True]
-
-    def hidden_read(*args, **kwargs):
-        cells, hidden, selection, fractions = counted(*args, **kwargs)
-        if blind[0]:
-            cells, hidden = np.full_like(cells, UNSEEN), np.ones_like(hidden)
-        return cells, hidden, selection, fractions
-
-    board_view.read = hidden_read  # type: ignore[method-assign]
-    estimator._zones.touched = lambda qpos: None
-    touch_point(env, task.point_position(central_action(task)))
-    assert len(task.state.history()) == 4
-    before = len(reads)
-    for _ in range(steps):
-        estimator.estimate(view.step(still))
-    assert len(reads) - before >= steps // camera_board.FRAME_EVERY - 1
-    blind[0] = False
-    scenes = [estimator.estimate(view.step(still)) for _ in range(steps)]
-    assert _right(env, scenes[-1])
     env.close()
 
 

@@ -54,9 +54,8 @@ the arm's joints jump (the arm reset after a registered move), while the
 estimate is not confirmed, and at the episode's last step; in between the
 last estimate is returned with the new joints. Once the arm was seen to
 reset after a move, in games whose every touch plays a move, a confirmed
-estimate with a move more than before that reset reads no frame until the
-next reset, press refused or last step: the board stands still in between
-(`BoardCameraEstimator._still`).
+estimate reads no frame until the next reset, press refused or last step:
+the board stands still in between (`BoardCameraEstimator._still`).
 `estimate` must therefore see every control step's timestep, as the agent
 shows it: an arm reset is told by the joints' jump between two calls.
 
@@ -172,7 +171,6 @@ class BoardCameraEstimator(Estimator):
         self._touched = None
         self._vouched = None
         self._resets = False  # the arm was seen to reset after a move
-        self._moves_at_reset = 0  # the estimate's moves at the last arm reset
         # The touch zones and the hand over them; the moves refused since
         # the last arm reset, and the cells read surely empty since then.
         self._zones = TouchZones(description, view.half, view.silhouette.pinch)
@@ -228,7 +226,6 @@ class BoardCameraEstimator(Estimator):
             # played it was under the hand before the jump.
             self._touched = self._zones.touched(self._qpos)
             self._resets = True
-            self._moves_at_reset = len(self._belief.history())
         self._qpos = qpos
         refused = self._refuse(qpos, jumped)
         if (
@@ -288,15 +285,12 @@ class BoardCameraEstimator(Estimator):
         confirmed estimate needs no frame: in games whose every touch plays
         a move (no selection to read), once the arm was seen to reset after
         a move (the environment resets it: the opponent replies at once),
-        when the estimate has moved on since that reset (a move was
-        registered: an estimate without it is stale, its cells still
-        hidden), and with the shadow's share of light measured (if a light
-        casts shadows)."""
+        and with the shadow's share of light measured (if a light casts
+        shadows)."""
         view = self._view
         assert view is not None, "called after reset"
         return (
             self._resets
-            and len(self._belief.history()) > self._moves_at_reset
             and self._game.rules.input == "point"
             and (self._colours.shade is not None or view.silhouette.light is None)
         )
