@@ -26,19 +26,6 @@ def _env(name, **kwargs):
     return env, BoundaryEnv(env, strip=env.privileged_observations)
 
 
-def _estimated_at_every_step(env, view, estimator) -> None:
-    """``env.step`` (as the arm drivers call it) also shows each timestep,
-    through ``view``'s boundary, to ``estimator``, as an agent does."""
-    step = env.step
-
-    def stepping(action):
-        timestep = step(action)
-        estimator.estimate(view._filter(timestep))
-        return timestep
-
-    env.step = stepping
-
-
 def _right(env, scene) -> bool:
     game, truth = env.task.game, env.task.state
     return scene.state.current_player() == truth.current_player() and np.array_equal(
@@ -261,9 +248,8 @@ def test_touched_moves_and_replies_are_found_among_the_continuations(name):
     env, view = _env(name, opponent="random")
     task = env.task
     timestep = view.reset()
-    estimator = BoardCameraEstimator()
+    estimator = BoardCameraEstimator(frame_every=1)  # called once a turn here: read each time
     estimator.reset(view.description(), timestep)
-    _estimated_at_every_step(env, view, estimator)
     for turn in range(3):
         if task.state.is_terminal():
             break
@@ -385,42 +371,6 @@ def test_a_frame_the_last_anchor_cannot_explain_is_explained_from_an_earlier_one
     cells, shares = frame({mine: 0, true_reply: 1})
     assert estimator._explain(cells, shares, over=False).history() == [mine, true_reply]
     assert [a.history() for a in estimator._anchors] == [[], [mine, true_reply]]
-    env.close()
-
-
-def test_a_confirmed_estimate_reads_no_frame_after_the_arm_resets():
-    """Hex (every touch plays a move): a frame every `FRAME_EVERY` steps
-    until the arm is seen to reset after a registered move; from then on,
-    once the estimate is confirmed, none (the board stands still until the
-    next reset), and the estimate stays right."""
-    from hier_agents.estimators import camera_board
-
-    env, view = _env("mujoboard/hex-7x7", opponent="random")
-    estimator = BoardCameraEstimator()
-    estimator.reset(view.description(), view.reset())
-    reads = []
-    board_view = estimator._view
-    read = board_view.read
-
-    def counted(*args, **kwargs):
-        reads.append(len(reads))
-        return read(*args, **kwargs)
-
-    board_view.read = counted  # type: ignore[method-assign]
-    still = np.zeros(env.action_spec().shape)
-    steps = 4 * camera_board.FRAME_EVERY
-    for _ in range(steps):
-        estimator.estimate(view.step(still))
-    assert len(reads) >= steps // camera_board.FRAME_EVERY - 1
-    task = env.task
-    touch_point(env, task.point_position(central_action(task)))
-    assert len(task.state.history()) == 2  # the agent's move and the reply
-    scenes = [estimator.estimate(view.step(still)) for _ in range(steps)]
-    assert _right(env, scenes[-1])
-    before = len(reads)
-    for _ in range(steps):
-        assert _right(env, estimator.estimate(view.step(still)))
-    assert len(reads) == before
     env.close()
 
 

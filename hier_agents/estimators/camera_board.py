@@ -52,12 +52,7 @@ still be under the hand.
 Frame schedule: a frame is read every `FRAME_EVERY` steps, and at once when
 the arm's joints jump (the arm reset after a registered move), while the
 estimate is not confirmed, and at the episode's last step; in between the
-last estimate is returned with the new joints. Once the arm was seen to
-reset after a move, in games whose every touch plays a move, a confirmed
-estimate reads no frame until the next reset, press refused or last step:
-the board stands still in between (`BoardCameraEstimator._still`).
-`estimate` must therefore see every control step's timestep, as the agent
-shows it: an arm reset is told by the joints' jump between two calls.
+last estimate is returned with the new joints.
 
 The arm reset tells more: a move was registered, by the touch under the
 pinch site just before the jump (the arm's own model at the previous
@@ -104,8 +99,7 @@ FRAME_SHAPE = (128, 128)
 #: Frame schedule: a frame is read every `FRAME_EVERY` steps, and at once
 #: when a joint moved more than `ARM_JUMP` (rad) in a step (the arm reset
 #: that follows a registered move), while the estimate is unconfirmed, and
-#: at an episode's last step; none while it is confirmed once the arm was
-#: seen to reset, where every touch plays a move (`BoardCameraEstimator._still`).
+#: at an episode's last step.
 FRAME_EVERY = 3
 ARM_JUMP = 0.3
 #: Search: states kept per move, moves looked ahead of an anchor, and
@@ -170,7 +164,6 @@ class BoardCameraEstimator(Estimator):
         self._since, self._qpos = self.frame_every, None  # the first estimate reads
         self._touched = None
         self._vouched = None
-        self._resets = False  # the arm was seen to reset after a move
         # The touch zones and the hand over them; the moves refused since
         # the last arm reset, and the cells read surely empty since then.
         self._zones = TouchZones(description, view.half, view.silhouette.pinch)
@@ -225,16 +218,15 @@ class BoardCameraEstimator(Estimator):
             # The arm is reset only after a registered move: the touch that
             # played it was under the hand before the jump.
             self._touched = self._zones.touched(self._qpos)
-            self._resets = True
         self._qpos = qpos
         refused = self._refuse(qpos, jumped)
         if (
-            not jumped
+            self._since < self.frame_every
+            and not jumped
             and not refused
             and not timestep.last()
             and self._belief.history() == self._anchor.history()
             and self._settled(self._belief)
-            and (self._since < self.frame_every or self._still())
         ):
             return self._scene(qpos, obs)  # between frames: as last read
         self._since = 0
@@ -279,21 +271,6 @@ class BoardCameraEstimator(Estimator):
             colours.learn_shade(obs[CAMERA], qpos, background, self._anchor)
         self._selected = self._selection(selection, hidden)
         return self._scene(qpos, obs)
-
-    def _still(self) -> bool:
-        """Whether the board stands still until the arm's next reset, so a
-        confirmed estimate needs no frame: in games whose every touch plays
-        a move (no selection to read), once the arm was seen to reset after
-        a move (the environment resets it: the opponent replies at once),
-        and with the shadow's share of light measured (if a light casts
-        shadows)."""
-        view = self._view
-        assert view is not None, "called after reset"
-        return (
-            self._resets
-            and self._game.rules.input == "point"
-            and (self._colours.shade is not None or view.silhouette.light is None)
-        )
 
     def _refuse(self, qpos, jumped: bool) -> bool:
         """Follows presses (`TouchZones.blocked`); True when the press at
