@@ -95,6 +95,7 @@ def test_mujoxo_against_the_optimal_opponent_never_loses():
     assert default["privileged"] is False and default["reads"] == "observations"
 
 
+@pytest.mark.slow
 def test_mujogo_with_the_gnugo_planner_wins_and_every_touch_registers_the_plan(gnugo):
     # The planner and the skill, not perception: the record estimator (the fastest).
     summary = run_lib.run("mujogo/7x7", 1, seed=0, progress=False, estimator="board")

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from fast_cover import cover
 
 from abstract_planners.base import Subgoal
 from abstract_planners.sokoban import DIRECTIONS
@@ -58,7 +59,10 @@ def _check_obs(env: AgentEnv, obs: dict) -> None:
         assert one_hot.shape == (spec.planner_action_dim,) and one_hot.dtype == np.float32
 
 
-@pytest.mark.parametrize("name, condition, cameras", CASES)
+@pytest.mark.parametrize(
+    "name, condition, cameras",
+    cover(CASES, lambda name, condition, cameras: [(name, cameras), ("condition", condition)]),
+)
 def test_input_spec_and_observations(name, condition, cameras, request):
     fam = name.split("/")[0]
     if fam == "mujogo":

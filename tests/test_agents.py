@@ -148,6 +148,7 @@ def test_an_outside_kinds_bad_argument_and_options_are_refused_in_one_line(hold_
         run("mujoban/level1", 1, agent="hold-still", planner="random", progress=False)
 
 
+@pytest.mark.slow
 def test_an_outside_kind_declared_as_an_entry_point_plays_a_comparison_spec(tmp_path):
     site = _write_package(tmp_path / "site")
     spec = tmp_path / "spec.toml"

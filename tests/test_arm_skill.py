@@ -188,6 +188,7 @@ def test_mujoxo_touch_registers_the_planned_point(mujoxo, point):
     assert result.duration <= skill.config.max_steps + 1
 
 
+@pytest.mark.slow
 @needs_gnugo
 def test_mujogo_every_point_and_the_pass_register(mujogo):
     """Every point of the 7x7 board -- the far row, ~0.8 m from the arm's base,

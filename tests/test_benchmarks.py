@@ -29,6 +29,7 @@ def _env_speed(tmp_path, *extra):
     return json.loads(out.read_text())
 
 
+@pytest.mark.slow
 def test_env_speed_rows_at_the_originals_timesteps_with_two_real_views(tmp_path):
     result = _env_speed(
         tmp_path,

@@ -13,6 +13,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import envs
+from fast_cover import cover, family_and_game
 from abstract_planners.gtp import GTPError
 from arm_driving import hold_action, place_hand, press_from_above, substep_touches, touch_point
 from envs.boards import arena as arena_lib
@@ -288,7 +289,7 @@ def test_the_originals_second_view_is_observed_only_when_asked_for():
         make_mujoxo(seed=0, front_camera_2=(0, 84))
 
 
-@pytest.mark.parametrize("name", BOARD_NAMES)
+@pytest.mark.parametrize("name", cover(BOARD_NAMES, family_and_game))
 def test_every_board_name_passes_gymnasium_check_env(name):
     env = gymnasium.make(name, render_mode="rgb_array", front_camera=(32, 32), render_size=(32, 32))
     check_env(env.unwrapped, skip_render_check=False)

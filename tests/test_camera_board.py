@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import envs
+from fast_cover import cover, family_and_game
 from arm_driving import central_action, touch_point
 from envs.boards.mujoboard import REGISTERED
 from hier_agents.boundary import BoundaryEnv
@@ -47,8 +48,17 @@ def test_the_camera_estimator_needs_no_record_and_asks_for_its_camera():
     env.close()
 
 
-@pytest.mark.parametrize("player", [0, 1], ids=["first", "second"])
-@pytest.mark.parametrize("name", ["mujoxo/optimal", *BOARDS])
+@pytest.mark.parametrize(
+    "name, player",
+    cover(
+        [
+            pytest.param(name, player, id=f"{name}-{side}")
+            for name in ["mujoxo/optimal", *BOARDS]
+            for player, side in ((0, "first"), (1, "second"))
+        ],
+        lambda name, player: [*family_and_game(name), ("player", player)],
+    ),
+)
 def test_the_first_frame_reads_as_the_referees_board(name, player, request):
     """Every cell read (not under the arm, not unsure) is the referee's, most
     cells are read, and the first estimate is the referee's game: as second

@@ -18,6 +18,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from fast_cover import cover
 
 ROOT = Path(__file__).resolve().parents[1]
 BENCHMARKS = ROOT / "benchmarks"
@@ -304,7 +305,8 @@ SUBPROCESS_CASES = [
 
 
 @pytest.mark.parametrize(
-    "argv, command, expected", SUBPROCESS_CASES, ids=[case[1] for case in SUBPROCESS_CASES]
+    "argv, command, expected",
+    cover([pytest.param(*case, id=case[1]) for case in SUBPROCESS_CASES], lambda *case: ["entry"]),
 )
 def test_the_real_entry_points_fail_the_same_way(argv, command, expected):
     result = subprocess.run(

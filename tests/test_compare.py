@@ -738,6 +738,7 @@ def test_bad_sb3_tables_are_one_line_usage_errors(tmp_path, edit, message):
     assert "\n" not in str(info.value)
 
 
+@pytest.mark.slow
 def test_an_sb3_series_trains_grows_and_plays_through_one_door(tmp_path):
     """The sb3 trainer through the same jobs as IMPALA's: its series keeps
     frames-B.zip at each budget, grows from its model.zip, and an

@@ -42,6 +42,7 @@ def test_the_step_model_is_linear_and_the_fit_recovers_known_weights():
         fit_weights(features[:3], steps[:3])
 
 
+@pytest.mark.slow
 def test_the_benchmark_writes_a_row_per_level_with_its_keys(tmp_path):
     path = ROOT / "benchmarks" / "execution_time.py"
     sys.path.insert(0, str(path.parent))

@@ -15,6 +15,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import envs
+from fast_cover import cover, family_and_game
 from envs.gymnasium_env import OBSERVATIONS, PRIVILEGED_PREFIX, GymnasiumEnv
 from arm_driving import touch_point
 from child_env import child_env
@@ -70,22 +71,22 @@ def test_every_observation_choice_passes_gymnasium_check_env(built, obs):
         assert observation.size == sum(s.stop - s.start for s in layout.values())
 
 
-def test_no_default_observation_holds_a_privileged_key():
+@pytest.mark.parametrize("name", cover(envs.names(), family_and_game))
+def test_no_default_observation_holds_a_privileged_key(name):
     """Every registered id: the default Dict has no privileged key, and every
     key the task declares privileged is one of its observations (named with
     the prefix in ``obs="full"``)."""
-    for name in envs.names():
-        env = envs.load(name, **envs.no_cameras(name))
-        try:
-            declared = env.privileged_observations
-            assert declared and declared <= set(env.observation_spec()), name
-            default = GymnasiumEnv(env=env).observation_space.spaces
-            assert not declared & set(default), name
-            assert not any(k.startswith(PRIVILEGED_PREFIX) for k in default), name
-            full = GymnasiumEnv(env=env, obs="full").observation_space.spaces
-            assert {PRIVILEGED_PREFIX + k for k in declared} <= set(full), name
-        finally:
-            env.close()
+    env = envs.load(name, **envs.no_cameras(name))
+    try:
+        declared = env.privileged_observations
+        assert declared and declared <= set(env.observation_spec())
+        default = GymnasiumEnv(env=env).observation_space.spaces
+        assert not declared & set(default)
+        assert not any(k.startswith(PRIVILEGED_PREFIX) for k in default)
+        full = GymnasiumEnv(env=env, obs="full").observation_space.spaces
+        assert {PRIVILEGED_PREFIX + k for k in declared} <= set(full)
+    finally:
+        env.close()
 
 
 def test_render_frames_have_the_render_size_and_show_the_pegs():
@@ -223,6 +224,7 @@ if __name__ == "__main__":
 """
 
 
+@pytest.mark.slow
 def test_module_id_form_and_async_vector_env_in_a_fresh_interpreter(tmp_path):
     """``envs:`` and ``hier_agents.learning:`` ids import their registering
     modules; CleanRL's ``AsyncVectorEnv(...)`` with the default (fork)

@@ -8,6 +8,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import envs
+from fast_cover import cover, family_and_game
 from abstract_planners.openspiel_bots import AlphaBetaPlanner, make_bot
 from arm_driving import central_action, hold_action, touch_point
 from envs.boards import arena as arena_lib
@@ -150,7 +151,7 @@ def _touch(env, point, **kwargs):
     return touch_point(env, env.task.point_position(point), **kwargs)
 
 
-@pytest.mark.parametrize("name", NAMES)
+@pytest.mark.parametrize("name", cover(NAMES, family_and_game))
 def test_each_game_plays_an_opening_by_touch_as_openspiel_does(name):
     """Two moves of the agent, touched with the arm (a move game's as piece
     then destination), each answered by the opponent: the record, the board
@@ -297,7 +298,7 @@ def _a_win_in_one_for(state, player, points, depth=4):
     return None, None
 
 
-@pytest.mark.parametrize("name", NAMES)
+@pytest.mark.parametrize("name", cover(NAMES, family_and_game))
 def test_every_mujoboard_name_passes_gymnasium_check_env(name):
     import gymnasium
 

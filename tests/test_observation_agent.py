@@ -80,7 +80,9 @@ def _play_and_compare(name, seed, episodes, **load):
     return starts, solved
 
 
-@pytest.mark.parametrize("name", ["mujoban/level3", "mujoban/level4-pegs"])
+@pytest.mark.parametrize(
+    "name", ["mujoban/level4-pegs", pytest.param("mujoban/level3", marks=pytest.mark.slow)]
+)
 def test_camera_and_oracle_agree_at_every_option_start_of_seeded_episodes(name):
     starts, solved = _play_and_compare(name, seed=5, episodes=3)
     assert starts >= 6 and solved == 3

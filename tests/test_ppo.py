@@ -112,6 +112,7 @@ def test_the_collector_handles_same_step_autoreset_durations_and_truncation():
         ppo.RolloutCollector(gym.vector.SyncVectorEnv([Walk]), policy, steps=1)
 
 
+@pytest.mark.slow
 def test_ppo_learns_the_shorter_option_and_never_takes_a_masked_one():
     torch.manual_seed(0)
     envs = ppo.make_vector_env([OptionChain] * 4)

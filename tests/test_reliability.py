@@ -356,11 +356,8 @@ DETERMINISM_RUNS = {
 WALL_CLOCK = {"wall_s"}
 
 
-@pytest.mark.parametrize(
-    "family",
-    # MuJoXO's (the cheapest) with the fast tests, the others with the slow ones.
-    [f if f == "mujoxo" else pytest.param(f, marks=pytest.mark.slow) for f in DETERMINISM_RUNS],
-)
+@pytest.mark.slow
+@pytest.mark.parametrize("family", DETERMINISM_RUNS)
 def test_the_same_seed_gives_the_same_rows_in_two_processes(family, tmp_path, request):
     import subprocess
 

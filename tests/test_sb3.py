@@ -38,7 +38,8 @@ def _train(algo: str, logdir, frames: int = 256, save_at=(128, 256), **extra) ->
     return train(Sb3Config.from_options(ENV, options))
 
 
-@pytest.fixture(scope="module", params=["PPO", "SAC"])
+# SAC (the slower to train) with the slow tests.
+@pytest.fixture(scope="module", params=["PPO", pytest.param("SAC", marks=pytest.mark.slow)])
 def trained(request, tmp_path_factory):
     """(algo, run directory, counters) of a 256-frame run kept at 128 and 256."""
     logdir = tmp_path_factory.mktemp(request.param.lower())
@@ -120,6 +121,7 @@ def test_resuming_extends_the_run(tmp_path, monkeypatch):
         _train("SAC", tmp_path, frames=256)  # another run's directory
 
 
+@pytest.mark.slow
 def test_subprocess_environments_count_their_cpu(tmp_path):
     counters = _train("PPO", tmp_path, frames=64, save_at=(), vec="subproc")
     assert counters["frames"] == 64 and counters["cpu_s"] > 0

@@ -130,6 +130,7 @@ print(json.dumps({"heap_mb": [h / 2**20 for h in heaps]}))
 """
 
 
+@pytest.mark.slow
 def test_rebuilding_environments_keeps_their_large_blocks_out_of_the_heap():
     out = subprocess.run(
         [sys.executable, "-c", REBUILD],

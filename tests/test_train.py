@@ -130,6 +130,7 @@ def test_ray_actors_feed_the_learner(tmp_path):
     assert counters["updates"] == 4 and counters["frames"] == 40
 
 
+@pytest.mark.slow
 def test_the_checkpoint_plays_through_hier_agents_run(tmp_path, capsys):
     train(TrainConfig(condition="expert-planner", steps=10, logdir=str(tmp_path / "run"), **TINY))
     out = tmp_path / "eval.json"

@@ -123,6 +123,7 @@ def test_the_trained_policy_plays_a_level1_episode_as_a_planner(tiny_run):
         assert summary["subgoals"]["issued"] >= 1
 
 
+@pytest.mark.slow
 def test_resume_continues_counting_frames_and_cpu(tiny_run, tmp_path):
     import shutil
 
