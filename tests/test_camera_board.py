@@ -547,6 +547,7 @@ def test_a_press_the_game_refused_shows_the_reply_under_the_hand(request):
 
     env, estimator, game = _go_estimator(request)
     mine, reply = 24, 37
+    assert not estimator._refuse(np.zeros(9), True)  # the arm reset after ``mine`` registered
     cells, shares = _frame(game, {mine: 0}, hidden=[reply])
     assert estimator._explain(cells, shares, over=False).history() == [mine, game.pass_action]
     estimator._belief = estimator._explain(cells, shares, over=False)
@@ -574,4 +575,41 @@ def test_a_press_the_game_refused_shows_the_reply_under_the_hand(request):
     finally:
         zones.pinch = real
     assert not any(refused) and not estimator._refused
+    env.close()
+
+
+def test_a_press_on_a_point_empty_in_the_confirmed_estimate_is_not_a_refusal(request):
+    """Go, the agent first: the hand stands blocked on a point it never saw
+    empty (under the hand since the game's start), before the press
+    registers. The game's start is known and nothing registered since: the
+    press failed to register, the game refused nothing (it once made the
+    agent believe it had passed and the opponent stood there). After the
+    agent's registered move (an arm reset) and a reply confirmed, the same
+    holds of the points empty in that estimate; a reply not yet confirmed
+    leaves them open."""
+    from hier_agents.estimators import presses
+
+    env, estimator, game = _go_estimator(request)
+    zones, real = estimator._zones, estimator._zones.pinch
+
+    def presses_on(point) -> list[bool]:
+        above = np.r_[zones.centres[point], zones.tops[point] + 0.01]
+        zones.pinch = lambda qpos: above
+        try:
+            return [estimator._refuse(np.zeros(9), False) for _ in range(presses.STALL_STEPS + 2)]
+        finally:
+            zones.pinch = real
+
+    first, mine, reply, later = 24, 16, 30, 40
+    assert not any(presses_on(first)) and not estimator._refused
+    estimator._refuse(np.zeros(9), True)  # ``mine`` registered: the arm reset
+    cells, shares = _frame(game, {mine: 0}, hidden=[reply, later])
+    estimator._belief = estimator._explain(cells, shares, over=False)
+    assert len(estimator._anchors) == 1  # a pass is not confirmed with cells hidden
+    assert presses_on(later).count(True) == 1 and estimator._refused == {later}
+    estimator._refuse(np.zeros(9), True)
+    cells, shares = _frame(game, {mine: 0, reply: 1}, hidden=[later])
+    estimator._belief = estimator._explain(cells, shares, over=False)
+    assert estimator._anchor.history() == [mine, reply]
+    assert not any(presses_on(later)) and not estimator._refused
     env.close()

@@ -66,8 +66,10 @@ run unconfirmed ahead of the last anchor (a move under the hand).
 Presses tell too: the hand standing blocked on one zone with no arm reset
 (`hier_agents.estimators.presses`) means the game refused that move (its
 point is taken, under the hand where the camera cannot see it), unless the
-point was read surely empty since the last arm reset (the board stands
-still in between: the press failed to register). Until the next reset, a
+point is known empty since the last arm reset (the board stands still in
+between: the press failed to register): read surely empty, or empty in a
+confirmed estimate with the agent to move (the game's start when the agent
+moves first), since. Until the next reset, a
 continuation in which that move is legal counts as contradicting a cell
 read surely, so an opponent's reply hidden by the hand is not kept for a
 pass. A pass is confirmed only once every empty cell, where a reply could
@@ -165,10 +167,11 @@ class BoardCameraEstimator(Estimator):
         self._touched = None
         self._vouched = None
         # The touch zones and the hand over them; the moves refused since
-        # the last arm reset, and the cells read surely empty since then.
+        # the last arm reset, and the cells known empty since then (`_refuse`).
         self._zones = TouchZones(description, view.half, view.silhouette.pinch)
         self._refused: set[int] = set()
         self._seen_empty = np.zeros(len(description.point_positions), bool)
+        self._known_empty(initial)
         # The empty board's colours and the arm shadow's share of light, from
         # the first frame on (nothing can stand out when the agent moves
         # first: no move was played).
@@ -276,7 +279,8 @@ class BoardCameraEstimator(Estimator):
         """Follows presses (`TouchZones.blocked`); True when the press at
         ``qpos`` has just shown the game refused a move the estimate allows
         (the move joins ``_refused`` until the next arm reset: ``jumped``):
-        not on a point read surely empty since that reset. Only games whose
+        not on a point known empty since that reset (`_known_empty`, or read
+        surely empty). Only games whose
         every touch plays a move (not a piece's selection)."""
         if jumped:
             self._zones.reset()
@@ -290,9 +294,11 @@ class BoardCameraEstimator(Estimator):
         if zone is None or belief.is_terminal() or belief.current_player() != self._agent:
             return False
         if zone < len(self._seen_empty) and self._seen_empty[zone]:
-            # The board stands still between registered moves: a point read
-            # empty since the last one is empty still (and its column not
-            # full); the press failed to register, the game refused nothing.
+            # The board stands still between registered moves: a point known
+            # empty since the last one (read surely empty, or empty in a
+            # confirmed estimate with the agent to move) is empty still (and
+            # its column not full); the press failed to register, the game
+            # refused nothing.
             return False
         action = int(game.zone_effects(belief, self._selected)[0][min(zone, game.num_zones - 1)])
         if action < 0 or action == game.pass_action or action not in belief.legal_actions():
@@ -374,6 +380,14 @@ class BoardCameraEstimator(Estimator):
                 break
             self._anchors.pop()
         self._anchors.append(state.clone())
+        self._known_empty(state)
+
+    def _known_empty(self, state) -> None:
+        """A confirmed ``state`` with the agent to move stands until the
+        agent's next registered move (an arm reset, which clears
+        ``_seen_empty``): its empty cells are known empty until then."""
+        if not state.is_terminal() and self._settled(state):
+            self._seen_empty |= self._game.players(state) == EMPTY_CELL
 
     def _search(
         self,
