@@ -66,10 +66,10 @@ run unconfirmed ahead of the last anchor (a move under the hand).
 Presses tell too: the hand standing blocked on one zone with no arm reset
 (`hier_agents.estimators.presses`) means the game refused that move (its
 point is taken, under the hand where the camera cannot see it), unless the
-point is known empty since the last arm reset (the board stands still in
-between: the press failed to register): read surely empty, or empty in a
-confirmed estimate with the agent to move (the game's start when the agent
-moves first), since. Until the next reset, a
+point is known empty since the last arm reset (read surely empty, or empty
+in a confirmed estimate with the agent to move, as at the game's start when
+the agent moves first): the board stands still in between, so the press
+failed to register. Until the next reset, a
 continuation in which that move is legal counts as contradicting a cell
 read surely, so an opponent's reply hidden by the hand is not kept for a
 pass. A pass is confirmed only once every empty cell, where a reply could
