@@ -10,8 +10,9 @@ For the board games' camera estimator
   any that stand out from their row: a piece it played) and from later
   frames (cells a confirmed state says are empty), where the arm leaves
   them in view (`BoardView.clear`). `filled` lends each sample not learnt
-  the same sample of the nearest cell that has it (of the same
-  checkerboard parity, in its row if it can); where no cell has it (a
+  the median of the same sample of the three nearest cells that have it
+  (of the same checkerboard parity, in its row first), so that a mark
+  on one cell (a star point) is not lent; where no cell has it (a
   board full of pieces at the start: clobber) it is taken through the
   first frame's see-through pieces (``prior``).
 * **The arm's shadow** (under a light that casts shadows, the original's
@@ -48,6 +49,9 @@ UNMIX_OUTSIDE = 1.15
 #: it is kept in (`BoardColours.learn_shade`).
 SHADE_SAMPLES = 50
 SHADE_RANGE = (0.2, 0.95)
+#: A sample not learnt is the median of this many nearest cells' that have
+#: it (`BoardColours.filled`).
+DONORS = 3
 
 
 class BoardColours:
@@ -144,11 +148,14 @@ class BoardColours:
 
     def filled(self) -> np.ndarray:
         """(n, k, 3): the background, each sample not learnt borrowed from
-        the same sample of the nearest cell that has it learnt: of its
-        parity in its row, else of its parity, else any (the samples lie at
-        the same offsets from each point, so a wooden board's lines fall on
-        the same samples); else its cell's median, else ``prior``, else NaN
-        (unknown: `BoardView.read` does not read it)."""
+        the same sample of the nearest cells of its parity that have it
+        learnt (those in its row first), else of any parity (the samples lie
+        at the same offsets from each point, so a wooden board's lines fall
+        on the same samples): the median of the first `DONORS` such cells'
+        (the mean of two when only two have it), so that a mark on one cell
+        (a Go board's star point) is not lent to its neighbours. Else its
+        cell's median, else ``prior``, else NaN (unknown: `BoardView.read`
+        does not read it)."""
         bg = self.background
         known = ~np.isnan(bg[..., 0])
         if known.all():
@@ -156,27 +163,40 @@ class BoardColours:
         out = bg.copy()
         view = self.view
         some = known.any(axis=1)
-        for cell in np.flatnonzero(~known.all(axis=1)):
+        for cell in np.flatnonzero(~known.all(axis=1)).tolist():
             missing = ~known[cell]
             same = some & (view.parity == view.parity[cell])
-            donors = []
-            for pool in (same & (view.row == view.row[cell]), same, some):
-                pool = [c for c in np.flatnonzero(pool) if c != cell and c not in donors]
-                distance = np.linalg.norm(view.centres[pool] - view.centres[cell], axis=1)
-                donors += [pool[i] for i in np.argsort(distance, kind="stable")]
-            for donor in donors:
-                fill = missing & known[donor]
-                out[cell][fill] = bg[donor][fill]
-                missing &= ~fill
-                if not missing.any():
-                    break
-            else:
-                out[cell][missing] = (
+            row = same & (view.row == view.row[cell])
+            near = self._nearest
+            tiers = (near(cell, row) + near(cell, same & ~row), near(cell, some & ~same))
+            lent = np.zeros(missing.shape, bool)
+            for donors in tiers:
+                if not donors:
+                    continue
+                # Per sample still missing, the first DONORS donors that have it.
+                has = known[donors] & (missing & ~lent)[None]
+                use = has & (np.cumsum(has, axis=0) <= DONORS)
+                with warnings.catch_warnings():  # a sample no donor has
+                    warnings.simplefilter("ignore", RuntimeWarning)
+                    median = np.nanmedian(np.where(use[..., None], bg[donors], np.nan), axis=0)
+                new = use.any(axis=0)
+                out[cell][new] = median[new]
+                lent |= new
+            rest = missing & ~lent
+            if rest.any():
+                out[cell][rest] = (
                     np.median(bg[cell][known[cell]], axis=0)
                     if known[cell].any()
-                    else self.prior[cell][missing]
+                    else self.prior[cell][rest]
                 )
         return out
+
+    def _nearest(self, cell: int, pool) -> list[int]:
+        """The cells of ``pool`` (n,) bool other than ``cell``, nearest first."""
+        others = np.flatnonzero(pool)
+        others = others[others != cell]
+        distance = np.linalg.norm(self.view.centres[others] - self.view.centres[cell], axis=1)
+        return [int(c) for c in others[np.argsort(distance, kind="stable")]]
 
     def _prior(self, players, samples, keep) -> np.ndarray:
         """(n, k, 3): the empty board's colour, as the pieces' colour model
