@@ -568,7 +568,7 @@ def test_a_press_the_game_refused_shows_the_reply_under_the_hand(request):
     # stands still between registered moves): a press blocked there failed
     # to register, the game refused nothing.
     estimator._belief = estimator._explain(cells, shares, over=False)
-    estimator._seen_empty[reply] = True
+    estimator._empty_since_reset[reply] = True
     zones.pinch = lambda qpos: over_reply
     try:
         refused = [estimator._refuse(np.zeros(9), False) for _ in range(presses.STALL_STEPS + 2)]

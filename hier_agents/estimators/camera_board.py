@@ -170,7 +170,7 @@ class BoardCameraEstimator(Estimator):
         # the last arm reset, and the cells known empty since then (`_refuse`).
         self._zones = TouchZones(description, view.half, view.silhouette.pinch)
         self._refused: set[int] = set()
-        self._seen_empty = np.zeros(len(description.point_positions), bool)
+        self._empty_since_reset = np.zeros(len(description.point_positions), bool)
         self._known_empty(initial)
         # The empty board's colours and the arm shadow's share of light, from
         # the first frame on (nothing can stand out when the agent moves
@@ -239,7 +239,7 @@ class BoardCameraEstimator(Estimator):
             obs[CAMERA], qpos, background, colours.shade
         )
         seen = cells != UNSEEN
-        self._seen_empty |= cells == EMPTY_CELL
+        self._empty_since_reset |= cells == EMPTY_CELL
         game = self._game
         players = game.players(self._belief)
         # The episode ended with the game (not at the time limit): the game is over.
@@ -285,7 +285,7 @@ class BoardCameraEstimator(Estimator):
         if jumped:
             self._zones.reset()
             self._refused = set()
-            self._seen_empty[:] = False
+            self._empty_since_reset[:] = False
             return False
         game, belief = self._game, self._belief
         if game.rules.input == "move":
@@ -293,7 +293,7 @@ class BoardCameraEstimator(Estimator):
         zone = self._zones.blocked(qpos)
         if zone is None or belief.is_terminal() or belief.current_player() != self._agent:
             return False
-        if zone < len(self._seen_empty) and self._seen_empty[zone]:
+        if zone < len(self._empty_since_reset) and self._empty_since_reset[zone]:
             # The board stands still between registered moves: a point known
             # empty since the last one (read surely empty, or empty in a
             # confirmed estimate with the agent to move) is empty still (and
@@ -385,9 +385,9 @@ class BoardCameraEstimator(Estimator):
     def _known_empty(self, state) -> None:
         """A confirmed ``state`` with the agent to move stands until the
         agent's next registered move (an arm reset, which clears
-        ``_seen_empty``): its empty cells are known empty until then."""
+        ``_empty_since_reset``): its empty cells are known empty until then."""
         if not state.is_terminal() and self._settled(state):
-            self._seen_empty |= self._game.players(state) == EMPTY_CELL
+            self._empty_since_reset |= self._game.players(state) == EMPTY_CELL
 
     def _search(
         self,
