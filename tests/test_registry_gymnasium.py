@@ -8,6 +8,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import envs
+from fast_cover import cover, family_and_game
 from envs.mujoban.levels import BOXOBAN_DIR, read_levels
 
 MUJOBAN_NAMES = sorted(
@@ -47,15 +48,14 @@ def test_false_switches_a_camera_off_as_none_does():
         envs.check("mujoban/level1", top_camera=True)
 
 
-#: The names the fast tests check (a level, the curriculum); the others
-#: differ from these only in difficulty or pegs and are checked with the slow tests.
-FAST_NAMES = ("mujoban/level1", "mujoban/curriculum")
+def _facets(name: str) -> list[tuple]:
+    """A MuJoBan name's facets (`family_and_game`: its pegs) and whether it
+    samples a curriculum; names that differ only in difficulty run with the
+    slow tests."""
+    return [*family_and_game(name), ("curriculum", "curriculum" in name)]
 
 
-@pytest.mark.parametrize(
-    "name",
-    [n if n in FAST_NAMES else pytest.param(n, marks=pytest.mark.slow) for n in MUJOBAN_NAMES],
-)
+@pytest.mark.parametrize("name", cover(MUJOBAN_NAMES, _facets))
 def test_every_name_passes_gymnasium_check_env(name):
     # render() at the default size (256 x 256) for the first name, at the
     # cameras' for the others: one renderer per environment, not two.
