@@ -713,17 +713,25 @@ def original_env(results: Path) -> list[str]:
 @table("original-boards")
 def original_boards(results: Path) -> list[str]:
     """Our default camera agent on the original MuJoXO and MuJoGo
-    (`benchmarks/original_boards.py`)."""
+    (`benchmarks/original_boards.py`): ``original_boards.json``'s runs, then
+    ``original_go_shadows.json``'s (MuJoGo under shadows measured again
+    later), each with its commit."""
     d = _load(results / "original_boards.json")
+    again = _load(results / "original_go_shadows.json")
     lines = [
         "| the original | its looks | games | agent (observation-only) | won / drawn / lost "
         "| not lost [95% CI] | its estimates right | mean steps |",
         "| --- | --- | --- | --- | --- | --- | --- | --- |",
     ]
-    for run in d["runs"]:
+    runs = [
+        (run, f", at `{data['provenance']['commit'][:7]}`")
+        for data in (d, again)
+        for run in data["runs"]
+    ]
+    for run, when in runs:
         s = run["summary"]
         other = s["games"] - s["win"] - s["draw"] - s["loss"]
-        looks = "as it is (shadows)" if run["shadows"] else "shadows off"
+        looks = ("as it is (shadows)" if run["shadows"] else "shadows off") + when
         lines.append(
             f"| `{run['original_task']}` | {looks} | {s['games']} | camera estimator, "
             f"{'minimax' if run['game'] == 'xo' else 'gnugo'}, arm-touch "
