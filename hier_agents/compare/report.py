@@ -10,7 +10,8 @@ place that chooses it): MuJoBan's **success** (1 solved, 0 not: the share
 solved), the board games' **game score** (1 for a win, 1/2 for a draw, 0
 for a loss; against MuJoXO's optimal opponent nobody wins, so a win rate
 would be 0 for every agent). Board-game points add the shares of games
-won, drawn and lost (``outcomes``). Across seeds (`hier_agents.stats`,
+won, drawn and lost, and of the lost those still running at the time limit
+(``outcomes``). Across seeds (`hier_agents.stats`,
 10,000 resamples, seeded):
 
 * the **mean** over seeds with a 95% percentile-bootstrap interval over the
@@ -140,7 +141,8 @@ def _point(agent, env: str, budget, complete: dict, summary: dict) -> dict:
     evaluation summary (`hier_agents.run.run`): per seed the mean of its
     episodes' scores (``env``'s family's `episode_score`), the statistics
     over seeds (module docstring) and, for games, ``outcomes``: the shares
-    of all episodes won, drawn and lost."""
+    of all episodes won, drawn and lost, and lost unfinished at the time
+    limit (`outcome_shares`)."""
     family = env_adapter(env)
     scores = [[family.episode_score(r) for r in rows] for _, rows in sorted(complete.items())]
     per_seed = {s: sum(x) / len(x) for s, x in zip(sorted(complete), scores)}
@@ -330,13 +332,20 @@ def _cells(p: dict, cost: dict, stat: str) -> dict:
     }
 
 
+#: The text table's width of the ``W/D/L %`` column (`_wdl`).
+WDL_WIDTH = len("0/0/100 (100 unfinished)")
+
+
 def _wdl(p: dict) -> str:
-    """A game point's shares won, drawn and lost in percent, ``W/D/L``
-    (``-`` for a point without ``outcomes``)."""
+    """A game point's shares won, drawn and lost in percent, ``W/D/L``, and
+    of the lost those unfinished at the time limit, ``(U unfinished)`` when
+    any (``-`` for a point without ``outcomes``)."""
     shares = p.get("outcomes")
     if not shares:
         return "-"
-    return "/".join(f"{100 * shares[k]:.0f}" for k in ("win", "draw", "loss"))
+    wdl = "/".join(f"{100 * shares[k]:.0f}" for k in ("win", "draw", "loss"))
+    unfinished = shares.get("unfinished", 0.0)
+    return f"{wdl} ({100 * unfinished:.0f} unfinished)" if unfinished else wdl
 
 
 def format_table(
@@ -357,7 +366,7 @@ def format_table(
         if not rows:
             continue
         games = env_adapter(env).games
-        wdl = f" {'W/D/L %':>11}" if games else ""
+        wdl = f" {'W/D/L %':>{WDL_WIDTH}}" if games else ""
         head = (
             f"  {'agent':<{width}} {'train frames':>13} {'mean %':>7} {'[95% CI]':>14} "
             f"{'IQM %':>6} {'[95% CI]':>14} {'seeds':>5}  {'per seed %':<16}{wdl} "
@@ -366,7 +375,7 @@ def format_table(
         lines += [f"{env}:", head, "  " + "-" * (len(head) - 2)]
         for p in rows:
             c = _cells(p, cost, "mean")
-            outcomes = f" {c['wdl']:>11}" if games else ""
+            outcomes = f" {c['wdl']:>{WDL_WIDTH}}" if games else ""
             lines.append(
                 f"  {p['agent']:<{width}} {p['training_frames']:>13,} {c['mean']:>7} "
                 f"{c['mean_ci']:>14} {c['iqm']:>6} {c['iqm_ci']:>14} {len(p['seeds']):>5}  "
@@ -396,7 +405,8 @@ def format_markdown(
     the metric's (``envs``' `metrics` names, e.g. success) mean (``use_iqm``:
     the IQM) with its interval, the IQM (the mean) with its, per-seed
     values, when a game is among ``envs`` the shares won, drawn and lost
-    (``-`` for other environments), mean steps, training CPU hours,
+    and of the lost those unfinished at the time limit (``-`` for other
+    environments), mean steps, training CPU hours,
     observations."""
     first, second = ("iqm", "mean") if use_iqm else ("mean", "iqm")
     names = {"mean": "mean over seeds", "iqm": "IQM over seeds"}

@@ -464,9 +464,14 @@ class BoardAdapter(FamilyAdapter):
         return self.OUTCOME_SCORES.get(row.get("outcome") or "loss", 0.0)
 
     def outcome_shares(self, rows) -> dict | None:
+        """The shares of ``rows`` won, drawn and lost, and ``unfinished``: of
+        the lost, those whose game was still running at the time limit."""
         rows = list(rows)
         outcomes = [r.get("outcome") or "loss" for r in rows]
-        return {k: outcomes.count(k) / len(rows) if rows else 0.0 for k in self.OUTCOME_SCORES}
+        shares = {k: outcomes.count(k) / len(rows) if rows else 0.0 for k in self.OUTCOME_SCORES}
+        unfinished = sum(r.get("failure_reason") == "time limit" for r in rows)
+        shares["unfinished"] = unfinished / len(rows) if rows else 0.0
+        return shares
 
     def estimate_right(self, task, scene) -> bool:
         """Whether the agent's ``scene`` has the referee's board (every
