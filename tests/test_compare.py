@@ -891,6 +891,15 @@ def _fake_board_records(cache: Path, planned) -> None:
         jobs_mod.store_record(cache, {**record, "cpu_s": 1.0, "wall_s": 1.0, "attempts": 1})
 
 
+def test_a_board_points_shares_round_to_0_or_100_only_when_exact():
+    """One game of 300 lost unfinished shows, though 0.3% rounds to 0."""
+    shares = {"win": 299 / 300, "draw": 0.0, "loss": 1 / 300, "unfinished": 1 / 300}
+    assert report._wdl({"outcomes": shares}) == "99.7/0/0.3 (0.3 unfinished)"
+    shares = {"win": 1.0, "draw": 0.0, "loss": 0.0, "unfinished": 0.0}
+    assert report._wdl({"outcomes": shares}) == "100/0/0"
+    assert report._wdl({}) == "-"
+
+
 def test_board_points_score_games_a_win_one_a_draw_half_a_loss_zero(tmp_path):
     """A board point's per-seed value is the mean game score, not the win
     rate (which is 0 against an opponent nobody beats); its IQM interval is

@@ -333,7 +333,7 @@ def _cells(p: dict, cost: dict, stat: str) -> dict:
 
 
 #: The text table's width of the ``W/D/L %`` column (`_wdl`).
-WDL_WIDTH = len("0/0/100 (100 unfinished)")
+WDL_WIDTH = len("99.7/0/0.3 (0.3 unfinished)")
 
 
 def _wdl(p: dict) -> str:
@@ -343,9 +343,18 @@ def _wdl(p: dict) -> str:
     shares = p.get("outcomes")
     if not shares:
         return "-"
-    wdl = "/".join(f"{100 * shares[k]:.0f}" for k in ("win", "draw", "loss"))
+    wdl = "/".join(_share(shares[k]) for k in ("win", "draw", "loss"))
     unfinished = shares.get("unfinished", 0.0)
-    return f"{wdl} ({100 * unfinished:.0f} unfinished)" if unfinished else wdl
+    return f"{wdl} ({_share(unfinished)} unfinished)" if unfinished else wdl
+
+
+def _share(share: float) -> str:
+    """A share in whole percent, with one decimal where rounding would
+    show 0 or 100 for a share that is neither (one game of 300 shows)."""
+    text = f"{100 * share:.0f}"
+    if text in ("0", "100") and 0.0 < share < 1.0:
+        text = f"{100 * share:.1f}"
+    return text
 
 
 def format_table(
