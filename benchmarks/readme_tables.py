@@ -136,6 +136,7 @@ def headline(results: Path) -> list[str]:
             "results/comparison.md",
         ),
     ]
+    rows.append(_boards_headline(_load(results / "compare" / "boards" / "comparison.json")))
     lines = [
         "| task | agent (observes) | result [95% interval] | details |",
         "| --- | --- | --- | --- |",
@@ -145,6 +146,32 @@ def headline(results: Path) -> list[str]:
         for task, who, result, page in rows
     ]
     return lines
+
+
+def _boards_headline(data: dict) -> tuple[str, str, str, str]:
+    """The headline row of the board games' comparison (a comparison.json):
+    per environment, the camera agent's mean game score and the best
+    end-to-end point's (its frames, and whether it observed privileged
+    state)."""
+    envs = data["spec"]["envs"]
+    points = [p for p in data["points"] if not p["missing_seeds"]]
+    camera, e2e, budgets, privileged = [], [], set(), False
+    for env in envs:
+        here = [p for p in points if p["env"] == env]
+        modular = next(p for p in here if p["agent"] == "modular: camera")
+        best = max((p for p in here if p["kind"] == "train"), key=lambda p: p["mean"])
+        camera.append(f"{100 * modular['mean']:.1f}")
+        e2e.append(f"{100 * best['mean']:.1f}")
+        budgets.add(best["budget"])
+        privileged |= bool(best.get("privileged"))
+    frames = " / ".join(f"{b:,}" for b in sorted(budgets))
+    return (
+        ", ".join(f"`{e}`" for e in envs) + ", 3 seeds",
+        "modular (camera) against end-to-end",
+        f"game score {' / '.join(camera)}% against {' / '.join(e2e)}% for the best "
+        f"end-to-end point ({frames} frames{', PRIVILEGED' if privileged else ''})",
+        "results/comparison.md",
+    )
 
 
 @table("agent-results")
@@ -502,13 +529,14 @@ def _points_to_come(data: dict) -> list[str]:
     return out
 
 
-@table("compare-mujoban")
-def compare_mujoban(results: Path) -> list[str]:
-    """The shipped comparison (``python -m hier_agents.compare experiments/mujoban.toml``):
-    one row per environment and point, then each series' CPU hours."""
+def _compare(results: Path, name: str) -> list[str]:
+    """A shipped comparison (``python -m hier_agents.compare
+    experiments/NAME.toml``, its outputs in ``results/compare/NAME``): one row
+    per environment and point, the points still to come, then each series'
+    CPU hours."""
     from hier_agents.compare import report
 
-    data = _load(results / "compare" / "mujoban" / "comparison.json")
+    data = _load(results / "compare" / name / "comparison.json")
     lines = report.format_markdown(data["spec"]["envs"], data["points"], data["series_cost"])
     if data["jobs_missing"]:
         lines += [
@@ -532,6 +560,18 @@ def compare_mujoban(results: Path) -> list[str]:
             f"| {c['train_jobs']} training, {c['eval_jobs']} evaluation |"
         )
     return lines
+
+
+@table("compare-mujoban")
+def compare_mujoban(results: Path) -> list[str]:
+    """MuJoBan's shipped comparison (`_compare`)."""
+    return _compare(results, "mujoban")
+
+
+@table("compare-boards")
+def compare_boards(results: Path) -> list[str]:
+    """The board games' shipped comparison (`_compare`)."""
+    return _compare(results, "boards")
 
 
 #: The MuJoBoard games with camera rows both ways (gomoku has only its

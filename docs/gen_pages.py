@@ -29,6 +29,7 @@ PACKAGES = ("physics_planning", "envs", "skills", "abstract_planners", "hier_age
 #: ``docs``' ``results/images/``.
 IMAGES = {
     "compare/mujoban/comparison.png": "comparison.png",
+    "compare/boards/comparison.png": "comparison_boards.png",
     "looks_side_by_side.png": "looks_side_by_side.png",
     "board_looks.png": "board_looks.png",
 }

@@ -1294,20 +1294,23 @@ def test_a_series_evaluated_with_its_policy_sampled_says_so(tmp_path):
 
 @pytest.mark.slow
 @pytest.mark.parametrize(
-    "agent, env",
+    "name, agent, env",
     [
-        ("sb3 PPO: state", "mujoban/level1"),
-        ("e2e vanilla: state, action repeat 4", "mujoban/level1"),
-        ("e2e vanilla: state, action repeat 4", "mujoban/level2"),
+        ("mujoban", "sb3 PPO: state", "mujoban/level1"),
+        ("mujoban", "e2e vanilla: state, action repeat 4", "mujoban/level1"),
+        ("mujoban", "e2e vanilla: state, action repeat 4", "mujoban/level2"),
+        ("boards", "e2e expert-planner: state, action repeat 4, PPO's objective", "mujoxo/optimal"),
+        ("boards", "sb3 PPO: state, action repeat 4", "mujoxo/mixture"),
     ],
 )
-def test_a_shipped_checkpoint_replays_its_committed_rows(agent, env):
+def test_a_shipped_checkpoint_replays_its_committed_rows(name, agent, env):
     """A shipped checkpoint at 250,000 frames (seed 0: SB3 PPO's model, the
-    IMPALA row's policy-only kept copy) plays the first episodes of its
-    committed evaluation again, row for row."""
+    IMPALA row's policy-only kept copy) of a shipped comparison
+    (``experiments/NAME.toml``) plays the first episodes of its committed
+    evaluation again, row for row."""
     import dataclasses
 
-    spec = load(ROOT / "experiments" / "mujoban.toml")
+    spec = load(ROOT / "experiments" / f"{name}.toml")
     job = next(
         j
         for j in jobs_mod.plan(spec)
