@@ -54,6 +54,7 @@ from abstract_planners.sokoban_time import (
 from envs.mujoban.levels import BOXOBAN_DIR, read_levels  # noqa: E402
 from hier_agents.boundary import BoundaryEnv  # noqa: E402
 from hier_agents.modular.components import PLANNERS, check, is_privileged, resolve  # noqa: E402
+from hier_agents.modular.families import TIME_LIMIT_REASON  # noqa: E402
 from hier_agents.run import run  # noqa: E402
 from hier_agents.stats import wilson_interval  # noqa: E402
 
@@ -94,7 +95,7 @@ def played_row(row: dict, episode: dict, limit: int) -> dict:
     if row.get("pushes"):
         row["steps_per_push"] = round(steps / row["pushes"], 2)
     if not row["solved"]:
-        row["failure_reason"] = episode.get("failure_reason", "time limit")
+        row["failure_reason"] = episode.get("failure_reason", TIME_LIMIT_REASON)
     return row
 
 

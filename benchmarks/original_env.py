@@ -48,6 +48,7 @@ from envs.description import MujobanDescription, MujobanLooks  # noqa: E402
 from envs.mujoban.levels import BOXOBAN_DIR, read_levels, write_levels  # noqa: E402
 from hier_agents.boundary import PRIVILEGED_OBSERVATIONS  # noqa: E402
 from hier_agents.modular.components import make_agent  # noqa: E402
+from hier_agents.modular.families import TIME_LIMIT_REASON  # noqa: E402
 from hier_agents.estimators.grid import cells_of  # noqa: E402
 from hier_agents.stats import wilson_interval  # noqa: E402
 
@@ -212,7 +213,7 @@ def play(levels, pegs: bool, seed: int, progress: bool = True) -> dict:
                 "wall_s": round(time.perf_counter() - start, 2),
             }
             if not solved:
-                row["failure_reason"] = reason or "time limit"
+                row["failure_reason"] = reason or TIME_LIMIT_REASON
             rows.append(row)
             bar.update(1)
             bar.set_postfix(solved=sum(r["solved"] for r in rows))

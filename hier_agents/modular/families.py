@@ -69,7 +69,12 @@ __all__ = [
     "SokobanAdapter",
     "BoardAdapter",
     "encode_sokoban",
+    "TIME_LIMIT_REASON",
 ]
+
+#: An episode row's ``failure_reason`` when nothing ended it before the time
+#: limit (a level unsolved, a game still running).
+TIME_LIMIT_REASON = "time limit"
 
 _PLAYER, _BOX = 2, 3  # full_entity_layer channels (envs.mujoban.task)
 
@@ -285,7 +290,7 @@ class SokobanAdapter(FamilyAdapter):
         return (
             {"solved": True}
             if solved
-            else {"solved": False, "failure_reason": reason or "time limit"}
+            else {"solved": False, "failure_reason": reason or TIME_LIMIT_REASON}
         )
 
     def success(self, task) -> bool:
@@ -442,7 +447,7 @@ class BoardAdapter(FamilyAdapter):
         if timestep is not None and getattr(task, "resigned", False):
             row["opponent_resigned"] = True
         if row["outcome"] != "win" and (reason or outcome is None):
-            row["failure_reason"] = reason or "time limit"
+            row["failure_reason"] = reason or TIME_LIMIT_REASON
         return row
 
     def success(self, task) -> bool:
@@ -469,7 +474,7 @@ class BoardAdapter(FamilyAdapter):
         rows = list(rows)
         outcomes = [r.get("outcome") or "loss" for r in rows]
         shares = {k: outcomes.count(k) / len(rows) if rows else 0.0 for k in self.OUTCOME_SCORES}
-        unfinished = sum(r.get("failure_reason") == "time limit" for r in rows)
+        unfinished = sum(r.get("failure_reason") == TIME_LIMIT_REASON for r in rows)
         shares["unfinished"] = unfinished / len(rows) if rows else 0.0
         return shares
 
