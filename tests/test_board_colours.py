@@ -24,8 +24,10 @@ def _colours(background: np.ndarray) -> BoardColours:
         parity=np.arange(n) % 2,
         centres=np.stack([np.zeros(n), np.arange(n, dtype=float)], axis=1),
     )
+    colours.game = SimpleNamespace(players=lambda state: np.full(n, -1))  # all empty
     colours.background = background
     colours.prior = np.full(background.shape, np.nan)
+    colours._filled = None
     return colours
 
 
@@ -71,3 +73,20 @@ def test_two_cells_lend_their_mean_and_none_leaves_the_sample_unknown():
     np.testing.assert_array_equal(filled[1, 0], WOOD + 10.0)
     np.testing.assert_array_equal(filled[1, 1:], _row(n=3)[1, 1:])
     assert np.isnan(_colours(np.full((3, 4, 3), np.nan)).filled()).all()
+
+
+def test_the_filled_board_is_kept_until_a_sample_is_learnt():
+    """`filled` answers with the same read-only array while nothing is
+    learnt, and a sample learnt afterwards shows in its next answer (not
+    the one lent before)."""
+    background = _row()
+    background[4] = np.nan
+    colours = _colours(background)
+    before = colours.filled()
+    assert colours.filled() is before and not before.flags.writeable
+    seen = np.broadcast_to(WOOD + 5.0, background.shape)
+    keep = np.zeros(background.shape[:2], bool)
+    keep[4] = True
+    colours.learn(None, seen, keep)
+    np.testing.assert_array_equal(colours.filled()[4], seen[4])
+    np.testing.assert_array_equal(before[4], _row()[4])

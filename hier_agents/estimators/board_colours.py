@@ -84,6 +84,7 @@ class BoardColours:
         self.prior = self._prior(game.players(initial), samples, keep)
         self.shade: float | None = None
         self._ratios: list[np.ndarray] = []
+        self._filled: np.ndarray | None = None  # `filled`'s answer until `learn` learns more
         self.learn(initial, samples, keep, check)
 
     @property
@@ -126,9 +127,11 @@ class BoardColours:
                 group = group[odd <= BACKGROUND_ODD * view.scale]
             elif check:
                 continue  # a lone cell cannot be checked: learnt once confirmed empty
-            self.background[group] = np.where(
-                keep[group][..., None], samples[group], self.background[group]
-            )
+            if len(group):
+                self.background[group] = np.where(
+                    keep[group][..., None], samples[group], self.background[group]
+                )
+                self._filled = None
 
     def learn_shade(self, frame, qpos, background, state) -> None:
         """Measures how dark the arm's shadow makes the cells empty in
@@ -155,7 +158,16 @@ class BoardColours:
         (the mean of two when only two have it), so that a mark on one cell
         (a Go board's star point) is not lent to its neighbours. Else its
         cell's median, else ``prior``, else NaN (unknown: `BoardView.read`
-        does not read it)."""
+        does not read it).
+
+        The same array is returned until `learn` learns a sample: callers
+        must not write to it (a copy of the background is read-only)."""
+        if self._filled is None:
+            self._filled = self._fill()
+        return self._filled
+
+    def _fill(self) -> np.ndarray:
+        """`filled`'s answer, computed."""
         bg = self.background
         known = ~np.isnan(bg[..., 0])
         if known.all():
@@ -189,6 +201,7 @@ class BoardColours:
                     if known[cell].any()
                     else self.prior[cell][rest]
                 )
+        out.flags.writeable = False
         return out
 
     def _nearest(self, cell: int, pool) -> list[int]:
