@@ -88,8 +88,8 @@ def headline(results: Path) -> list[str]:
     xo = [_load(agent / f"mujoxo_optimal_camera_{side}.json") for side in ("first", "second")]
     go = _load(agent / "mujogo_7x7_camera.json")
     compare = _load(results / "compare" / "mujoban" / "comparison.json")
-    level1 = [p for p in compare["points"] if p["env"] == "mujoban/level1"]
-    best_e2e = max((p for p in level1 if p["kind"] == "train"), key=lambda p: p["mean"])
+    level1 = _complete_points(compare, "mujoban/level1")
+    best_e2e = _best_trained(level1)
     modular = next(p for p in level1 if p["agent"] == "modular: scripted")
     span = (
         f"{100 * min(solved):.0f}"
@@ -148,18 +148,27 @@ def headline(results: Path) -> list[str]:
     return lines
 
 
+def _complete_points(data: dict, env: str) -> list[dict]:
+    """The points of a comparison.json on ``env`` with every seed evaluated."""
+    return [p for p in data["points"] if p["env"] == env and not p["missing_seeds"]]
+
+
+def _best_trained(points: list[dict]) -> dict:
+    """Of ``points``, the trained (end-to-end) one with the highest mean."""
+    return max((p for p in points if p["kind"] == "train"), key=lambda p: p["mean"])
+
+
 def _boards_headline(data: dict) -> tuple[str, str, str, str]:
     """The headline row of the board games' comparison (a comparison.json):
     per environment, the camera agent's mean game score and the best
     end-to-end point's (its frames, and whether it observed privileged
     state)."""
     envs = data["spec"]["envs"]
-    points = [p for p in data["points"] if not p["missing_seeds"]]
     camera, e2e, budgets, privileged = [], [], set(), False
     for env in envs:
-        here = [p for p in points if p["env"] == env]
+        here = _complete_points(data, env)
         modular = next(p for p in here if p["agent"] == "modular: camera")
-        best = max((p for p in here if p["kind"] == "train"), key=lambda p: p["mean"])
+        best = _best_trained(here)
         camera.append(f"{100 * modular['mean']:.1f}")
         e2e.append(f"{100 * best['mean']:.1f}")
         budgets.add(best["budget"])
