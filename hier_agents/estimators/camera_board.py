@@ -41,8 +41,8 @@ When the last anchor's continuations contradict a cell read surely, those
 of the current estimate (extending that anchor, unconfirmed) are searched
 too: the beam ranks half-played continuations by what they already
 explain and can drop the true one.
-The search keeps `BEAM` states per move and looks at most `MAX_MOVES`
-moves ahead; when no anchor's does explain the frame (the game ran on
+The search (`hier_agents.estimators.board_search.ContinuationSearch`)
+keeps `BEAM` states per move and looks at most `MAX_MOVES` moves ahead; when no anchor's does explain the frame (the game ran on
 while the changed cells stayed hidden), one search from the last anchor
 keeps `DEEP_BEAM` states and looks `DEEP_MOVES` ahead. A frame that the
 current estimate already explains costs no search. When an episode ends with the game (a terminal
@@ -81,19 +81,34 @@ other camera off, rendered only when read (``lazy_cameras=True``).
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 
 from envs.boards.games import BoardGame
 from hier_agents.estimators.base import Estimator
 from hier_agents.estimators.board import scalar
 from hier_agents.estimators.board_colours import BoardColours
+from hier_agents.estimators.board_search import (
+    BEAM,
+    DEEP_BEAM,
+    DEEP_MOVES,
+    MAX_MOVES,
+    Clues,
+    ContinuationSearch,
+    confirmed,
+)
 from hier_agents.estimators.board_view import EMPTY_CELL, SELECTED, UNSEEN, BoardView
 from hier_agents.estimators.presses import TouchZones
 from skills.scene import ArmScene
 
-__all__ = ["BoardCameraEstimator", "CAMERA", "FRAME_SHAPE"]
+__all__ = [
+    "BoardCameraEstimator",
+    "CAMERA",
+    "FRAME_SHAPE",
+    "BEAM",
+    "MAX_MOVES",
+    "DEEP_BEAM",
+    "DEEP_MOVES",
+]
 
 #: The camera read and its frame size (height, width).
 CAMERA = "front_camera_2"
@@ -104,24 +119,9 @@ FRAME_SHAPE = (128, 128)
 #: at an episode's last step.
 FRAME_EVERY = 3
 ARM_JUMP = 0.3
-#: Search: states kept per move, moves looked ahead of an anchor, and
-#: anchors tried back from the last.
-BEAM = 8
-MAX_MOVES = 8
+#: Anchors tried back from the last when its continuations contradict a
+#: cell read surely (the search: `hier_agents.estimators.board_search`).
 BACKTRACK = 3
-#: When no anchor's search explains a frame (every cell read surely): one
-#: more search from the last anchor, keeping `DEEP_BEAM` states per move
-#: and looking `DEEP_MOVES` moves ahead.
-DEEP_BEAM = 16
-DEEP_MOVES = 16
-
-
-def _confirmed(score) -> bool:
-    """Whether a `BoardCameraEstimator._search` score explains the frame: not
-    unfinished at the game's end, no cell read surely contradicted, every
-    changed cell read surely, and after an opponent's pass every empty cell
-    read surely (a reply could lie there)."""
-    return not score[0] and score[1] == 0 and score[5] == 0 and score[6] == 0
 
 
 class BoardCameraEstimator(Estimator):
@@ -145,7 +145,6 @@ class BoardCameraEstimator(Estimator):
         self.frame_every = frame_every
         self._views: dict[tuple[BoardGame, object, object], BoardView] = {}
         self._view: BoardView | None = None
-        self.searches = 0
 
     def reset(self, description, timestep) -> None:
         game = BoardGame.from_description(description)
@@ -156,13 +155,12 @@ class BoardCameraEstimator(Estimator):
         view = self._view = self._views[key]
         self._game, self._spiel = game, game.load()
         self._agent = scalar(timestep.observation, "agent_player", 0)
+        self._searcher = ContinuationSearch(game, self._agent)
         initial = self._spiel.new_initial_state()
         self._settle(initial)
         self._anchors = [initial]
         self._belief = initial.clone()
         self._selected = -1
-        # `_search`'s results: (state, score) by the search's inputs.
-        self._cache: dict[tuple[object, ...], tuple[Any, tuple[Any, ...]]] = {}
         self._since, self._qpos = self.frame_every, None  # the first estimate reads
         self._touched = None
         self._vouched = None
@@ -200,15 +198,19 @@ class BoardCameraEstimator(Estimator):
         return cells, hidden
 
     def _settle(self, state) -> None:
-        """Plays the passes the referee plays (`BoardGame.forced_pass`)."""
-        forced = self._game.forced_pass(state)
-        while forced is not None:
-            state.apply_action(forced)
-            forced = self._game.forced_pass(state)
+        """Plays the passes the referee plays (`ContinuationSearch.settle`)."""
+        self._searcher.settle(state)
 
     def _settled(self, state) -> bool:
-        """A state the agent can be shown: the agent to move, or the end."""
-        return state.is_terminal() or state.current_player() == self._agent
+        """A state the agent can be shown (`ContinuationSearch.settled`)."""
+        return self._searcher.settled(state)
+
+    def _search(self, anchor, cells, fractions, over: bool, **options):
+        """`ContinuationSearch.search` from ``anchor`` with this estimator's
+        clues (its estimate, the touched zone, the refused moves, the
+        selected piece)."""
+        clues = Clues(self._belief, self._touched, frozenset(self._refused), self._selected)
+        return self._searcher.search(anchor, cells, fractions, clues, over, **options)
 
     def estimate(self, timestep) -> ArmScene:
         if self._view is None:
@@ -260,7 +262,7 @@ class BoardCameraEstimator(Estimator):
             # surely in any frame since the estimate was made vouch for it.
             self._vouched = seen if self._vouched is None else self._vouched | seen
             changed = game.players(self._anchor) != players
-            if not np.any(changed & ~self._vouched) and not self._unseen_replies(
+            if not np.any(changed & ~self._vouched) and not self._searcher.unseen_replies(
                 self._anchor, self._belief, players, self._vouched
             ):
                 self._confirm(self._belief)
@@ -345,7 +347,7 @@ class BoardCameraEstimator(Estimator):
             tried.append((score, back, state))
             before = anchor.history()
             if (
-                (score[0] or score[1])
+                (score.unfinished or score.wrong)
                 and back == 0
                 and len(believed) > len(before)
                 and believed[: len(before)] == before
@@ -358,15 +360,17 @@ class BoardCameraEstimator(Estimator):
                 # kept MuJoGo's unconfirmed mistakes).
                 state, score = self._search(anchor, cells, fractions, over, start=self._belief)
                 tried.append((score, back, state))
-            if any(not s[0] and s[1] == 0 for s, _, _ in tried):
+            if any(not s.unfinished and s.wrong == 0 for s, _, _ in tried):
                 break
         else:
             # Nothing near explains the frame: the game ran further ahead
             # while cells were hidden. A deeper, wider search from the last anchor.
-            state, score = self._search(self._anchor, cells, fractions, over, DEEP_MOVES, DEEP_BEAM)
+            state, score = self._search(
+                self._anchor, cells, fractions, over, max_moves=DEEP_MOVES, beam=DEEP_BEAM
+            )
             tried.append((score, 0, state))
         score, back, state = min(tried, key=lambda t: (t[0], t[1]))
-        if _confirmed(score):
+        if confirmed(score):
             self._confirm(state)
         return state
 
@@ -388,168 +392,3 @@ class BoardCameraEstimator(Estimator):
         ``_empty_since_reset``): its empty cells are known empty until then."""
         if not state.is_terminal() and self._settled(state):
             self._empty_since_reset |= self._game.players(state) == EMPTY_CELL
-
-    def _search(
-        self,
-        anchor,
-        cells,
-        fractions,
-        over: bool = False,
-        max_moves: int = MAX_MOVES,
-        beam: int = BEAM,
-        start=None,
-    ):
-        """(state, score): the best-explaining continuation of ``anchor`` and
-        its score (see the module docstring).
-        ``fractions`` (n, 2): each visible cell's share of each piece colour
-        (NaN under the arm); with ``over`` (the episode ended with the game)
-        only a finished game is accepted, if one is found. ``start``: a
-        settled continuation of ``anchor`` (the current estimate) to search
-        from instead; the score still counts what changed since ``anchor``."""
-        start = anchor if start is None else start
-        key = (
-            tuple(anchor.history()),
-            tuple(start.history()),
-            tuple(self._belief.history()),  # the score's reference (`_scorer`)
-            max_moves,
-            beam,
-            cells.tobytes(),
-            self._touched,
-            tuple(sorted(self._refused)),
-            self._selected,
-            np.round(np.nan_to_num(fractions, nan=-1.0) * 20).astype(np.int8).tobytes(),
-            over,
-        )
-        if key in self._cache:
-            state, score = self._cache[key]
-            return state.clone(), score
-        self.searches += 1
-        score = self._scorer(anchor, cells, fractions, over)
-        start = start.clone()
-        best = (score(start), 0, start) if self._settled(start) else None
-        frontier = [start]
-        for depth in range(1, max_moves + 1):
-            children = self._expand(frontier, score)
-            if not children:
-                break
-            for s, child in children:
-                if self._settled(child) and (best is None or (s, depth) < (best[0], best[1])):
-                    best = (s, depth, child)
-            if best is not None and _confirmed(best[0]) and not best[0][4]:
-                break
-            frontier = self._beam(children, beam)
-        if best is None:  # nothing settled within reach: keep the estimate, unconfirmed
-            result = (self._belief.clone(), (True, len(cells), 0.0, 0, 1, len(cells), 0))
-        else:
-            result = (best[2], best[0])
-        if len(self._cache) > 256:
-            self._cache.clear()
-        self._cache[key] = (result[0].clone(), result[1])
-        return result
-
-    def _scorer(self, anchor, cells, fractions, over: bool):
-        """The score `_search` ranks a continuation ``state`` of ``anchor`` by,
-        lower is better:
-        (finished or not unlike the episode, cells read surely and
-        contradicted (and moves the game refused, `_refuse`, that the state
-        allows), how far the visible cells' colour shares are from the
-        state's pieces, rewriting moves of the current estimate (two orders
-        of the same moves can give one board), not continuing the current
-        estimate with the move the touch before an arm reset played (the
-        agent acted on that estimate: an unconfirmed part of it may lie
-        between ``anchor`` and that move), cells changed
-        since ``anchor`` not read surely, after an opponent's pass since
-        ``anchor`` the empty cells not read surely (`_unseen_replies`): only
-        a tie-break, it holds back the pass's confirmation, not the pass)."""
-        game = self._game
-        visible = ~np.isnan(fractions[:, 0])
-        seen = cells != UNSEEN
-        base = game.players(anchor)
-        shares = fractions[visible]
-        # The action the touch before an arm reset played, and its place in
-        # the game: the agent touched it acting on the current estimate.
-        believed = list(self._belief.history())
-        played, ply = None, len(believed)
-        if self._touched is not None and self._belief.current_player() == self._agent:
-            zone = min(self._touched, game.num_zones - 1)
-            action = game.zone_effects(self._belief, self._selected)[0][zone]
-            played = int(action) if action >= 0 else None
-        refused = tuple(self._refused)
-        by_point = game.rules.input == "point"
-
-        def score(state):
-            players = game.players(state)
-            wrong = int(np.count_nonzero(players[seen] != cells[seen]))
-            if refused:  # the game runs, and refused them: as cells read surely
-                if state.is_terminal() or state.current_player() != self._agent:
-                    wrong += len(refused)
-                else:
-                    legal = set(state.legal_actions())
-                    wrong += sum(action in legal for action in refused)
-                    if by_point:  # no piece of the agent's is put down without an arm reset
-                        own = (players == self._agent) & (base != self._agent)
-                        wrong += sum(bool(own[a]) for a in refused if a < len(own))
-            pieces = np.stack([players[visible] == 0, players[visible] == 1], axis=1)
-            soft = round(float(np.abs(shares - pieces).sum()), 3)
-            history = state.history()
-            miss = played is not None and (len(history) <= ply or history[ply] != played)
-            blind = int(np.count_nonzero((players != base) & ~seen))
-            replies = self._unseen_replies(anchor, state, players, seen)
-            common = min(len(history), len(believed))
-            rewrite = history[:common] != believed[:common]
-            return (
-                over != state.is_terminal(),  # the game ends when the episode does
-                wrong,
-                soft,
-                int(rewrite),
-                int(miss),
-                blind,
-                replies,
-            )
-
-        return score
-
-    def _unseen_replies(self, anchor, state, players, seen) -> int:
-        """After an opponent's pass since ``anchor`` in ``state`` (games with
-        a pass area: Go), the empty cells of ``state`` (``players``) not in
-        ``seen``: a reply could lie there, so the pass is not yet told from
-        a move; else 0."""
-        pass_action = self._game.pass_action
-        tail = state.history()[len(anchor.history()) :]
-        if pass_action is None or pass_action not in tail:
-            return 0
-        replay = anchor.clone()
-        for action in tail:
-            if action == pass_action and replay.current_player() != self._agent:
-                return int(np.count_nonzero((players < 0) & ~seen))
-            replay.apply_action(action)
-        return 0
-
-    def _expand(self, frontier, score) -> list:
-        """Every legal move's child of the unfinished states of ``frontier``,
-        settled, as (score, child) pairs, best score first (stable)."""
-        children = []
-        for state in frontier:
-            if state.is_terminal():
-                continue
-            for action in state.legal_actions():
-                child = state.child(action)
-                self._settle(child)
-                children.append((score(child), child))
-        children.sort(key=lambda item: item[0])
-        return children
-
-    def _beam(self, children, beam: int) -> list:
-        """The next frontier: the first ``beam`` unfinished ``children`` (best
-        first), one per board and player to move."""
-        game = self._game
-        frontier, boards = [], set()
-        for _, child in children:
-            board = (game.players(child).tobytes(), child.current_player())
-            if board in boards or child.is_terminal():
-                continue
-            boards.add(board)
-            frontier.append(child)
-            if len(frontier) >= beam:
-                break
-        return frontier
