@@ -117,6 +117,41 @@ def test_mujoxo_markers_anywhere_on_their_pad_are_read_from_the_first_frame():
     assert read > 0.7 * 9 * len(seeds) and markers > 0.8 * len(seeds)
 
 
+def test_only_a_checkerboard_has_two_parities():
+    """Cells stand in for each other by parity (`BoardView.parity`): two on
+    a checkerboard (its squares' two colours), one on wood and plain tiles."""
+    for name, checker in (
+        ("mujoboard/breakthrough-6x6", True),
+        ("mujoboard/gomoku-9x9", False),
+        ("mujoboard/othello-8x8", False),
+    ):
+        parity = BoardView(*_view_args(name)).parity
+        assert set(parity.tolist()) == ({0, 1} if checker else {0}), name
+
+
+def test_an_edge_row_darker_than_the_rest_is_learnt_from_the_first_frame():
+    """Gomoku, the opponent first (episode 0 of seed 0): the light leaves the
+    last row darker than the others and the arm hides half of it. Its cells
+    are checked against their own row, not the board's (one wood colour:
+    no parities), so they are learnt, and the first estimate is the
+    referee's game (it was not, all game long, when they were checked
+    against the whole board's brighter cells of their parity)."""
+    name = "mujoboard/gomoku-9x9"
+    env = envs.load(name, seed=0, agent_player=1, **env_overrides(name, "camera"))
+    view = BoundaryEnv(env, strip=env.privileged_observations)
+    try:
+        env.seed(0, episode=0)
+        timestep = view.reset()
+        estimator = BoardCameraEstimator()
+        estimator.reset(view.description(), timestep)
+        last_row = np.arange(72, 81)
+        cells, _ = estimator.read(timestep)
+        assert (cells[last_row] != UNSEEN).sum() >= 4  # the arm hides the rest
+        assert _right(env, estimator.estimate(timestep))
+    finally:
+        env.close()
+
+
 def test_a_board_full_of_see_through_pieces_is_read_with_either_colour_anywhere():
     """Clobber starts with a piece on every point, so no empty cell shows
     the board: its colour as the pieces' colour model sees it is taken

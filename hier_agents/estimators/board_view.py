@@ -179,10 +179,14 @@ class BoardView:
         colours = game.rules.colours
         self.piece_rgb = np.array([c[:3] for c in colours], float) * 255.0
         self.piece_alpha = np.array([c[3] for c in colours], float)
-        #: Each cell's checkerboard parity (a background learnt on one cell
-        #: stands in for an unlearnt cell of the same parity).
+        #: Each cell's row, and its parity: on a checkerboard (`GameRules.look`
+        #: ``"checker"``) its square's colour, else 0 for every cell (one
+        #: colour of tile or wood throughout). A background learnt on one
+        #: cell stands in for an unlearnt cell of the same parity, its row's
+        #: first (the light falls off towards the board's edges).
         self.row = np.arange(n) // description.cols
-        self.parity = (self.row + np.arange(n) % description.cols) % 2
+        checker = game.rules.look == "checker"
+        self.parity = (self.row + np.arange(n) % description.cols) % 2 * int(checker)
         self.selection_rgb = np.array(SELECTION_RGBA[:3], float) * 255.0
         self.silhouette = ArmSilhouette(
             description.arm,
