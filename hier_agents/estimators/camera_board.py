@@ -42,10 +42,11 @@ of the current estimate (extending that anchor, unconfirmed) are searched
 too: the beam ranks half-played continuations by what they already
 explain and can drop the true one.
 The search (`hier_agents.estimators.board_search.ContinuationSearch`)
-keeps `BEAM` states per move and looks at most `MAX_MOVES` moves ahead; when no anchor's does explain the frame (the game ran on
-while the changed cells stayed hidden), one search from the last anchor
-keeps `DEEP_BEAM` states and looks `DEEP_MOVES` ahead. A frame that the
-current estimate already explains costs no search. When an episode ends with the game (a terminal
+keeps `BEAM` states per move and looks at most `MAX_MOVES` moves ahead;
+when no anchor's does explain the frame (the game ran on while the changed
+cells stayed hidden), one search from the last anchor keeps `DEEP_BEAM`
+states and looks `DEEP_MOVES` ahead. A frame that the current estimate
+already explains costs no search. When an episode ends with the game (a terminal
 timestep, discount 0), a finished game is preferred: the winning piece may
 still be under the hand.
 
