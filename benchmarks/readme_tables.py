@@ -598,11 +598,12 @@ CAMERA_BOARDS = (
 def mujoboard_camera(results: Path) -> list[str]:
     """The observation-only board rows (``--estimator camera``), first and
     second: the MuJoBoard games measured with the camera (`CAMERA_BOARDS`),
-    MuJoXO against the optimal opponent, then MuJoGo 7x7 (agent first)."""
+    MuJoXO against the optimal opponent, then MuJoGo 7x7 (agent first); each
+    with the commit it was measured at."""
     lines = [
         "| game | agent moves | won / drawn / lost [95% CI of won] | estimated board right "
-        "| wrong move | other failed touches | cut-off options | control steps / s |",
-        "| --- | --- | --- | --- | --- | --- | --- | --- |",
+        "| wrong move | other failed touches | cut-off options | control steps / s | commit |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- |",
     ]
     rows = [
         (env, side, f"{env.replace('/', '_')}_camera_{side}.json")
@@ -620,7 +621,8 @@ def mujoboard_camera(results: Path) -> list[str]:
             f"| `{env}` | {side} | {_ci(s['win_rate'], s['win_interval'])} / "
             f"{100 * s['draw_rate']:.0f}% / {100 * s['loss_rate']:.0f}% "
             f"| {100 * s['estimate_accuracy']:.2f}% | {wrong} | {other} "
-            f"| {s['subgoals']['cut_off']} | {s['control_steps_per_s']:.0f} |"
+            f"| {s['subgoals']['cut_off']} | {s['control_steps_per_s']:.0f} "
+            f"| `{s['provenance']['commit'][:7]}` |"
         )
     return lines
 
