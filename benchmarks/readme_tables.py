@@ -583,15 +583,18 @@ def compare_boards(results: Path) -> list[str]:
     return _compare(results, "boards")
 
 
-#: The MuJoBoard games with camera rows both ways (gomoku has only its
-#: agent-first row, checkers none yet).
-CAMERA_BOARDS = (
-    "connect_four",
-    "hex-7x7",
-    "othello-8x8",
-    "breakthrough-6x6",
-    "clobber-5x6",
-)
+#: The MuJoBoard games with camera rows, and their sides measured
+#: (checkers with the agent second is not measured yet).
+BOTH_SIDES = ("first", "second")
+CAMERA_BOARDS = {
+    "connect_four": BOTH_SIDES,
+    "hex-7x7": BOTH_SIDES,
+    "othello-8x8": BOTH_SIDES,
+    "gomoku-9x9": BOTH_SIDES,
+    "breakthrough-6x6": BOTH_SIDES,
+    "checkers": ("first",),
+    "clobber-5x6": BOTH_SIDES,
+}
 
 
 @table("mujoboard-camera")
@@ -605,10 +608,12 @@ def mujoboard_camera(results: Path) -> list[str]:
         "| wrong move | other failed touches | cut-off options | control steps / s | commit |",
         "| --- | --- | --- | --- | --- | --- | --- | --- | --- |",
     ]
+    sides = {f"mujoboard/{game}": s for game, s in CAMERA_BOARDS.items()}
+    sides["mujoxo/optimal"] = BOTH_SIDES
     rows = [
         (env, side, f"{env.replace('/', '_')}_camera_{side}.json")
-        for env in [f"mujoboard/{game}" for game in CAMERA_BOARDS] + ["mujoxo/optimal"]
-        for side in ("first", "second")
+        for env, measured in sides.items()
+        for side in measured
     ] + [("mujogo/7x7", "first", "mujogo_7x7_camera.json")]
     for env, side, name in rows:
         s = _load(results / "agent" / name)
