@@ -40,6 +40,8 @@ import agent_table  # noqa: E402
 from _common import cli, make_parser, prog  # noqa: E402
 
 PROG = prog(__file__)
+#: The sides a two-player game is measured from, the agent moving first or second.
+BOTH_SIDES = ("first", "second")
 
 #: name -> function(results_dir) -> list of Markdown lines.
 TABLES: dict[str, Callable[[Path], list[str]]] = {}
@@ -85,7 +87,7 @@ def headline(results: Path) -> list[str]:
             ("hard, first 200", "boxoban_hard-001-200-pegs.json"),
         )
     ]
-    xo = [_load(agent / f"mujoxo_optimal_camera_{side}.json") for side in ("first", "second")]
+    xo = [_load(agent / f"mujoxo_optimal_camera_{side}.json") for side in BOTH_SIDES]
     go = _load(agent / "mujogo_7x7_camera.json")
     compare = _load(results / "compare" / "mujoban" / "comparison.json")
     level1 = _complete_points(compare, "mujoban/level1")
@@ -585,7 +587,6 @@ def compare_boards(results: Path) -> list[str]:
 
 #: The MuJoBoard games with camera rows, and their sides measured
 #: (checkers with the agent second is not measured yet).
-BOTH_SIDES = ("first", "second")
 CAMERA_BOARDS = {
     "connect_four": BOTH_SIDES,
     "hex-7x7": BOTH_SIDES,
