@@ -69,6 +69,12 @@ def touch_point(env, target_xyz, *, press_depth=0.01, steps=80, until=None):
     return _drive(env, np.array([target[0], target[1], high]), steps // 2)
 
 
+def lift(env, height=SAFE_HEIGHT, steps=40):
+    """Raises the hand straight up by ``height`` (m); returns the last timestep."""
+    pinch = env.task.pinch_site_position()
+    return _drive(env, pinch + (0.0, 0.0, height), steps)
+
+
 def central_action(task):
     """The legal action of a board task whose touches lie nearest the board's
     centre (the easiest to reach)."""

@@ -9,11 +9,11 @@ import pytest
 
 import envs
 from fast_cover import cover, family_and_game
-from arm_driving import central_action, touch_point
+from arm_driving import central_action, lift, touch_point
 from envs.boards.mujoboard import REGISTERED
 from hier_agents.boundary import BoundaryEnv
 from hier_agents.estimators.board_view import UNSEEN, BoardView
-from hier_agents.estimators.camera_board import CAMERA, BoardCameraEstimator
+from hier_agents.estimators.camera_board import CAMERA, FRAME_EVERY, BoardCameraEstimator
 from hier_agents.modular.components import ESTIMATORS, env_overrides, reads_record
 from envs.boards.games import BoardGame
 
@@ -40,6 +40,8 @@ def test_the_camera_estimator_needs_no_record_and_asks_for_its_camera():
     for bad in (0, 1.5, True):
         with pytest.raises(ValueError, match="frame_every"):
             BoardCameraEstimator(frame_every=bad)
+    with pytest.raises(TypeError, match="still"):
+        BoardCameraEstimator(still=1)
     overrides = env_overrides("mujoboard/hex-7x7", "camera")
     assert overrides[CAMERA] == (128, 128) and overrides["front_camera"] is None
     env, view = _env("mujoboard/hex-7x7")
@@ -293,7 +295,8 @@ def test_touched_moves_and_replies_are_found_among_the_continuations(name):
     env, view = _env(name, opponent="random")
     task = env.task
     timestep = view.reset()
-    estimator = BoardCameraEstimator(frame_every=1)  # called once a turn here: read each time
+    # Called once a turn here: read each time.
+    estimator = BoardCameraEstimator(frame_every=1, still=False)
     estimator.reset(view.description(), timestep)
     for turn in range(3):
         if task.state.is_terminal():
@@ -318,6 +321,87 @@ def test_touched_moves_and_replies_are_found_among_the_continuations(name):
         scene = estimator.estimate(timestep)
         assert _right(env, scene), f"turn {turn}: {scene.moves} != {task.moves}"
         assert scene.selected == -1
+    env.close()
+
+
+def _counting_reads(estimator):
+    """Wraps the estimator's view: returns a list that gets one entry per frame read."""
+    real, reads = estimator._view, []
+
+    def read(*args):
+        reads.append(1)
+        return type(real).read(real, *args)
+
+    real.read = read
+    return reads
+
+
+@pytest.mark.parametrize("still", [True, False])
+def test_a_confirmed_board_of_a_point_game_is_not_read_until_a_move_registers(still):
+    """Connect four, agent first: once the estimate is confirmed, steps that
+    cannot change the board (no arm reset, no refused press) read no frame
+    (every `FRAME_EVERY`-th step with ``still=False``) and keep the
+    referee's board; the step of the arm reset after a touched move reads
+    one and holds the move and the reply."""
+    env, view = _env("mujoboard/connect_four", opponent="random")
+    task = env.task
+    timestep = view.reset()
+    estimator = BoardCameraEstimator(still=still)
+    estimator.reset(view.description(), timestep)
+    reads = _counting_reads(estimator)
+    idle = np.zeros(view.action_spec().shape)
+    for _ in range(2 * FRAME_EVERY):
+        assert _right(env, estimator.estimate(view.step(idle)))
+    # The first estimate reads; the still board is then read only as scheduled.
+    assert len(reads) == (1 if still else 2), len(reads)
+    action = central_action(task)
+    timestep = touch_point(env, task.point_position(task.game.touches(task.state, action)[-1]))
+    assert tuple(task.moves[:1]) == (action,)
+    before = len(reads)
+    scene = estimator.estimate(view.step(idle))
+    assert len(reads) == before + 1 and _right(env, scene) and len(scene.moves) == 2
+    env.close()
+
+
+def test_a_move_registered_without_an_arm_reset_is_read_while_the_hand_is_low():
+    """Connect four with no arm reset: the hand stays where it touched, so
+    no joint jump tells of the move; frames are read while the hand is low
+    over the board (not at every step), and once it rises the estimate is
+    the referee's game."""
+    env, view = _env("mujoboard/connect_four", opponent="random", arm_reset=False)
+    task = env.task
+    estimator = BoardCameraEstimator()
+    estimator.reset(view.description(), view.reset())
+    reads = _counting_reads(estimator)
+    step, scenes = env.step, []
+
+    def estimated_step(action):
+        timestep = step(action)
+        scenes.append(estimator.estimate(timestep))
+        return timestep
+
+    env.step = estimated_step
+    action = central_action(task)
+    touch_point(env, task.point_position(task.game.touches(task.state, action)[-1]))
+    assert tuple(task.moves[:1]) == (action,) and len(task.moves) == 2
+    assert 0 < len(reads) < len(scenes)
+    lift(env)  # the reply may lie under the hand until it rises (a press held may play again)
+    assert _right(env, scenes[-1]) and len(scenes[-1].moves) >= 2
+    env.close()
+
+
+def test_a_move_game_reads_frames_between_moves_for_the_selection():
+    """Breakthrough: a touch can select a piece with no arm reset, so a
+    confirmed board is still read every `FRAME_EVERY` steps."""
+    env, view = _env("mujoboard/breakthrough-6x6", opponent="random")
+    timestep = view.reset()
+    estimator = BoardCameraEstimator()
+    estimator.reset(view.description(), timestep)
+    reads = _counting_reads(estimator)
+    idle = np.zeros(view.action_spec().shape)
+    for _ in range(2 * FRAME_EVERY):
+        assert _right(env, estimator.estimate(view.step(idle)))
+    assert len(reads) == 2, len(reads)
     env.close()
 
 
@@ -481,7 +565,7 @@ def test_cells_seen_in_different_frames_between_two_moves_confirm_the_estimate()
     estimate, which becomes the anchor the next search starts from."""
     env, view = _env("mujoboard/hex-7x7", opponent="random")
     timestep = view.reset()
-    estimator = BoardCameraEstimator(frame_every=1)
+    estimator = BoardCameraEstimator(frame_every=1, still=False)
     estimator.reset(view.description(), timestep)
     game = BoardGame.from_description(view.description())
     mine, reply = 24, 25
@@ -538,7 +622,8 @@ def test_touch_zones_see_a_blocked_press_once_and_never_a_press_that_moves():
     """`TouchZones`: the zone under a point (its square, else the nearest
     within 1.5 half-sizes); a hand standing still just above a zone's top is
     blocked once, at exactly `STALL_STEPS` steps; one that goes down and up,
-    or stands higher than `PRESS_HEIGHT`, never is; `reset` starts again."""
+    or stands higher than `PRESS_HEIGHT`, never is; `reset` starts again;
+    `within` tells a hand over a zone and low enough."""
     from types import SimpleNamespace
 
     from hier_agents.estimators.presses import PRESS_HEIGHT, STALL_STEPS, TouchZones
@@ -571,6 +656,15 @@ def test_touch_zones_see_a_blocked_press_once_and_never_a_press_that_moves():
     high = 0.1 + PRESS_HEIGHT + 0.005
     assert follow([high] * (STALL_STEPS + 3)) == [None] * (STALL_STEPS + 3)
     assert zones.touched(None) == 1
+    # `within`: over a zone and at most that high above its top (the pass area's top is lower).
+    for point, height, inside in (
+        ((0.1, 0.0, 0.15), 0.05, True),
+        ((0.1, 0.0, 0.151), 0.05, False),
+        ((-0.2, 0.0, 0.1), 0.05, True),
+        ((0.0, 0.07, 0.1), 0.05, False),  # over no zone
+    ):
+        at["point"] = np.array(point)
+        assert zones.within(None, height) is inside, point
 
 
 def test_a_press_the_game_refused_shows_the_reply_under_the_hand(request):

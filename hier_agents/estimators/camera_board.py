@@ -50,9 +50,16 @@ already explains costs no search. When an episode ends with the game (a terminal
 timestep, discount 0), a finished game is preferred: the winning piece may
 still be under the hand.
 
-Frame schedule: a frame is read every `FRAME_EVERY` steps, and at once when
-the arm's joints jump (the arm reset after a registered move), while the
-estimate is not confirmed, and at the episode's last step; in between the
+Frame schedule: a frame is read while the hand is low over the board (its
+pinch site within `TOUCH_HEIGHT` of a zone's top, in this step or the last:
+only a touch registers a move, and the opponent replies at once), when the
+arm's joints jump (the arm reset after a registered move), while the
+estimate is not confirmed, when a press shows a refused move, and at the
+episode's last step. A confirmed estimate of a game whose every touch plays
+a move is read again only then (``still=True``, the default): the board
+stands still until a touch registers. In a game that selects a piece first,
+a selection times out with no touch, so its frames are also read every
+`FRAME_EVERY` steps (every game's, with ``still=False``). In between the
 last estimate is returned with the new joints.
 
 The arm reset tells more: a move was registered, by the touch under the
@@ -114,12 +121,17 @@ __all__ = [
 #: The camera read and its frame size (height, width).
 CAMERA = "front_camera_2"
 FRAME_SHAPE = (128, 128)
-#: Frame schedule: a frame is read every `FRAME_EVERY` steps, and at once
-#: when a joint moved more than `ARM_JUMP` (rad) in a step (the arm reset
-#: that follows a registered move), while the estimate is unconfirmed, and
-#: at an episode's last step.
+#: Frame schedule (see the module docstring): a frame is read while the
+#: pinch site is within `TOUCH_HEIGHT` (m) of a zone's top (in this step or
+#: the last), when a joint moved more than `ARM_JUMP` (rad) in a step (the
+#: arm reset that follows a registered move), while the estimate is
+#: unconfirmed, after a refused press and at an episode's last step; and
+#: every `FRAME_EVERY` steps in a game that selects a piece first (in every
+#: game with ``still=False``). Touches registered with the pinch site at most
+#: 0.032 m above the zone's top (MuJoXO, MuJoGo and connect four, 9 games).
 FRAME_EVERY = 3
 ARM_JUMP = 0.3
+TOUCH_HEIGHT = 0.07
 #: Anchors tried back from the last when its continuations contradict a
 #: cell read surely (the search: `hier_agents.estimators.board_search`).
 BACKTRACK = 3
@@ -133,17 +145,28 @@ class BoardCameraEstimator(Estimator):
     name = "camera"
     # Per episode, set by `reset`: the arm posture of the last estimate (None
     # before the first), the zone a touch hit before the arm jumped back, the
-    # cells read surely since the estimate was made.
+    # cells read surely since the estimate was made, the hand low over the
+    # board at the last estimate.
     _qpos: np.ndarray | None
     _touched: int | None
     _vouched: np.ndarray | None
+    _low: bool
     #: Its camera (see the module docstring).
     env_overrides = {"front_camera": None, CAMERA: FRAME_SHAPE, "lazy_cameras": True}
 
-    def __init__(self, frame_every: int = FRAME_EVERY) -> None:
+    def __init__(self, frame_every: int = FRAME_EVERY, still: bool = True) -> None:
+        """``frame_every``: an integer >= 1, the steps between frames read
+        while nothing else calls for one; ``still``: whether a confirmed
+        estimate of a game whose every touch plays a move is kept without
+        frames until the board can change (the module docstring's frame
+        schedule). Raises ValueError on a bad ``frame_every``, TypeError on a
+        ``still`` that is not a bool."""
         if not isinstance(frame_every, int) or isinstance(frame_every, bool) or frame_every < 1:
             raise ValueError(f"frame_every must be an integer >= 1, got {frame_every!r}")
+        if not isinstance(still, bool):
+            raise TypeError(f"still must be True or False, got {still!r}")
         self.frame_every = frame_every
+        self.still = still
         self._views: dict[tuple[BoardGame, object, object], BoardView] = {}
         self._view: BoardView | None = None
 
@@ -155,6 +178,8 @@ class BoardCameraEstimator(Estimator):
             self._views[key] = BoardView(description, game, camera)
         view = self._view = self._views[key]
         self._game, self._spiel = game, game.load()
+        # Frames between registered moves only where a touch can select a piece.
+        self._every = self.frame_every if game.rules.input == "move" or not self.still else None
         self._agent = scalar(timestep.observation, "agent_player", 0)
         self._searcher = ContinuationSearch(game, self._agent)
         initial = self._spiel.new_initial_state()
@@ -162,9 +187,10 @@ class BoardCameraEstimator(Estimator):
         self._anchors = [initial]
         self._belief = initial.clone()
         self._selected = -1
-        self._since, self._qpos = self.frame_every, None  # the first estimate reads
+        self._since, self._qpos = 0, None  # the first estimate reads
         self._touched = None
         self._vouched = None
+        self._low = False  # the hand low over the board at the last estimate
         # The touch zones and the hand over them; the moves refused since
         # the last arm reset, and the cells known empty since then (`_refuse`).
         self._zones = TouchZones(description, view.half, view.silhouette.pinch)
@@ -219,15 +245,19 @@ class BoardCameraEstimator(Estimator):
         obs = timestep.observation
         qpos = np.array(obs["arm/joints_pos"], float)
         self._since += 1
-        jumped = self._qpos is not None and np.abs(qpos - self._qpos).max() > ARM_JUMP
+        first = self._qpos is None
+        jumped = not first and np.abs(qpos - self._qpos).max() > ARM_JUMP
         if jumped:
             # The arm is reset only after a registered move: the touch that
             # played it was under the hand before the jump.
             self._touched = self._zones.touched(self._qpos)
         self._qpos = qpos
         refused = self._refuse(qpos, jumped)
+        low, self._low = self._low, self._zones.within(qpos, TOUCH_HEIGHT)
         if (
-            self._since < self.frame_every
+            not first
+            and not (low or self._low)
+            and (self._every is None or self._since < self._every)
             and not jumped
             and not refused
             and not timestep.last()

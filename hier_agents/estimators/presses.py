@@ -75,6 +75,13 @@ class TouchZones:
         best = int(np.argmin(dist))
         return best if dist[best] <= 1.5 else None
 
+    def within(self, qpos, height: float) -> bool:
+        """Whether the pinch site, with the arm at ``qpos``, is over a zone
+        and at most ``height`` (m) above its top."""
+        pinch = np.asarray(self.pinch(qpos), float)
+        zone = self.under(pinch)
+        return zone is not None and float(pinch[2]) <= self.tops[zone] + height
+
     def touched(self, qpos) -> int | None:
         """The zone under the pinch site with the arm at ``qpos``."""
         return self.under(self.pinch(qpos))
