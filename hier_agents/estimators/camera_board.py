@@ -50,17 +50,20 @@ already explains costs no search. When an episode ends with the game (a terminal
 timestep, discount 0), a finished game is preferred: the winning piece may
 still be under the hand.
 
-Frame schedule: a frame is read while the hand is low over the board (its
-pinch site within `TOUCH_HEIGHT` of a zone's top, in this step or the last:
-only a touch registers a move, and the opponent replies at once), when the
-arm's joints jump (the arm reset after a registered move), while the
-estimate is not confirmed, when a press shows a refused move, and at the
-episode's last step. A confirmed estimate of a game whose every touch plays
-a move is read again only then (``still=True``, the default): the board
-stands still until a touch registers. In a game that selects a piece first,
-a selection times out with no touch, so its frames are also read every
-`FRAME_EVERY` steps (every game's, with ``still=False``). In between the
-last estimate is returned with the new joints.
+Frame schedule: a frame is read at once when the arm jumps (the arm reset
+after a registered move: a joint moves more than `ARM_JUMP` or the pinch
+site more than `PINCH_JUMP` in a step), while the estimate is not
+confirmed, when a press shows a refused move, and at the episode's last
+step; and every `FRAME_EVERY` steps while the hand is low over the board
+(its pinch site within `TOUCH_HEIGHT` of a zone's top, in this step or the
+last: only a touch registers a move, and the opponent replies at once; a
+move registered with no arm reset is read within `FRAME_EVERY` steps). A
+confirmed estimate of a game whose every touch plays a move is read only
+then (``still=True``, the default): the board stands still until a touch
+registers. In a game that selects a piece first, a selection times out
+with no touch, so its frames are read every `FRAME_EVERY` steps wherever
+the hand is (every game's, with ``still=False``). In between the last
+estimate is returned with the new joints.
 
 The arm reset tells more: a move was registered, by the touch under the
 pinch site just before the jump (the arm's own model at the previous
@@ -121,16 +124,20 @@ __all__ = [
 #: The camera read and its frame size (height, width).
 CAMERA = "front_camera_2"
 FRAME_SHAPE = (128, 128)
-#: Frame schedule (see the module docstring): a frame is read while the
-#: pinch site is within `TOUCH_HEIGHT` (m) of a zone's top (in this step or
-#: the last), when a joint moved more than `ARM_JUMP` (rad) in a step (the
-#: arm reset that follows a registered move), while the estimate is
-#: unconfirmed, after a refused press and at an episode's last step; and
+#: Frame schedule (see the module docstring): a frame is read at once when
+#: a joint moved more than `ARM_JUMP` (rad) or the pinch site more than
+#: `PINCH_JUMP` (m) in a step (the arm reset that follows a registered
+#: move), while the estimate is unconfirmed, after a refused press and at
+#: an episode's last step; every `FRAME_EVERY` steps while the pinch site is
+#: within `TOUCH_HEIGHT` (m) of a zone's top (in this step or the last); and
 #: every `FRAME_EVERY` steps in a game that selects a piece first (in every
-#: game with ``still=False``). Touches registered with the pinch site at most
-#: 0.032 m above the zone's top (MuJoXO, MuJoGo and connect four, 9 games).
+#: game with ``still=False``). Measured on MuJoXO, MuJoGo and connect four
+#: (5 to 9 games): touches registered with the pinch site at most 0.032 m
+#: above the zone's top; the pinch site moved at most 0.028 m in a step of
+#: play and at least 0.19 m at an arm reset.
 FRAME_EVERY = 3
 ARM_JUMP = 0.3
+PINCH_JUMP = 0.08
 TOUCH_HEIGHT = 0.07
 #: Anchors tried back from the last when its continuations contradict a
 #: cell read surely (the search: `hier_agents.estimators.board_search`).
@@ -151,6 +158,7 @@ class BoardCameraEstimator(Estimator):
     _touched: int | None
     _vouched: np.ndarray | None
     _low: bool
+    _pinch: np.ndarray | None
     #: Its camera (see the module docstring).
     env_overrides = {"front_camera": None, CAMERA: FRAME_SHAPE, "lazy_cameras": True}
 
@@ -191,6 +199,7 @@ class BoardCameraEstimator(Estimator):
         self._touched = None
         self._vouched = None
         self._low = False  # the hand low over the board at the last estimate
+        self._pinch = None  # the pinch site's position then
         # The touch zones and the hand over them; the moves refused since
         # the last arm reset, and the cells known empty since then (`_refuse`).
         self._zones = TouchZones(description, view.half, view.silhouette.pinch)
@@ -246,18 +255,22 @@ class BoardCameraEstimator(Estimator):
         qpos = np.array(obs["arm/joints_pos"], float)
         self._since += 1
         first = self._qpos is None
-        jumped = not first and np.abs(qpos - self._qpos).max() > ARM_JUMP
+        pinch = np.asarray(self._zones.pinch(qpos), float)
+        jumped = not first and (
+            np.abs(qpos - self._qpos).max() > ARM_JUMP
+            or float(np.linalg.norm(pinch - self._pinch)) > PINCH_JUMP
+        )
         if jumped:
             # The arm is reset only after a registered move: the touch that
             # played it was under the hand before the jump.
             self._touched = self._zones.touched(self._qpos)
-        self._qpos = qpos
+        self._qpos, self._pinch = qpos, pinch
         refused = self._refuse(qpos, jumped)
         low, self._low = self._low, self._zones.within(qpos, TOUCH_HEIGHT)
+        every = self.frame_every if low or self._low else self._every
         if (
             not first
-            and not (low or self._low)
-            and (self._every is None or self._since < self._every)
+            and (every is None or self._since < every)
             and not jumped
             and not refused
             and not timestep.last()
