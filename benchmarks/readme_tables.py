@@ -633,31 +633,39 @@ def mujoboard_camera(results: Path) -> list[str]:
     return lines
 
 
+#: `benchmarks/agent_speed.py` results: MuJoBan, then the board games.
+AGENT_SPEED_FILES = ("agent_speed.json", "agent_speed_mujoxo.json", "agent_speed_mujogo.json")
+
+
 @table("agent-speed")
 def agent_speed(results: Path) -> list[str]:
     """The camera agent against the environment alone (`benchmarks/agent_speed.py`)."""
-    d = _load(results / "agent_speed.json")
     lines = [
-        f"| code | `{d['env']}`: agent steps/s | environment alone, no camera | ratio "
-        f"| solved | time: physics / render / estimator / other |",
-        "| --- | --- | --- | --- | --- | --- |",
+        "| environment | code | agent steps/s | environment alone, no camera | ratio "
+        "| solved / won | time: physics / render / estimator / planner / skill / other |",
+        "| --- | --- | --- | --- | --- | --- | --- |",
     ]
-    for tree in ("current", "baseline"):
-        if tree not in d["summary"]:
-            continue
-        rows = [r["trees"][tree] for r in d["rounds"]]
-        s = d["summary"][tree]
-        label = "now" if tree == "current" else f"before (`{d['baseline']}`)"
-        shares = s["shares"]
-        other = shares["other"] + shares["planner"] + shares["skill"]
-        lines.append(
-            f"| {label} | {_span([r['agent']['steps_per_s'] for r in rows], '{:.0f}')} "
-            f"| {_span([r['env']['steps_per_s'] for r in rows], '{:.0f}')} "
-            f"| **{_span([r['ratio'] for r in rows], '{:.3f}')}** "
-            f"| {100 * s['success_rate']:.0f}% of {len(rows)} x {d['episodes']} "
-            f"| {100 * shares['physics']:.0f}% / {100 * shares['render']:.0f}% / "
-            f"{100 * shares['estimator']:.0f}% / {100 * other:.0f}% |"
-        )
+    for name in AGENT_SPEED_FILES:
+        d = _load(results / name)
+        for tree in ("current", "baseline"):
+            if tree not in d["summary"]:
+                continue
+            rows = [r["trees"][tree] for r in d["rounds"]]
+            s = d["summary"][tree]
+            label = "now" if tree == "current" else f"before (`{d['baseline']}`)"
+            shares = s["shares"]
+            lines.append(
+                f"| `{d['env']}` | {label} "
+                f"| {_span([r['agent']['steps_per_s'] for r in rows], '{:.0f}')} "
+                f"| {_span([r['env']['steps_per_s'] for r in rows], '{:.0f}')} "
+                f"| **{_span([r['ratio'] for r in rows], '{:.3f}')}** "
+                f"| {100 * s['success_rate']:.0f}% of {len(rows)} x {d['episodes']} | "
+                + " / ".join(
+                    f"{100 * shares[k]:.0f}%"
+                    for k in ("physics", "render", "estimator", "planner", "skill", "other")
+                )
+                + " |"
+            )
     return lines
 
 
