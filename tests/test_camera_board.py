@@ -211,6 +211,47 @@ def test_the_arm_hides_the_cells_under_the_hand():
     env.close()
 
 
+def _hidden_outline_by_outline(silhouette, qpos, centres, radius, part):
+    """`ArmSilhouette.hidden`'s definition, one outline at a time."""
+    radius = np.broadcast_to(np.asarray(radius, float), (len(centres),))
+    hidden = np.zeros(len(centres), bool)
+    for poly in silhouette.outlines(qpos, part):
+        a = poly[:, ::-1]
+        edge = np.roll(a, -1, axis=0) - a
+        normal = np.stack([edge[:, 1], -edge[:, 0]], axis=1)
+        normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-9)
+        dist = ((centres[:, None, ::-1] - a[None]) * normal[None]).sum(-1).max(axis=1)
+        hidden |= dist < radius
+    return hidden
+
+
+@pytest.mark.parametrize("name, shadows", [("mujoxo/optimal", True), ("mujogo/7x7", False)])
+def test_hidden_is_every_outline_within_a_discs_radius(name, shadows):
+    """The cells and samples hidden in arm postures around the start, against
+    the definition computed outline by outline (every part, radii of both
+    signs)."""
+    env, view = _env(name, shadows=shadows)
+    timestep = view.reset()
+    description = view.description()
+    board = BoardView(
+        description, BoardGame.from_description(description), description.front_camera_2
+    )
+    silhouette, samples = board.silhouette, board.sample_px.reshape(-1, 2)
+    rng = np.random.default_rng(0)
+    start = timestep.observation["arm/joints_pos"]
+    some = False
+    for _ in range(6):
+        qpos = start + rng.normal(0.0, 0.4, start.shape)
+        for centres, radius in [(board.centres, board.radius), (samples, 2.5), (samples, -2.5)]:
+            for part in ("all", "arm", "shadow"):
+                hidden = silhouette.hidden(qpos, centres, radius, part)
+                expected = _hidden_outline_by_outline(silhouette, qpos, centres, radius, part)
+                np.testing.assert_array_equal(hidden, expected)
+                some |= bool(hidden.any()) and not hidden.all()
+    assert some  # the postures hide some discs, not all
+    env.close()
+
+
 def test_under_a_light_that_casts_shadows_the_arms_shadow_hides_cells_too():
     """MuJoXO with the original's shadows: the description names the light,
     and the cells the arm's shadow falls on (the light straight above the

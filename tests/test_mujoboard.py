@@ -89,6 +89,19 @@ def test_touches_that_play_nothing_are_exactly_the_illegal_ones(game_name, size)
             assert set(np.flatnonzero(select).tolist()) == sources
 
 
+@pytest.mark.parametrize("game_name, size", GAME_SIZES + [("tic_tac_toe", 3), ("go", 7)])
+def test_players_reads_each_point_from_its_owner_planes(game_name, size):
+    game = BoardGame(game_name, size)
+    for state in _playouts(game, seed=1, games=3, plies=60):
+        tensor = np.asarray(state.observation_tensor(0)).reshape(-1, game.num_points)
+        expected = np.full(game.num_points, -1)
+        for player, planes in enumerate(game.rules.owner_planes):
+            expected[(tensor[list(planes)] > 0.5).any(axis=0)] = player
+        players = game.players(state)
+        assert players.dtype == np.int8 and players.shape == (game.num_points,)
+        np.testing.assert_array_equal(players, expected)
+
+
 def test_a_checkers_king_is_shown_on_its_own_plane():
     game = BoardGame("checkers", 8)
     for state in _playouts(game, seed=0, games=40, plies=400):

@@ -123,6 +123,11 @@ class GameRules:
             raise ValueError("king_planes must be among owner_planes")
         if self.pass_zones and self.input != "point":
             raise ValueError("pass_zones need input='point'")
+        # `BoardGame.players` in three array operations: the owner planes'
+        # rows, and per row its player + 1 (player 1's rows last: they win).
+        rows = [(plane, player + 1) for player in (0, 1) for plane in self.owner_planes[player]]
+        object.__setattr__(self, "_owner_rows", np.array([r for r, _ in rows], np.intp))
+        object.__setattr__(self, "_owner_values", np.array([[v] for _, v in rows], np.int8))
 
 
 #: name -> rules; `register_game` adds to it.
@@ -243,11 +248,9 @@ class BoardGame:
 
     def players(self, state) -> np.ndarray:
         """(num_points,) int8: -1 empty, else the OpenSpiel player (0, 1) whose piece it is."""
-        tensor = self._tensor(state)
-        out = np.full(self.num_points, -1, np.int8)
-        for player, planes in enumerate(self.rules.owner_planes):
-            out[(tensor[list(planes)] > 0.5).any(axis=0)] = player
-        return out
+        rules = self.rules
+        owned = self._tensor(state)[rules._owner_rows] > 0.5
+        return (owned * rules._owner_values).max(axis=0) - np.int8(1)
 
     def kings(self, state) -> np.ndarray:
         """(num_points,) bool: the point holds a promoted piece."""

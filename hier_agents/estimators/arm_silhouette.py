@@ -174,19 +174,30 @@ class ArmSilhouette:
         inside one outline."""
         centres = np.asarray(centres, float)
         radius = np.broadcast_to(np.asarray(radius, float), (len(centres),))
-        hidden = np.zeros(len(centres), bool)
+        polys = self.outlines(qpos, part)
+        if not polys or not len(centres):
+            return np.zeros(len(centres), bool)
         reach = radius.max(initial=0.0)
-        for poly in self.outlines(qpos, part):
-            low, high = poly.min(axis=0) - reach, poly.max(axis=0) + reach
-            near = np.flatnonzero(np.all((centres >= low) & (centres <= high), axis=1))
-            if not len(near):
-                continue
-            a = poly[:, ::-1]  # (col, row), counter-clockwise
-            b = np.roll(a, -1, axis=0)
-            edge = b - a
-            normal = np.stack([edge[:, 1], -edge[:, 0]], axis=1)
-            normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-9)
-            rel = centres[near][:, None, ::-1] - a[None]
-            dist = (rel * normal[None]).sum(-1).max(axis=1)  # outward normals of a CCW hull
-            hidden[near] |= dist < radius[near]
+        # All outlines at once: each one's edges (col, row), counter-clockwise,
+        # repeated cyclically up to the longest outline's count (a repeated
+        # edge leaves the largest edge distance as it is); the distances of
+        # the (centre, outline) pairs within an outline's box grown by the
+        # largest radius only.
+        low = np.stack([poly.min(axis=0) for poly in polys]) - reach
+        high = np.stack([poly.max(axis=0) for poly in polys]) + reach
+        near = np.all((centres[:, None] >= low[None]) & (centres[:, None] <= high[None]), axis=2)
+        at, of = np.nonzero(near)
+        hidden = np.zeros(len(centres), bool)
+        if not len(at):
+            return hidden
+        count = max(len(poly) for poly in polys)
+        steps = np.arange(count)
+        a = np.stack([poly[steps % len(poly), ::-1] for poly in polys])  # (P, K, 2)
+        b = np.stack([poly[(steps + 1) % len(poly), ::-1] for poly in polys])
+        edge = b - a
+        normal = np.stack([edge[..., 1], -edge[..., 0]], axis=-1)
+        normal /= np.maximum(np.linalg.norm(normal, axis=-1, keepdims=True), 1e-9)
+        rel = centres[at][:, None, ::-1] - a[of]  # (pairs, K, 2)
+        dist = (rel * normal[of]).sum(-1).max(axis=1)  # outward normals of a CCW hull
+        hidden[at[dist < radius[at]]] = True
         return hidden

@@ -220,8 +220,13 @@ class ContinuationSearch:
         game, agent, belief = self.game, self.agent, clues.belief
         visible = ~np.isnan(fractions[:, 0])
         seen = cells != UNSEEN
+        unseen, cells_seen = ~seen, cells[seen]
         base = game.players(anchor)
         shares = fractions[visible]
+        # |share - piece| per visible point and channel, for each owner a
+        # point can have (-1, 0, 1 -> rows 0, 1, 2): `soft` gathers its rows.
+        costs = np.abs(shares[None] - np.array([[0, 0], [1, 0], [0, 1]], bool)[:, None])
+        columns = np.arange(len(shares))
         believed = list(belief.history())
         played, ply = None, len(believed)
         if clues.touched is not None and belief.current_player() == agent:
@@ -233,7 +238,7 @@ class ContinuationSearch:
 
         def score(state) -> Score:
             players = game.players(state)
-            wrong = int(np.count_nonzero(players[seen] != cells[seen]))
+            wrong = int(np.count_nonzero(players[seen] != cells_seen))
             if refused:  # the game runs, and refused them: as cells read surely
                 if state.is_terminal() or state.current_player() != agent:
                     wrong += len(refused)
@@ -243,16 +248,15 @@ class ContinuationSearch:
                     if by_point:
                         own = (players == agent) & (base != agent)
                         wrong += sum(bool(own[a]) for a in refused if a < len(own))
-            pieces = np.stack([players[visible] == 0, players[visible] == 1], axis=1)
             history = state.history()
             common = min(len(history), len(believed))
             return Score(
                 unfinished=over != state.is_terminal(),
                 wrong=wrong,
-                soft=round(float(np.abs(shares - pieces).sum()), 3),
+                soft=round(float(costs[players[visible] + 1, columns].sum()), 3),
                 rewrite=int(history[:common] != believed[:common]),
                 miss=int(played is not None and (len(history) <= ply or history[ply] != played)),
-                blind=int(np.count_nonzero((players != base) & ~seen)),
+                blind=int(np.count_nonzero((players != base) & unseen)),
                 replies=self.unseen_replies(anchor, state, players, seen),
             )
 
