@@ -674,8 +674,7 @@ def test_touch_zones_see_a_blocked_press_once_and_never_a_press_that_moves():
         pass_action=2,
         pass_zones={"left": {"centre": (-0.2, 0.0, 0.05), "half": (0.03, 0.1)}},
     )
-    at = {"point": np.zeros(3)}
-    zones = TouchZones(description, 0.04, lambda qpos: at["point"])
+    zones = TouchZones(description, 0.04)
     assert zones.under((0.03, 0.03)) == 0 and zones.under((0.1, -0.039)) == 1
     assert zones.under((-0.21, 0.09, 0.0)) == 2  # the pass area, then its number
     assert zones.under((0.05 + 0.001, 0.0)) == 1  # between squares: the nearest
@@ -684,8 +683,7 @@ def test_touch_zones_see_a_blocked_press_once_and_never_a_press_that_moves():
     def follow(heights, x=0.1):
         out = []
         for z in heights:
-            at["point"] = np.array([x, 0.0, z])
-            out.append(zones.blocked(None))
+            out.append(zones.blocked(np.array([x, 0.0, z])))
         return out
 
     still = follow([0.1 + 0.01] * (STALL_STEPS + 3))
@@ -696,7 +694,7 @@ def test_touch_zones_see_a_blocked_press_once_and_never_a_press_that_moves():
     assert follow(bounce) == [None] * len(bounce)
     high = 0.1 + PRESS_HEIGHT + 0.005
     assert follow([high] * (STALL_STEPS + 3)) == [None] * (STALL_STEPS + 3)
-    assert zones.touched(None) == 1
+    assert zones.under(np.array([0.1, 0.0, 0.2])) == 1
     # `within`: over a zone and at most that high above its top (the pass area's top is lower).
     for point, height, inside in (
         ((0.1, 0.0, 0.15), 0.05, True),
@@ -704,8 +702,7 @@ def test_touch_zones_see_a_blocked_press_once_and_never_a_press_that_moves():
         ((-0.2, 0.0, 0.1), 0.05, True),
         ((0.0, 0.07, 0.1), 0.05, False),  # over no zone
     ):
-        at["point"] = np.array(point)
-        assert zones.within(None, height) is inside, point
+        assert zones.within(np.array(point), height) is inside, point
 
 
 def test_a_press_the_game_refused_shows_the_reply_under_the_hand(request):
@@ -717,33 +714,24 @@ def test_a_press_the_game_refused_shows_the_reply_under_the_hand(request):
 
     env, estimator, game = _go_estimator(request)
     mine, reply = 24, 37
-    assert not estimator._refuse(np.zeros(9), True)  # the arm reset after ``mine`` registered
+    assert not estimator._refuse(np.zeros(3), True)  # the arm reset after ``mine`` registered
     cells, shares = _frame(game, {mine: 0}, hidden=[reply])
     assert estimator._explain(cells, shares, over=False).history() == [mine, game.pass_action]
     estimator._belief = estimator._explain(cells, shares, over=False)
     zones = estimator._zones
     # The hand over ``reply``, standing still just above its top.
     over_reply = np.r_[zones.centres[reply], zones.tops[reply] + 0.01]
-    real = zones.pinch
-    zones.pinch = lambda qpos: over_reply
-    try:
-        refused = [estimator._refuse(np.zeros(9), False) for _ in range(presses.STALL_STEPS + 2)]
-    finally:
-        zones.pinch = real
+    refused = [estimator._refuse(over_reply, False) for _ in range(presses.STALL_STEPS + 2)]
     assert refused.count(True) == 1 and refused[presses.STALL_STEPS]
     assert estimator._explain(cells, shares, over=False).history() == [mine, reply]
     # An arm reset (a registered move) forgets the refusal.
-    assert not estimator._refuse(np.zeros(9), True) and not estimator._refused
+    assert not estimator._refuse(np.zeros(3), True) and not estimator._refused
     # A point read surely empty since that reset is empty still (the board
     # stands still between registered moves): a press blocked there failed
     # to register, the game refused nothing.
     estimator._belief = estimator._explain(cells, shares, over=False)
     estimator._empty_since_reset[reply] = True
-    zones.pinch = lambda qpos: over_reply
-    try:
-        refused = [estimator._refuse(np.zeros(9), False) for _ in range(presses.STALL_STEPS + 2)]
-    finally:
-        zones.pinch = real
+    refused = [estimator._refuse(over_reply, False) for _ in range(presses.STALL_STEPS + 2)]
     assert not any(refused) and not estimator._refused
     env.close()
 
@@ -760,24 +748,20 @@ def test_a_press_on_a_point_empty_in_the_confirmed_estimate_is_not_a_refusal(req
     from hier_agents.estimators import presses
 
     env, estimator, game = _go_estimator(request)
-    zones, real = estimator._zones, estimator._zones.pinch
+    zones = estimator._zones
 
     def presses_on(point) -> list[bool]:
         above = np.r_[zones.centres[point], zones.tops[point] + 0.01]
-        zones.pinch = lambda qpos: above
-        try:
-            return [estimator._refuse(np.zeros(9), False) for _ in range(presses.STALL_STEPS + 2)]
-        finally:
-            zones.pinch = real
+        return [estimator._refuse(above, False) for _ in range(presses.STALL_STEPS + 2)]
 
     first, mine, reply, later = 24, 16, 30, 40
     assert not any(presses_on(first)) and not estimator._refused
-    estimator._refuse(np.zeros(9), True)  # ``mine`` registered: the arm reset
+    estimator._refuse(np.zeros(3), True)  # ``mine`` registered: the arm reset
     cells, shares = _frame(game, {mine: 0}, hidden=[reply, later])
     estimator._belief = estimator._explain(cells, shares, over=False)
     assert len(estimator._anchors) == 1  # a pass is not confirmed with cells hidden
     assert presses_on(later).count(True) == 1 and estimator._refused == {later}
-    estimator._refuse(np.zeros(9), True)
+    estimator._refuse(np.zeros(3), True)
     cells, shares = _frame(game, {mine: 0, reply: 1}, hidden=[later])
     estimator._belief = estimator._explain(cells, shares, over=False)
     assert estimator._anchor.history() == [mine, reply]

@@ -108,6 +108,10 @@ class GameRules:
     colours: tuple = DARK_LIGHT
     draw_reward: float = 0.5
     description: str = ""
+    # Derived (`BoardGame.players`): the owner planes' rows, and per row its
+    # player + 1 as a (rows, 1) column; player 1's rows last.
+    owner_rows: np.ndarray = field(init=False, repr=False, compare=False)
+    owner_values: np.ndarray = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
         if self.input not in INPUTS:
@@ -123,11 +127,9 @@ class GameRules:
             raise ValueError("king_planes must be among owner_planes")
         if self.pass_zones and self.input != "point":
             raise ValueError("pass_zones need input='point'")
-        # `BoardGame.players` in three array operations: the owner planes'
-        # rows, and per row its player + 1 (player 1's rows last: they win).
         rows = [(plane, player + 1) for player in (0, 1) for plane in self.owner_planes[player]]
-        object.__setattr__(self, "_owner_rows", np.array([r for r, _ in rows], np.intp))
-        object.__setattr__(self, "_owner_values", np.array([[v] for _, v in rows], np.int8))
+        object.__setattr__(self, "owner_rows", np.array([r for r, _ in rows], np.intp))
+        object.__setattr__(self, "owner_values", np.array([[v] for _, v in rows], np.int8))
 
 
 #: name -> rules; `register_game` adds to it.
@@ -248,9 +250,9 @@ class BoardGame:
 
     def players(self, state) -> np.ndarray:
         """(num_points,) int8: -1 empty, else the OpenSpiel player (0, 1) whose piece it is."""
-        rules = self.rules
-        owned = self._tensor(state)[rules._owner_rows] > 0.5
-        return (owned * rules._owner_values).max(axis=0) - np.int8(1)
+        rules = self.rules  # a point's owner: the largest player + 1 of its planes, less 1
+        owned = self._tensor(state)[rules.owner_rows] > 0.5
+        return (owned * rules.owner_values).max(axis=0) - np.int8(1)
 
     def kings(self, state) -> np.ndarray:
         """(num_points,) bool: the point holds a promoted piece."""

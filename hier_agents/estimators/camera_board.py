@@ -202,7 +202,7 @@ class BoardCameraEstimator(Estimator):
         self._pinch = None  # the pinch site's position then
         # The touch zones and the hand over them; the moves refused since
         # the last arm reset, and the cells known empty since then (`_refuse`).
-        self._zones = TouchZones(description, view.half, view.silhouette.pinch)
+        self._zones = TouchZones(description, view.half)
         self._refused: set[int] = set()
         self._empty_since_reset = np.zeros(len(description.point_positions), bool)
         self._known_empty(initial)
@@ -255,7 +255,7 @@ class BoardCameraEstimator(Estimator):
         qpos = np.array(obs["arm/joints_pos"], float)
         self._since += 1
         first = self._qpos is None
-        pinch = np.asarray(self._zones.pinch(qpos), float)
+        pinch = self._view.silhouette.pinch(qpos)
         jumped = not first and (
             np.abs(qpos - self._qpos).max() > ARM_JUMP
             or float(np.linalg.norm(pinch - self._pinch)) > PINCH_JUMP
@@ -263,10 +263,10 @@ class BoardCameraEstimator(Estimator):
         if jumped:
             # The arm is reset only after a registered move: the touch that
             # played it was under the hand before the jump.
-            self._touched = self._zones.touched(self._qpos)
+            self._touched = self._zones.under(self._pinch)
         self._qpos, self._pinch = qpos, pinch
-        refused = self._refuse(qpos, jumped)
-        low, self._low = self._low, self._zones.within(qpos, TOUCH_HEIGHT)
+        refused = self._refuse(pinch, jumped)
+        low, self._low = self._low, self._zones.within(pinch, TOUCH_HEIGHT)
         every = self.frame_every if low or self._low else self._every
         if (
             not first
@@ -321,9 +321,9 @@ class BoardCameraEstimator(Estimator):
         self._selected = self._selection(selection, hidden)
         return self._scene(qpos, obs)
 
-    def _refuse(self, qpos, jumped: bool) -> bool:
-        """Follows presses (`TouchZones.blocked`); True when the press at
-        ``qpos`` has just shown the game refused a move the estimate allows
+    def _refuse(self, pinch, jumped: bool) -> bool:
+        """Follows presses (`TouchZones.blocked`); True when the press with
+        the pinch site at ``pinch`` has just shown the game refused a move the estimate allows
         (the move joins ``_refused`` until the next arm reset: ``jumped``):
         not on a point known empty since that reset (`_known_empty`, or read
         surely empty). Only games whose
@@ -336,7 +336,7 @@ class BoardCameraEstimator(Estimator):
         game, belief = self._game, self._belief
         if game.rules.input == "move":
             return False
-        zone = self._zones.blocked(qpos)
+        zone = self._zones.blocked(pinch)
         if zone is None or belief.is_terminal() or belief.current_player() != self._agent:
             return False
         if zone < len(self._empty_since_reset) and self._empty_since_reset[zone]:

@@ -1,10 +1,11 @@
 """`TouchZones`: where the hand touches a board's zones, and where it stands
 blocked, from the arm's joints alone.
 
-The pinch site's position comes from the arm's own kinematic model
+The hand is the pinch site's world position, which the caller computes from
+the arm's joints with the arm's own kinematic model
 (`hier_agents.estimators.arm_silhouette.ArmSilhouette.pinch`); the zones
-from the public `envs.description.BoardDescription`: each point a square of
-the board's half-spacing around its position, then each pass area.
+come from the public `envs.description.BoardDescription`: each point a
+square of the board's half-spacing around its position, then each pass area.
 
 A press that misses goes down and up again; a blocked one stands on what
 holds it. The hand blocked over one zone (its pinch site within
@@ -19,8 +20,6 @@ the camera has not read the point empty since the last registered move.
 """
 
 from __future__ import annotations
-
-from collections.abc import Callable
 
 import numpy as np
 
@@ -41,14 +40,12 @@ class TouchZones:
       description: the board's `envs.description.BoardDescription`
         (``point_positions``, ``pass_action``, ``pass_zones``).
       half: a point zone's half-size (m): half the spacing of points.
-      pinch: the pinch site's world position (x, y, z; m) for the arm's
-        joint positions (`ArmSilhouette.pinch`).
     Zones are numbered as the game's touch zones: the points in order, then
-    the pass areas.
+    the pass areas. The methods take ``pinch``, the pinch site's world
+    position (x, y, z; m).
     """
 
-    def __init__(self, description, half: float, pinch: Callable[[np.ndarray], np.ndarray]):
-        self.pinch = pinch
+    def __init__(self, description, half: float):
         points = [np.asarray(p, float) for p in description.point_positions]
         self.centres = [p[:2] for p in points]
         self.halves = [np.array([half, half], float) for _ in points]
@@ -75,22 +72,18 @@ class TouchZones:
         best = int(np.argmin(dist))
         return best if dist[best] <= 1.5 else None
 
-    def within(self, qpos, height: float) -> bool:
-        """Whether the pinch site, with the arm at ``qpos``, is over a zone
-        and at most ``height`` (m) above its top."""
-        pinch = np.asarray(self.pinch(qpos), float)
+    def within(self, pinch, height: float) -> bool:
+        """Whether the pinch site at ``pinch`` is over a zone and at most
+        ``height`` (m) above its top."""
+        pinch = np.asarray(pinch, float)
         zone = self.under(pinch)
         return zone is not None and float(pinch[2]) <= self.tops[zone] + height
 
-    def touched(self, qpos) -> int | None:
-        """The zone under the pinch site with the arm at ``qpos``."""
-        return self.under(self.pinch(qpos))
-
-    def blocked(self, qpos) -> int | None:
-        """Follows the hand, one call per control step: the zone the hand
-        has stood blocked on for exactly `STALL_STEPS` steps with the arm at
-        ``qpos`` (once per press), else None."""
-        pinch = np.asarray(self.pinch(qpos), float)
+    def blocked(self, pinch) -> int | None:
+        """Follows the hand, one call per control step: the zone the pinch
+        site, now at ``pinch``, has stood blocked on for exactly
+        `STALL_STEPS` steps (once per press), else None."""
+        pinch = np.asarray(pinch, float)
         zone = self.under(pinch)
         height = float(pinch[2])
         if zone is not None and height > self.tops[zone] + PRESS_HEIGHT:
