@@ -1,7 +1,7 @@
 """What the board games' looks cost per frame, and how they compare with the original's.
 
     PYTHONPATH=/tmp/peer python benchmarks/board_looks.py [--frames 100]
-        [--shadow-maps 512 1024 2048] [--picture results/board_looks.png]
+        [--shadow-maps 512 2048] [--picture results/board_looks.png]
         [--json results/board_looks.json]
 
 The original code (DeepMind's physics_planning_games) draws its board-game
@@ -114,7 +114,7 @@ def _main(argv=None) -> int:
         "--shadow-maps",
         type=cli.positive_int,
         nargs="*",
-        default=[512, 1024, 2048],
+        default=[512, 2048],
         help="shadow map sizes (texels a side) to compare with the original's 4096",
     )
     parser.add_argument("--picture", type=Path, help="write the side-by-side picture here")

@@ -132,3 +132,34 @@ def test_cheaper_look_without_multisampling_is_read_too():
         assert np.linalg.norm(scene.walker_xy - env.task.walker_position()) < 0.05
     assert estimator.walls == cells_of(layer[..., 0])
     env.close()
+
+
+@pytest.mark.parametrize("name", ["mujoxo/mixture", "mujogo/7x7"])
+def test_board_shadow_map_draws_the_originals_4096_texel_shadows_within_the_bound(name):
+    """The original's board looks (shadows, 4 samples) drawn with the
+    library's shadow map against MuJoCo's 4096-texel map, which the original
+    leaves: the same 84x84 frame of a settled arm within `SHADOW_MAP_BOUND`."""
+    from envs.boards import arena as board_arena
+    from envs.rendering import Cameras
+
+    env = envs.load(name, seed=0, shadows=True, multisamples=4)
+    env.reset()
+    rng = np.random.default_rng(0)
+    for _ in range(5):
+        env.step(rng.uniform(-1, 1, env.action_spec().shape))
+    model, data = env.physics.model.ptr, env.physics.data.ptr
+    frames = []
+    for size in (board_arena.SHADOW_MAP_SIZE, 4096):
+        model.vis.quality.shadowsize = size  # read when the rendering context is made
+        cameras = Cameras(model)
+        try:
+            frames.append(cameras.render(data, "front_camera", 84, 84).astype(int))
+        finally:
+            cameras.close()
+    env.close()
+    assert board_arena.SHADOW_MAP_SIZE < 4096
+    mean_bound, share_bound = board_arena.SHADOW_MAP_BOUND
+    difference = np.abs(frames[0] - frames[1])
+    assert difference.mean() <= mean_bound
+    assert (difference.max(-1) > 8).mean() <= share_bound
+    assert difference.any()  # the two maps are drawn (and differ on shadow edges)
