@@ -75,6 +75,24 @@ def test_two_cells_lend_their_mean_and_none_leaves_the_sample_unknown():
     assert np.isnan(_colours(np.full((3, 4, 3), np.nan)).filled()).all()
 
 
+def test_across_parity_only_the_pattern_is_lent_on_the_cells_own_colour():
+    """A checkerboard row: dark cells (0, 2, 4) learnt whole, with a line on
+    their last sample; the light cells have only cell 1's first sample
+    learnt. The dark cells lend their pattern (the line 40 below their
+    colour), not their colour: cell 1 is light with the line 40 below it,
+    and cell 3 (nothing of its own) takes its parity's colour from cell 1."""
+    dark, light = np.array([76.0, 76.0, 76.0]), np.array([250.0, 240.0, 230.0])
+    background = np.full((5, 4, 3), np.nan)
+    background[[0, 2, 4]] = dark
+    background[[0, 2, 4], -1] = dark - 40.0
+    background[1, 0] = light
+    filled = _colours(background).filled()
+    for cell in (1, 3):
+        np.testing.assert_array_equal(filled[cell, :-1], np.broadcast_to(light, (3, 3)))
+        np.testing.assert_array_equal(filled[cell, -1], light - 40.0)
+    np.testing.assert_array_equal(filled[[0, 2, 4]], background[[0, 2, 4]])
+
+
 def test_the_filled_board_is_kept_until_a_sample_is_learnt():
     """`filled` answers with the same read-only array while nothing is
     learnt, and a sample learnt afterwards shows in its next answer (not

@@ -12,9 +12,11 @@ For the board games' camera estimator
   them in view (`BoardView.clear`). `filled` lends each sample not learnt
   the median of the same sample of the three nearest cells that have it
   (of the same checkerboard parity, in its row first), so that a mark
-  on one cell (a star point) is not lent; where no cell has it (a
-  board full of pieces at the start: clobber) it is taken through the
-  first frame's see-through pieces (``prior``).
+  on one cell (a star point) is not lent; a cell of the other parity
+  lends only its pattern, moved onto this cell's colour (a dark square's
+  line on a light square); where no cell has it (a board full of pieces
+  at the start: clobber) it is taken through the first frame's
+  see-through pieces (``prior``).
 * **The arm's shadow** (under a light that casts shadows, the original's
   looks). The share of light it leaves (``shade``) is measured on cells
   known empty in it (`BoardView.shade_ratios`), from the first frame on;
@@ -152,13 +154,18 @@ class BoardColours:
     def filled(self) -> np.ndarray:
         """(n, k, 3): the background, each sample not learnt borrowed from
         the same sample of the nearest cells of its parity that have it
-        learnt (those in its row first), else of any parity (the samples lie
-        at the same offsets from each point, so a wooden board's lines fall
-        on the same samples): the median of the first `DONORS` such cells'
-        (the mean of two when only two have it), so that a mark on one cell
-        (a Go board's star point) is not lent to its neighbours. Else its
-        cell's median, else ``prior``, else NaN (unknown: `BoardView.read`
-        does not read it).
+        learnt (those in its row first), else of the other parity (the
+        samples lie at the same offsets from each point, so a wooden board's
+        lines fall on the same samples): the median of the first `DONORS`
+        such cells' (the mean of two when only two have it), so that a mark
+        on one cell (a Go board's star point) is not lent to its neighbours.
+        A cell of the other parity lends its sample less its own colour
+        (per channel, the median of its samples learnt) plus this cell's
+        (of its samples learnt, else of its parity's), clipped to 0-255: the
+        squares of a checkerboard differ in colour, not in pattern; as it
+        is when this cell's parity has nothing learnt. Else its cell's
+        median, else ``prior``, else NaN (unknown: `BoardView.read` does not
+        read it).
 
         The same array is returned until `learn` learns a sample: callers
         must not write to it (a copy of the background is read-only)."""
@@ -175,22 +182,40 @@ class BoardColours:
         out = bg.copy()
         view = self.view
         some = known.any(axis=1)
+        with warnings.catch_warnings():  # a cell or parity with nothing learnt
+            warnings.simplefilter("ignore", RuntimeWarning)
+            level = np.nanmedian(bg, axis=1)  # (n, 3): each cell's own colour
+            parity_level = {
+                p: np.nanmedian(bg[view.parity == p].reshape(-1, 3), axis=0)
+                for p in np.unique(view.parity).tolist()
+            }
         for cell in np.flatnonzero(~known.all(axis=1)).tolist():
             missing = ~known[cell]
             same = some & (view.parity == view.parity[cell])
             row = same & (view.row == view.row[cell])
             near = self._nearest
-            tiers = (near(cell, row) + near(cell, same & ~row), near(cell, some & ~same))
+            # Across parity only the pattern is lent (each donor's samples
+            # less its own colour), on this cell's colour or its parity's;
+            # as they are when its parity has nothing learnt.
+            own = level[cell] if some[cell] else parity_level[int(view.parity[cell])]
+            shift = None if np.isnan(own).any() else own
+            tiers = (
+                (near(cell, row) + near(cell, same & ~row), None),
+                (near(cell, some & ~same), shift),
+            )
             lent = np.zeros(missing.shape, bool)
-            for donors in tiers:
+            for donors, onto in tiers:
                 if not donors:
                     continue
                 # Per sample still missing, the first DONORS donors that have it.
                 has = known[donors] & (missing & ~lent)[None]
                 use = has & (np.cumsum(has, axis=0) <= DONORS)
+                lend = bg[donors]
+                if onto is not None:
+                    lend = np.clip(lend - level[donors][:, None] + onto, 0.0, 255.0)
                 with warnings.catch_warnings():  # a sample no donor has
                     warnings.simplefilter("ignore", RuntimeWarning)
-                    median = np.nanmedian(np.where(use[..., None], bg[donors], np.nan), axis=0)
+                    median = np.nanmedian(np.where(use[..., None], lend, np.nan), axis=0)
                 new = use.any(axis=0)
                 out[cell][new] = median[new]
                 lent |= new
