@@ -181,7 +181,7 @@ class BoardColours:
             return bg
         out = bg.copy()
         view = self.view
-        some: np.ndarray = known.any(axis=1)
+        some = np.asarray(known.any(axis=1))
         with warnings.catch_warnings():  # a cell or parity with nothing learnt
             warnings.simplefilter("ignore", RuntimeWarning)
             level = np.nanmedian(bg, axis=1)  # (n, 3): each cell's own colour
