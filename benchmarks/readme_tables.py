@@ -786,10 +786,10 @@ def original_env(results: Path) -> list[str]:
 def original_boards(results: Path) -> list[str]:
     """Our default camera agent on the original MuJoXO and MuJoGo
     (`benchmarks/original_boards.py`): ``original_boards.json``'s runs, then
-    ``original_go_shadows.json``'s (MuJoGo under shadows measured again
-    later), each with its commit."""
+    ``original_go_shadows.json``'s and ``original_xo_shadows.json``'s (each
+    game under shadows measured again later), each with its commit."""
     d = _load(results / "original_boards.json")
-    again = _load(results / "original_go_shadows.json")
+    again = [_load(results / f"original_{game}_shadows.json") for game in ("go", "xo")]
     lines = [
         "| the original | its looks | games | agent (observation-only) | won / drawn / lost "
         "| not lost [95% CI] | its estimates right | mean steps |",
@@ -797,7 +797,7 @@ def original_boards(results: Path) -> list[str]:
     ]
     runs = [
         (run, f", at `{data['provenance']['commit'][:7]}`")
-        for data in (d, again)
+        for data in (d, *again)
         for run in data["runs"]
     ]
     for run, when in runs:
