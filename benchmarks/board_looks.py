@@ -16,7 +16,9 @@ share of pixels off by more than 8). Looks: the default, ``multisamples=4``,
 original's 4096-texel map (``SHADOW_MAP_SIZE`` is the library's: its image
 difference from that is reported as ``shadow_map_vs_4096``). Each size of
 ``--shadow-maps`` adds a row of the original's looks drawn with that map,
-its cost and its difference from the 4096-texel frame (``vs_4096``).
+its cost and its difference from the 4096-texel frame (``vs_4096``); so does
+the original's looks without the floor's reflection (its reflectance 0: one
+render pass less).
 
 With the original importable (``../shared/peer/setup.sh`` builds it into
 /tmp/peer; put it on PYTHONPATH) the picture also shows the original's own
@@ -58,12 +60,18 @@ LOOKS = {
 SIZE = (84, 84)
 
 
-def _frame_cost(env, frames: int, shadow_map: int | None = None) -> tuple[float, np.ndarray]:
+def _frame_cost(
+    env, frames: int, shadow_map: int | None = None, reflection: bool = True
+) -> tuple[float, np.ndarray]:
     """Median ms per 84x84 front_camera frame of ``env`` in its current
-    state, and the frame; ``shadow_map`` overrides the model's map size."""
+    state, and the frame; ``shadow_map`` overrides the model's map size;
+    without ``reflection`` no material reflects (the floor's reflectance 0:
+    MuJoCo then skips its reflection pass)."""
     model, data = env.physics.model.ptr, env.physics.data.ptr
     if shadow_map is not None:
         model.vis.quality.shadowsize = shadow_map  # read when the context is made
+    if not reflection:
+        model.mat_reflectance[:] = 0.0
     cameras = Cameras(model)
     try:
         for _ in range(10):
@@ -167,18 +175,31 @@ def _main(argv=None) -> int:
                     "vs_4096": _difference(image, full_map),
                 }
             )
+        env = _settled(name, LOOKS["original (multisamples=4, shadows)"], args.seed)
+        ms, image = _frame_cost(env, args.frames, reflection=False)
+        env.close()
+        rows.append(
+            {
+                "env": name,
+                "look": "original without the floor's reflection",
+                "options": {"multisamples": 4, "shadows": True, "reflectance": 0.0},
+                "ms_per_frame": round(ms, 3),
+                "vs_default": _difference(image, images["default"]),
+                "vs_4096": _difference(image, full_map),
+            }
+        )
         original = _original_frame(name, args.seed)
         strips.append(
             (name, images["default"], images["original (multisamples=4, shadows)"], original)
         )
     default_ms = {r["env"]: r["ms_per_frame"] for r in rows if r["look"] == "default"}
     print(
-        f"{'environment':<16} {'look':<36} {'ms/frame':>9} {'x default':>9} "
+        f"{'environment':<16} {'look':<40} {'ms/frame':>9} {'x default':>9} "
         f"{'mean diff':>9} {'px > 8':>7}"
     )
     for r in rows:
         print(
-            f"{r['env']:<16} {r['look']:<36} {r['ms_per_frame']:>9.2f} "
+            f"{r['env']:<16} {r['look']:<40} {r['ms_per_frame']:>9.2f} "
             f"{r['ms_per_frame'] / default_ms[r['env']]:>8.1f}x "
             f"{r['vs_default']['mean_abs']:>9.3f} "
             f"{100 * r['vs_default']['share_above_8']:>6.1f}%"
