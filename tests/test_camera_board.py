@@ -154,6 +154,31 @@ def test_an_edge_row_darker_than_the_rest_is_learnt_from_the_first_frame():
         env.close()
 
 
+def test_under_the_originals_light_a_dark_square_is_not_lent_a_light_ones_colour():
+    """MuJoXO at the original's looks (shadows, 4 samples), episode 12 of
+    seed 0: at the first frame the arm and its shadow leave only cells 2, 3
+    and 6 of the empty board to learn. Dark cell 0 lacks samples only light
+    cell 3 has; lent its white, cell 0's own grey read as an O and the game
+    was lost. Lent its pattern on cell 0's colour, the first frame reads as
+    the referee's empty board."""
+    name = "mujoxo/optimal"
+    options = {**env_overrides(name, "camera"), "shadows": True, "multisamples": 4}
+    env = envs.load(name, seed=0, **options)
+    view = BoundaryEnv(env, strip=env.privileged_observations)
+    try:
+        env.seed(0, episode=12)
+        timestep = view.reset()
+        estimator = BoardCameraEstimator()
+        estimator.reset(view.description(), timestep)
+        cells, _ = estimator.read(timestep)
+        truth = env.task.game.players(env.task.state)
+        seen = cells != UNSEEN
+        np.testing.assert_array_equal(cells[seen], truth[seen])
+        assert _right(env, estimator.estimate(timestep))
+    finally:
+        env.close()
+
+
 def test_a_board_full_of_see_through_pieces_is_read_with_either_colour_anywhere():
     """Clobber starts with a piece on every point, so no empty cell shows
     the board: its colour as the pieces' colour model sees it is taken
