@@ -593,7 +593,7 @@ CAMERA_BOARDS = {
     "othello-8x8": BOTH_SIDES,
     "gomoku-9x9": BOTH_SIDES,
     "breakthrough-6x6": BOTH_SIDES,
-    "checkers": ("first",),
+    "checkers": BOTH_SIDES,
     "clobber-5x6": BOTH_SIDES,
 }
 
@@ -602,8 +602,8 @@ CAMERA_BOARDS = {
 def mujoboard_camera(results: Path) -> list[str]:
     """The observation-only board rows (``--estimator camera``), first and
     second: the MuJoBoard games measured with the camera (`CAMERA_BOARDS`),
-    MuJoXO against the optimal opponent, then MuJoGo 7x7 (agent first); each
-    with the commit it was measured at."""
+    MuJoXO against the optimal opponent, then MuJoGo 7x7; each with the
+    commit it was measured at."""
     lines = [
         "| game | agent moves | won / drawn / lost [95% CI of won] | estimated board right "
         "| wrong move | other failed touches | cut-off options | control steps / s | commit |",
@@ -615,7 +615,10 @@ def mujoboard_camera(results: Path) -> list[str]:
         (env, side, f"{env.replace('/', '_')}_camera_{side}.json")
         for env, measured in sides.items()
         for side in measured
-    ] + [("mujogo/7x7", "first", "mujogo_7x7_camera.json")]
+    ] + [
+        ("mujogo/7x7", "first", "mujogo_7x7_camera.json"),
+        ("mujogo/7x7", "second", "mujogo_7x7_camera_second.json"),
+    ]
     for env, side, name in rows:
         s = _load(results / "agent" / name)
         if s.get("estimator") != "camera" or s.get("privileged") or s.get("env") != env:

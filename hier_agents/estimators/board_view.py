@@ -183,7 +183,8 @@ class BoardView:
         #: ``"checker"``) its square's colour, else 0 for every cell (one
         #: colour of tile or wood throughout). A background learnt on one
         #: cell stands in for an unlearnt cell of the same parity, its row's
-        #: first (the light falls off towards the board's edges).
+        #: first (the light falls off towards the board's edges); a cell of
+        #: the other parity lends only its pattern (`BoardColours.filled`).
         self.row = np.arange(n) // description.cols
         checker = game.rules.look == "checker"
         self.parity = (self.row + np.arange(n) % description.cols) % 2 * int(checker)
