@@ -533,15 +533,40 @@ def test_the_touched_move_is_looked_for_after_the_unconfirmed_estimate(request):
     estimator.reset(view.description(), view.reset())
     game = BoardGame.from_description(view.description())
     a, b, c, d = 24, 25, 10, 40
-    estimator._touched = a
+    estimator._register(a)
     cells, shares = _frame(game, {a: 0, b: 1}, hidden=[a])
     estimator._belief = estimator._explain(cells, shares, over=False)
     assert estimator._belief.history() == [a, b]
     assert [s.history() for s in estimator._anchors] == [[]]  # A was never seen
     assert game.zone_effects(estimator._belief, -1)[0][c] == c
-    estimator._touched = c
+    estimator._register(c)
     cells, shares = _frame(game, {a: 0, b: 1, c: 0, d: 1}, hidden=[a, c])
     assert estimator._explain(cells, shares, over=False).history() == [a, b, c, d]
+    env.close()
+
+
+def test_the_registered_move_is_kept_until_an_anchor_holds_it(request):
+    """Go: the agent touches A (the arm resets: a registered move), and the
+    reply B lies hidden by the arm at rest: the estimate [A, pass] runs
+    unconfirmed. The agent presses B, the game refuses it, and the hand now
+    hides A too: [pass, B] changes fewer hidden cells than [A, B], but the
+    touch played A at that ply, so the estimate is [A, B] (taken for [pass,
+    B] and confirmed once B was seen, the agent kept pressing A to the time
+    limit: episode 44 of seed 0 of `mujogo/7x7` with the agent second)."""
+    request.getfixturevalue("gnugo")
+    env, view = _env("mujogo/7x7")
+    estimator = BoardCameraEstimator()
+    estimator.reset(view.description(), view.reset())
+    game = BoardGame.from_description(view.description())
+    a, b = 43, 44
+    estimator._register(a)
+    cells, shares = _frame(game, {a: 0}, hidden=[b])
+    estimator._belief = estimator._explain(cells, shares, over=False)
+    assert estimator._belief.history() == [a, game.pass_action]
+    assert [s.history() for s in estimator._anchors] == [[]]  # the pass is not confirmed
+    estimator._refused = {b}
+    cells, shares = _frame(game, {a: 0, b: 1}, hidden=[a, b])
+    assert estimator._explain(cells, shares, over=False).history() == [a, b]
     env.close()
 
 

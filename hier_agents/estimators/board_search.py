@@ -55,7 +55,7 @@ class Score(NamedTuple):
     soft: float
     #: 1 when it rewrites moves of the current estimate.
     rewrite: int
-    #: 1 when it does not continue the current estimate with the touched move.
+    #: 1 when it does not play the agent's registered move (`Clues.played`) at its ply.
     miss: int
     #: Cells changed since the anchor and not read surely.
     blind: int
@@ -76,14 +76,15 @@ class Clues:
 
     Attributes:
       belief: the current estimate (an OpenSpiel state, settled).
-      touched: the touch zone that played the agent's last move (the touch
-        under the hand before an arm reset), or None.
+      played: the agent's last registered move, (ply, action): the action
+        the touch under the hand before the last arm reset played, acting
+        on the estimate of then, whose length is the ply; or None.
       refused: actions the game refused since the last arm reset.
       selected: the selected piece's point (move games), -1 for none.
     """
 
     belief: Any
-    touched: int | None = None
+    played: tuple[int, int] | None = None
     refused: frozenset[int] = frozenset()
     selected: int = -1
 
@@ -91,7 +92,7 @@ class Clues:
         """The clues as a hashable key (the belief by its history)."""
         return (
             tuple(self.belief.history()),
-            self.touched,
+            self.played,
             tuple(sorted(self.refused)),
             self.selected,
         )
@@ -211,12 +212,12 @@ class ContinuationSearch:
 
     def _scorer(self, anchor, cells, fractions, clues: Clues, over: bool) -> Callable[[Any], Score]:
         """The `Score` of a continuation ``state`` of ``anchor`` (the
-        fields' order is the ranking's). The touched move: the action the
-        touch before an arm reset played, acting on the current estimate (an
-        unconfirmed part of it may lie between ``anchor`` and that move).
-        A refused move the state allows counts as a cell read surely and
-        contradicted; in point games so does a piece of the agent's put down
-        on a refused point (none is without an arm reset)."""
+        fields' order is the ranking's). The registered move (`Clues.played`)
+        is looked for at its ply (an unconfirmed part of the estimate may lie
+        between ``anchor`` and that move). A refused move the state allows
+        counts as a cell read surely and contradicted; in point games so does
+        a piece of the agent's put down on a refused point (none is without
+        an arm reset)."""
         game, agent, belief = self.game, self.agent, clues.belief
         visible = ~np.isnan(fractions[:, 0])
         seen = cells != UNSEEN
@@ -228,11 +229,7 @@ class ContinuationSearch:
         costs = np.abs(shares[None] - np.array([[0, 0], [1, 0], [0, 1]], bool)[:, None])
         columns = np.arange(len(shares))
         believed = list(belief.history())
-        played, ply = None, len(believed)
-        if clues.touched is not None and belief.current_player() == agent:
-            zone = min(clues.touched, game.num_zones - 1)
-            action = game.zone_effects(belief, clues.selected)[0][zone]
-            played = int(action) if action >= 0 else None
+        ply, played = clues.played if clues.played is not None else (0, None)
         refused = tuple(clues.refused)
         by_point = game.rules.input == "point"
 

@@ -67,12 +67,14 @@ estimate is returned with the new joints.
 
 The arm reset tells more: a move was registered, by the touch under the
 pinch site just before the jump (the arm's own model at the previous
-joints), acting on the current estimate. The next search then ranks
-continuations in which the agent's move after that estimate is the move
-that touch plays (`envs.boards.games.BoardGame.zone_effects`) above the
+joints), acting on the current estimate. Until an anchor reaches that
+move's ply, the searches rank continuations that play the move that touch
+plays (`envs.boards.games.BoardGame.zone_effects`) at that ply above the
 others, after what the cells show and the moves already estimated: the
 agent's own piece is often still hidden by the arm, and the estimate may
-run unconfirmed ahead of the last anchor (a move under the hand).
+run unconfirmed ahead of the last anchor (a move under the hand). Without
+it, a later search could take the agent's hidden move for a pass when the
+hand hides it again (a pass changes fewer hidden cells).
 
 Presses tell too: the hand standing blocked on one zone with no arm reset
 (`hier_agents.estimators.presses`) means the game refused that move (its
@@ -151,11 +153,11 @@ class BoardCameraEstimator(Estimator):
 
     name = "camera"
     # Per episode, set by `reset`: the arm posture of the last estimate (None
-    # before the first), the zone a touch hit before the arm jumped back, the
-    # cells read surely since the estimate was made, the hand low over the
-    # board at the last estimate.
+    # before the first), the agent's last registered move (`Clues.played`)
+    # until an anchor holds its ply, the cells read surely since the estimate
+    # was made, the hand low over the board at the last estimate.
     _qpos: np.ndarray | None
-    _touched: int | None
+    _played: tuple[int, int] | None
     _vouched: np.ndarray | None
     _low: bool
     _pinch: np.ndarray | None
@@ -196,7 +198,7 @@ class BoardCameraEstimator(Estimator):
         self._belief = initial.clone()
         self._selected = -1
         self._since, self._qpos = 0, None  # the first estimate reads
-        self._touched = None
+        self._played = None
         self._vouched = None
         self._low = False  # the hand low over the board at the last estimate
         self._pinch = None  # the pinch site's position then
@@ -243,9 +245,9 @@ class BoardCameraEstimator(Estimator):
 
     def _search(self, anchor, cells, fractions, over: bool, **options):
         """`ContinuationSearch.search` from ``anchor`` with this estimator's
-        clues (its estimate, the touched zone, the refused moves, the
-        selected piece)."""
-        clues = Clues(self._belief, self._touched, frozenset(self._refused), self._selected)
+        clues (its estimate, the agent's registered move, the refused moves,
+        the selected piece)."""
+        clues = Clues(self._belief, self._played, frozenset(self._refused), self._selected)
         return self._searcher.search(anchor, cells, fractions, clues, over, **options)
 
     def estimate(self, timestep) -> ArmScene:
@@ -263,7 +265,7 @@ class BoardCameraEstimator(Estimator):
         if jumped:
             # The arm is reset only after a registered move: the touch that
             # played it was under the hand before the jump.
-            self._touched = self._zones.under(self._pinch)
+            self._register(self._zones.under(self._pinch))
         self._qpos, self._pinch = qpos, pinch
         refused = self._refuse(pinch, jumped)
         low, self._low = self._low, self._zones.within(pinch, TOUCH_HEIGHT)
@@ -294,11 +296,10 @@ class BoardCameraEstimator(Estimator):
             np.any(players[seen] != cells[seen])
             or not self._settled(self._belief)
             or (over and not self._belief.is_terminal())
-            or self._touched is not None
+            or jumped
             or refused
         ):
             self._belief = self._explain(cells, np.where(hidden[:, None], np.nan, fractions), over)
-            self._touched = None
             self._vouched = seen & (game.players(self._belief) == cells)
         elif self._belief.history() != self._anchor.history():
             # The board stands still between two registered moves (the arm
@@ -320,6 +321,21 @@ class BoardCameraEstimator(Estimator):
             colours.learn_shade(obs[CAMERA], qpos, background, self._anchor)
         self._selected = self._selection(selection, hidden)
         return self._scene(qpos, obs)
+
+    def _register(self, zone: int | None) -> None:
+        """The agent's move registered by a touch on ``zone`` (None: no
+        zone under the hand) acting on the current estimate, with the agent
+        to move in it: its ply and action become ``_played`` (the search
+        looks for it there until an anchor holds that ply: `_confirm`);
+        else None."""
+        self._played = None
+        belief = self._belief
+        if zone is None or belief.is_terminal() or belief.current_player() != self._agent:
+            return
+        game = self._game
+        action = int(game.zone_effects(belief, self._selected)[0][min(zone, game.num_zones - 1)])
+        if action >= 0:
+            self._played = (len(belief.history()), action)
 
     def _refuse(self, pinch, jumped: bool) -> bool:
         """Follows presses (`TouchZones.blocked`); True when the press with
@@ -422,6 +438,8 @@ class BoardCameraEstimator(Estimator):
         """``state`` becomes the last anchor; anchors that are not earlier
         states of its game (an earlier estimate it rewrote) are dropped."""
         history = state.history()
+        if self._played is not None and len(history) > self._played[0]:
+            self._played = None  # the anchor holds the registered move's ply
         while len(self._anchors) > 1:
             before = self._anchor.history()
             if history[: len(before)] == before:
