@@ -77,8 +77,8 @@ LIGHT_POS = (0.0, 0.0, 1.5)
 #: MuJoCo's 4096. At 84x84 with 4 samples a 1024-texel map draws frames
 #: within `SHADOW_MAP_BOUND` of the 4096-texel map's (measured: 0.05 and 0.17
 #: of 255 on average on MuJoXO and MuJoGo, 0.1% and 0.4% of pixels off by
-#: more than 8, on shadow edges) at 0.36-0.39 of its cost, 0.70 of a
-#: 2048-texel map's (``benchmarks/board_looks.py``, results/board_looks.json).
+#: more than 8, on shadow edges) at about a third of its cost
+#: (``benchmarks/board_looks.py``, results/board_looks.json).
 SHADOW_MAP_SIZE = 1024
 #: The bound the tests hold `SHADOW_MAP_SIZE` to against MuJoCo's 4096-texel
 #: map: (mean absolute difference per channel of 255, share of pixels off by
