@@ -51,11 +51,13 @@ ORIGINAL_NAMES = {
     "mujoxo/mixture": "tic_tac_toe_mixture_opponent_markers_features",
     "mujogo/7x7": "go_7x7",
 }
+#: The original's looks, the key of `LOOKS`.
+ORIGINAL = "original (multisamples=4, shadows)"
 LOOKS = {
     "default": {},
     "multisamples=4": {"multisamples": 4},
     "shadows": {"shadows": True},
-    "original (multisamples=4, shadows)": {"multisamples": 4, "shadows": True},
+    ORIGINAL: {"multisamples": 4, "shadows": True},
 }
 SIZE = (84, 84)
 
@@ -92,6 +94,16 @@ def _difference(a: np.ndarray, b: np.ndarray) -> dict:
         "mean_abs": round(float(d.mean()), 4),
         "share_above_8": round(float((d.max(-1) > 8).mean()), 4),
     }
+
+
+def _original_cost(name: str, args, **cost) -> tuple[float, np.ndarray]:
+    """`_frame_cost` of ``name`` at the original's looks (the ``ORIGINAL`` look
+    of `LOOKS`), settled from ``args.seed``, with ``cost``'s overrides."""
+    env = _settled(name, LOOKS[ORIGINAL], args.seed)
+    try:
+        return _frame_cost(env, args.frames, **cost)
+    finally:
+        env.close()
 
 
 def _settled(name: str, options: dict, seed: int):
@@ -146,52 +158,37 @@ def _main(argv=None) -> int:
                     "vs_default": _difference(images[label], images["default"]),
                 }
             )
-        env = _settled(name, LOOKS["original (multisamples=4, shadows)"], args.seed)
-        ms, full_map = _frame_cost(env, args.frames, shadow_map=4096)
-        env.close()
+        ms, full_map = _original_cost(name, args, shadow_map=4096)
         rows.append(
             {
                 "env": name,
                 "look": "original with a 4096 shadow map",
-                "options": {"multisamples": 4, "shadows": True, "shadowsize": 4096},
+                "options": {**LOOKS[ORIGINAL], "shadowsize": 4096},
                 "ms_per_frame": round(ms, 3),
                 "vs_default": _difference(full_map, images["default"]),
-                "shadow_map_vs_4096": _difference(
-                    images["original (multisamples=4, shadows)"], full_map
-                ),
+                "shadow_map_vs_4096": _difference(images[ORIGINAL], full_map),
             }
         )
-        for size in args.shadow_maps:
-            env = _settled(name, LOOKS["original (multisamples=4, shadows)"], args.seed)
-            ms, image = _frame_cost(env, args.frames, shadow_map=size)
-            env.close()
+        variants = [
+            (f"original with a {size} shadow map", {"shadowsize": size}, {"shadow_map": size})
+            for size in args.shadow_maps
+        ] + [
+            ("original without the floor's reflection", {"reflectance": 0.0}, {"reflection": False})
+        ]
+        for look, options, cost in variants:
+            ms, image = _original_cost(name, args, **cost)
             rows.append(
                 {
                     "env": name,
-                    "look": f"original with a {size} shadow map",
-                    "options": {"multisamples": 4, "shadows": True, "shadowsize": size},
+                    "look": look,
+                    "options": {**LOOKS[ORIGINAL], **options},
                     "ms_per_frame": round(ms, 3),
                     "vs_default": _difference(image, images["default"]),
                     "vs_4096": _difference(image, full_map),
                 }
             )
-        env = _settled(name, LOOKS["original (multisamples=4, shadows)"], args.seed)
-        ms, image = _frame_cost(env, args.frames, reflection=False)
-        env.close()
-        rows.append(
-            {
-                "env": name,
-                "look": "original without the floor's reflection",
-                "options": {"multisamples": 4, "shadows": True, "reflectance": 0.0},
-                "ms_per_frame": round(ms, 3),
-                "vs_default": _difference(image, images["default"]),
-                "vs_4096": _difference(image, full_map),
-            }
-        )
         original = _original_frame(name, args.seed)
-        strips.append(
-            (name, images["default"], images["original (multisamples=4, shadows)"], original)
-        )
+        strips.append((name, images["default"], images[ORIGINAL], original))
     default_ms = {r["env"]: r["ms_per_frame"] for r in rows if r["look"] == "default"}
     print(
         f"{'environment':<16} {'look':<40} {'ms/frame':>9} {'x default':>9} "
