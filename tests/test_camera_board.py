@@ -131,6 +131,19 @@ def test_only_a_checkerboard_has_two_parities():
         assert set(parity.tolist()) == ({0, 1} if checker else {0}), name
 
 
+def _first_frame(name, episode, **options):
+    """(env, first timestep, estimator reset on it) of episode ``episode`` of
+    seed 0 of ``name`` as the camera estimator asks for it, with
+    ``options``, seen through the boundary."""
+    env = envs.load(name, seed=0, **{**env_overrides(name, "camera"), **options})
+    view = BoundaryEnv(env, strip=env.privileged_observations)
+    env.seed(0, episode=episode)
+    timestep = view.reset()
+    estimator = BoardCameraEstimator()
+    estimator.reset(view.description(), timestep)
+    return env, timestep, estimator
+
+
 def test_an_edge_row_darker_than_the_rest_is_learnt_from_the_first_frame():
     """Gomoku, the opponent first (episode 0 of seed 0): the light leaves the
     last row darker than the others and the arm hides half of it. Its cells
@@ -138,14 +151,8 @@ def test_an_edge_row_darker_than_the_rest_is_learnt_from_the_first_frame():
     no parities), so they are learnt, and the first estimate is the
     referee's game (it was not, all game long, when they were checked
     against the whole board's brighter cells of their parity)."""
-    name = "mujoboard/gomoku-9x9"
-    env = envs.load(name, seed=0, agent_player=1, **env_overrides(name, "camera"))
-    view = BoundaryEnv(env, strip=env.privileged_observations)
+    env, timestep, estimator = _first_frame("mujoboard/gomoku-9x9", 0, agent_player=1)
     try:
-        env.seed(0, episode=0)
-        timestep = view.reset()
-        estimator = BoardCameraEstimator()
-        estimator.reset(view.description(), timestep)
         last_row = np.arange(72, 81)
         cells, _ = estimator.read(timestep)
         assert (cells[last_row] != UNSEEN).sum() >= 4  # the arm hides the rest
@@ -161,15 +168,8 @@ def test_under_the_originals_light_a_dark_square_is_not_lent_a_light_ones_colour
     cell 3 has; lent its white, cell 0's own grey read as an O and the game
     was lost. Lent its pattern on cell 0's colour, the first frame reads as
     the referee's empty board."""
-    name = "mujoxo/optimal"
-    options = {**env_overrides(name, "camera"), "shadows": True, "multisamples": 4}
-    env = envs.load(name, seed=0, **options)
-    view = BoundaryEnv(env, strip=env.privileged_observations)
+    env, timestep, estimator = _first_frame("mujoxo/optimal", 12, shadows=True, multisamples=4)
     try:
-        env.seed(0, episode=12)
-        timestep = view.reset()
-        estimator = BoardCameraEstimator()
-        estimator.reset(view.description(), timestep)
         cells, _ = estimator.read(timestep)
         truth = env.task.game.players(env.task.state)
         seen = cells != UNSEEN
