@@ -341,6 +341,38 @@ def original_speed(results: Path) -> list[str]:
     return lines
 
 
+@table("physics-behaviour")
+def physics_behaviour(results: Path) -> list[str]:
+    """Candidate physics settings: behaviour against the original's and speed beside it
+    (`benchmarks/physics_behaviour.py`)."""
+    d = _load(results / "physics_behaviour.json")
+    original = d["original"]
+    lines = [
+        "| setting | walker rolls / coasts, m | pushes a box, m | 10 / 20 / 40 N slide a box, m "
+        "| largest deviation from the original | x the original, no pegs | with pegs |",
+        "| --- | --- | --- | --- | --- | --- | --- |",
+    ]
+
+    def cells(v: dict) -> str:
+        return (
+            f"{v['roll_m']:.3f} / {v['coast_m']:.3f} | {v['push_box_m']:.3f} "
+            f"| {v['slide_10N_m']:.4f} / {v['slide_20N_m']:.3f} / {v['slide_40N_m']:.3f}"
+        )
+
+    lines.append(f"| the original | {cells(original)} | - | 1x | 1x |")
+    for row in d["rows"]:
+        within = "within 1%" if row["within_tolerance"] else "**outside the tolerance**"
+        speed = [
+            _span([s["x_original"] for s in row["speed"] if s["pegs"] is pegs], "{:.1f}") + "x"
+            for pegs in (False, True)
+        ]
+        lines.append(
+            f"| {row['setting']} | {cells(row['behaviour'])} "
+            f"| {row['max_deviation']:.2%} ({within}) | {speed[0]} | {speed[1]} |"
+        )
+    return lines
+
+
 @table("learner-speed")
 def learner_speed(results: Path) -> list[str]:
     """Actor-learner frames/s against as many bare environment processes stepping at once,

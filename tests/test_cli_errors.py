@@ -200,6 +200,8 @@ CASES = [
     ("bench/original_speed", ["--steps", "0"], "--steps"),
     ("bench/original_speed", [], "physics_planning_games"),
     ("bench/original_boards", [], "physics_planning_games"),
+    ("bench/physics_behaviour", ["--rounds", "0"], "--rounds"),
+    ("bench/physics_behaviour", ["--json", FOLDER], "is a folder"),
     ("bench/original_boards", ["--xo-games", "0"], "--xo-games"),
     ("bench/original_boards", ["--json", FOLDER], "is a folder"),
     ("bench/estimator_accuracy", ["--frames", "0"], "--frames"),

@@ -1,0 +1,88 @@
+"""MuJoBan's physical behaviour against the original's measured values
+(`envs.mujoban.behaviour`; the original's values are committed in
+results/physics_behaviour.json by benchmarks/physics_behaviour.py)."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import pytest
+
+from envs.mujoban import behaviour
+
+ROOT = Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "results" / "physics_behaviour.json"
+
+
+@pytest.fixture(scope="module")
+def level_file(tmp_path_factory):
+    path = tmp_path_factory.mktemp("behaviour") / "level.txt"
+    path.write_text(behaviour.level_text())
+    return path
+
+
+def _measure(level_file, **overrides):
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    try:
+        import physics_behaviour
+    finally:
+        sys.path.remove(str(ROOT / "benchmarks"))
+    return physics_behaviour.measure_ours(overrides, level_file)
+
+
+def test_the_default_model_behaves_as_the_original_within_tolerance(level_file):
+    original = json.loads(RESULTS.read_text())["original"]
+    assert set(original) == set(behaviour.QUANTITIES)
+    ours = _measure(level_file)
+    off = {
+        q: (ours[q], original[q])
+        for q in behaviour.QUANTITIES
+        if not behaviour.within_tolerance(ours[q], original[q])
+    }
+    assert not off, f"quantities off the original's (ours, original): {off}"
+
+
+def test_the_scenarios_tell_friction_and_the_walker_apart(level_file):
+    """The checks can fail: 10 N does not move the box (floor friction holds
+    12.3 N), 20 N does and 40 N more; a box 5x heavier goes less far when
+    pushed; a model with 10x the floor friction holds a 20 N push."""
+    ours = _measure(level_file)
+    assert ours["slide_10N_m"] < 0.002 < 0.3 < ours["slide_20N_m"] < ours["slide_40N_m"]
+    assert ours["roll_m"] > 0.5 and ours["coast_m"] > 0.1 and ours["push_box_m"] > 1.0
+    import envs
+
+    env = envs.load(
+        "mujoban/level1",
+        seed=0,
+        levels=str(level_file),
+        top_camera=None,
+        egocentric_camera=None,
+    )
+    try:
+        env.reset()
+        model = env.physics.model.ptr
+        # The box-floor contacts are explicit contact pairs (their own friction).
+        assert model.npair >= 1
+        model.pair_friction[:, :2] *= 10
+        stuck = behaviour.measure(env.physics)
+    finally:
+        env.close()
+    assert stuck["slide_20N_m"] < 0.002
+    assert not behaviour.within_tolerance(stuck["slide_20N_m"], ours["slide_20N_m"])
+
+
+def test_tolerance_is_relative_with_an_absolute_floor():
+    assert behaviour.within_tolerance(1.0095, 1.0)
+    assert not behaviour.within_tolerance(1.02, 1.0)
+    assert behaviour.within_tolerance(0.0015, 0.0)
+    assert not behaviour.within_tolerance(0.003, 0.0)
+
+
+def test_a_model_without_the_parts_is_refused_naming_them():
+    import mujoco
+
+    model = mujoco.MjModel.from_xml_string("<mujoco><worldbody/></mujoco>")
+    with pytest.raises(ValueError, match="root_x"):
+        behaviour._Parts(model)
