@@ -319,6 +319,24 @@ def test_sleep_is_an_option_off_by_default():
         envs.load("mujoban/level1", sleep="yes", **NO_CAMERAS)
 
 
+def test_with_sleep_the_walls_and_pads_of_every_level_are_drawn_where_they_are():
+    """The layout moves world geoms (wall slabs, pads) at each reset; MuJoCo
+    with sleeping enabled never recomputes their poses, so the camera would
+    show the compiled model's parked slabs and no pads."""
+    frames = {}
+    for sleep in (False, True):
+        env = envs.load("mujoban/level5", seed=0, sleep=sleep, egocentric_camera=None)
+        frames[sleep] = []
+        for _ in range(2):  # two levels
+            env.reset()
+            for _ in range(10):
+                timestep = env.step(np.zeros(2))
+            frames[sleep].append(timestep.observation["top_camera"])
+        env.close()
+    for awake, asleep in zip(frames[False], frames[True]):
+        np.testing.assert_array_equal(awake, asleep)
+
+
 @pytest.mark.parametrize("bad", [-1, 2.5, "5", True, None])
 def test_bad_noslip_iterations_is_a_value_error_naming_it(bad):
     with pytest.raises((ValueError, TypeError), match="noslip_iterations"):

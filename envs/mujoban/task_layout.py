@@ -27,6 +27,7 @@ class LayoutMixin:
     # Set by `Mujoban` (its arena and compiled-model indices).
     _arena: arena_lib.MujobanArena
     _model: Any  # mujoco.MjModel (mujoco has no type stubs)
+    _data: Any  # mujoco.MjData
     _boxes: list
     _wall_ids: np.ndarray
     _slab_ids: np.ndarray
@@ -108,6 +109,12 @@ class LayoutMixin:
             else:
                 m.geom_pos[pad] = (0, 0, _PARKED_Z)
                 m.geom_group[pad] = arena_lib.HIDDEN_GROUP
+        # The slabs and pads are the world body's geoms, moved here. With
+        # sleeping enabled MuJoCo never recomputes a world geom's pose (such
+        # geoms cannot move), so they get it here: a world geom's position is
+        # its geom_pos (without sleeping mj_kinematics computes the same).
+        moved = np.concatenate([self._slab_ids, self._pad_ids])
+        self._data.geom_xpos[moved] = m.geom_pos[moved]
         layer = np.zeros((height, width, 4), bool)
         layer[..., WALL] = walls
         for r, c in self._targets:
