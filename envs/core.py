@@ -209,10 +209,26 @@ class Environment(dm_env.Environment):
     def _step(self, action) -> dm_env.TimeStep:
         if self._reset_next_step:
             return self._reset()
-        action = self._check_action(action)
+        self._begin_step(action)
+        return self._end_step(self._advance())
+
+    # A control step in three parts, which `_step` runs in this order and
+    # `envs.vector` runs for many environments at once (the `_advance` calls
+    # of all of them in worker threads, the other parts in the calling one).
+
+    def _begin_step(self, action) -> None:
+        """The part of a step before the physics: checks ``action`` (ValueError:
+        wrong shape, not finite) and hands it to the task's ``before_step``.
+        The episode must be running (not after a LAST step)."""
+        self._task.before_step(self._physics, self._check_action(action), self._rng)
+
+    def _end_step(self, advanced: bool) -> dm_env.TimeStep:
+        """The part of a step after the physics: the step's timestep, given
+        whether `_advance` went through (False: it diverged, the episode ends
+        with reward 0 and discount 0). Runs the task's ``after_step`` and
+        builds the observation."""
         task, physics = self._task, self._physics
-        task.before_step(physics, action, self._rng)
-        if not self._advance():
+        if not advanced:
             self._reset_next_step = True
             return dm_env.termination(0.0, self._observation())
         task.after_step(physics, self._rng)
@@ -363,6 +379,10 @@ class Environment(dm_env.Environment):
         sensors) describe the start of the last substep (5 ms old); ``qpos``
         and ``qvel`` are current. Divergence is MuJoCo's bad-acceleration
         warning, after which MuJoCo has reset the state.
+
+        Touches only this environment's ``mjData`` (and reads its own
+        ``mjModel``), so environments may advance in parallel threads:
+        ``mj_step`` releases the GIL.
         """
         warnings = self._warning_counts
         before = warnings[_BADQACC]

@@ -25,7 +25,10 @@ Action repeat: ``ActionRepeat(gymnasium.make(name, obs="state"), 4)`` holds
 each action for 4 control steps and returns the summed reward, as the IMPALA
 agent's ``--action-repeat 4`` does.
 
-Vector environments: ``gymnasium.vector.SyncVectorEnv`` and
+Vector environments: ``gymnasium.make_vec(name, num_envs=N, obs=...)`` builds
+an `envs.vector.BatchedVectorEnv`, which steps the N environments' physics in
+parallel threads (`envs.vector.make_sb3`: the same for Stable-Baselines3).
+``gymnasium.vector.SyncVectorEnv`` and
 ``AsyncVectorEnv`` take ``lambda: gymnasium.make(name, ...)`` thunks. The
 environments are built with lazy cameras, so no OpenGL context exists before
 the first reset and ``AsyncVectorEnv``'s default (fork) context works when it
@@ -274,9 +277,19 @@ class GymnasiumEnv(gymnasium.Env):
         """One control step. ``info``: ``discount``, ``steps`` (control steps
         this episode) and, on the episode's last step, ``is_success`` (bool:
         MuJoBan solved, the board game won; `PhysicsTask.succeeded`)."""
+        self._check_running()
+        return self._result(self._env.step(action))
+
+    def _check_running(self) -> None:
+        """Raises RuntimeError unless an episode is running (after `reset`,
+        before its last step)."""
         if self._needs_reset:
             raise RuntimeError("the episode has ended (or never began): call reset() first")
-        timestep = self._env.step(action)
+
+    def _result(self, timestep):
+        """`step`'s return value for the wrapped environment's ``timestep``
+        (``(observation, reward, terminated, truncated, info)``); after the
+        episode's last step the next `step` needs a `reset`."""
         terminated = truncated = False
         info = {"discount": float(timestep.discount), "steps": self._env.step_count}
         if timestep.last():
@@ -329,12 +342,39 @@ class ActionRepeat(gymnasium.Wrapper):
         self.repeat = repeat
 
     def step(self, action):
-        total, held, terminated, truncated = 0.0, 0, False, False
-        while held < self.repeat and not (terminated or truncated):
-            observation, reward, terminated, truncated, info = self.env.step(action)
-            total += float(reward)
-            held += 1
-        return observation, total, terminated, truncated, {**info, "held": held}
+        hold = HeldSteps()
+        while hold.add(self.env.step(action)) and hold.held < self.repeat:
+            pass
+        return hold.result()
+
+
+class HeldSteps:
+    """`ActionRepeat`'s rule for one action held over control steps: `add`
+    each step's ``(observation, reward, terminated, truncated, info)`` while
+    it returns True (the episode goes on) and the hold lasts; `result` is the
+    hold's: the summed reward, the last step's observation, ``terminated``,
+    ``truncated`` and ``info``, plus ``info["held"]`` (the steps added)."""
+
+    __slots__ = ("total", "held", "_last")
+
+    def __init__(self) -> None:
+        self.total, self.held = 0.0, 0
+        self._last: tuple | None = None
+
+    def add(self, result: tuple) -> bool:
+        """Adds one control step's result; whether its episode goes on."""
+        self.total += float(result[1])
+        self.held += 1
+        self._last = result
+        return not (result[2] or result[3])
+
+    def result(self) -> tuple:
+        """The hold's ``(observation, reward, terminated, truncated, info)``
+        (RuntimeError before any `add`)."""
+        if self._last is None:
+            raise RuntimeError("no control step was added to the hold")
+        observation, _, terminated, truncated, info = self._last
+        return observation, self.total, terminated, truncated, {**info, "held": self.held}
 
 
 def register_all() -> None:

@@ -43,12 +43,16 @@ def register(entry: EnvEntry) -> None:
 
 def gymnasium_id(name: str) -> None:
     """Registers ``name`` with gymnasium (idempotent): ``gymnasium.make(name)``
-    builds `envs.gymnasium_env.GymnasiumEnv` on it."""
+    builds `envs.gymnasium_env.GymnasiumEnv` on it, ``gymnasium.make_vec(name,
+    num_envs)`` an `envs.vector.BatchedVectorEnv`."""
     import gymnasium
 
     if name not in gymnasium.envs.registration.registry:
         gymnasium.register(
-            id=name, entry_point="envs.gymnasium_env:GymnasiumEnv", kwargs={"env_name": name}
+            id=name,
+            entry_point="envs.gymnasium_env:GymnasiumEnv",
+            vector_entry_point="envs.vector:make",
+            kwargs={"env_name": name},
         )
 
 
