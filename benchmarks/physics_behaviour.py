@@ -72,8 +72,8 @@ def _original_env():
     return env
 
 
-def measure_ours(overrides: dict, level_file: Path) -> dict[str, float]:
-    """`behaviour.measure` of this library's MuJoBan on ``level_file`` with ``overrides``."""
+def ours_env(overrides: dict, level_file: Path):
+    """This library's MuJoBan on ``level_file`` (cameras off) with ``overrides``, reset."""
     env = envs.load(
         "mujoban/level1",
         seed=0,
@@ -82,8 +82,14 @@ def measure_ours(overrides: dict, level_file: Path) -> dict[str, float]:
         egocentric_camera=None,
         **overrides,
     )
+    env.reset()
+    return env
+
+
+def measure_ours(overrides: dict, level_file: Path) -> dict[str, float]:
+    """`behaviour.measure` of `ours_env`."""
+    env = ours_env(overrides, level_file)
     try:
-        env.reset()
         return behaviour.measure(env.physics)
     finally:
         env.close()
