@@ -2,7 +2,8 @@
 
     python benchmarks/learner_speed.py [--env mujoban/level1] [--condition expert-planner]
                                       [--frames 200000] [--actors 2] [--envs-per-actor 32]
-                                      [--batch-size N] [--backend local|ray] [--json PATH]
+                                      [--env-threads T] [--batch-size N] [--backend local|ray]
+                                      [--json PATH]
 
 1. **Bare environment**: ``envs.load(ENV)`` with the run's cameras (off by
    default), uniform random actions, one process: control steps per second
@@ -20,9 +21,16 @@
    the second core as the learner's merit. On the shared 2-core machines we
    measure on, two processes have reached anything from ~1.1x to 2x one
    process, from one hour to the next.
+4. **The batch** (with ``--env-threads`` above 1: each actor advances its
+   environments' physics on that many threads, `envs.vector.PhysicsPool`):
+   all the run's environments in one `envs.vector.BatchedVectorEnv` on as
+   many threads, stepping alone; ``ratio_to_batched`` is the learner's
+   frames/s over that: how much of what the batched environments produce
+   the learner consumes.
 
 Prints a table and, with ``--json``, writes {"env", "agent",
 "learner_frames_per_s", "parallel_env_steps_per_s", "ratio_to_parallel",
+"batched_env_steps_per_s", "ratio_to_batched" (None without ``--env-threads``),
 "compared_with", "env_steps_per_s", "ratio", ..., "provenance"}.
 """
 
@@ -101,6 +109,33 @@ def parallel_env_steps_per_s(
     return float(sum(rates))
 
 
+def batched_env_steps_per_s(
+    name: str, cameras: bool, steps: int, num_envs: int, threads: int, seed: int = 0
+) -> float:
+    """Steps/s of ``num_envs`` environments in one `envs.vector.BatchedVectorEnv`
+    on ``threads`` physics threads (random actions, about ``steps`` control
+    steps in all, autoresets included): what the actors' batches produce."""
+    import envs.vector
+
+    vec = envs.vector.make(
+        name,
+        num_envs=num_envs,
+        obs="sensors" if cameras else "state",
+        seed=seed,
+        threads=threads,
+        **({} if cameras else envs.no_cameras(name)),
+    )
+    try:
+        vec.reset()
+        vec.action_space.seed(seed)
+        start = time.perf_counter()
+        for _ in range(max(1, steps // num_envs)):
+            vec.step(vec.action_space.sample())
+        return max(1, steps // num_envs) * num_envs / (time.perf_counter() - start)
+    finally:
+        vec.close()
+
+
 def learner_frames_per_s(args) -> dict:
     from hier_agents.baselines.impala.learner import TrainConfig, train
 
@@ -111,6 +146,7 @@ def learner_frames_per_s(args) -> dict:
             steps=args.frames,
             actors=args.actors,
             envs_per_actor=args.envs_per_actor,
+            env_threads=args.env_threads,
             backend=args.backend,
             logdir=logdir,
             batch_size=args.batch_size,
@@ -154,6 +190,13 @@ def _main(argv=None) -> int:
     )
     parser.add_argument("--actors", type=cli.positive_int, default=2)
     parser.add_argument("--envs-per-actor", type=cli.positive_int, default=32)
+    parser.add_argument(
+        "--env-threads",
+        type=cli.positive_int,
+        default=1,
+        help="physics threads per actor; above 1 the learner is also compared with "
+        "the same batch of environments stepping alone on as many threads",
+    )
     parser.add_argument("--batch-size", type=cli.positive_int, default=None)
     parser.add_argument("--backend", default="local", help="local or ray")
     parser.add_argument("--cameras", action="store_true")
@@ -190,6 +233,21 @@ def _main(argv=None) -> int:
         f"steps/s in total",
         flush=True,
     )
+    batched = None
+    if args.env_threads > 1:
+        batched = batched_env_steps_per_s(
+            args.env,
+            args.cameras,
+            2 * args.bare_steps,
+            args.actors * args.envs_per_actor,
+            args.env_threads,
+            args.seed,
+        )
+        print(
+            f"bare {args.env}, {args.actors * args.envs_per_actor} environments batched on "
+            f"{args.env_threads} threads: {batched:,.0f} steps/s in total",
+            flush=True,
+        )
     learner = learner_frames_per_s(args)
     row = {
         "env": args.env,
@@ -198,12 +256,15 @@ def _main(argv=None) -> int:
         "state": args.state,
         "actors": args.actors,
         "envs_per_actor": args.envs_per_actor,
+        "env_threads": args.env_threads,
         "backend": args.backend,
         "env_steps_per_s": bare,
         **learner,
         "ratio": learner["learner_frames_per_s"] / bare,
         "parallel_env_steps_per_s": parallel,
         "ratio_to_parallel": learner["learner_frames_per_s"] / parallel,
+        "batched_env_steps_per_s": batched,
+        "ratio_to_batched": None if batched is None else learner["learner_frames_per_s"] / batched,
         "compared_with": (
             f"{max(1, args.actors)} bare environment processes stepping at "
             f"once on the same machine (ratio_to_parallel); ratio is against "
@@ -225,6 +286,11 @@ def _main(argv=None) -> int:
         f"learner frames/s are compared with {n} bare environment processes stepping at once "
         f"(as many as the actors): {row['ratio_to_parallel']:.2f}"
     )
+    if batched is not None:
+        print(
+            f"and with the same batch stepping alone on {args.env_threads} threads: "
+            f"{row['ratio_to_batched']:.2f}"
+        )
     if args.json:
         write_json(args.json, row)
     return 0

@@ -373,31 +373,83 @@ def physics_behaviour(results: Path) -> list[str]:
     return lines
 
 
+@table("vector-speed")
+def vector_speed(results: Path) -> list[str]:
+    """Batched environments against one environment and gymnasium's vector
+    environments (`benchmarks/vector_speed.py`), medians over its rounds."""
+    d = _load(results / "vector_speed.json")
+    lines = [
+        "| environment | setup | environments | physics threads | steps/s | x one environment "
+        "| x `AsyncVectorEnv` of 2 |",
+        "| --- | --- | --- | --- | --- | --- | --- |",
+    ]
+    names = {
+        "single": "one environment",
+        "async": "gymnasium `AsyncVectorEnv` (a process each)",
+        "sync": "gymnasium `SyncVectorEnv`",
+        "batched": "`envs.vector` (batched)",
+    }
+    for r in d["rows"]:
+        if r["setup"] == "batched" and r["threads"] == 1 and r["num_envs"] != 16:
+            continue  # one thread: the N=16 row stands for the rest
+        x_async = "-" if r["x_async2"] is None else f"{r['x_async2']:.2f}"
+        lines.append(
+            f"| `{r['env']}` | {names[r['setup']]} | {r['num_envs']} "
+            f"| {r['threads'] if r['threads'] is not None else '-'} | {r['steps_per_s']:,.0f} "
+            f"| {r['x_single']:.2f} | {x_async} |"
+        )
+    return lines
+
+
 @table("learner-speed")
 def learner_speed(results: Path) -> list[str]:
-    """Actor-learner frames/s against as many bare environment processes stepping at once,
-    one row per measurement (each measured in one run, side by side)."""
+    """Actor-learner frames/s against as many bare environment processes stepping at once
+    and, for actors that batch their physics on threads, against the same batch
+    stepping alone; one row per measurement (each measured in one run, side by side)."""
     lines = [
         "| run | learner frames/s | bare environment processes at once | ratio to them "
-        "| one bare process | ratio to it |",
-        "| --- | --- | --- | --- | --- | --- |",
+        "| the same batch alone, on its threads | ratio to it | one bare process | ratio to it |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- |",
     ]
-    for name in ("learner_speed.json", "learner_speed_state.json"):
+    for name in LEARNER_SPEED_FILES:
         if not (results / name).exists():
             continue
         s = _load(results / name)
         procs = s["actors"]
         words = {1: "one", 2: "two", 3: "three", 4: "four"}.get(procs, str(procs))
         state = ", abstract state (privileged)" if s.get("state") else ""
+        threads = s.get("env_threads", 1)
+        on = f", physics on {threads} threads" if threads > 1 else ""
+        batched = (
+            ("-", "-")
+            if s.get("batched_env_steps_per_s") is None
+            else (
+                f"{s['batched_env_steps_per_s']:,.0f} steps/s",
+                f"**{s['ratio_to_batched']:.2f}**",
+            )
+        )
+        # The ratio that matters is in bold: to the processes, or to the batch.
+        to_parallel = f"{s['ratio_to_parallel']:.2f}"
+        to_parallel = to_parallel if threads > 1 else f"**{to_parallel}**"
         lines.append(
             f"| `{s['env']}` {s['agent']}, cameras {'on' if s['cameras'] else 'off'}"
-            f"{state}, {procs} actors x {s['envs_per_actor']} envs ({s['backend']}) "
+            f"{state}, {procs} actors x {s['envs_per_actor']} envs{on} ({s['backend']}) "
             f"| {s['learner_frames_per_s']:,.0f} | {words}: "
             f"{s['parallel_env_steps_per_s']:,.0f} steps/s "
-            f"| **{s['ratio_to_parallel']:.2f}** | {s['env_steps_per_s']:,.0f} steps/s "
-            f"| {s['ratio']:.2f} |"
+            f"| {to_parallel} "
+            f"| {batched[0]} | {batched[1]} "
+            f"| {s['env_steps_per_s']:,.0f} steps/s | {s['ratio']:.2f} |"
         )
     return lines
+
+
+#: `learner_speed`'s rows, in the table's order.
+LEARNER_SPEED_FILES = (
+    "learner_speed.json",
+    "learner_speed_state.json",
+    "learner_speed_state_2x32.json",
+    "learner_speed_state_threads.json",
+)
 
 
 def _level_key(path: Path):

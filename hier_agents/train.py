@@ -157,6 +157,13 @@ def _add_scale_args(parser: Parser, default: dict) -> None:
         default=default["envs_per_actor"],
         help="environments stepped together by one actor (one batched policy call)",
     )
+    add(
+        "--env-threads",
+        type=positive_int,
+        default=default["env_threads"],
+        help="threads each actor advances its environments' physics on, all at once "
+        "(envs.vector.PhysicsPool; the results are those of one thread)",
+    )
     add("--backend", default=default["backend"], help="local or ray")
     add(
         "--ray-address",

@@ -404,3 +404,68 @@ def test_action_repeat_holds_each_action_until_the_episode_or_subepisode_ends():
         assert env.env.step_count == 4 and env.subgoal is not first
     with pytest.raises(ValueError, match="action_repeat"):
         AgentEnv("mujoban/level1", action_repeat=0, cameras=False)
+
+
+@pytest.mark.parametrize(
+    "name, condition", [("mujoban/level1", "expert-planner"), ("mujoxo/optimal", "vanilla")]
+)
+def test_stepping_all_at_once_gives_what_stepping_each_gives(name, condition):
+    """`step_all` with two physics threads: the `StepResult` s of each
+    environment's own `AgentEnv.step`, action repeat, auxiliary sub-episode
+    ends and episode ends (a 3 s time limit) included."""
+    from envs.vector import PhysicsPool
+    from hier_agents.baselines.impala.agent_env import step_all
+
+    def build():
+        return [
+            AgentEnv(
+                name,
+                condition,
+                seed=s,
+                cameras=False,
+                state=True,
+                action_repeat=3,
+                t_abs=7,
+                time_limit=3.0,
+            )
+            for s in range(3)
+        ]
+
+    alone, together, pool = build(), build(), PhysicsPool(2)
+    rng = np.random.default_rng(0)
+    try:
+        for env in alone + together:
+            env.reset()
+        ends = 0
+        for _ in range(40):
+            actions = rng.uniform(-1, 1, (3, alone[0].input_spec.action_dim))
+            expected = [env.step(a) for env, a in zip(alone, actions)]
+            got = step_all(together, actions, pool)
+            for e, g in zip(expected, got):
+                assert (e.reward_env, e.discount_env, e.reward_abs, e.discount_abs, e.last) == (
+                    g.reward_env,
+                    g.discount_env,
+                    g.reward_abs,
+                    g.discount_abs,
+                    g.last,
+                )
+                assert e.info == g.info
+                for key in e.obs:
+                    np.testing.assert_array_equal(e.obs[key], g.obs[key])
+            for i, result in enumerate(expected):
+                if result.last:
+                    ends += 1
+                    alone[i].reset()
+                    together[i].reset()
+        assert ends >= 3
+        with pytest.raises(RuntimeError, match="reset"):
+            fresh = build()
+            try:
+                step_all(fresh, actions, pool)
+            finally:
+                for env in fresh:
+                    env.close()
+    finally:
+        pool.close()
+        for env in alone + together:
+            env.close()

@@ -628,3 +628,41 @@ def test_a_kept_copy_is_a_float16_policy_that_loads_as_float32_and_acts_the_same
     broken = {**copy, "model": {k: v for k, v in copy["model"].items() if "mean_head" not in k}}
     with pytest.raises(RuntimeError, match="missing"):
         net_from_checkpoint(broken)
+
+
+@pytest.mark.parametrize("condition", ["vanilla", "expert-planner"])
+def test_an_actors_unrolls_are_the_same_on_one_physics_thread_or_two(condition):
+    """`Actor` advances its environments' physics together (`envs.vector.PhysicsPool`):
+    two threads give the unrolls of one, frame for frame, action repeat and
+    episode ends included (a 2 s time limit: 40 control steps)."""
+    from hier_agents.baselines.impala.actors import Actor
+
+    unrolls = []
+    for threads in (1, 2):
+        config = TrainConfig(
+            condition=condition,
+            action_repeat=3,
+            env_threads=threads,
+            state=True,
+            env_overrides={"time_limit": 2.0},
+            **{**TINY, "envs_per_actor": 3, "unroll_length": 8},
+        )
+        torch.manual_seed(0)  # the same initial network
+        actor = Actor(config, actor_id=0)
+        try:
+            unrolls.append([actor.unroll() for _ in range(3)])
+        finally:
+            actor.close()
+    ended = 0
+    for one, two in zip(*unrolls):
+        for a, b in zip(one, two):
+            ended += len(a["episodes"])
+            assert a.keys() == b.keys()
+            for key in ("actions", "log_probs", "rewards_env", "discounts_env", "first"):
+                np.testing.assert_array_equal(a[key], b[key])
+            for key in a["obs"]:
+                np.testing.assert_array_equal(a["obs"][key], b["obs"][key])
+            assert [e["episode_steps"] for e in a["episodes"]] == [
+                e["episode_steps"] for e in b["episodes"]
+            ]
+    assert ended >= 3  # every environment's episode ended within the 72 agent steps

@@ -84,6 +84,7 @@ class Actor:
     def __init__(self, config: TrainConfig, actor_id: int):
         import torch
 
+        from envs.vector import PhysicsPool
         from hier_agents.baselines.impala.agent_env import AgentEnv
         from hier_agents.baselines.impala.network import net_for
 
@@ -105,6 +106,7 @@ class Actor:
             )
             for i in range(config.envs_per_actor)
         ]
+        self._pool = PhysicsPool(config.env_threads)
         self.spec = self.envs[0].input_spec
         self.net = net_for(self.spec, config)
         self.net.eval()
@@ -119,6 +121,8 @@ class Actor:
     def unroll(self, weights: dict | None = None) -> list[dict]:
         """Runs one unroll in every environment (see the module docstring)."""
         import torch
+
+        from hier_agents.baselines.impala.agent_env import step_all
 
         if weights is not None:
             self.net.load_state_dict(weights)
@@ -153,8 +157,7 @@ class Actor:
                     batch, self._first, self._state, generator=self._generator, policy_only=True
                 )
             actions[t], log_probs[t] = a, logp
-            for i, env in enumerate(self.envs):
-                res = env.step(a[i])
+            for i, (env, res) in enumerate(zip(self.envs, step_all(self.envs, a, self._pool))):
                 r_env[t, i], d_env[t, i] = res.reward_env, res.discount_env
                 r_abs[t, i], d_abs[t, i] = res.reward_abs, res.discount_abs
                 if res.last:
@@ -187,6 +190,7 @@ class Actor:
         return out
 
     def close(self) -> None:
+        self._pool.close()
         for env in self.envs:
             env.close()
 

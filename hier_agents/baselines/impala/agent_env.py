@@ -106,6 +106,8 @@ simulation ends the episode (reward 0) instead of killing an actor.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from envs.core import episode_seed
@@ -130,6 +132,38 @@ __all__ = [
     "StepResult",
     "main_camera_only",
 ]
+
+
+class _Hold:
+    """One agent step's action (mapped to the environment's) and what its
+    control steps have added up so far."""
+
+    __slots__ = ("action", "reward", "reward_abs", "discount_abs", "held", "timestep")
+
+    def __init__(self, action):
+        self.action = action
+        self.timestep: Any = None  # the last control step's dm_env.TimeStep
+        self.reward = self.reward_abs = 0.0
+        self.discount_abs = 1.0
+        self.held = 0
+
+
+def step_all(agent_envs, actions, pool) -> list[StepResult]:
+    """One agent step of every `AgentEnv` in ``agent_envs`` with its row of
+    ``actions``: each one's `StepResult`, exactly what ``agent_envs[i].step(
+    actions[i])`` gives, but each control step of all of them advanced at once
+    by ``pool`` (an `envs.vector.PhysicsPool`: their physics in parallel
+    threads). Every environment must have an episode running (RuntimeError)."""
+    holds = [env._begin_hold(action) for env, action in zip(agent_envs, actions, strict=True)]
+    running = list(range(len(holds)))
+    while running:
+        timesteps = pool.step(
+            [agent_envs[i].env for i in running], [holds[i].action for i in running]
+        )
+        running = [
+            i for i, timestep in zip(running, timesteps) if agent_envs[i]._add(holds[i], timestep)
+        ]
+    return [env._finish(hold) for env, hold in zip(agent_envs, holds)]
 
 
 class AgentEnv:
@@ -257,22 +291,38 @@ class AgentEnv:
         """One agent step: ``action`` in [-1, 1]^A (clipped, then mapped) held
         for ``action_repeat`` control steps (fewer when the episode or an
         auxiliary sub-episode ends)."""
+        hold = self._begin_hold(action)
+        while self._add(hold, self.env.step(hold.action)):
+            pass
+        return self._finish(hold)
+
+    def _begin_hold(self, action) -> _Hold:
+        """The agent step's hold of ``action`` (`step`, `step_all`)."""
         if self._needs_reset:
             raise RuntimeError(
                 "call reset() first: no episode is running "
                 "(before the first reset, or after the last step)"
             )
-        mapped = self._actions(action)
-        reward = reward_abs = 0.0
-        for _ in range(self.action_repeat):
-            timestep = self.timestep = self.env.step(mapped)
-            reward += float(timestep.reward)
-            self._steps += 1
-            step_abs, discount_abs = self.inputs.after_step(timestep)
-            reward_abs += step_abs
-            if timestep.last() or (self.inputs.planning and discount_abs == 0.0):
-                break
-        self._return += reward
+        return _Hold(self._actions(action))
+
+    def _add(self, hold: _Hold, timestep) -> bool:
+        """Adds one control step's ``timestep`` to ``hold``; whether the hold
+        goes on (not at the episode's end, an auxiliary sub-episode's end or
+        the repeat's)."""
+        self.timestep = hold.timestep = timestep
+        hold.reward += float(timestep.reward)
+        hold.held += 1
+        self._steps += 1
+        step_abs, hold.discount_abs = self.inputs.after_step(timestep)
+        hold.reward_abs += step_abs
+        if timestep.last() or (self.inputs.planning and hold.discount_abs == 0.0):
+            return False
+        return hold.held < self.action_repeat
+
+    def _finish(self, hold: _Hold) -> StepResult:
+        """The agent step's result once ``hold`` has ended."""
+        timestep = hold.timestep
+        self._return += hold.reward
         last = timestep.last()
         discount_env = 0.0 if last else self.gamma_env * float(timestep.discount)
         info = {}
@@ -281,10 +331,10 @@ class AgentEnv:
             info = self._episode_info()
         return StepResult(
             self.inputs.observe(timestep.observation),
-            reward,
+            hold.reward,
             discount_env,
-            reward_abs,
-            discount_abs,
+            hold.reward_abs,
+            hold.discount_abs,
             last,
             info,
         )

@@ -44,6 +44,7 @@ OPTIONS = {
     "preset": (None, str),
     "actors": ("actors", int),
     "envs_per_actor": ("envs_per_actor", int),
+    "env_threads": ("env_threads", int),
     "backend": ("backend", str),
     "ray_address": ("ray_address", str),
     "logdir": ("logdir", str),
@@ -86,6 +87,7 @@ class TrainConfig:
     steps: int = 1_000_000
     actors: int = 2
     envs_per_actor: int = 32  # 2 x 32 beat 2 x 16 and 1 x 32 in benchmarks/learner_speed.py
+    env_threads: int = 1  # threads an actor advances its environments' physics on (envs.vector)
     backend: str = "local"
     ray_address: str | None = None
     logdir: str = "runs/impala"
@@ -172,6 +174,7 @@ class TrainConfig:
             "steps",
             "actors",
             "envs_per_actor",
+            "env_threads",
             "unroll_length",
             "image_size",
             "t_abs",
