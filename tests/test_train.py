@@ -630,6 +630,7 @@ def test_a_kept_copy_is_a_float16_policy_that_loads_as_float32_and_acts_the_same
         net_from_checkpoint(broken)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("condition", ["vanilla", "expert-planner"])
 def test_an_actors_unrolls_are_the_same_on_one_physics_thread_or_two(condition):
     """`Actor` advances its environments' physics together (`envs.vector.PhysicsPool`):

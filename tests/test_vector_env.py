@@ -234,6 +234,7 @@ def test_sb3_adapter_matches_dummy_vec_env():
         dummy.close()
 
 
+@pytest.mark.slow
 def test_sb3_ppo_trains_on_the_adapter():
     from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import VecMonitor
