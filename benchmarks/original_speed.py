@@ -15,7 +15,8 @@ excluded. Pairs:
 * MuJoBan on real Boxoban levels (10x10, 4 boxes; ``unfiltered-valid-000``:
   the original's cache, our shipped file), without and with grid pegs, no
   camera; and with the 96x96 top camera alone;
-* MuJoXO (tic-tac-toe against the mixture opponent) and MuJoGo 7x7 with the
+* MuJoXO (tic-tac-toe against the mixture opponent) and MuJoGo 7x7 without
+  cameras (the original's camera observables disabled), and with the
   original code's two 84x84 views (``front_camera``, ``front_camera_2``):
   ours at its default looks and at the original's looks
   (``multisamples=4, shadows=True``; see README, "Looks of the board games").
@@ -63,10 +64,17 @@ def _original_mujoban(pegs: bool, camera: int):
     return composer.Environment(time_limit=45, task=task, random_state=0)
 
 
-def _original_board(name: str):
+def _original_board(name: str, cameras: bool = True):
+    """The original board game ``name``; ``cameras=False`` disables its camera
+    observables (nothing is rendered)."""
     from physics_planning_games import board_games
 
-    return board_games.load(environment_name=name, seed=0)
+    env = board_games.load(environment_name=name, seed=0)
+    if not cameras:
+        for key, observable in env.task.observables.items():
+            if "camera" in key:
+                observable.enabled = False
+    return env
 
 
 #: (label, our environment and overrides, the original's builder).
@@ -91,6 +99,16 @@ PAIRS = [
             dict(levels=str(BOXOBAN_FILE), top_camera=(96, 96), egocentric_camera=None),
         ),
         lambda: _original_mujoban(False, 96),
+    ),
+    (
+        "MuJoXO, no camera",
+        ("mujoxo/mixture", dict(front_camera=None)),
+        lambda: _original_board("tic_tac_toe_mixture_opponent_markers_features", cameras=False),
+    ),
+    (
+        "MuJoGo 7x7, no camera",
+        ("mujogo/7x7", dict(front_camera=None)),
+        lambda: _original_board("go_7x7", cameras=False),
     ),
     (
         "MuJoXO, two 84x84 views, our default looks",
