@@ -184,14 +184,7 @@ def _main(argv=None) -> int:
         default=None,
         help="physics timestep in seconds (default: each environment's own, the original's)",
     )
-    parser.add_argument(
-        "--env-option",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="an envs.load override, e.g. noslip_iterations=0 or sleep=True "
-        "(repeatable; VALUE is a Python literal)",
-    )
+    env_cli.add_env_option(parser, "noslip_iterations=0 or sleep=False")
     args = parser.parse_args(argv)
     for setting in args.cameras:
         cli.choice("camera setting", setting, all_settings)

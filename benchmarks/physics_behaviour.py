@@ -37,11 +37,13 @@ import envs  # noqa: E402
 from envs.mujoban import behaviour  # noqa: E402
 
 PROG = prog(__file__)
-#: Candidate settings (label -> `envs.load` overrides of MuJoBan); ``{}`` is the default.
+#: Candidate settings (label -> `envs.load` overrides of MuJoBan), each
+#: naming ``sleep`` so that a row means the same whatever the default;
+#: ``default`` is the library's default (``sleep=True``).
 CANDIDATES: dict[str, dict] = {
     "default": {},
-    "sleep=True": {"sleep": True},
-    "noslip_iterations=0": {"noslip_iterations": 0},
+    "sleep=False (the original's)": {"sleep": False},
+    "sleep=False, noslip_iterations=0": {"sleep": False, "noslip_iterations": 0},
     "sleep=True, noslip_iterations=0": {"sleep": True, "noslip_iterations": 0},
 }
 

@@ -9,7 +9,10 @@
 
 `envs.names()` lists every environment; `envs.overrides(name)` its settings;
 `envs.check(name, **overrides)` checks a configuration without building it
-(`envs.no_cameras(name)`: those that turn its cameras off).
+(`envs.no_cameras(name)`: those that turn its cameras off;
+`envs.original_options(name)`: those that give the original implementation's
+settings where a default deviates from them, `envs.deviations(name, options)`:
+which settings of a configuration differ from the original's).
 
 Every name is a gymnasium id (`envs.gymnasium_env`): ``gymnasium.make(name,
 obs=...)`` picks the observation (``"sensors"``, the default: cameras and
@@ -28,10 +31,14 @@ from envs.registry import (
     UnknownEnvironmentError,
     check,
     describe,
+    deviations,
+    explicit_options,
     load,
     names,
     no_cameras,
+    original_options,
     overrides,
+    recorded_options,
 )
 from envs import mujoban  # noqa: F401  (registers the MuJoBan names)
 from envs import boards  # noqa: F401  (registers the MuJoXO and MuJoGo names)
@@ -46,9 +53,13 @@ __all__ = [
     "UnknownEnvironmentError",
     "check",
     "describe",
+    "deviations",
+    "explicit_options",
     "episode_seed",
     "load",
     "names",
     "no_cameras",
+    "original_options",
     "overrides",
+    "recorded_options",
 ]

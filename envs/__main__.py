@@ -85,13 +85,7 @@ def _main(argv=None) -> int:
     parser.add_argument("--episodes", type=cli.positive_int, default=3)
     parser.add_argument("--seed", type=cli.non_negative_int, default=0)
     parser.add_argument("--no-cameras", action="store_true", help="switch camera observations off")
-    parser.add_argument(
-        "--env-option",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="an envs.load override, e.g. time_limit=5 (repeatable; VALUE is a Python literal)",
-    )
+    env_cli.add_env_option(parser)
     parser.add_argument(
         "--json", metavar="FILE", help="also write the rows to this file (its folder is created)"
     )

@@ -1,6 +1,7 @@
 """Environment inputs of the command lines, checked without building anything
 (`envs.check`): `environment` (a registered name, with a close-match hint),
-`env_options` (``--env-option KEY=VALUE`` items) and `levels_file`
+`env_options` (``--env-option KEY=VALUE`` items, the flag added by
+`add_env_option`) and `levels_file`
 (``--levels``: a Boxoban file that exists and parses). Each raises
 `physics_planning.cli.UsageError`; the rest of the command-line conventions
 live in `physics_planning.cli`.
@@ -14,7 +15,7 @@ from typing import Callable, Iterable
 
 from physics_planning.cli import UsageError, close_hint
 
-__all__ = ["env_options", "environment", "levels_file"]
+__all__ = ["add_env_option", "env_options", "environment", "levels_file"]
 
 
 def environment(name: str, allowed: Iterable[str] | None = None) -> str:
@@ -28,6 +29,21 @@ def environment(name: str, allowed: Iterable[str] | None = None) -> str:
             f"unknown environment {name!r}{close_hint(name, allowed)}; valid: {', '.join(allowed)}"
         )
     return name
+
+
+def add_env_option(parser, example: str = "time_limit=5", applies: str = "") -> None:
+    """Adds the repeatable ``--env-option KEY=VALUE`` flag (an `envs.load`
+    override; `env_options` reads its items) to an argparse ``parser``;
+    ``example`` shows one item, ``applies`` says to what it applies."""
+    note = f"; {applies}" if applies else ""
+    parser.add_argument(
+        "--env-option",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help=f"an envs.load override, e.g. {example} (repeatable; VALUE is a Python "
+        f"literal; sleep=False gives MuJoBan the original's physics{note})",
+    )
 
 
 def env_options(

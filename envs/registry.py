@@ -27,6 +27,10 @@ class EnvEntry:
     #: Checks the factory's keyword arguments (seed included) without building
     #: anything; raises TypeError/ValueError naming the bad value (`check`).
     validate: Callable[..., Any] | None = None
+    #: The original implementation's values of the settings whose defaults here
+    #: differ from them (`original_options`); empty when every default is the
+    #: original's.
+    original: dict[str, Any] = field(default_factory=dict)
 
 
 _REGISTRY: dict[str, EnvEntry] = {}
@@ -76,6 +80,68 @@ def no_cameras(name: str) -> dict[str, None]:
     """The overrides that turn off every camera of `name` (nothing is rendered):
     ``envs.load(name, **envs.no_cameras(name))``."""
     return {k: None for k in overrides(name) if k.endswith("_camera")}
+
+
+def original_options(name: str) -> dict[str, Any]:
+    """The overrides that give `name` the original implementation's settings
+    where our defaults deviate from them (MuJoBan: ``{"sleep": False}``):
+    ``envs.load(name, **envs.original_options(name))``. Empty when every
+    default is the original's."""
+    return dict(_entry(name).original)
+
+
+def explicit_options(name: str, overrides: dict | None = None) -> dict[str, Any]:
+    """``overrides`` with the value of every setting whose default deviates
+    from the original's (`original_options`) named: what a run records, so
+    that its record keeps its meaning when a default changes
+    (`recorded_options` reads it back)."""
+    entry = _entry(name)
+    params = inspect.signature(entry.factory).parameters
+    return {**{k: params[k].default for k in entry.original}, **(overrides or {})}
+
+
+def recorded_options(name: str, overrides: dict | None = None) -> dict[str, Any]:
+    """The `envs.load` overrides a run's record of ``overrides`` stands for:
+    a setting whose default deviates from the original's and that the record
+    does not name (a run recorded before that default deviated) is the
+    original's (`original_options`); `explicit_options` records name it."""
+    return {**original_options(name), **(overrides or {})}
+
+
+def deviations(name: str, options: dict | None = None) -> dict[str, Any]:
+    """The settings of ``envs.load(name, **options)`` that differ from the
+    original implementation's: ``options`` without those equal to the
+    original's value (the factory's default, or `original_options`), plus
+    each default that deviates from the original and ``options`` leaves as it
+    is. Sequences become lists and a camera given as False becomes None, so
+    equal settings give equal (JSON-able) dicts, sorted by key; a comparison's
+    job keys name an environment so (`hier_agents.compare.jobs`).
+    ``envs.load(name, **envs.original_options(name), **deviations(name, options))``
+    builds the same environment as ``envs.load(name, **options)``.
+
+    Raises:
+      UnknownEnvironmentError, TypeError, ValueError: as `check`.
+    """
+    options = dict(options or {})
+    check(name, **options)
+    entry = _entry(name)
+    params = inspect.signature(entry.factory).parameters
+    defaults = {k: p.default for k, p in params.items() if p.default is not p.empty}
+    reference = {**defaults, **entry.original}
+    chosen = {**{k: defaults[k] for k in entry.original}, **_cameras_off(options)}
+    out = {}
+    for key in sorted(chosen):
+        value = _plain(chosen[key])
+        if key not in reference or value != _plain(reference[key]):
+            out[key] = value
+    return out
+
+
+def _plain(value):
+    """``value`` with tuples as lists (how JSON stores them)."""
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    return value
 
 
 def _cameras_off(kwargs: dict) -> dict:

@@ -115,15 +115,7 @@ def _add_agent_args(parser: argparse.ArgumentParser) -> None:
         metavar="FILE",
         help="MuJoBan, modular and checkpoint agents: a Boxoban level file to play in order",
     )
-    parser.add_argument(
-        "--env-option",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="an envs.load override of the played environment, e.g. "
-        "physics_timestep=0.005 or time_limit=5 (repeatable; VALUE is a "
-        "Python literal; modular and checkpoint agents)",
-    )
+    env_cli.add_env_option(parser, "physics_timestep=0.005 or time_limit=5")
 
 
 def _add_output_args(parser: argparse.ArgumentParser) -> None:

@@ -108,6 +108,9 @@ def _add_task_args(parser: Parser, default: dict) -> None:
         default=default["steps"],
         help="environment frames (control steps) to train for, in total",
     )
+    from envs.cli import add_env_option
+
+    add_env_option(parser, "time_limit=20.0", "the actors' environments")
 
 
 def _add_observation_args(parser: Parser, default: dict) -> None:
@@ -316,7 +319,13 @@ def config_from_args(args):
     look-up."""
     from hier_agents.baselines.impala.config import TrainConfig
 
-    options = {key: value for key, value in vars(args).items() if key != "env"}
+    from envs.cli import env_options
+
+    options = {key: value for key, value in vars(args).items() if key not in ("env", "env_option")}
+    try:
+        options["env_options"] = env_options(args.env, args.env_option or ())
+    except KeyError:  # an unknown environment: from_options names the closest
+        options["env_options"] = {}
     return TrainConfig.from_options(args.env, options)
 
 

@@ -10,6 +10,7 @@ import os
 import subprocess
 import sys
 import textwrap
+from pathlib import Path
 
 import pytest
 
@@ -146,6 +147,21 @@ def test_an_outside_kinds_bad_argument_and_options_are_refused_in_one_line(hold_
         resolve("hold-still:fast")
     with pytest.raises(ValueError, match="takes no option planner"):
         run("mujoban/level1", 1, agent="hold-still", planner="random", progress=False)
+
+
+def test_a_kind_without_environment_flags_refuses_them_in_one_line(hold_still, monkeypatch, capsys):
+    from hier_agents import run as run_lib
+
+    monkeypatch.setattr(hold_still, "env_flags", False)
+    with pytest.raises(ValueError, match="--env-option do not apply to --agent hold-still"):
+        run_lib.run(
+            "mujoban/level1", 1, agent="hold-still", env_options={"sleep": False}, progress=False
+        )
+    levels = Path(__file__).parents[1] / "envs/mujoban/data/boxoban/medium-valid-000.txt"
+    with pytest.raises(SystemExit) as ended:
+        run_lib.main(["mujoban/level1", "--agent", "hold-still", "--levels", str(levels)])
+    assert ended.value.code == 2
+    assert "--levels does not apply to --agent hold-still" in capsys.readouterr().err
 
 
 @pytest.mark.slow

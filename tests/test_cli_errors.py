@@ -132,8 +132,8 @@ CASES = [
     ),
     (
         "run",
-        ["mujoban/level1", "--agent", "random", "--levels", LEVELS],
-        "--levels does not apply to --agent random",
+        ["mujoban/level1", "--agent", "random", "--env-option", "sleep=maybe"],
+        "sleep must be True or False",
     ),
     (
         "run",

@@ -25,6 +25,7 @@ from hier_agents import provenance
 from hier_agents.compare import jobs as jobs_mod
 from hier_agents.modular import components
 from hier_agents.compare import report
+from hier_agents.compare import trainers as trainers_mod
 from hier_agents.compare.backends import run_jobs
 from hier_agents.compare.spec import load
 from hier_agents.players import shards
@@ -172,6 +173,77 @@ def test_bad_train_tables_are_refused_before_anything_runs(tmp_path):
         load(write_spec(tmp_path, SPEC + '\n[[agent]]\nlabel = "e2e"\ntrain = {}\n'))
     with pytest.raises(UsageError, match="multiple of the frames of one unroll"):
         load(write_spec(tmp_path, base.replace("[200]", "[250]") + "train = {}\n"))
+
+
+def test_env_options_reach_every_job_named_by_what_differs_from_the_original(tmp_path, monkeypatch):
+    """A spec's ``env_options`` (an agent's update them) reach its trainings
+    and evaluations; jobs name the settings that differ from the original
+    implementation's, so a spec pinned to the original's physics keeps the
+    keys it had before MuJoBan's default slept resting bodies."""
+    e2e = (
+        '\n[[agent]]\nlabel = "e2e"\ntrain = { observations = "proprio", actors = 1 }\n'
+        "budgets = [200]\n"
+    )
+    default = jobs_mod.plan(load(write_spec(tmp_path, SPEC + e2e)))
+    pinned_text = SPEC.replace(
+        "shard_episodes = 2", "shard_episodes = 2\nenv_options = { sleep = false }"
+    )
+    pinned = jobs_mod.plan(load(write_spec(tmp_path, pinned_text + e2e)))
+    assert all(j.inputs["env_options"] == {"sleep": True} for j in default)
+    assert not any("env_options" in j.inputs for j in pinned)
+    # The keys of the original's settings are those of inputs without env_options.
+    train = next(j for j in pinned if j.kind == "train")
+    assert train.inputs["series"] == jobs_mod.series_key(
+        "impala", "mujoban/level1", train.inputs["train"], 0
+    )
+    assert {j.key for j in default}.isdisjoint({j.key for j in pinned})
+    assert all(jobs_mod.env_overrides(j.inputs) == {"sleep": False} for j in pinned)
+    assert all(jobs_mod.env_overrides(j.inputs) == {"sleep": True} for j in default)
+    # An agent's own env_options update the spec's; they reach its trainer's config.
+    own = e2e.replace("budgets = [200]", "budgets = [200]\nenv_options = { time_limit = 5.0 }")
+    spec = load(write_spec(tmp_path, pinned_text + own))
+    train = next(j for j in jobs_mod.plan(spec) if j.kind == "train")
+    assert train.inputs["env_options"] == {"time_limit": 5.0}
+    config = trainers_mod.get("impala").make_config(
+        "mujoban/level1",
+        train.inputs["train"],
+        frames=200,
+        seed=0,
+        save_at=[200],
+        env_options=jobs_mod.env_overrides(train.inputs),
+    )
+    assert config.env_overrides == {"sleep": False, "time_limit": 5.0}
+    # An evaluation plays with them (the random agent, 1 short episode).
+    played = {}
+
+    def fake_run(env, episodes, seed, **kwargs):
+        played.update(kwargs["env_options"])
+        return {"rows": [], "summary": {}}
+
+    monkeypatch.setattr("hier_agents.run.run", fake_run)
+    evaluation = next(j for j in jobs_mod.plan(spec) if j.point["agent"] == "random 10")
+    jobs_mod.execute(evaluation, tmp_path / "cache")
+    assert played == {"sleep": False}
+
+
+def test_bad_env_options_are_one_line_usage_errors(tmp_path):
+    for table, message in [
+        (
+            "env_options = { sleep = 1 }",
+            "env_options on mujoban/level1: sleep must be True or False",
+        ),
+        ("env_options = { slep = true }", "unknown override 'slep'"),
+        ("env_options = 3", "env_options must be a table"),
+    ]:
+        text = SPEC.replace("shard_episodes = 2", f"shard_episodes = 2\n{table}")
+        with pytest.raises(UsageError, match=message) as info:
+            load(write_spec(tmp_path, text))
+        assert "\n" not in str(info.value)
+    inside = (
+        '\n[[agent]]\nlabel = "e2e"\nbudgets = [200]\ntrain = { env_options = { sleep = false } }\n'
+    )
+    with pytest.raises(UsageError, match="give env_options beside train"):
+        load(write_spec(tmp_path, SPEC + inside))
 
 
 def test_the_cli_refuses_a_missing_spec_in_one_line(tmp_path, capsys):
@@ -533,8 +605,9 @@ def test_a_grown_budget_resumes_its_series_and_keeps_its_evaluations(tmp_path):
     # The series key is what names the run directory; the seed and the table change it.
     seeds = {t.inputs["series"] for t in trains[0]}
     assert len(seeds) == 2
-    assert jobs_mod.series_key("impala", "mujoban/level1", {"actors": 1}, 0) in seeds
-    assert jobs_mod.series_key("impala", "mujoban/level1", {"actors": 2}, 0) not in seeds
+    sleeps = envs.deviations("mujoban/level1")  # the default: resting bodies sleep
+    assert jobs_mod.series_key("impala", "mujoban/level1", {"actors": 1}, 0, sleeps) in seeds
+    assert jobs_mod.series_key("impala", "mujoban/level1", {"actors": 2}, 0, sleeps) not in seeds
 
 
 def test_a_training_with_its_kept_checkpoints_is_done_without_its_record(tmp_path, monkeypatch):
@@ -1338,3 +1411,14 @@ def test_a_shipped_checkpoint_replays_its_committed_rows(name, agent, env):
     # the committed one; the others are only checked to be the same episodes.
     assert rows[0] == committed[0]
     assert [r["episode"] for r in rows] == [r["episode"] for r in committed]
+
+
+def test_a_shipped_checkpoint_plays_the_settings_it_was_trained_on():
+    """The shipped MuJoBan checkpoints were trained before MuJoBan's default
+    slept resting bodies; their records name no ``sleep``, so they play the
+    original's physics, the comparison's (`envs.recorded_options`)."""
+    from hier_agents.agents.checkpoint import checkpoint_setup
+
+    path = next(ROOT.glob("results/compare/mujoban/train/*/checkpoints/frames-250000.pt"))
+    setup = checkpoint_setup("mujoban/level1", str(path), False)
+    assert setup.env_overrides["sleep"] is False

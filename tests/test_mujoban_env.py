@@ -310,13 +310,30 @@ def test_walls_look_the_same_when_drawn_cell_by_cell():
     assert np.abs(frames[0] - frames[1]).max() < 40.0
 
 
-def test_sleep_is_an_option_off_by_default():
+def test_sleep_is_on_by_default_and_the_originals_setting_is_one_option_away():
     sleep_bit = int(mujoco.mjtEnableBit.mjENBL_SLEEP)
-    assert not envs.load("mujoban/level1", **NO_CAMERAS).physics.model.opt.enableflags & sleep_bit
-    env = envs.load("mujoban/level1", sleep=True, **NO_CAMERAS)
-    assert env.physics.model.opt.enableflags & sleep_bit
+    assert envs.load("mujoban/level1", **NO_CAMERAS).physics.model.opt.enableflags & sleep_bit
+    assert envs.original_options("mujoban/level1-pegs") == {"sleep": False}
+    original = envs.load("mujoban/level1", **envs.original_options("mujoban/level1"), **NO_CAMERAS)
+    assert not original.physics.model.opt.enableflags & sleep_bit
     with pytest.raises(TypeError, match="sleep"):
         envs.load("mujoban/level1", sleep="yes", **NO_CAMERAS)
+    # What differs from the original's settings, as a comparison's jobs name it.
+    assert envs.deviations("mujoban/level1") == {"sleep": True}
+    assert envs.deviations("mujoban/level1", {"sleep": False}) == {}
+    assert envs.deviations("mujoban/level1", {"top_camera": False, "time_limit": 45.0}) == {
+        "sleep": True,
+        "top_camera": None,
+    }
+    assert envs.deviations("mujoban/level1", {"egocentric_camera": [96, 96]}) == {"sleep": True}
+    assert envs.original_options("mujoxo/optimal") == envs.deviations("mujoxo/optimal") == {}
+    # A run records the deviating defaults; a record without them meant the original's.
+    assert envs.explicit_options("mujoban/level1", {"time_limit": 5.0}) == {
+        "sleep": True,
+        "time_limit": 5.0,
+    }
+    assert envs.recorded_options("mujoban/level1", {}) == {"sleep": False}
+    assert envs.recorded_options("mujoban/level1", {"sleep": True}) == {"sleep": True}
 
 
 def test_with_sleep_the_walls_and_pads_of_every_level_are_drawn_where_they_are():

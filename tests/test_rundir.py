@@ -213,3 +213,26 @@ def test_rng_states_round_trip():
     second = (torch.rand(3), np.random.rand(3), random.random())
     assert torch.equal(first[0], second[0]) and np.array_equal(first[1], second[1])
     assert first[2] == second[2]
+
+
+def test_a_run_made_before_a_default_changed_keeps_its_settings(tmp_path):
+    """A MuJoBan run whose record names no ``sleep`` was made when every
+    default was the original's: it continues with ``sleep=False`` and is
+    refused with the new default, never silently continued on it."""
+    old = {"env": "mujoban/level1", "env_overrides": {"top_camera": None}}
+    with RunDir(tmp_path, old) as run:
+        run.save({})
+    explicit = {"top_camera": None, "sleep": True}  # what a run records now
+    with pytest.raises(UsageError, match="env_overrides=.*'sleep': False"):
+        RunDir(
+            tmp_path,
+            {**old, "env_overrides": explicit},
+            fixed=("env_overrides",),
+            env_key="env_overrides",
+            resume=None,
+        )
+    pinned = {**old, "env_overrides": {"top_camera": None, "sleep": False}}
+    with RunDir(
+        tmp_path, pinned, fixed=("env_overrides",), env_key="env_overrides", resume=None
+    ) as run:
+        assert run.resumed and run.config["env_overrides"] == {"top_camera": None, "sleep": False}

@@ -79,6 +79,17 @@ def test_a_budget_below_one_batch_trains_one_smaller_batch_that_moves_the_policy
     logdir, counters, calls = tiny_impala_run
     assert counters["frames"] == 10 and counters["updates"] == 1
     assert len(calls) == 1 and calls[0]["changed"] == {"mean_head.weight", "mean_head.bias"}
+    # The run records the default that deviates from the original's (envs.explicit_options).
+    assert json.loads((logdir / "config.json").read_text())["env_overrides"] == {"sleep": True}
+
+
+def test_env_options_reach_the_actors_environments():
+    config = train_cli.config_from_args(
+        train_cli.parse_args(
+            ["mujoban/level1", "--env-option", "sleep=False", "--observations", "main-camera"]
+        )
+    )
+    assert config.env_overrides == {"sleep": False, "egocentric_camera": None}
 
 
 @pytest.mark.slow
@@ -199,6 +210,8 @@ def test_input_spec_keys_and_privilege():
         (["mujoban/level1", "--observations", "camera"], "did you mean 'cameras'"),
         (["mujoban/level1", "--preset", "cpus"], "did you mean 'cpu'"),
         (["mujoban/level1", "--envs-per-actor", "0"], "--envs-per-actor"),
+        (["mujoban/level1", "--env-option", "sleep=maybe"], "sleep must be True or False"),
+        (["mujoxo/mixture", "--env-option", "sleep=False"], "unknown key 'sleep'"),
     ],
 )
 def test_train_refuses_bad_inputs_in_one_line(argv, message, capsys):

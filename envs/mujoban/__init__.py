@@ -18,7 +18,7 @@ import os
 
 from envs import _config
 from envs.core import Environment
-from envs.mujoban import sources
+from envs.mujoban import arena, sources
 from envs.mujoban.levels import Level, LevelError
 from envs.mujoban.task import Mujoban
 from envs.registry import EnvEntry, register
@@ -40,7 +40,7 @@ def make(
     physics_timestep: float = 0.001,
     pad_tolerance: float = 0.1,
     noslip_iterations: int = 5,
-    sleep: bool = False,
+    sleep: bool = arena.SLEEP,
     render_size=(256, 256),
     multisamples: int = 4,
     raise_on_physics_error: bool = True,
@@ -49,7 +49,7 @@ def make(
     """Builds a MuJoBan environment.
 
     The defaults are the original task (physics_planning_games' MuJoBan, with
-    the paper's 0.05 s control step): 1 ms physics steps, boxes of half-size
+    the paper's 0.05 s control step) but for ``sleep``: 1 ms physics steps, boxes of half-size
     0.4 m sliding on floor friction, pegs that block boxes and walker, and a
     pad covered while a box centre is within 0.1 cells of it along both axes.
     See `envs.mujoban.task` for the full list.
@@ -80,9 +80,11 @@ def make(
         and 0.4 m box). ``0.3`` is the more lenient deviation.
       noslip_iterations: MuJoCo noslip solver iterations; default 5 (the
         original's). ``0`` is a documented deviation: ~2x faster on level 5.
-      sleep: MuJoCo's sleeping of resting bodies (a documented deviation, off
-        by default): ~4x faster physics on Boxoban levels; the bodies' behaviour
-        (`envs.mujoban.behaviour`) stays within 1% of the original's.
+      sleep: MuJoCo's sleeping of resting bodies; default True, a
+        documented deviation (4-5x cheaper physics on Boxoban levels, the
+        bodies' behaviour within 1% of the original's,
+        `envs.mujoban.behaviour`). ``False`` is the original's
+        (`envs.original_options`).
       render_size: largest ``(height, width)`` of `Environment.render` frames.
       raise_on_physics_error: raise on a diverging simulation (else the
         episode ends with discount 0).
@@ -162,7 +164,7 @@ def check_config(
     physics_timestep=0.001,
     pad_tolerance=0.1,
     noslip_iterations=5,
-    sleep=False,
+    sleep=arena.SLEEP,
     render_size=(256, 256),
     raise_on_physics_error=True,
     lazy_cameras=False,
@@ -262,6 +264,7 @@ def _register() -> None:
                     {"difficulty": difficulty, "pegs": pegs},
                     f"MuJoBan, generated difficulty-{difficulty} levels{peg_text}",
                     validate=check_config,
+                    original=arena.ORIGINAL,
                 )
             )
         register(
@@ -271,6 +274,7 @@ def _register() -> None:
                 {"difficulty": None, "pegs": pegs},
                 f"MuJoBan, the paper's 5-level training curriculum{peg_text}",
                 validate=check_config,
+                original=arena.ORIGINAL,
             )
         )
 

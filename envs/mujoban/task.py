@@ -35,12 +35,15 @@ solved test and its termination read only the activation left by the last
 substep (its ``after_step`` and ``get_reward``), so checking at the end of
 the control step gives the same rewards, discounts and episode ends.
 
-Deviations from the original are explicit options of `Mujoban` (and of
-`envs.mujoban.make`): ``physics_timestep=0.005`` (5x cheaper physics, the
-value used before this package followed the original), ``pad_tolerance=0.3``
-(a more lenient pad), ``noslip_iterations=0`` (no noslip solver: about
-2x faster on level 5), ``sleep=True`` (MuJoCo sleeps resting bodies: about
-4x faster on Boxoban levels), ``control_timestep``.
+One default deviates from the original: MuJoCo sleeps resting bodies
+(``sleep=True``: 4-5x cheaper physics on Boxoban levels, the bodies'
+behaviour within 1% of the original's, `envs.mujoban.behaviour`);
+``sleep=False`` (`envs.original_options`) is the original's. Other
+deviations are explicit options of `Mujoban` (and of `envs.mujoban.make`):
+``physics_timestep=0.005`` (5x cheaper physics, the value used before this
+package followed the original), ``pad_tolerance=0.3`` (a more lenient pad),
+``noslip_iterations=0`` (no noslip solver: about 2x faster on level 5),
+``control_timestep``.
 """
 
 from __future__ import annotations
@@ -150,9 +153,11 @@ class Mujoban(ObservationsMixin, LooksMixin, LayoutMixin, PhysicsTask):
       noslip_iterations: MuJoCo noslip solver iterations; default 5, the
         original's (dm_control composer's base arena). ``0`` is the cheaper
         deviation (about 2x faster on level 5, contacts may slip slightly).
-      sleep: enable MuJoCo's sleeping of resting bodies (a deviation, off
-        by default): boxes and the walker at rest stop being simulated until
-        something touches them; about 3.5x faster physics on level 5.
+      sleep: MuJoCo's sleeping of resting bodies (on by default, a deviation
+        from the original, which has it off): boxes and the walker at rest
+        stop being simulated until something touches them; 4-5x cheaper
+        physics on Boxoban levels, the bodies' behaviour within 1% of the
+        original's (`envs.mujoban.behaviour`).
       multisamples: samples per pixel of rendered frames (the original's 4;
         0 is cheaper, outlines move by up to a pixel).
       wall_slabs: size of the pool of render-only wall rectangles (levels
@@ -198,7 +203,7 @@ class Mujoban(ObservationsMixin, LooksMixin, LayoutMixin, PhysicsTask):
         wall_slabs=32,
         walker=None,
         noslip_iterations=5,
-        sleep=False,
+        sleep=arena_lib.SLEEP,
         multisamples=arena_lib.MULTISAMPLES,
     ):
         grid_shape = _check_task_options(

@@ -47,7 +47,7 @@ def checkpoint_setup(env_name: str, path: str, stochastic: bool = False) -> Agen
         for name in envs.overrides(env_name)
         if name.endswith("_camera")
     }
-    overrides.update(config.get("env_overrides", {}))
+    overrides.update(envs.recorded_options(env_name, config.get("env_overrides", {})))
     from hier_agents.baselines.impala.checkpoints import net_from_checkpoint
 
     _, spec = net_from_checkpoint(ckpt)

@@ -124,7 +124,6 @@ class RandomKind(AgentKind):
     name = "random"
     help = "uniform random actions, each held HOLD control steps (default 1)"
     metavar = "HOLD"
-    env_flags = False
 
     def parse(self, text: str) -> int:
         try:

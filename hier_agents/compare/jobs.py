@@ -15,6 +15,13 @@ Two kinds:
   in one environment at one seed (`hier_agents.run.run`, per-episode
   seeding: shards of a point played anywhere give the rows of one run).
 
+A job names its environment by name and, as ``env_options``, by the settings
+that differ from the original implementation's (`envs.deviations`; absent
+when there are none), and plays it with ``envs.original_options(env)``
+updated by them (`env_overrides`): a default that changes gives new keys to
+the specs that leave it as it is, while a spec pinned to the original's
+settings keeps its keys and its meaning.
+
 A job's key is a hash of its kind, its inputs and `CACHE_VERSION`: for an
 evaluation of a trained agent, the series key and the budget (not the
 largest budget: growing a series keeps its evaluations); for a modular
@@ -115,16 +122,35 @@ def job_key(kind: str, inputs: dict) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:20]
 
 
-def series_key(trainer: str, env: str, table: dict, seed: int) -> str:
-    """The key of a training series: its trainer's name, environment, the
-    trainer's table and seed, not its budgets (the run directory
-    ``CACHE/train/KEY`` and every evaluation of the series name it).
+def series_key(trainer: str, env: str, table: dict, seed: int, env_options=None) -> str:
+    """The key of a training series: its trainer's name, environment (with
+    ``env_options``, the settings that differ from the original's,
+    `envs.deviations`, when there are any), the trainer's table and seed, not
+    its budgets (the run directory ``CACHE/train/KEY`` and every evaluation
+    of the series name it).
 
     The key holds the table as the spec gives it, not the trainer's
     defaults: a change of a default that changes what a table trains must
     bump `CACHE_VERSION` (or come as a new option or preset, as
     ``--preset small-batches`` did), else old runs would stand for new ones."""
-    return job_key("series", {"trainer": trainer, "env": env, "table": table, "seed": seed})
+    inputs = {"trainer": trainer, "env": env, "table": table, "seed": seed}
+    return job_key("series", {**inputs, **_with_env_options(env_options)})
+
+
+def _with_env_options(deviations) -> dict:
+    """``{"env_options": deviations}``, or nothing when there are none (the
+    keys of jobs on the original's settings stay what they were before
+    job inputs named settings)."""
+    return {"env_options": dict(deviations)} if deviations else {}
+
+
+def env_overrides(inputs: dict) -> dict:
+    """The `envs.load` overrides a job's ``inputs`` play their environment
+    with: the original implementation's settings (`envs.original_options`)
+    updated by the job's ``env_options`` (the deviations from them)."""
+    import envs
+
+    return {**envs.original_options(inputs["env"]), **inputs.get("env_options", {})}
 
 
 def plan(spec) -> list[Job]:
@@ -158,10 +184,18 @@ def plan(spec) -> list[Job]:
                 else:
                     kind, arg = resolve(agent.agent)
                     targets = [(kind.job_inputs(env, arg, agent.options), (), point)]
+                deviations = agent.deviations(env)
                 for target, deps, where in targets:
                     evals.extend(
                         _eval_jobs(
-                            env, target, seed, agent.episodes, spec.shard_episodes, deps, where
+                            env,
+                            deviations,
+                            target,
+                            seed,
+                            agent.episodes,
+                            spec.shard_episodes,
+                            deps,
+                            where,
                         )
                     )
     return trains + evals
@@ -171,25 +205,29 @@ def train_job(agent, env: str, seed: int, point: dict, cpus: int) -> Job:
     """The train job of a trained agent's series on ``env`` at ``seed``: up
     to its largest budget, keeping every budget."""
     trainer = trainers.get(agent.trainer)
+    deviations = agent.deviations(env)
     inputs = {
         "trainer": agent.trainer,
         "env": env,
+        **_with_env_options(deviations),
         "train": agent.train,
         "seed": seed,
-        "series": series_key(agent.trainer, env, agent.train, seed),
+        "series": series_key(agent.trainer, env, agent.train, seed, deviations),
         "frames": max(agent.budgets_for(env)),
         "save_at": list(agent.budgets_for(env)),
     }
     return Job("train", inputs, cpus=trainer.cpus(agent.train, cpus), point=point)
 
 
-def _eval_jobs(env, target, seed, episodes, shard, deps, point) -> list[Job]:
-    """The evaluation jobs of one point: ``episodes`` in shards of ``shard``."""
+def _eval_jobs(env, deviations, target, seed, episodes, shard, deps, point) -> list[Job]:
+    """The evaluation jobs of one point: ``episodes`` in shards of ``shard``
+    on ``env`` with the settings ``deviations`` (`envs.deviations`)."""
     return [
         Job(
             "eval",
             {
                 "env": env,
+                **_with_env_options(deviations),
                 "agent": target,
                 "seed": seed,
                 "first_episode": first,
@@ -327,7 +365,7 @@ def _train(job: Job, cache: Path) -> dict:
     resumed_from = trainer.frames_done(logdir) if (logdir / trainer.latest).is_file() else 0
     before = series_records(cache).get(i["series"])
     planned = dict(frames=i["frames"], seed=i["seed"], save_at=i["save_at"], logdir=logdir)
-    config = trainer.make_config(i["env"], i["train"], **planned)
+    config = trainer.make_config(i["env"], i["train"], env_options=env_overrides(i), **planned)
     counters = trainer.train(config)
     counters.pop("last_stats", None)
     missing = [b for b in i["save_at"] if not trainer.checkpoint(logdir, b).is_file()]
@@ -343,7 +381,9 @@ def _train(job: Job, cache: Path) -> dict:
         "counters": counters,
         "series_cpu_s": cpu,
         "resumed_from": resumed_from,
-        "argv": trainer.argv(i["env"], i["train"], **{**planned, "logdir": str(logdir)}),
+        "argv": trainer.argv(
+            i["env"], i["train"], **{**planned, "logdir": str(logdir)}, env_options=env_overrides(i)
+        ),
     }
 
 
@@ -373,6 +413,7 @@ def _evaluate(job: Job, cache: Path) -> dict:
         first_episode=inputs["first_episode"],
         agent=name,
         options={k: v for k, v in options.items() if v not in (None, False)},
+        env_options=env_overrides(inputs),
     )
     rows = summary.pop("rows")
     summary.pop("provenance", None)

@@ -10,6 +10,7 @@ A spec (all keys but ``name`` and ``agent`` optional)::
     seeds = [0, 1, 2]
     episodes = 100                        # evaluation episodes per seed and point
     shard_episodes = 50                   # episodes per evaluation job
+    env_options = { sleep = false }       # envs.load overrides of every environment
 
     [[agent]]
     label = "modular: scripted"           # short: the table's and the plot's
@@ -51,7 +52,13 @@ of ``python -m hier_agents.train`` with ``_`` for ``-``, e.g.
 giving ``frames``, ``seed``, ``logdir``, ``save_at``, which the plan
 sets; or ``random`` (the hold, control steps per draw; the same as
 ``agent = "random:HOLD"``). ``envs``, ``seeds``,
-``episodes`` may be overridden per agent. Seed
+``episodes`` and ``env_options`` may be overridden per agent (an agent's
+``env_options`` update the spec's). ``env_options`` (`envs.load` overrides,
+checked on each of the agent's environments) apply to every job of the
+agent: its trainings and its evaluations; a job names them as the settings
+that differ from the original implementation's (`envs.deviations`), so a
+spec pinned to the original's settings (``sleep = false`` for MuJoBan)
+keeps its jobs' keys when a default changes. Seed
 ``s`` is an end-to-end run's training seed and, for every agent, the
 evaluation seed: episode ``e`` of seed ``s`` is seeded from ``(s, e)``
 (`envs.episode_seed`), so all agents meet the same levels at a seed.
@@ -70,7 +77,17 @@ from physics_planning import cli
 from physics_planning.cli import UsageError
 
 #: Keys of a spec's top level and of an agent table.
-TOP_KEYS = ("name", "description", "cache", "envs", "seeds", "episodes", "shard_episodes", "agent")
+TOP_KEYS = (
+    "name",
+    "description",
+    "cache",
+    "envs",
+    "seeds",
+    "episodes",
+    "shard_episodes",
+    "env_options",
+    "agent",
+)
 AGENT_KEYS = (
     "label",
     "agent",
@@ -83,6 +100,7 @@ AGENT_KEYS = (
     "envs",
     "seeds",
     "episodes",
+    "env_options",
     "stochastic",
 )
 #: The keys that say what an agent is (exactly one per agent).
@@ -110,6 +128,7 @@ class Agent:
     budgets: tuple = ()
     stochastic: bool = False
     env_budgets: dict = field(default_factory=dict)
+    env_options: dict = field(default_factory=dict)
 
     def budgets_for(self, env: str) -> tuple:
         """A trained agent's budgets on ``env`` (ascending; ``budgets`` unless the
@@ -118,6 +137,14 @@ class Agent:
         if self.kind != "train":
             return (None,)
         return tuple(self.env_budgets.get(env, self.budgets))
+
+    def deviations(self, env: str) -> dict:
+        """The settings of ``env`` under the agent's ``env_options`` that
+        differ from the original implementation's (`envs.deviations`): what
+        its jobs on ``env`` name."""
+        import envs
+
+        return envs.deviations(env, self.env_options)
 
     @property
     def modular(self) -> dict:
@@ -176,6 +203,24 @@ def _int(value, what: str, where: str, minimum: int) -> int:
     return value
 
 
+def _table(value, what: str, where: str) -> dict:
+    if not isinstance(value, dict):
+        raise UsageError(f"{where}: {what} must be a table, got {value!r}")
+    return dict(value)
+
+
+def _env_options(options: dict, envs: tuple, at: str) -> dict:
+    """``options`` checked as `envs.load` overrides of each of ``envs``."""
+    import envs as registry
+
+    for env in envs:
+        try:
+            registry.check(env, **options)
+        except (TypeError, ValueError) as exc:
+            raise UsageError(f"{at}: env_options on {env}: {exc}") from None
+    return options
+
+
 def _envs(value, where: str) -> tuple:
     import envs as registry
 
@@ -199,10 +244,12 @@ def train_argv(
     seed: int | None = None,
     logdir: str | None = None,
     save_at=(),
+    env_options=None,
 ) -> list[str]:
     """The ``python -m hier_agents.train`` arguments of a ``train`` table
     (``True`` values become bare flags, ``False`` ones are left out), plus the
-    planned ``frames``, ``seed``, ``logdir`` and ``save_at``."""
+    planned ``frames``, ``seed``, ``logdir``, ``save_at`` and ``env_options``
+    (``--env-option KEY=VALUE``, VALUE a Python literal)."""
     argv = [env]
     for key in sorted(train):
         value = train[key]
@@ -219,6 +266,8 @@ def train_argv(
         argv += ["--logdir", str(logdir)]
     if save_at:
         argv += ["--save-at", *map(str, save_at)]
+    for key, value in sorted((env_options or {}).items()):
+        argv += ["--env-option", f"{key}={value!r}"]
     return argv
 
 
@@ -246,6 +295,7 @@ def load(path: str | Path) -> Spec:
         "envs": _envs(raw["envs"], where) if "envs" in raw else None,
         "seeds": _ints(raw.get("seeds", [0]), "seeds", where, 0),
         "episodes": _int(raw.get("episodes", 100), "episodes", where, 1),
+        "env_options": _table(raw.get("env_options", {}), "env_options", where),
     }
     shard = _int(raw.get("shard_episodes", 50), "shard_episodes", where, 1)
     tables = raw.get("agent")
@@ -302,6 +352,8 @@ def _agent(path: Path, i: int, table, defaults: dict) -> Agent:
             else defaults["episodes"]
         ),
     )
+    options = {**defaults["env_options"], **_table(table.get("env_options", {}), "env_options", at)}
+    common["env_options"] = _env_options(options, envs, at)
     trainer = trainers.by_table(kinds[0])
     for key in ("budgets", "stochastic"):
         if key in table and trainer is None:
@@ -352,7 +404,7 @@ def _train_agent(trainer, table: dict, at: str, common: dict) -> Agent:
         raise UsageError(f"{at}: a trained agent needs budgets (frame counts to evaluate at)")
     budgets, env_budgets = _budgets(table["budgets"], common["envs"], at)
     for env in common["envs"]:
-        trainer.check_table(env, options, env_budgets.get(env, budgets), at)
+        trainer.check_table(env, options, env_budgets.get(env, budgets), at, common["env_options"])
     stochastic = table.get("stochastic", False)
     if not isinstance(stochastic, bool):
         raise UsageError(f"{at}: stochastic must be true or false")

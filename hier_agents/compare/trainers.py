@@ -16,8 +16,9 @@ and ``budgets``::
 A `Trainer` says, for its name, everything the plan and the jobs need:
 which spec key holds its table, how a table becomes its checked config (the
 trainer's ``from_options(env, options)`` with the planned keys ``frames``,
-``seed``, ``logdir``, ``save_at``, ``no_progress`` and the trainer's own
-``fixed`` ones added), how to train a config (``train(config) -> dict`` with
+``seed``, ``logdir``, ``save_at``, ``no_progress``, ``env_options`` (the
+environment's `envs.load` overrides) and the trainer's own ``fixed`` ones
+added), how to train a config (``train(config) -> dict`` with
 at least ``frames``), where its run directory keeps the checkpoint at a
 budget (``checkpoints/frames-B`` + ``suffix``) and its latest, resumable
 checkpoint, which agent kind plays a kept checkpoint
@@ -36,8 +37,9 @@ from pathlib import Path
 from physics_planning import cli
 from physics_planning.cli import UsageError
 
-#: Option keys every trainer's plan sets itself (never a spec's).
-PLANNED = ("frames", "seed", "logdir", "save_at", "no_progress")
+#: Option keys every trainer's plan sets itself (never a spec's table's:
+#: ``env_options`` come from the spec's or the agent's ``env_options``).
+PLANNED = ("frames", "seed", "logdir", "save_at", "no_progress", "env_options")
 
 
 def _attr(path: str):
@@ -66,7 +68,8 @@ class Trainer:
     cpus_default: int = 1
     serial: tuple = ()  # (option, value) pairs with which a training takes one CPU
     cpu_spans_resumes: bool = False  # train()'s ``cpu_s`` counts every resumed part
-    command: str | None = None  # ``(env, table, frames=, seed=, logdir=, save_at=) -> argv``
+    #: ``(env, table, frames=, seed=, logdir=, save_at=, env_options=) -> argv``
+    command: str | None = None
 
     def keys(self) -> tuple | None:
         """The option keys a spec may give (planned ones aside), or None when
@@ -75,9 +78,11 @@ class Trainer:
             return None
         return tuple(k for k in _attr(self.options) if k not in self.planned)
 
-    def check_table(self, env: str, table: dict, budgets, where: str) -> None:
+    def check_table(
+        self, env: str, table: dict, budgets, where: str, env_options: dict | None = None
+    ) -> None:
         """Checks a spec's table as the plan will use it (the largest budget,
-        seed 0, every budget kept).
+        seed 0, every budget kept, the environment's ``env_options``).
 
         Raises:
           UsageError: one line, ``where``-prefixed, naming the key: a planned
@@ -88,6 +93,11 @@ class Trainer:
             raise UsageError(f"{where}: {self.table} must be a table of {self.help} options")
         valid = self.keys()
         for key in table:
+            if key == "env_options":
+                raise UsageError(
+                    f"{where}: {self.table}.env_options: give env_options beside "
+                    f"{self.table} (the agent's) or at the spec's top (every agent's)"
+                )
             if key in self.planned or key in self.fixed:
                 raise UsageError(
                     f"{where}: {self.table}.{key} is set by the plan (budgets, seeds, "
@@ -99,18 +109,25 @@ class Trainer:
                     f"valid {self.help} options: {', '.join(sorted(valid))}"
                 )
         try:
-            self.make_config(env, table, frames=max(budgets), seed=0, save_at=budgets)
+            self.make_config(
+                env, table, frames=max(budgets), seed=0, save_at=budgets, env_options=env_options
+            )
         except UsageError as exc:
             raise UsageError(f"{where}: {self.table}: {exc}") from None
 
-    def make_config(self, env: str, table: dict, *, frames, seed, save_at, logdir=None):
-        """The trainer's checked config of ``table`` plus the planned keys.
+    def make_config(
+        self, env: str, table: dict, *, frames, seed, save_at, logdir=None, env_options=None
+    ):
+        """The trainer's checked config of ``table`` plus the planned keys
+        (``env_options``: `envs.load` overrides of the trained environment).
 
         Raises:
           UsageError: the trainer refuses the options.
         """
         planned = {"frames": int(frames), "seed": int(seed), "save_at": sorted(save_at)}
         planned["no_progress"] = True
+        if env_options:
+            planned["env_options"] = dict(env_options)
         if logdir is not None:
             planned["logdir"] = str(logdir)
         return _attr(self.config).from_options(env, {**table, **self.fixed, **planned})

@@ -154,6 +154,15 @@ def progress_bar(
 # -- the run directory ---------------------------------------------------------------------
 
 
+def _recorded(saved: dict, key: str) -> dict:
+    import envs
+
+    try:
+        return envs.recorded_options(saved["env"], saved.get(key) or {})
+    except KeyError:  # an environment no longer registered: as saved
+        return dict(saved.get(key) or {})
+
+
 class RunDir:
     """The run directory ``path`` of a trainer with configuration ``config``
     (a JSON-able dict).
@@ -167,6 +176,12 @@ class RunDir:
         checkpoint; ``False``: start one, refusing a directory that holds a
         checkpoint. A fresh run restarts ``scalars.jsonl``.
       fixed: keys whose saved value a continued run must share.
+      env_key: the config key holding the run's `envs.load` overrides of its
+        ``env`` (``config`` names every deviating default in them,
+        `envs.explicit_options`): a saved run's are read as the settings they
+        stood for (`envs.recorded_options`), so a run made before a default
+        changed continues on its own settings or is refused, never silently
+        continued on new ones.
       trainer: the command that trains (e.g. ``"python -m hier_agents.train"``);
         a continued run must have been made by it. A directory made before
         runs recorded their trainer is taken as the trainer's when its config
@@ -189,6 +204,7 @@ class RunDir:
         *,
         resume: bool | None = False,
         fixed=(),
+        env_key: str | None = None,
         trainer: str = "",
         tensorboard: bool = True,
         checkpoint: str = CHECKPOINT,
@@ -212,6 +228,8 @@ class RunDir:
         config = jsonable({**config, "trainer": trainer} if trainer else config)
         if self.resumed:
             saved = self._saved_config()
+            if env_key is not None and "env" in saved:
+                saved = {**saved, env_key: _recorded(saved, env_key)}
             self._check_same_run(saved, config, fixed, trainer)
             config = {**saved, **config}
         self.path.mkdir(parents=True, exist_ok=True)

@@ -37,6 +37,7 @@ OPTIMIZERS = ("rmsprop", "adam")
 OPTIONS = {
     "condition": ("condition", str),
     "frames": ("steps", int),
+    "env_options": ("env_overrides", dict),
     "observations": (None, str),
     "image_size": ("image_size", int),
     "state": ("state", bool),
@@ -72,8 +73,10 @@ class TrainConfig:
     """Everything a training run depends on (saved in ``config.json`` and its checkpoint).
 
     Observations: proprioception always; ``cameras`` the paper's camera views
-    (``image_size`` squared; ``env_overrides`` may turn views off, e.g.
-    `main_camera_only`); ``state`` the current abstract state (privileged);
+    (``image_size`` squared); ``env_overrides`` (``env_options`` of
+    `from_options`, ``--env-option``) are the actors' `envs.load` overrides
+    and may turn views off (`main_camera_only`); ``state`` the current
+    abstract state (privileged);
     the planner conditions add the planner's planes (see `AgentEnv`).
     ``steps`` is the frame budget (`hier_agents.baselines.impala.learner`):
     control steps, ``frames_per_unroll`` per unroll (an action held
@@ -141,6 +144,7 @@ class TrainConfig:
         )
         fields = {attr: v for k, v in options.items() if (attr := OPTIONS[k][0]) is not None}
         fields["save_at"] = tuple(sorted({int(b) for b in fields.get("save_at", ())}))
+        fields["env_overrides"] = dict(fields.get("env_overrides", {}))
         config = cls(
             env=env,
             cameras=observations != "proprio",
@@ -160,13 +164,18 @@ class TrainConfig:
         Raises:
           UsageError: an unknown environment, condition or backend (with the
             closest valid name), a count below 1, a seed below 0, a rate or
-            period out of range, a clip ratio of 1 or more, or a budget
-            (``steps``) below one unroll.
+            period out of range, a clip ratio of 1 or more, a budget
+            (``steps``) below one unroll, or an environment override
+            (``env_overrides``) the environment refuses.
         """
         import envs
         from hier_agents.baselines.impala.agent_env import CONDITIONS
 
         choice("environment", self.env, envs.names())
+        try:
+            envs.check(self.env, **self.env_overrides)
+        except (TypeError, ValueError) as exc:
+            raise UsageError(f"env_options: {exc}") from None
         choice("condition", self.condition, CONDITIONS)
         choice("backend", self.backend, ("local", "ray"))
         choice("optimizer", self.optimizer, OPTIMIZERS)
@@ -254,5 +263,6 @@ def _check_type(key: str, value, kind) -> None:
             float: "a number",
             bool: "true or false",
             tuple: "a list of integers",
+            dict: "a table",
         }
         raise UsageError(f"{key} must be {names[kind]}, got {value!r}")

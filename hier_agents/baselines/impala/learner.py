@@ -297,11 +297,20 @@ def train(config: TrainConfig) -> dict:
     """
     import torch
 
+    import envs
+
     config.validate()
+    config.env_overrides = envs.explicit_options(config.env, config.env_overrides)
     batch_size = config.resolved_batch()
     run = RunDir(
-        config.logdir, dataclasses.asdict(config), resume=None, fixed=FIXED, trainer=TRAINER
+        config.logdir,
+        dataclasses.asdict(config),
+        resume=None,
+        fixed=FIXED,
+        env_key="env_overrides",
+        trainer=TRAINER,
     )
+
     torch.manual_seed(config.seed)
     torch.set_num_threads(1)
     try:

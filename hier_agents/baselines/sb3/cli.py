@@ -36,6 +36,7 @@ import argparse
 import json
 import sys
 
+from envs.cli import add_env_option
 from physics_planning.cli import (
     Parser,
     UsageError,
@@ -97,13 +98,7 @@ def build_parser() -> Parser:
         help="hold each action for K control steps (frames still count control steps)",
     )
     add("--vec", default=default.vec, help="subproc (a process per environment) or dummy")
-    add(
-        "--env-option",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="an environment override (repeatable), e.g. time_limit=10.0 or top_camera=(48,48)",
-    )
+    add_env_option(parser, "time_limit=10.0 or top_camera=(48,48)")
     add(
         "--hyperparameters",
         type=inline_table,

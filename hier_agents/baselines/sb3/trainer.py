@@ -103,15 +103,20 @@ def train(config: Sb3Config) -> dict:
         this config cannot continue (`RunDir`); the algorithm refuses the
         environment's spaces or a hyperparameter's value.
     """
+    import envs
+
     config.validate()
+    config.env_options = envs.explicit_options(config.env, config.env_options)
     run = RunDir(
         config.logdir,
         dataclasses.asdict(config),
         resume=None,
         fixed=FIXED,
+        env_key="env_options",
         trainer=TRAINER,
         checkpoint=MODEL,
     )
+
     try:
         return _Session(config, run).train()
     finally:
