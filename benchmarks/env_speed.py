@@ -14,7 +14,8 @@ For each environment and camera setting this measures
   first also creates the GL contexts and is reported as ``first_reset_s``).
 
 Environments run at their defaults, which are the original's physics
-timesteps; ``--physics-timestep`` measures another (e.g. 0.005) on purpose.
+timesteps (MuJoBan's sleeps resting bodies: ``--env-option sleep=False`` is the
+original's physics); ``--physics-timestep`` measures another (e.g. 0.005) on purpose.
 The board games observe one 84x84 front camera (the paper's); the original
 code observes two, which the ``front_camera+front_camera_2`` setting
 renders (the second at the original's ``front_camera_2`` pose). Figures

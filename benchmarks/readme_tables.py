@@ -212,6 +212,41 @@ EXECUTION_TIME_FILES = (
 )
 
 
+@table("agent-original-physics")
+def agent_original_physics(results: Path) -> list[str]:
+    """MuJoBan's modular-agent rows at the default (resting bodies sleep,
+    ``results/agent/``) beside the same commands on the original's physics
+    (``sleep=False``: ``results/agent_original_physics/``, measured before the
+    default changed), episode for episode."""
+    before_dir = results / "agent_original_physics"
+    lines = [
+        "| environment | levels | estimator | default (sleep): solved [95% CI], mean steps "
+        "| original's physics: solved [95% CI], mean steps | intervals overlap "
+        "| episodes ending alike |",
+        "| --- | --- | --- | --- | --- | --- | --- |",
+    ]
+    for path in sorted(before_dir.rglob("*.json"), key=lambda p: (p.parent.name, p.name)):
+        before = _load(path)
+        now = _load(results / "agent" / path.relative_to(before_dir))
+        if before.get("deviations") or now.get("deviations") != {"sleep": True}:
+            raise ValueError(f"{path}: not a default row beside an original-physics one")
+        alike = sum(
+            a["solved"] == b["solved"] for a, b in zip(now["rows"], before["rows"], strict=True)
+        )
+        overlap = (
+            now["success_interval"][0] <= before["success_interval"][1]
+            and before["success_interval"][0] <= now["success_interval"][1]
+        )
+        levels = Path(now["levels"]).name if now.get("levels") else "generated"
+        lines.append(
+            f"| `{now['env']}` | {levels} | {now['estimator']} "
+            f"| {_rate(now)}, {now['mean_steps_solved']:.0f} "
+            f"| {_rate(before)}, {before['mean_steps_solved']:.0f} "
+            f"| {'yes' if overlap else 'no'} | {alike} of {len(now['rows'])} |"
+        )
+    return lines
+
+
 @table("execution-time")
 def execution_time(results: Path) -> list[str]:
     """Real Boxoban levels against the clock (`benchmarks/execution_time.py`)."""

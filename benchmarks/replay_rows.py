@@ -6,7 +6,10 @@
 For every ``hier_agents.run --json`` file given (default: every
 ``results/agent/*.json``), re-plays episodes ``FIRST`` .. ``FIRST + K - 1``
 through `hier_agents.run.run` with exactly the settings the file records
-(env, seed, agent, planner, skill, estimator, levels, env_options; a
+(env, seed, agent, planner, skill, estimator, levels, the environment's
+settings: ``deviations`` from the original's, or for a file written before
+summaries recorded them ``env_options`` on the original's settings,
+`envs.recorded_options`; a
 checkpoint agent's sampling from its recorded condition) and compares each
 re-played row with the committed row of the same ``episode`` index on every
 key that decides the outcome: `OUTCOME_KEYS` (return, steps, solved or
@@ -60,6 +63,8 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from _common import cli, make_parser, prog, write_json  # noqa: E402
+
+import envs  # noqa: E402
 
 PROG = prog(__file__)
 ROOT = Path(__file__).resolve().parents[1]
@@ -181,6 +186,9 @@ def settings(summary: dict) -> dict:
     if not isinstance(env, str) or not isinstance(seed, int) or not isinstance(agent, str):
         raise Skip("env, seed or agent is not recorded as a name / integer")
     env_options = need("env_options")
+    # The settings it played: its deviations from the original's, or (a file
+    # from before summaries recorded them) its env_options on the original's.
+    env_options = envs.recorded_options(env, summary.get("deviations", env_options or {}))
     if "levels" in summary:
         levels = summary["levels"]
     elif _takes_levels(env):

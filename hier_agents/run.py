@@ -58,7 +58,10 @@ privileged and reads (modular agents: what the estimator reads, "simulator",
 two are privileged), success_rate, win_rate, draw_rate, loss_rate (board games),
 mean_return, mean_steps, subgoal_success_rate, episode_failures (reason ->
 count), wall_s, control_steps_per_s, plus planner, skill, seed, env_options,
-levels, episodes_requested, interrupted, finished, worker_restarts (how many
+deviations (the settings of ``env_options`` that differ from the original
+implementation's, `envs.deviations`: ``{"sleep": true}`` for MuJoBan by
+default; a summary written before this key existed played the original's
+settings), levels, episodes_requested, interrupted, finished, worker_restarts (how many
 times dead worker processes were replaced, `players.play_parallel`),
 provenance and per-episode rows; checkpoint agents add their condition,
 training frames, ``observations`` (the input keys the policy reads) and
@@ -297,6 +300,7 @@ class _Run:
         out.update(self.meta)
         out.update(
             env_options=play.env_options,
+            deviations=envs.deviations(play.env_name, play.env_options),
             levels=play.levels,
             episodes_requested=len(self.indices),
             interrupted=self.interrupted,

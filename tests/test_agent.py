@@ -124,6 +124,8 @@ def test_cli_env_options_reach_the_environment_and_the_json(tmp_path):
     )
     summary = json.loads(out.read_text())
     assert summary["env_options"] == {"physics_timestep": 0.005, "pad_tolerance": 0.3}
+    # What differs from the original's settings: these two and the default's sleeping bodies.
+    assert summary["deviations"] == {"pad_tolerance": 0.3, "physics_timestep": 0.005, "sleep": True}
     assert {"command", "commit", "date", "machine"} <= set(summary["provenance"])
     for bad in (
         ["--env-option", "bogus=1"],

@@ -202,6 +202,8 @@ CASES = [
     ("bench/original_boards", [], "physics_planning_games"),
     ("bench/physics_behaviour", ["--rounds", "0"], "--rounds"),
     ("bench/physics_behaviour", ["--json", FOLDER], "is a folder"),
+    ("bench/board_physics", ["--envs", "mujoban/level1"], "unknown environment 'mujoban/level1'"),
+    ("bench/board_physics", ["--json", FOLDER], "is a folder"),
     ("bench/original_boards", ["--xo-games", "0"], "--xo-games"),
     ("bench/original_boards", ["--json", FOLDER], "is a folder"),
     ("bench/estimator_accuracy", ["--frames", "0"], "--frames"),

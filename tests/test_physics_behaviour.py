@@ -81,3 +81,15 @@ def test_a_model_without_the_parts_is_refused_naming_them():
     model = mujoco.MjModel.from_xml_string("<mujoco><worldbody/></mujoco>")
     with pytest.raises(ValueError, match="root_x"):
         behaviour._Parts(model)
+
+
+def test_the_board_physics_benchmark_times_every_setting_against_the_default():
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    try:
+        import board_physics
+    finally:
+        sys.path.remove(str(ROOT / "benchmarks"))
+    rows = board_physics.measure("mujoxo/optimal", steps=30, rounds=2)
+    assert [r["setting"] for r in rows] == list(board_physics.SETTINGS)
+    assert rows[0]["x_default_rounds"] == [1.0, 1.0]
+    assert all(r["mj_steps_per_s"] > 0 and len(r["x_default_rounds"]) == 2 for r in rows)

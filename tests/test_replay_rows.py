@@ -64,6 +64,10 @@ def test_settings_that_cannot_be_replayed_are_skipped_with_the_reason(replay_row
         "levels": "envs/mujoban/data/boxoban/unfiltered-valid-000.txt",
     }
     assert replay_rows.settings(base)["levels"].endswith("unfiltered-valid-000.txt")
+    # A file from before summaries recorded deviations played the original's physics.
+    assert replay_rows.settings(base)["env_options"] == {"sleep": False}
+    now = {**base, "deviations": {"sleep": True, "time_limit": 5.0}}
+    assert replay_rows.settings(now)["env_options"] == {"sleep": True, "time_limit": 5.0}
     with pytest.raises(replay_rows.Skip, match="not in the repository"):
         replay_rows.settings({**base, "levels": "/tmp/no_such_levels.txt"})
     with pytest.raises(replay_rows.Skip, match="estimator"):
@@ -75,22 +79,24 @@ def test_settings_that_cannot_be_replayed_are_skipped_with_the_reason(replay_row
 
 
 def test_the_script_replays_one_committed_episode_identically(replay_rows, tmp_path):
+    # A row recorded on the original's physics, before summaries named their
+    # deviations from it: replayed on those settings (sleep=False), not today's default.
     out = tmp_path / "replay.json"
     status = replay_rows.main(
-        [str(ROOT / "results/agent/mujoban_level1.json"), "--episodes", "1", "--json", str(out)]
+        [str(ROOT / "results/agent_original_physics/mujoban_level1.json"), "--episodes", "1", "--json", str(out)]
     )
     assert status == 0
     report = json.loads(out.read_text())
     assert report["identical"] is True and report["replayed"] == 1 and report["skipped"] == []
     (entry,) = report["files"]
-    assert entry["file"] == "results/agent/mujoban_level1.json" and entry["episodes"] == [0]
+    assert entry["file"] == "results/agent_original_physics/mujoban_level1.json" and entry["episodes"] == [0]
     assert entry["identical"] is True and entry["differences"] == []
     assert entry["commit"] and entry["settings"]["env"] == "mujoban/level1"
     assert len(entry["rows"]) == 1 and entry["rows"][0]["episode"] == 0
     assert "commit" in report["provenance"]
 
     # The same file with its first row's steps changed: reported, exit status 1.
-    summary = json.loads((ROOT / "results/agent/mujoban_level1.json").read_text())
+    summary = json.loads((ROOT / "results/agent_original_physics/mujoban_level1.json").read_text())
     steps = summary["rows"][0]["steps"]
     summary["rows"][0]["steps"] = steps + 5
     changed = tmp_path / "changed.json"

@@ -132,7 +132,9 @@ def series_key(trainer: str, env: str, table: dict, seed: int, env_options=None)
     The key holds the table as the spec gives it, not the trainer's
     defaults: a change of a default that changes what a table trains must
     bump `CACHE_VERSION` (or come as a new option or preset, as
-    ``--preset small-batches`` did), else old runs would stand for new ones."""
+    ``--preset small-batches`` did), else old runs would stand for new ones.
+    An environment's default needs neither: ``env_options`` name every
+    setting that deviates from the original's, defaults included."""
     inputs = {"trainer": trainer, "env": env, "table": table, "seed": seed}
     return job_key("series", {**inputs, **_with_env_options(env_options)})
 
@@ -146,11 +148,11 @@ def _with_env_options(deviations) -> dict:
 
 def env_overrides(inputs: dict) -> dict:
     """The `envs.load` overrides a job's ``inputs`` play their environment
-    with: the original implementation's settings (`envs.original_options`)
-    updated by the job's ``env_options`` (the deviations from them)."""
+    with: the original implementation's settings updated by the job's
+    ``env_options`` (the deviations from them; `envs.recorded_options`)."""
     import envs
 
-    return {**envs.original_options(inputs["env"]), **inputs.get("env_options", {})}
+    return envs.recorded_options(inputs["env"], inputs.get("env_options", {}))
 
 
 def plan(spec) -> list[Job]:
