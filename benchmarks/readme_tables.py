@@ -376,6 +376,23 @@ def original_speed(results: Path) -> list[str]:
     return lines
 
 
+@table("board-physics")
+def board_physics(results: Path) -> list[str]:
+    """The board games' raw physics under cheaper solver settings
+    (`benchmarks/board_physics.py`), as ratios to the compiled default."""
+    d = _load(results / "board_physics.json")
+    lines = [
+        "| environment | setting | mj_step/s (median) | x the default |",
+        "| --- | --- | --- | --- |",
+    ]
+    for r in d["rows"]:
+        lines.append(
+            f"| `{r['env']}` | {r['setting']} | {r['mj_steps_per_s']:,.0f} "
+            f"| {_span(r['x_default_rounds'], '{:.2f}')}x |"
+        )
+    return lines
+
+
 @table("physics-behaviour")
 def physics_behaviour(results: Path) -> list[str]:
     """Candidate physics settings: behaviour against the original's and speed beside it

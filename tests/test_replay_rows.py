@@ -83,13 +83,17 @@ def test_the_script_replays_one_committed_episode_identically(replay_rows, tmp_p
     # deviations from it: replayed on those settings (sleep=False), not today's default.
     out = tmp_path / "replay.json"
     status = replay_rows.main(
-        [str(ROOT / "results/agent_original_physics/mujoban_level1.json"), "--episodes", "1", "--json", str(out)]
+        [
+            str(ROOT / "results/agent_original_physics/mujoban_level1.json"),
+            *("--episodes", "1", "--json", str(out)),
+        ]
     )
     assert status == 0
     report = json.loads(out.read_text())
     assert report["identical"] is True and report["replayed"] == 1 and report["skipped"] == []
     (entry,) = report["files"]
-    assert entry["file"] == "results/agent_original_physics/mujoban_level1.json" and entry["episodes"] == [0]
+    assert entry["file"] == "results/agent_original_physics/mujoban_level1.json"
+    assert entry["episodes"] == [0]
     assert entry["identical"] is True and entry["differences"] == []
     assert entry["commit"] and entry["settings"]["env"] == "mujoban/level1"
     assert len(entry["rows"]) == 1 and entry["rows"][0]["episode"] == 0

@@ -79,10 +79,10 @@ TEXTURE_STYLE = "style_01"
 #: within 1% of the original's (`envs.mujoban.behaviour`). The original
 #: implementation does not (`ORIGINAL`).
 SLEEP = True
-#: MuJoCo's ``sleep_tolerance`` (m/s, rad/s) with sleeping on: a body slower than
-#: this may fall asleep. MuJoCo's 1e-3 lets a box fall asleep still creeping,
-#: and the walker's next push meets it off its line (the modular agent got
-#: stuck behind pegs 17x as often on Boxoban medium levels); 1e-4 does not.
+#: MuJoCo's ``sleep_tolerance`` with sleeping on: a body whose velocities stay
+#: below it (m/s, rad/s) may fall asleep. Ten times below MuJoCo's default, so
+#: that a box still creeping into its rest is not frozen short of it
+#: (docs/results/speed.md measures both).
 SLEEP_TOLERANCE = 1e-4
 #: The original implementation's values of the settings whose defaults here
 #: differ from them (`envs.original_options`).
