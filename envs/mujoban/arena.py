@@ -71,9 +71,6 @@ HEADLIGHT_DIFFUSE = 0.6
 #: floor textures of ``style_01`` (one of each drawn per episode).
 SKY_STYLE = "sky_03"
 TEXTURE_STYLE = "style_01"
-#: Multisampling of offscreen frames by default: MuJoCo's default, the
-#: original's (4 samples per pixel; with 0, object outlines move by up to a
-#: pixel).
 #: Whether MuJoCo sleeps resting bodies by default (simulated again when
 #: touched): 4-5x cheaper physics on Boxoban levels, the bodies' behaviour
 #: within 1% of the original's (`envs.mujoban.behaviour`). The original
@@ -87,6 +84,9 @@ SLEEP_TOLERANCE = 1e-4
 #: The original implementation's values of the settings whose defaults here
 #: differ from them (`envs.original_options`).
 ORIGINAL = {"sleep": False}
+#: Multisampling of offscreen frames by default: MuJoCo's default, the
+#: original's (4 samples per pixel; with 0, object outlines move by up to a
+#: pixel).
 MULTISAMPLES = 4
 
 
