@@ -96,8 +96,8 @@ def explicit_options(name: str, overrides: dict | None = None) -> dict[str, Any]
     that its record keeps its meaning when a default changes
     (`recorded_options` reads it back)."""
     entry = _entry(name)
-    params = inspect.signature(entry.factory).parameters
-    return {**{k: params[k].default for k in entry.original}, **(overrides or {})}
+    defaults = _defaults(entry)
+    return {**{k: defaults[k] for k in entry.original}, **(overrides or {})}
 
 
 def recorded_options(name: str, overrides: dict | None = None) -> dict[str, Any]:
@@ -125,8 +125,7 @@ def deviations(name: str, options: dict | None = None) -> dict[str, Any]:
     options = dict(options or {})
     check(name, **options)
     entry = _entry(name)
-    params = inspect.signature(entry.factory).parameters
-    defaults = {k: p.default for k, p in params.items() if p.default is not p.empty}
+    defaults = _defaults(entry)
     reference = {**defaults, **entry.original}
     chosen = {**{k: defaults[k] for k in entry.original}, **_cameras_off(options)}
     out = {}
@@ -135,6 +134,12 @@ def deviations(name: str, options: dict | None = None) -> dict[str, Any]:
         if key not in reference or value != _plain(reference[key]):
             out[key] = value
     return out
+
+
+def _defaults(entry: EnvEntry) -> dict[str, Any]:
+    """The factory's keyword defaults of ``entry``."""
+    params = inspect.signature(entry.factory).parameters
+    return {k: p.default for k, p in params.items() if p.default is not p.empty}
 
 
 def _plain(value):
