@@ -1,7 +1,7 @@
 """Environment inputs of the command lines, checked without building anything
 (`envs.check`): `environment` (a registered name, with a close-match hint),
 `env_options` (``--env-option KEY=VALUE`` items, the flag added by
-`add_env_option`) and `levels_file`
+`add_env_option`), `checked_options` (overrides from any other source) and `levels_file`
 (``--levels``: a Boxoban file that exists and parses). Each raises
 `physics_planning.cli.UsageError`; the rest of the command-line conventions
 live in `physics_planning.cli`.
@@ -15,7 +15,7 @@ from typing import Callable, Iterable
 
 from physics_planning.cli import UsageError, close_hint
 
-__all__ = ["add_env_option", "env_options", "environment", "levels_file"]
+__all__ = ["add_env_option", "checked_options", "env_options", "environment", "levels_file"]
 
 
 def environment(name: str, allowed: Iterable[str] | None = None) -> str:
@@ -29,6 +29,19 @@ def environment(name: str, allowed: Iterable[str] | None = None) -> str:
             f"unknown environment {name!r}{close_hint(name, allowed)}; valid: {', '.join(allowed)}"
         )
     return name
+
+
+def checked_options(env_name: str, options: dict, where: str) -> dict:
+    """``options`` if ``env_name`` accepts them as `envs.load` overrides
+    (`envs.check`, nothing built), else `UsageError` prefixed by ``where``
+    (the flag or spec key they came from)."""
+    import envs
+
+    try:
+        envs.check(env_name, **options)
+    except (TypeError, ValueError) as exc:
+        raise UsageError(f"{where}: {exc}") from None
+    return options
 
 
 def add_env_option(parser, example: str = "time_limit=5", applies: str = "") -> None:
@@ -83,11 +96,7 @@ def env_options(
             options[key] = ast.literal_eval(text)
         except (ValueError, SyntaxError):
             options[key] = text
-    try:
-        envs.check(env_name, **options)
-    except (TypeError, ValueError) as exc:
-        raise UsageError(f"{flag}: {exc}") from None
-    return options
+    return checked_options(env_name, options, flag)
 
 
 def levels_file(env_name: str, path: str | os.PathLike, flag: str = "--levels") -> str:

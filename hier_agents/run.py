@@ -75,7 +75,7 @@ import sys
 from tqdm import tqdm
 
 import envs
-
+from envs.cli import checked_options
 from hier_agents.agents import resolve
 from hier_agents.agents.runner import Play, profile_summary
 from hier_agents.modular.agent import OptionStats
@@ -91,7 +91,6 @@ from hier_agents.run_cli import (
 )
 from hier_agents.run_report import format_table, postfix, summarize  # noqa: F401
 from physics_planning import cli
-from physics_planning.cli import UsageError
 
 
 def run(
@@ -211,15 +210,15 @@ def _play(
         raise ValueError(
             "--video is written by the process that plays the first episode: not with --ray-address"
         )
-    try:
-        envs.check(
-            env_name,
-            seed=seed,
+    checked_options(
+        env_name,
+        {
+            "seed": seed,
             **(env_options or {}),
             **({"levels": levels} if levels is not None else {}),
-        )
-    except (TypeError, ValueError) as exc:
-        raise UsageError(f"{env_name}: {exc}") from None
+        },
+        env_name,
+    )
     return Play(
         env_name,
         int(seed),

@@ -211,13 +211,10 @@ def _table(value, what: str, where: str) -> dict:
 
 def _env_options(options: dict, envs: tuple, at: str) -> dict:
     """``options`` checked as `envs.load` overrides of each of ``envs``."""
-    import envs as registry
+    from envs.cli import checked_options
 
     for env in envs:
-        try:
-            registry.check(env, **options)
-        except (TypeError, ValueError) as exc:
-            raise UsageError(f"{at}: env_options on {env}: {exc}") from None
+        checked_options(env, options, f"{at}: env_options on {env}")
     return options
 
 

@@ -169,13 +169,11 @@ class TrainConfig:
             (``env_overrides``) the environment refuses.
         """
         import envs
+        from envs.cli import checked_options
         from hier_agents.baselines.impala.agent_env import CONDITIONS
 
         choice("environment", self.env, envs.names())
-        try:
-            envs.check(self.env, **self.env_overrides)
-        except (TypeError, ValueError) as exc:
-            raise UsageError(f"env_options: {exc}") from None
+        checked_options(self.env, self.env_overrides, "env_options")
         choice("condition", self.condition, CONDITIONS)
         choice("backend", self.backend, ("local", "ray"))
         choice("optimizer", self.optimizer, OPTIMIZERS)

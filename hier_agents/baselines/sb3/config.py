@@ -194,6 +194,7 @@ class Sb3Config:
     def _check_env_options(self) -> None:
         """Fills the per-``obs`` camera defaults and checks the options (`envs.check`)."""
         import envs
+        from envs.cli import checked_options
 
         defaults: dict = {}
         if self.obs == "state":
@@ -202,11 +203,9 @@ class Sb3Config:
             from hier_agents.baselines.impala.agent_env import main_camera_only
 
             defaults = dict(main_camera_only(self.env))
-        self.env_options = {**defaults, **self.env_options}
-        try:
-            envs.check(self.env, **self.env_options)
-        except (TypeError, ValueError) as exc:
-            raise UsageError(f"env_options: {exc}") from None
+        self.env_options = checked_options(
+            self.env, {**defaults, **self.env_options}, "env_options"
+        )
 
     def _check_budgets(self) -> None:
         """``frames`` is at least one collection; each ``save_at`` a reachable stop."""
