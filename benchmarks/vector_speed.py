@@ -5,6 +5,10 @@ For each environment (cameras off, ``obs="state"``) this measures the
 control steps per second summed over all environments of
 
 * ``single``: one `envs.GymnasiumEnv` stepped in this process;
+* ``processes``: N processes (``--processes``), each stepping its own
+  environment as ``single`` does, all at once, nothing exchanged: what N
+  cores give N independent environments on this machine, the ceiling of
+  any way of spreading environments over them;
 * ``async``: gymnasium's ``AsyncVectorEnv`` of N processes (``--async``);
 * ``sync``: gymnasium's ``SyncVectorEnv`` of N (``--sync``), one after another;
 * ``batched``: `envs.vector.BatchedVectorEnv` of N (``--sizes``) with each
@@ -21,7 +25,8 @@ quotient of the two's ratios to ``single``. A row reports the medians over
 ``--rounds`` rounds (``single``: over all its measurements).
 
     python benchmarks/vector_speed.py [--json PATH] [--envs NAME ...] [--sizes N ...]
-        [--threads T ...] [--async N ...] [--sync N ...] [--seconds S] [--rounds R]
+        [--threads T ...] [--processes N ...] [--async N ...] [--sync N ...]
+        [--seconds S] [--rounds R]
         [--seed SEED]
 
 Prints a table and, with --json, writes ``{"provenance": {...}, "rows": [...]}``;
@@ -69,6 +74,51 @@ class _Single:
         return out
 
 
+def _process_worker(name: str, options: dict, conn, barrier) -> None:
+    """A `_Processes` worker: builds its environment, then for each
+    ``(actions, seconds)`` received sends back `_rate` of it, started with
+    the others (``barrier``); None stops it."""
+    env = _Single(GymnasiumEnv(name, **options))
+    try:
+        while (message := conn.recv()) is not None:
+            actions, seconds = message
+            barrier.wait()
+            conn.send(_rate(env, actions, seconds))
+    finally:
+        env.env.close()
+
+
+class _Processes:
+    """``num_envs`` processes, each stepping its own environment; `rate` is
+    their summed steps/s, all stepping at once."""
+
+    def __init__(self, name: str, options: dict, num_envs: int):
+        import multiprocessing as mp
+
+        self.num_envs = num_envs
+        # Kept: freed here, its shared memory could be reused under the workers.
+        self._barrier = barrier = mp.Barrier(num_envs)
+        self._conns, self._procs = [], []
+        for _ in range(num_envs):
+            mine, theirs = mp.Pipe()
+            proc = mp.Process(target=_process_worker, args=(name, options, theirs, barrier))
+            proc.start()
+            self._conns.append(mine)
+            self._procs.append(proc)
+
+    def rate(self, actions: np.ndarray, seconds: float) -> float:
+        """Summed steps/s; process i steps column i of ``actions`` (steps, N, A)."""
+        for i, conn in enumerate(self._conns):
+            conn.send((actions[:, i : i + 1], seconds))
+        return float(sum(conn.recv() for conn in self._conns))
+
+    def close(self) -> None:
+        for conn in self._conns:
+            conn.send(None)
+        for proc in self._procs:
+            proc.join()
+
+
 def _actions(rng: np.random.Generator, n: int, dim: int, steps: int = 400) -> np.ndarray:
     """(steps, n, dim) float32 actions in [-1, 1], each held `HOLD` steps."""
     held = rng.uniform(-1, 1, size=(steps // HOLD + 1, n, dim)).astype(np.float32)
@@ -78,6 +128,8 @@ def _actions(rng: np.random.Generator, n: int, dim: int, steps: int = 400) -> np
 def _rate(setup, actions: np.ndarray, seconds: float) -> float:
     """Control steps per second (all environments) of ``setup`` stepping
     ``actions`` (cycled) for ``seconds``, after a reset and a warm-up step."""
+    if isinstance(setup, _Processes):
+        return setup.rate(actions, seconds)
     setup.reset(seed=0)
     setup.step(actions[0])
     steps, start = 0, time.perf_counter()
@@ -91,14 +143,16 @@ def _rate(setup, actions: np.ndarray, seconds: float) -> float:
 
 def _setups(name: str, args) -> tuple[dict, list]:
     """``{(setup, num_envs, threads): vector env}`` for ``name`` (the
-    processes of ``async`` forked first, before any thread starts) and
-    everything to close."""
+    processes of ``processes`` and ``async`` forked first, before any thread
+    starts) and everything to close."""
     options = {"obs": "state", **envs.no_cameras(name)}
 
     def thunk():
         return GymnasiumEnv(name, **options)
 
     setups: dict = {}
+    for n in args.process_counts:
+        setups[("processes", n, None)] = _Processes(name, options, n)
     for n in args.async_sizes:
         setups[("async", n, None)] = gymnasium.vector.AsyncVectorEnv([thunk] * n)
     built = [thunk() for _ in range(max([1, *args.sizes, *args.sync_sizes]))]
@@ -111,7 +165,7 @@ def _setups(name: str, args) -> tuple[dict, list]:
     for n in args.sizes:
         for threads in args.threads:
             setups[("batched", n, threads)] = BatchedVectorEnv(built[:n], threads=threads)
-    order = ["single", "async", "sync", "batched"]
+    order = ["single", "processes", "async", "sync", "batched"]
     setups = dict(sorted(setups.items(), key=lambda kv: order.index(kv[0][0])))
     closers = [s for key, s in setups.items() if key[0] != "single"] + built
     return setups, closers
@@ -174,7 +228,7 @@ def _row(name: str, key: tuple, rates: list[float], x_single: dict) -> dict:
 
 def _print_header() -> None:
     header = (
-        f"{'env':<16} {'setup':<8} {'N':>3} {'threads':>7} {'steps/s':>9} "
+        f"{'env':<16} {'setup':<9} {'N':>3} {'threads':>7} {'steps/s':>9} "
         f"{'x single':>8} {'x async2':>8}"
     )
     print(header)
@@ -185,7 +239,7 @@ def _print_row(row: dict) -> None:
     threads = "" if row["threads"] is None else row["threads"]
     x_async = "" if row["x_async2"] is None else f"{row['x_async2']:.2f}"
     print(
-        f"{row['env']:<16} {row['setup']:<8} {row['num_envs']:>3} {threads:>7} "
+        f"{row['env']:<16} {row['setup']:<9} {row['num_envs']:>3} {threads:>7} "
         f"{row['steps_per_s']:>9.1f} {row['x_single']:>8.2f} {x_async:>8}",
         flush=True,
     )
@@ -204,6 +258,13 @@ def _main(argv=None) -> int:
     counts = {"type": cli.positive_int, "nargs": "+", "metavar": "N"}
     parser.add_argument("--sizes", default=[1, 2, 4, 8, 16, 32], help="batched N", **counts)
     parser.add_argument("--threads", default=[1, 2], help="batched threads", **counts)
+    parser.add_argument(
+        "--processes",
+        dest="process_counts",
+        default=[2],
+        help="independent environment processes at once",
+        **counts,
+    )
     parser.add_argument(
         "--async", dest="async_sizes", default=[2, 16], help="AsyncVectorEnv N", **counts
     )

@@ -27,7 +27,7 @@ agent's ``--action-repeat 4`` does.
 
 Vector environments: ``gymnasium.make_vec(name, num_envs=N, obs=...)`` builds
 an `envs.vector.BatchedVectorEnv`, which steps the N environments' physics in
-parallel threads (`envs.vector.make_sb3`: the same for Stable-Baselines3).
+parallel threads (`envs.vector_sb3.make_sb3`: the same for Stable-Baselines3).
 ``gymnasium.vector.SyncVectorEnv`` and
 ``AsyncVectorEnv`` take ``lambda: gymnasium.make(name, ...)`` thunks. The
 environments are built with lazy cameras, so no OpenGL context exists before

@@ -13,10 +13,8 @@ or ``"async"`` still gives gymnasium's own vector environments).
 * `BatchedVectorEnv` (`make`): a ``gymnasium.vector.VectorEnv`` of N
   `envs.GymnasiumEnv` s of one name: their observation choice (``obs=``,
   `envs.gymnasium_env.OBSERVATIONS`), spaces (batched) and ``info`` keys.
-* ``Sb3VecEnv`` (`make_sb3`): the same batch as a Stable-Baselines3 ``VecEnv``
-  (same-step resets, ``info["terminal_observation"]``,
-  ``info["TimeLimit.truncated"]``, seeds from ``VecEnv.seed``); SB3 and
-  torch are imported when it is first used, not with this module.
+* `envs.vector_sb3` (``make_sb3``): the same batch as a Stable-Baselines3
+  ``VecEnv``, in its own module so that this one does not import SB3 and torch.
 
 How a batch steps. `envs.core.Environment` runs a control step in three
 parts, ``_begin_step`` (the action to the task), ``_advance`` (one
@@ -71,12 +69,11 @@ first, so no thread still runs.
 
 from __future__ import annotations
 
-import functools
 import itertools
 import numbers
 import os
 from concurrent.futures import ThreadPoolExecutor, wait
-from typing import TYPE_CHECKING, Any, Sequence
+from typing import Any, Sequence
 
 import gymnasium
 import numpy as np
@@ -87,12 +84,7 @@ from envs.core import Environment
 from envs.gymnasium_env import GymnasiumEnv, HeldSteps
 from envs.profile import PROFILE
 
-if TYPE_CHECKING:
-    from stable_baselines3.common.vec_env import VecEnv as _VecEnvBase
-else:
-    _VecEnvBase = object  # Stable-Baselines3 (and torch) load when the adapter is first used
-
-__all__ = ["BatchedVectorEnv", "PhysicsPool", "make", "make_sb3"]  # and Sb3VecEnv (`_sb3_class`)
+__all__ = ["BatchedVectorEnv", "PhysicsPool", "make"]
 
 
 def _count(name: str, value: Any) -> int:
@@ -488,125 +480,3 @@ def make(
     return BatchedVectorEnv(
         built, threads=threads, action_repeat=action_repeat, autoreset_mode=autoreset_mode
     )
-
-
-class _Sb3Adapter(_VecEnvBase):
-    """Stable-Baselines3's ``VecEnv`` over a batch of `GymnasiumEnv` s (the
-    module's docstring: threads, action repeat), in SB3's conventions: an
-    ended episode resets in the same step, its last observation in
-    ``info["terminal_observation"]``; ``dones`` is terminated or truncated,
-    ``info["TimeLimit.truncated"]`` truncated and not terminated; rewards
-    float32; ``seed(s)`` (SB3 calls it with the model's seed) reseeds
-    environment i with ``s + i`` at the next `reset`, as SB3's ``DummyVecEnv``.
-
-    Args:
-      envs, threads, action_repeat: as `BatchedVectorEnv`.
-
-    ``Sb3VecEnv`` is this class with SB3's ``VecEnv`` as base, made when
-    first used (`make_sb3`, ``envs.vector.Sb3VecEnv``), so that gymnasium's
-    users do not load SB3 and torch.
-    """
-
-    def __init__(
-        self, envs: Sequence[GymnasiumEnv], *, threads: int | None = None, action_repeat: int = 1
-    ):
-        self._batch = _Batch(envs, threads, action_repeat)
-        self.envs = self._batch.envs
-        first = self.envs[0]
-        super().__init__(len(self.envs), first.observation_space, first.action_space)
-        self._actions: np.ndarray | None = None
-
-    def reset(self) -> Any:
-        """First observations of new episodes (seeds and options of
-        ``seed``/``set_options`` apply once)."""
-        results = []
-        for i, env in enumerate(self.envs):
-            options = self._options[i] or None
-            results.append(env.reset(seed=self._seeds[i], options=options))
-        self._reset_seeds()
-        self._reset_options()
-        self.reset_infos = [info for _, info in results]
-        return self._stack([observation for observation, _ in results])
-
-    def step_async(self, actions: np.ndarray) -> None:
-        self._actions = self._batch.check_actions(actions)
-
-    def step_wait(self) -> tuple:
-        if self._actions is None:
-            raise RuntimeError("step_wait() without step_async()")
-        actions, self._actions = self._actions, None
-        results = self._batch.step(actions, range(self.num_envs))
-        observations, infos = [], []
-        dones = np.zeros(self.num_envs, dtype=bool)
-        rewards = np.zeros(self.num_envs, dtype=np.float32)
-        for i, (observation, reward, terminated, truncated, info) in enumerate(results):
-            info = {**info, "TimeLimit.truncated": bool(truncated and not terminated)}
-            rewards[i], dones[i] = reward, terminated or truncated
-            if dones[i]:
-                info["terminal_observation"] = observation
-                observation, self.reset_infos[i] = self.envs[i].reset()
-            observations.append(observation)
-            infos.append(info)
-        return self._stack(observations), rewards, dones, infos
-
-    def _stack(self, observations: list):
-        return _stack(self.envs[0].observation_space, observations)
-
-    def close(self) -> None:
-        self._batch.close()
-
-    def get_images(self) -> Sequence[np.ndarray | None]:
-        return [env.render() for env in self.envs]
-
-    def get_attr(self, attr_name: str, indices=None) -> list[Any]:
-        return [self.envs[i].get_wrapper_attr(attr_name) for i in self._get_indices(indices)]
-
-    def set_attr(self, attr_name: str, value: Any, indices=None) -> None:
-        for i in self._get_indices(indices):
-            setattr(self.envs[i], attr_name, value)
-
-    def env_method(self, method_name: str, *method_args, indices=None, **method_kwargs):
-        return [
-            self.envs[i].get_wrapper_attr(method_name)(*method_args, **method_kwargs)
-            for i in self._get_indices(indices)
-        ]
-
-    def env_is_wrapped(self, wrapper_class: type[gymnasium.Wrapper], indices=None) -> list[bool]:
-        from stable_baselines3.common.env_util import is_wrapped
-
-        return [is_wrapped(self.envs[i], wrapper_class) for i in self._get_indices(indices)]
-
-
-def make_sb3(
-    env_name: str,
-    num_envs: int = 1,
-    *,
-    obs: str = "sensors",
-    seed: int | None = None,
-    threads: int | None = None,
-    action_repeat: int = 1,
-    render_mode: str | None = None,
-    **overrides,
-) -> _Sb3Adapter:
-    """An ``Sb3VecEnv`` of ``num_envs`` environments ``env_name``; the arguments
-    and errors of `make` (``seed``: environment i's first episode, unless
-    SB3's ``VecEnv.seed`` reseeds before the first reset)."""
-    _count("threads", 1 if threads is None else threads)
-    _count("action_repeat", action_repeat)
-    built = _build(env_name, num_envs, obs, seed, render_mode, overrides)
-    return _sb3_class()(built, threads=threads, action_repeat=action_repeat)
-
-
-@functools.cache
-def _sb3_class() -> type[_Sb3Adapter]:
-    """``Sb3VecEnv``: `_Sb3Adapter` on Stable-Baselines3's ``VecEnv``."""
-    from stable_baselines3.common.vec_env import VecEnv
-
-    namespace = {"__doc__": _Sb3Adapter.__doc__, "__module__": __name__}
-    return type("Sb3VecEnv", (_Sb3Adapter, VecEnv), namespace)
-
-
-def __getattr__(name: str) -> Any:
-    if name == "Sb3VecEnv":
-        return _sb3_class()
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -18,7 +18,8 @@ from gymnasium.vector import AutoresetMode, SyncVectorEnv
 
 from envs import GymnasiumEnv
 from envs.gymnasium_env import ActionRepeat
-from envs.vector import BatchedVectorEnv, Sb3VecEnv, make, make_sb3
+from envs.vector import BatchedVectorEnv, make
+from envs.vector_sb3 import Sb3VecEnv, make_sb3
 
 ROOT = Path(__file__).resolve().parents[1]
 ENV = "mujoban/level1"
@@ -342,7 +343,8 @@ def test_bad_actions_fail_clearly_and_step_nothing():
 @pytest.mark.slow
 def test_the_vector_speed_benchmark_measures_every_setup_in_rounds(tmp_path):
     out = tmp_path / "rows.json"
-    sizes = ["--sizes", "1", "2", "--threads", "1", "2", "--async", "2", "--sync", "2"]
+    sizes = ["--sizes", "1", "2", "--threads", "1", "2", "--processes", "2"]
+    sizes += ["--async", "2", "--sync", "2"]
     subprocess.run(
         [sys.executable, "benchmarks/vector_speed.py", "--envs", ENV, *sizes]
         + ["--seconds", "0.05", "--rounds", "2", "--json", str(out)],
@@ -356,6 +358,7 @@ def test_the_vector_speed_benchmark_measures_every_setup_in_rounds(tmp_path):
     rows = {(r["setup"], r["num_envs"], r["threads"]): r for r in result["rows"]}
     assert list(rows) == [
         ("single", 1, None),
+        ("processes", 2, None),
         ("async", 2, None),
         ("sync", 2, None),
         ("batched", 1, 1),
