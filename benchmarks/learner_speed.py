@@ -3,13 +3,16 @@
     python benchmarks/learner_speed.py [--env mujoban/level1] [--condition expert-planner]
                                       [--frames 200000] [--actors 2] [--envs-per-actor 32]
                                       [--env-threads T] [--batch-size N] [--backend local|ray]
-                                      [--json PATH]
+                                      [--train-option KEY=VALUE ...] [--json PATH]
 
 1. **Bare environment**: ``envs.load(ENV)`` with the run's cameras (off by
    default), uniform random actions, one process: control steps per second
    (the best of three runs).
 2. **Actor-learner**: `hier_agents.baselines.impala.learner.train` for ``--frames``
-   environment frames into a temporary log directory; its throughput is the
+   environment frames into a temporary log directory (any other training
+   option with ``--train-option KEY=VALUE``: a `TrainConfig.from_options`
+   key, e.g. ``action_repeat=4`` or ``preset="small-batches"``, VALUE a
+   Python literal); its throughput is the
    frames the learner consumed per wall-clock second between its first and
    last log lines (start-up -- process spawn, imports -- excluded), as
    written in ``scalars.jsonl``.
@@ -36,6 +39,7 @@ Prints a table and, with ``--json``, writes {"env", "agent",
 
 from __future__ import annotations
 
+import ast
 import json
 import sys
 import tempfile
@@ -136,27 +140,54 @@ def batched_env_steps_per_s(
         vec.close()
 
 
+def train_options(items: list[str]) -> dict:
+    """``--train-option KEY=VALUE`` items as `TrainConfig.from_options`
+    options (VALUE a Python literal, else the text); `UsageError` for a
+    malformed item or an unknown key, with the closest one."""
+    from hier_agents.baselines.impala.config import OPTIONS
+
+    options = {}
+    for item in items:
+        key, sep, text = item.partition("=")
+        if not sep:
+            raise cli.UsageError(f"--train-option must be KEY=VALUE, got {item!r}")
+        cli.choice("--train-option key", key, OPTIONS)
+        try:
+            options[key] = ast.literal_eval(text)
+        except (ValueError, SyntaxError):
+            options[key] = text
+    return options
+
+
+def learner_config(args, logdir: str):
+    """The checked `TrainConfig` of the run (`UsageError` for what it refuses)."""
+    from hier_agents.baselines.impala.learner import TrainConfig
+
+    options = {
+        "condition": args.condition,
+        "frames": args.frames,
+        "actors": args.actors,
+        "envs_per_actor": args.envs_per_actor,
+        "env_threads": args.env_threads,
+        "backend": args.backend,
+        "batch_size": args.batch_size,
+        "observations": "cameras" if args.cameras else "proprio",
+        "state": args.state,
+        "seed": args.seed,
+        **args.train_options,
+        "logdir": logdir,
+        "log_every": 2.0,
+        "checkpoint_every": 1e9,
+        "no_progress": True,
+    }
+    return TrainConfig.from_options(args.env, options)
+
+
 def learner_frames_per_s(args) -> dict:
-    from hier_agents.baselines.impala.learner import TrainConfig, train
+    from hier_agents.baselines.impala.learner import train
 
     with tempfile.TemporaryDirectory() as logdir:
-        config = TrainConfig(
-            env=args.env,
-            condition=args.condition,
-            steps=args.frames,
-            actors=args.actors,
-            envs_per_actor=args.envs_per_actor,
-            env_threads=args.env_threads,
-            backend=args.backend,
-            logdir=logdir,
-            batch_size=args.batch_size,
-            cameras=args.cameras,
-            state=args.state,
-            seed=args.seed,
-            log_every_s=2.0,
-            checkpoint_every_s=1e9,
-            progress=False,
-        )
+        config = learner_config(args, logdir)
         start = time.perf_counter()
         counters = train(config)
         total_s = time.perf_counter() - start
@@ -213,8 +244,18 @@ def _main(argv=None) -> int:
         help="control steps of the bare-environment measurement",
     )
     parser.add_argument("--seed", type=cli.non_negative_int, default=0)
+    parser.add_argument(
+        "--train-option",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="any other training option (a TrainConfig.from_options key, VALUE a Python "
+        "literal; repeatable), e.g. action_repeat=4",
+    )
     parser.add_argument("--json", type=Path, help="write the row here")
     args = parser.parse_args(argv)
+    args.train_options = train_options(args.train_option)
+    learner_config(args, tempfile.gettempdir())  # refused here, before anything is measured
     env_cli.environment(args.env)
     cli.choice("condition", args.condition, CONDITIONS)
     cli.choice("backend", args.backend, ("local", "ray"))
@@ -258,6 +299,7 @@ def _main(argv=None) -> int:
         "envs_per_actor": args.envs_per_actor,
         "env_threads": args.env_threads,
         "backend": args.backend,
+        "train_options": args.train_options,
         "env_steps_per_s": bare,
         **learner,
         "ratio": learner["learner_frames_per_s"] / bare,

@@ -437,6 +437,7 @@ def vector_speed(results: Path) -> list[str]:
     ]
     names = {
         "single": "one environment",
+        "processes": "independent processes at once (the cores' ceiling)",
         "async": "gymnasium `AsyncVectorEnv` (a process each)",
         "sync": "gymnasium `SyncVectorEnv`",
         "batched": "`envs.vector` (batched)",
@@ -472,6 +473,10 @@ def learner_speed(results: Path) -> list[str]:
         state = ", abstract state (privileged)" if s.get("state") else ""
         threads = s.get("env_threads", 1)
         on = f", physics on {threads} threads" if threads > 1 else ""
+        options = "".join(
+            f", {key.replace('_', ' ')} {value}"
+            for key, value in s.get("train_options", {}).items()
+        )
         batched = (
             ("-", "-")
             if s.get("batched_env_steps_per_s") is None
@@ -485,7 +490,8 @@ def learner_speed(results: Path) -> list[str]:
         to_parallel = to_parallel if threads > 1 else f"**{to_parallel}**"
         lines.append(
             f"| `{s['env']}` {s['agent']}, cameras {'on' if s['cameras'] else 'off'}"
-            f"{state}, {procs} actors x {s['envs_per_actor']} envs{on} ({s['backend']}) "
+            f"{state}{options}, {procs} actors x {s['envs_per_actor']} envs{on} "
+            f"({s['backend']}) "
             f"| {s['learner_frames_per_s']:,.0f} | {words}: "
             f"{s['parallel_env_steps_per_s']:,.0f} steps/s "
             f"| {to_parallel} "
@@ -501,6 +507,8 @@ LEARNER_SPEED_FILES = (
     "learner_speed_state.json",
     "learner_speed_state_2x32.json",
     "learner_speed_state_threads.json",
+    "learner_speed_comparison_row.json",
+    "learner_speed_comparison_row_threads.json",
 )
 
 

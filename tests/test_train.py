@@ -533,6 +533,8 @@ def test_learner_speed_benchmark_writes_its_row(tmp_path):
             "2",
             "--batch-size",
             "2",
+            "--train-option",
+            "action_repeat=2",
             "--bare-steps",
             "200",
             "--json",
@@ -544,7 +546,9 @@ def test_learner_speed_benchmark_writes_its_row(tmp_path):
     )
     row = json.loads(out.read_text())
     assert row["env"] == "mujoban/level1" and row["actors"] == 1
-    assert row["frames"] >= 10000 and row["updates"] == row["frames"] // 200
+    assert row["train_options"] == {"action_repeat": 2}
+    # An update is 2 unrolls of 100 agent steps, each holding its action 2 control steps.
+    assert row["frames"] >= 10000 and row["updates"] == row["frames"] // 400
     for key in ("learner_frames_per_s", "env_steps_per_s", "parallel_env_steps_per_s"):
         assert row[key] > 0, key
     assert row["ratio"] == pytest.approx(row["learner_frames_per_s"] / row["env_steps_per_s"])
