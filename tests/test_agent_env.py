@@ -348,6 +348,45 @@ def test_same_seed_same_observations():
             assert np.array_equal(x[k], y[k])
 
 
+def test_a_held_action_renders_one_frame_and_sees_what_rendering_every_step_sees(monkeypatch):
+    """Camera frames render only when the agent reads them (``lazy_cameras``,
+    `AgentEnv`'s default): with each action held 3 control steps, one frame
+    per agent step, and the same observations as rendering at every step."""
+    from envs.core import Environment
+
+    renders = {"count": 0}
+    original = Environment._render_camera
+
+    def counted(self, name, stamp):
+        renders["count"] += 1
+        return original(self, name, stamp)
+
+    monkeypatch.setattr(Environment, "_render_camera", counted)
+
+    def run(**overrides):
+        rng = np.random.default_rng(2)
+        with AgentEnv(
+            "mujoban/level1",
+            "vanilla",
+            seed=4,
+            image_size=16,
+            action_repeat=3,
+            **{"egocentric_camera": None, **overrides},
+        ) as env:
+            out = [env.reset()]
+            out += [env.step(rng.uniform(-1, 1, 2)).obs for _ in range(6)]
+        return out
+
+    lazy = run()
+    assert renders["count"] == 7  # the first observation and one per agent step
+    eager = run(lazy_cameras=False)
+    assert renders["count"] == 7  # rendered as each step's observation was built instead
+    for x, y in zip(lazy, eager, strict=True):
+        assert x.keys() == y.keys() and "top_camera" in x
+        for k in x:
+            assert np.array_equal(x[k], y[k]), k
+
+
 def test_unknown_condition_or_family_raises_value_error():
     with pytest.raises(ValueError, match="expert-planner") as error:
         AgentEnv("mujoban/level1", "oracle")

@@ -84,15 +84,18 @@ def _gamma(value, default: float, name: str) -> float:
 
 def _load_env(env_name: str, seed, image_size: int, cameras: bool, overrides: dict):
     """``envs.load(env_name)`` with every camera at ``image_size`` squared (or
-    off without ``cameras``) and physics errors not raised, unless
-    ``overrides`` say otherwise. KeyError for an unknown name."""
+    off without ``cameras``), frames rendered only when read (``lazy_cameras``:
+    an action held for several control steps renders one frame, not one per
+    step) and physics errors not raised, unless ``overrides`` say otherwise.
+    KeyError for an unknown name."""
     valid = envs.overrides(env_name)  # KeyError for an unknown name
     kwargs = dict(overrides)
     for name in valid:
         if name.endswith("_camera"):
             kwargs.setdefault(name, (int(image_size), int(image_size)) if cameras else None)
-    if "raise_on_physics_error" in valid:
-        kwargs.setdefault("raise_on_physics_error", False)
+    for name, value in (("raise_on_physics_error", False), ("lazy_cameras", True)):
+        if name in valid:
+            kwargs.setdefault(name, value)
     return envs.load(env_name, seed=seed, **kwargs)
 
 
