@@ -647,6 +647,39 @@ def test_a_training_with_its_kept_checkpoints_is_done_without_its_record(tmp_pat
     assert "4.00" in (spec.cache / "comparison.txt").read_text()
 
 
+def test_agent_narrows_the_run_to_one_agent_and_the_report_keeps_the_rest(
+    tmp_path, monkeypatch, capsys
+):
+    """--agent LABEL runs that agent's jobs alone (its training, then its
+    evaluations), --reevaluate with it re-runs only its evaluations, and the
+    outputs still report every agent the cache holds; an unknown label is a
+    one-line usage error naming the closest."""
+    import json
+
+    from hier_agents.compare.__main__ import main
+
+    path = e2e_spec(tmp_path)
+    spec = load(path)
+    planned = jobs_mod.plan(spec)
+    ran: list = []
+    monkeypatch.setattr("hier_agents.compare.backends.job_process", _fake_job(planned, ran))
+    modular = [j for j in planned if j.point["agent"] == "modular"]
+    _fake_records(spec.cache, planned, modular)
+    e2e = [j for j in planned if j.point["agent"] == "e2e"]
+    assert main([str(path), "--quiet", "--cpus", "1", "--agent", "e2e"]) == 0
+    assert sorted(j.key for j in ran) == sorted(j.key for j in e2e)
+    content = json.loads((spec.cache / "comparison.json").read_text())
+    assert {p["agent"] for p in content["points"]} == {"modular", "e2e"}
+    assert content["jobs_missing"] == len(planned) - len(modular) - len(e2e)  # random 10's
+    ran.clear()
+    assert main([str(path), "--quiet", "--cpus", "1", "--agent", "modular", "--reevaluate"]) == 0
+    assert sorted(j.key for j in ran) == sorted(j.key for j in modular)
+    with pytest.raises(SystemExit) as stop:
+        main([str(path), "--agent", "e2f"])
+    assert stop.value.code == 2
+    assert "unknown --agent 'e2f' (did you mean 'e2e'?)" in capsys.readouterr().err
+
+
 def test_an_evaluation_runs_once_its_checkpoint_is_on_disk(tmp_path, monkeypatch):
     """Budget 200's checkpoint is there (an earlier, shorter run), 400's is
     not, and the training fails: the evaluations at 200 run, those at 400

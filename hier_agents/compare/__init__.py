@@ -3,6 +3,7 @@
     python -m hier_agents.compare experiments/mujoban.toml            # local pool
     python -m hier_agents.compare experiments/mujoban.toml --plan     # the jobs, nothing run
     python -m hier_agents.compare experiments/mujoban.toml --reevaluate   # every evaluation again
+    python -m hier_agents.compare experiments/mujoban.toml --agent "random, held 10" --reevaluate
     python -m hier_agents.compare experiments/mujoban.toml --backend ray --ray-address auto
 
 The spec (`hier_agents.compare.spec`) names environments, agents (modular

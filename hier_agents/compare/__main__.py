@@ -61,6 +61,16 @@ def build_parser() -> cli.Parser:
         "cached then fail)",
     )
     add(
+        "--agent",
+        dest="agents",
+        action="append",
+        default=None,
+        metavar="LABEL",
+        help="run only the jobs of the agent with this label in the spec (repeatable); "
+        "--plan, --retrain and --reevaluate then apply to it alone, and the outputs still "
+        "report every agent the cache holds",
+    )
+    add(
         "--retrain",
         action="store_true",
         help="train every series of the spec again from zero (its run directory is removed "
@@ -94,17 +104,18 @@ def _main(argv=None) -> int:
     spec = load(args.spec)
     cache = args.cache or spec.cache
     planned = jobs_mod.plan(spec)
+    selected = _selected(spec, planned, args.agents)
     if args.only is not None:
         cli.choice("--only", args.only, ("train", "eval"))
     if args.report_only and (args.retrain or args.reevaluate):
         raise cli.UsageError("--report-only runs nothing: drop --retrain and --reevaluate")
     if args.retrain and args.only == "eval":
         raise cli.UsageError("--retrain trains: it does not go with --only eval")
-    fresh = _fresh(planned, args)
+    fresh = _fresh(selected, args)
     if args.plan:
-        _print_plan(planned, cache, fresh)
+        _print_plan(selected, cache, fresh)
         return 0
-    failure = None if args.report_only else _run(planned, cache, args, fresh)
+    failure = None if args.report_only else _run(selected, cache, args, fresh)
     records = {j.key: r for j in planned if (r := jobs_mod.load_record(cache, j.key)) is not None}
     pts = report.points(spec, planned, records)
     costs = report.series_cost(spec, planned, records, jobs_mod.series_records(cache))
@@ -127,6 +138,19 @@ def _main(argv=None) -> int:
     if missing:
         print(f"{PROG}: {cli.plural(missing, 'job')} missing from the cache", file=sys.stderr)
     return 0
+
+
+def _selected(spec, planned, labels: list[str] | None) -> list:
+    """The jobs of the agents ``labels`` (``--agent``; None: every job).
+
+    Raises:
+      UsageError: a label no agent of the spec has, with the closest one.
+    """
+    if not labels:
+        return planned
+    for label in labels:
+        cli.choice("--agent", label, [agent.label for agent in spec.agents])
+    return [job for job in planned if job.point["agent"] in labels]
 
 
 def _fresh(planned, args) -> set[str]:
