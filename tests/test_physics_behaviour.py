@@ -8,6 +8,7 @@ import json
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from envs.mujoban import behaviour
@@ -93,3 +94,58 @@ def test_the_board_physics_benchmark_times_every_setting_against_the_default():
     assert [r["setting"] for r in rows] == list(board_physics.SETTINGS)
     assert rows[0]["x_default_rounds"] == [1.0, 1.0]
     assert all(r["mj_steps_per_s"] > 0 and len(r["x_default_rounds"]) == 2 for r in rows)
+
+
+def test_the_walker_rolls_from_rest_to_a_top_speed_and_an_obstacle_is_refused(tmp_path):
+    """`behaviour.roll_distances` on the corridor: non-decreasing distances,
+    a top speed reached (the last steps equal); in the small room of `LEVEL`
+    the walker meets a wall, which is refused, not measured."""
+    import envs
+
+    corridor = tmp_path / "corridor.txt"
+    corridor.write_text(behaviour.level_text(behaviour.CORRIDOR))
+    env = envs.load(
+        "mujoban/level1",
+        levels=str(corridor),
+        grid_shape=behaviour.CORRIDOR_SHAPE,
+        **envs.no_cameras("mujoban/level1"),
+    )
+    env.reset()
+    distances = behaviour.roll_distances(env.physics, 140, 50)
+    env.close()
+    steps = np.diff(distances)
+    assert (steps >= 0).all() and steps[-1] == pytest.approx(steps[-2], rel=1e-3)
+    assert 1.0 < steps[-1] / 0.05 < 20.0  # m/s
+    assert distances[-1] < 36.0  # it stayed in the corridor's open cells
+    room = tmp_path / "room.txt"
+    room.write_text(behaviour.level_text())
+    env = envs.load("mujoban/level1", levels=str(room), **envs.no_cameras("mujoban/level1"))
+    env.reset()
+    with pytest.raises(ValueError, match="met something"):
+        behaviour.roll_distances(env.physics, 60, 50)
+    env.close()
+
+
+@pytest.mark.slow
+def test_no_solved_level_beats_the_physical_limit_and_the_files_must_match(tmp_path):
+    """`benchmarks/physical_limit.py` on the committed hard-level files: its
+    lower bound holds for every level the agent solved, the levels pair by
+    position, and files of two level files are refused in one line."""
+    import subprocess
+
+    out = tmp_path / "limit.json"
+    command = [sys.executable, str(ROOT / "benchmarks" / "physical_limit.py")]
+    subprocess.run(
+        command + ["--json", str(out)], check=True, capture_output=True, cwd=ROOT, timeout=600
+    )
+    result = json.loads(out.read_text())
+    levels = result["levels"]
+    assert [x["position"] for x in levels] == list(range(200))
+    assert all(x["steps"] >= x["bound_steps"] for x in levels if x["solved"])
+    assert result["summary"]["solved"]["levels"] == sum(x["solved"] for x in levels)
+    assert result["limit"]["steps_first_cell"] > 1  # from rest, not at top speed
+    other = ROOT / "results" / "agent" / "boxoban_medium-valid-000_first100-pegs.json"
+    done = subprocess.run(
+        command + ["--rows", str(other)], capture_output=True, text=True, cwd=ROOT, timeout=600
+    )
+    assert done.returncode == 2 and "same level file" in done.stderr

@@ -20,6 +20,11 @@ metres:
   when a horizontal force of 10, 20 or 40 N pushes its centre for 0.5 s,
   after 0.5 s more at rest (the box's floor friction holds 12.3 N).
 
+`roll_distances` measures the walker's own limit on `CORRIDOR` (a straight
+open run of 36 cells, longer than any Boxoban level's, in a ``grid_shape``
+of `CORRIDOR_SHAPE`): the distance it covers from rest at full ``roll``
+after each control step, the fastest any path can be travelled.
+
 Each scenario starts from the state `measure` found (velocities zeroed, the
 walker settled for 0.2 s), so the scenarios do not disturb each other.
 Everything is stepped with ``mj_step`` at the model's own timestep; only
@@ -47,6 +52,17 @@ LEVEL = (
     "#        #",
     "##########",
 )
+#: A straight corridor: the walker at its west end, 36 open cells east of it
+#: (the box and pad at the far end only make the level valid).
+CORRIDOR = (
+    "#" * 40,
+    "#" + " " * 38 + "#",
+    "#@" + " " * 34 + ".$ #",
+    "#" + " " * 38 + "#",
+    "#" * 40,
+)
+#: The ``grid_shape`` an environment needs to hold `CORRIDOR`.
+CORRIDOR_SHAPE = (len(CORRIDOR), len(CORRIDOR[0]))
 #: What `measure` returns, in this order.
 QUANTITIES = (
     "roll_m",
@@ -65,9 +81,9 @@ _SETTLE_S = 0.2
 _PROBE_S = 0.1
 
 
-def level_text() -> str:
-    """`LEVEL` as a one-level Boxoban file's text."""
-    return "; 0\n" + "\n".join(LEVEL) + "\n"
+def level_text(level: tuple = LEVEL) -> str:
+    """``level`` (`LEVEL` or `CORRIDOR`) as a one-level Boxoban file's text."""
+    return "; 0\n" + "\n".join(level) + "\n"
 
 
 def within_tolerance(value: float, reference: float) -> bool:
@@ -151,6 +167,38 @@ def measure(physics) -> dict[str, float]:
         d.xfrc_applied[parts.box, 0] = 0.0
         _run(m, d, 0.5)
         out[f"slide_{newtons}N_m"] = _dist(a, box())
+    return out
+
+
+def roll_distances(physics, control_steps: int, substeps: int) -> np.ndarray:
+    """Metres the walker covers from rest at full ``roll``, heading east, after
+    each of ``control_steps`` control steps of ``substeps`` physics steps
+    (shape ``(control_steps,)``, non-decreasing). ``physics``: a dm_control
+    ``Physics`` just reset on `CORRIDOR`; its state is left changed.
+
+    Raises:
+      ValueError: the model lacks the walker's parts (the module docstring),
+        or the walker met something before the last step (its speed fell).
+    """
+    m, d = physics.model.ptr, physics.data.ptr
+    parts = _Parts(m)
+    d.qvel[:] = 0.0
+    d.ctrl[:] = 0.0
+    _run(m, d, _SETTLE_S)
+    size = mujoco.mj_stateSize(m, mujoco.mjtState.mjSTATE_INTEGRATION)
+    start = np.empty(size)
+    mujoco.mj_getState(m, d, start, mujoco.mjtState.mjSTATE_INTEGRATION)
+    _face(m, d, parts, 0.0, start)
+    d.ctrl[parts.roll_act] = 1.0
+    origin = d.qpos[parts.root].copy()
+    out = np.empty(control_steps)
+    for k in range(control_steps):
+        mujoco.mj_step(m, d, substeps)
+        out[k] = _dist(origin, d.qpos[parts.root])
+    d.ctrl[:] = 0.0
+    steps = np.diff(out, prepend=0.0)
+    if control_steps > 2 and steps[-1] < 0.9 * steps.max():
+        raise ValueError("the walker slowed down: it met something, the run is not free")
     return out
 
 
