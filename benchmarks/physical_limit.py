@@ -8,7 +8,8 @@
    (`envs.mujoban.behaviour.roll_distances`, the rows' environment settings,
    ``--limit-steps`` control steps; past them the walker is taken to hold its
    last step's speed, which it has reached by then: the last steps differ by
-   under 0.1%).
+   under 0.1%), and how many control steps a quarter turn of its heading
+   takes from rest at full ``steer`` (`envs.mujoban.behaviour.steer_angles`).
 2. **A lower bound per level**: the control steps the walker needs to roll
    the length of the level's plan (its walking and pushing moves, one cell
    each, from ``--plans``: `benchmarks/sokoban_solver.py`'s record of the
@@ -53,7 +54,8 @@ def walker_limit(env_name: str, env_options: dict, control_steps: int = LIMIT_ST
     """The walker of ``env_name`` (with ``env_options``) rolling from rest on
     `behaviour.CORRIDOR`: ``distances_m`` after each control step, the
     ``top_speed_mps`` (its last step's), ``steps_to_90pct`` of it,
-    ``steps_first_cell``, ``cell_m`` and ``control_timestep_s``."""
+    ``steps_first_cell``, ``steps_to_turn_90deg`` (its heading, from rest at
+    full ``steer``), ``cell_m`` and ``control_timestep_s``."""
     with tempfile.TemporaryDirectory() as folder:
         level = Path(folder) / "corridor.txt"
         level.write_text(behaviour.level_text(behaviour.CORRIDOR))
@@ -64,6 +66,8 @@ def walker_limit(env_name: str, env_options: dict, control_steps: int = LIMIT_ST
             dt = float(env.control_timestep)
             substeps = round(dt / float(env.physics.model.opt.timestep))
             distances = behaviour.roll_distances(env.physics, control_steps, substeps)
+            env.reset()
+            turned = behaviour.steer_angles(env.physics, control_steps, substeps)
             cell = float(env.task.cell_size)
         finally:
             env.close()
@@ -77,6 +81,7 @@ def walker_limit(env_name: str, env_options: dict, control_steps: int = LIMIT_ST
         "top_speed_mps": round(top, 4),
         "steps_to_90pct": int(np.argmax(speeds >= 0.9 * top)) + 1,
         "steps_first_cell": int(np.argmax(distances >= cell)) + 1,
+        "steps_to_turn_90deg": int(np.argmax(turned >= math.pi / 2)) + 1,
         "distances_m": [round(float(x), 5) for x in distances],
     }
 
@@ -178,7 +183,8 @@ def _main(argv=None) -> int:
         f"walker ({limit['env']}, {limit['control_timestep_s'] * 1000:.0f} ms control steps): "
         f"top speed {limit['top_speed_mps']:.2f} m/s ({per_step:.3f} cells a step), "
         f"90% of it after {limit['steps_to_90pct']} steps, the first cell after "
-        f"{limit['steps_first_cell']} steps"
+        f"{limit['steps_first_cell']} steps; a quarter turn from rest takes "
+        f"{limit['steps_to_turn_90deg']} steps"
     )
     header = ("levels", "n", "bound", "steps", "steps/bound", "estimate/bound")
     print("{:<8} {:>4} {:>7} {:>7} {:>11} {:>14}".format(*header))

@@ -98,8 +98,9 @@ def test_the_board_physics_benchmark_times_every_setting_against_the_default():
 
 def test_the_walker_rolls_from_rest_to_a_top_speed_and_an_obstacle_is_refused(tmp_path):
     """`behaviour.roll_distances` on the corridor: non-decreasing distances,
-    a top speed reached (the last steps equal); in the small room of `LEVEL`
-    the walker meets a wall, which is refused, not measured."""
+    a top speed reached (the last steps equal); `steer_angles` turns past a
+    quarter turn in 20 steps; in the small room of `LEVEL` the walker meets
+    a wall, which is refused, not measured."""
     import envs
 
     corridor = tmp_path / "corridor.txt"
@@ -112,11 +113,14 @@ def test_the_walker_rolls_from_rest_to_a_top_speed_and_an_obstacle_is_refused(tm
     )
     env.reset()
     distances = behaviour.roll_distances(env.physics, 140, 50)
-    env.close()
     steps = np.diff(distances)
     assert (steps >= 0).all() and steps[-1] == pytest.approx(steps[-2], rel=1e-3)
     assert 1.0 < steps[-1] / 0.05 < 20.0  # m/s
     assert distances[-1] < 36.0  # it stayed in the corridor's open cells
+    env.reset()
+    turned = behaviour.steer_angles(env.physics, 20, 50)
+    assert (np.diff(turned) > 0).all() and np.pi / 2 < turned[-1] < 20 * np.pi
+    env.close()
     room = tmp_path / "room.txt"
     room.write_text(behaviour.level_text())
     env = envs.load("mujoban/level1", levels=str(room), **envs.no_cameras("mujoban/level1"))

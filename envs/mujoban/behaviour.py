@@ -23,7 +23,8 @@ metres:
 `roll_distances` measures the walker's own limit on `CORRIDOR` (a straight
 open run of 36 cells, longer than any Boxoban level's, in a ``grid_shape``
 of `CORRIDOR_SHAPE`): the distance it covers from rest at full ``roll``
-after each control step, the fastest any path can be travelled.
+after each control step, the fastest any path can be travelled; and
+`steer_angles` how fast it turns its heading from rest.
 
 Each scenario starts from the state `measure` found (velocities zeroed, the
 walker settled for 0.2 s), so the scenarios do not disturb each other.
@@ -199,6 +200,30 @@ def roll_distances(physics, control_steps: int, substeps: int) -> np.ndarray:
     steps = np.diff(out, prepend=0.0)
     if control_steps > 2 and steps[-1] < 0.9 * steps.max():
         raise ValueError("the walker slowed down: it met something, the run is not free")
+    return out
+
+
+def steer_angles(physics, control_steps: int, substeps: int) -> np.ndarray:
+    """Radians the walker's heading (its ``steer`` joint) has turned from rest
+    at full ``steer`` after each of ``control_steps`` control steps of
+    ``substeps`` physics steps (absolute values). ``physics``: a dm_control
+    ``Physics`` just reset on any level; its state is left changed.
+
+    Raises:
+      ValueError: the model lacks the walker's parts (the module docstring).
+    """
+    m, d = physics.model.ptr, physics.data.ptr
+    parts = _Parts(m)
+    d.qvel[:] = 0.0
+    d.ctrl[:] = 0.0
+    _run(m, d, _SETTLE_S)
+    origin = float(d.qpos[parts.steer])
+    d.ctrl[parts.steer_act] = 1.0
+    out = np.empty(control_steps)
+    for k in range(control_steps):
+        mujoco.mj_step(m, d, substeps)
+        out[k] = abs(float(d.qpos[parts.steer]) - origin)
+    d.ctrl[:] = 0.0
     return out
 
 
