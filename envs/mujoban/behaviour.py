@@ -132,14 +132,7 @@ def measure(physics) -> dict[str, float]:
     Raises:
       ValueError: the model lacks one of the parts named in the module docstring.
     """
-    m, d = physics.model.ptr, physics.data.ptr
-    parts = _Parts(m)
-    d.qvel[:] = 0.0
-    d.ctrl[:] = 0.0
-    _run(m, d, _SETTLE_S)
-    size = mujoco.mj_stateSize(m, mujoco.mjtState.mjSTATE_INTEGRATION)
-    start = np.empty(size)
-    mujoco.mj_getState(m, d, start, mujoco.mjtState.mjSTATE_INTEGRATION)
+    m, d, parts, start = _settled(physics)
 
     def restart(heading: float) -> None:
         mujoco.mj_setState(m, d, start, mujoco.mjtState.mjSTATE_INTEGRATION)
@@ -181,14 +174,7 @@ def roll_distances(physics, control_steps: int, substeps: int) -> np.ndarray:
       ValueError: the model lacks the walker's parts (the module docstring),
         or the walker met something before the last step (its speed fell).
     """
-    m, d = physics.model.ptr, physics.data.ptr
-    parts = _Parts(m)
-    d.qvel[:] = 0.0
-    d.ctrl[:] = 0.0
-    _run(m, d, _SETTLE_S)
-    size = mujoco.mj_stateSize(m, mujoco.mjtState.mjSTATE_INTEGRATION)
-    start = np.empty(size)
-    mujoco.mj_getState(m, d, start, mujoco.mjtState.mjSTATE_INTEGRATION)
+    m, d, parts, start = _settled(physics)
     _face(m, d, parts, 0.0, start)
     d.ctrl[parts.roll_act] = 1.0
     origin = d.qpos[parts.root].copy()
@@ -212,11 +198,7 @@ def steer_angles(physics, control_steps: int, substeps: int) -> np.ndarray:
     Raises:
       ValueError: the model lacks the walker's parts (the module docstring).
     """
-    m, d = physics.model.ptr, physics.data.ptr
-    parts = _Parts(m)
-    d.qvel[:] = 0.0
-    d.ctrl[:] = 0.0
-    _run(m, d, _SETTLE_S)
+    m, d, parts, _ = _settled(physics)
     origin = float(d.qpos[parts.steer])
     d.ctrl[parts.steer_act] = 1.0
     out = np.empty(control_steps)
@@ -225,6 +207,24 @@ def steer_angles(physics, control_steps: int, substeps: int) -> np.ndarray:
         out[k] = abs(float(d.qpos[parts.steer]) - origin)
     d.ctrl[:] = 0.0
     return out
+
+
+def _settled(physics) -> tuple[mujoco.MjModel, mujoco.MjData, _Parts, np.ndarray]:
+    """The raw model and data of ``physics``, the walker's and box's addresses,
+    and the integration state after velocities and controls are zeroed and the
+    physics has run `_SETTLE_S` seconds (the state every scenario starts from).
+
+    Raises:
+      ValueError: the model lacks the walker's parts (the module docstring).
+    """
+    m, d = physics.model.ptr, physics.data.ptr
+    parts = _Parts(m)
+    d.qvel[:] = 0.0
+    d.ctrl[:] = 0.0
+    _run(m, d, _SETTLE_S)
+    start = np.empty(mujoco.mj_stateSize(m, mujoco.mjtState.mjSTATE_INTEGRATION))
+    mujoco.mj_getState(m, d, start, mujoco.mjtState.mjSTATE_INTEGRATION)
+    return m, d, parts, start
 
 
 def _run(m, d, seconds: float, ctrl: dict | None = None) -> None:
