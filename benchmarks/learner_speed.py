@@ -39,7 +39,6 @@ Prints a table and, with ``--json``, writes {"env", "agent",
 
 from __future__ import annotations
 
-import ast
 import json
 import sys
 import tempfile
@@ -146,17 +145,7 @@ def train_options(items: list[str]) -> dict:
     malformed item or an unknown key, with the closest one."""
     from hier_agents.baselines.impala.config import OPTIONS
 
-    options = {}
-    for item in items:
-        key, sep, text = item.partition("=")
-        if not sep:
-            raise cli.UsageError(f"--train-option must be KEY=VALUE, got {item!r}")
-        cli.choice("--train-option key", key, OPTIONS)
-        try:
-            options[key] = ast.literal_eval(text)
-        except (ValueError, SyntaxError):
-            options[key] = text
-    return options
+    return cli.key_values(items, "--train-option", OPTIONS)
 
 
 def learner_config(args, logdir: str):

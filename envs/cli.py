@@ -9,11 +9,10 @@ live in `physics_planning.cli`.
 
 from __future__ import annotations
 
-import ast
 import os
 from typing import Callable, Iterable
 
-from physics_planning.cli import UsageError, close_hint
+from physics_planning.cli import UsageError, close_hint, key_values
 
 __all__ = ["add_env_option", "checked_options", "env_options", "environment", "levels_file"]
 
@@ -80,22 +79,7 @@ def env_options(
     import envs
 
     valid = [key for key in envs.overrides(env_name) if not exclude(key)]
-    options = {}
-    for item in items:
-        key, sep, text = item.partition("=")
-        if not sep or not key:
-            raise UsageError(
-                f"{flag} must be KEY=VALUE, got {item!r}; keys for {env_name}: {', '.join(valid)}"
-            )
-        if key not in valid:
-            raise UsageError(
-                f"{flag} {item!r}: unknown key {key!r} for {env_name}"
-                f"{close_hint(key, valid)}; valid: {', '.join(valid)}"
-            )
-        try:
-            options[key] = ast.literal_eval(text)
-        except (ValueError, SyntaxError):
-            options[key] = text
+    options = key_values(items, flag, valid, f" for {env_name}")
     return checked_options(env_name, options, flag)
 
 

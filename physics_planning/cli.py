@@ -30,6 +30,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import copy
+import ast
 import difflib
 import json
 import os
@@ -183,6 +184,37 @@ def choice(kind: str, value: str, allowed: Iterable[str]) -> str:
             f"valid: {', '.join(map(str, allowed))}"
         )
     return value
+
+
+def key_values(items: Iterable[str], flag: str, valid: Iterable[str], scope: str = "") -> dict:
+    """``KEY=VALUE`` command-line items as a dict, each VALUE a Python literal
+    if it parses as one, else its text.
+
+    Args:
+      flag: the option the items came from, for messages (``--env-option``).
+      valid: the keys allowed.
+      scope: what the keys belong to, for messages (``" for mujoban/level1"``).
+
+    Raises:
+      UsageError: an item without ``=`` or without a key, or a key not in
+        ``valid`` (the message names the closest one and the valid keys).
+    """
+    valid = list(valid)
+    keys = f"; keys{scope}: {', '.join(valid)}"
+    options = {}
+    for item in items:
+        key, sep, text = item.partition("=")
+        if not sep or not key:
+            raise UsageError(f"{flag} must be KEY=VALUE, got {item!r}{keys}")
+        if key not in valid:
+            raise UsageError(
+                f"{flag} {item!r}: unknown key {key!r}{scope}{close_hint(key, valid)}{keys}"
+            )
+        try:
+            options[key] = ast.literal_eval(text)
+        except (ValueError, SyntaxError):
+            options[key] = text
+    return options
 
 
 def _number(convert, test, what: str):
