@@ -77,20 +77,29 @@ class _Single:
 def _process_worker(name: str, options: dict, conn, barrier) -> None:
     """A `_Processes` worker: builds its environment, then for each
     ``(actions, seconds)`` received sends back `_rate` of it, started with
-    the others (``barrier``); None stops it."""
-    env = _Single(GymnasiumEnv(name, **options))
+    the others (``barrier``); None stops it. An exception is sent back as its
+    text (and the barrier broken, so the others do not wait for this one)."""
+    env = None
     try:
+        env = _Single(GymnasiumEnv(name, **options))
         while (message := conn.recv()) is not None:
             actions, seconds = message
-            barrier.wait()
+            barrier.wait(timeout=60)  # a sibling that died breaks it
             conn.send(_rate(env, actions, seconds))
+    except Exception as exc:  # reported to the parent, which raises it
+        barrier.abort()
+        conn.send(f"{type(exc).__name__}: {exc}")
     finally:
-        env.env.close()
+        if env is not None:
+            env.env.close()
 
 
 class _Processes:
     """``num_envs`` processes, each stepping its own environment; `rate` is
-    their summed steps/s, all stepping at once."""
+    their summed steps/s, all stepping at once.
+
+    `rate` raises `RuntimeError` naming the worker and its error (or exit
+    code) when a worker fails or dies; `close` then stops the others."""
 
     def __init__(self, name: str, options: dict, num_envs: int):
         import multiprocessing as mp
@@ -108,15 +117,41 @@ class _Processes:
 
     def rate(self, actions: np.ndarray, seconds: float) -> float:
         """Summed steps/s; process i steps column i of ``actions`` (steps, N, A)."""
+        sent = []
         for i, conn in enumerate(self._conns):
-            conn.send((actions[:, i : i + 1], seconds))
-        return float(sum(conn.recv() for conn in self._conns))
+            try:
+                conn.send((actions[:, i : i + 1], seconds))
+                sent.append(True)
+            except OSError:  # the worker is gone
+                sent.append(False)
+        replies = [self._reply(conn) if ok else None for conn, ok in zip(self._conns, sent)]
+        failed = [i for i, reply in enumerate(replies) if not isinstance(reply, float)]
+        if failed:
+            # The worker that failed first, not the others its broken barrier stopped.
+            i = min(failed, key=lambda k: "BrokenBarrierError" in str(replies[k]))
+            self._procs[i].join(timeout=5)
+            why = replies[i] if replies[i] else f"exit code {self._procs[i].exitcode}"
+            raise RuntimeError(f"benchmark worker process {i} of {self.num_envs} failed: {why}")
+        return float(sum(replies))
+
+    @staticmethod
+    def _reply(conn) -> float | str | None:
+        """The worker's reply: its rate, its error's text, or None if it died."""
+        try:
+            return conn.recv()
+        except (EOFError, OSError):
+            return None
 
     def close(self) -> None:
-        for conn in self._conns:
-            conn.send(None)
-        for proc in self._procs:
-            proc.join()
+        for conn, proc in zip(self._conns, self._procs):
+            try:
+                conn.send(None)
+            except OSError:  # a worker already gone
+                pass
+            proc.join(timeout=10)
+            if proc.is_alive():
+                proc.terminate()
+                proc.join()
 
 
 def _actions(rng: np.random.Generator, n: int, dim: int, steps: int = 400) -> np.ndarray:
