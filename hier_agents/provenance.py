@@ -28,7 +28,10 @@ def _git(*args: str, root: Path = _ROOT) -> str | None:
     return out.stdout.strip()
 
 
-def _cpu_model() -> str:
+def cpu_model() -> str:
+    """This machine's CPU model name (``/proc/cpuinfo``'s first ``model name``,
+    else what `platform` knows): records made on another kind of CPU may
+    differ in floating point's last bits."""
     try:
         with open("/proc/cpuinfo") as f:
             for line in f:
@@ -94,7 +97,7 @@ def provenance(command: str | None = None) -> dict:
         "commit": commit,
         "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         "machine": {
-            "cpu": _cpu_model(),
+            "cpu": cpu_model(),
             "cores": os.cpu_count(),
             "memory_gib": _memory_gib(),
             "python": platform.python_version(),

@@ -1435,7 +1435,7 @@ def test_a_shipped_checkpoint_replays_its_committed_rows(name, agent, env):
     rows = strip(jobs_mod.execute(short, spec.cache)["rows"])
     committed = strip(record["result"]["rows"][:3])
     made_on = record.get("provenance", {}).get("machine", {}).get("cpu")
-    if made_on == provenance._cpu_model():
+    if made_on == provenance.cpu_model():
         assert rows == committed
         return
     # On another kind of CPU (records made on AMD EPYC, replayed on Intel Xeon),

@@ -4,6 +4,7 @@
     python -m hier_agents.compare experiments/mujoban.toml --plan     # the jobs, nothing run
     python -m hier_agents.compare experiments/mujoban.toml --reevaluate   # every evaluation again
     python -m hier_agents.compare experiments/mujoban.toml --agent "random, held 10" --reevaluate
+    python -m hier_agents.compare experiments/mujoban.toml --check 2  # replay 2 episodes a point
     python -m hier_agents.compare experiments/mujoban.toml --backend ray --ray-address auto
 
 The spec (`hier_agents.compare.spec`) names environments, agents (modular
@@ -28,11 +29,14 @@ its budgets: a larger budget resumes the run from its last checkpoint, and
 the evaluations of the budgets already done keep their keys. A training
 whose kept budget checkpoints are on disk counts as done (a clone of a
 cache whose checkpoints were committed); ``--reevaluate`` runs every
-evaluation again and ``--retrain`` trains every series again from zero. The
+evaluation again and ``--retrain`` trains every series again from zero;
+``--check EPISODES`` replays the first episodes of every point from the
+shipped checkpoints and compares them with the records
+(`hier_agents.compare.check`). The
 key leaves out the code: every record keeps the commit it ran at, and
 ``comparison.json`` counts them (``code_versions``; the command warns when
 there is more than one). To run jobs again after a change that matters,
 delete their records, ``CACHE/jobs/KEY.json`` (``--plan`` lists the keys).
 """
 
-__all__ = ["jobs", "spec", "backends", "report", "trainers", "migrate"]
+__all__ = ["jobs", "spec", "backends", "report", "trainers", "migrate", "check"]

@@ -83,6 +83,15 @@ def build_parser() -> cli.Parser:
         "whose kept checkpoints are on disk are not run: a cold run of shipped checkpoints)",
     )
     add(
+        "--check",
+        type=cli.positive_int,
+        default=None,
+        metavar="EPISODES",
+        help="replay the first EPISODES episodes of every point's stored evaluation (trained "
+        "agents from their kept checkpoints) and compare them, field by field, with the "
+        "record; trains nothing, writes CACHE/check.json, exit status 1 if any differs",
+    )
+    add(
         "--iqm",
         action="store_true",
         help="the plot's bands and the README table follow the interquartile mean (with its "
@@ -111,6 +120,12 @@ def _main(argv=None) -> int:
         raise cli.UsageError("--report-only runs nothing: drop --retrain and --reevaluate")
     if args.retrain and args.only == "eval":
         raise cli.UsageError("--retrain trains: it does not go with --only eval")
+    if args.check is not None:
+        given = [f for f in ("retrain", "reevaluate", "report_only", "only") if getattr(args, f)]
+        if given:
+            flag = "--" + given[0].replace("_", "-")
+            raise cli.UsageError(f"--check replays stored evaluations: drop {flag}")
+        return _check(selected, Path(cache), args)
     fresh = _fresh(selected, args)
     if args.plan:
         _print_plan(selected, cache, fresh)
@@ -214,13 +229,7 @@ def _run(planned, cache, args, fresh) -> str | None:
 
     runnable = [j for j in planned if args.only in (None, j.kind)]
     _check_trainable(runnable, cache, fresh)
-    say = (
-        (lambda text: None)
-        if args.quiet
-        else (
-            lambda text: print(f"{time.strftime('%H:%M:%S')} {text}", file=sys.stderr, flush=True)
-        )
-    )
+    say = _progress(args.quiet)
     stats: dict = {}
     failure = None
     try:
@@ -245,6 +254,87 @@ def _run(planned, cache, args, fresh) -> str | None:
             file=sys.stderr,
         )
     return failure
+
+
+def _check(selected, cache: Path, args) -> int:
+    """``--check``: plans the replays (`hier_agents.compare.check`), prints
+    them with ``--plan``, else runs them, prints the verdict per agent and
+    writes ``CACHE/check.json``. 0 when no replay failed or differs from a
+    record made on this kind of CPU, else 1."""
+    from hier_agents.compare import check
+    from hier_agents.compare.backends import JobFailed, run_jobs
+    from hier_agents.provenance import provenance
+
+    checks, skipped = check.plan(selected, cache, args.check)
+    for point, why in skipped:
+        budget = f" at {point['budget']:,} frames" if point.get("budget") else ""
+        print(
+            f"{PROG}: not replayed: {point['agent']}{budget} on {point['env']}, "
+            f"seed {point['seed']}: {why}",
+            file=sys.stderr,
+        )
+    if args.plan:
+        for job, _ in checks:
+            print(f"{job.key}  replay  {job.describe()}")
+        return 0
+    if not checks:
+        raise cli.UsageError("--check: no stored evaluation to replay")
+    folder = check.scratch(cache)
+    stats: dict = {}
+    failure = None
+    try:
+        run_jobs(
+            [job for job, _ in checks],
+            folder,
+            backend=args.backend,
+            cpus=args.cpus,
+            ray_address=args.ray_address,
+            retries=args.retries,
+            progress=_progress(args.quiet),
+            fresh={job.key for job, _ in checks},
+            stats=stats,
+        )
+    except JobFailed as exc:
+        failure = str(exc)
+    results = check.verdicts(checks, folder)
+    print(check.summary_table(results))
+    for entry in results:
+        for line in entry.get("differences", [])[:5]:
+            p = entry["point"]
+            print(f"{p['agent']} on {p['env']}, seed {p['seed']}: {line}")
+    bad = sum(1 for e in results if check.failed(e))
+    other = sum(1 for e in results if e.get("differences") and not check.failed(e))
+    episodes = sum(e["episodes"] for e in results)
+    took = f"{_clock(stats.get('wall_s', 0.0))} wall on {stats.get('cpus')} CPUs"
+    print(
+        f"{PROG}: {cli.plural(len(results), 'point')} replayed ({episodes} episodes) in {took}: "
+        + (f"{bad} differ or failed" if bad else "none differs from a record of this CPU kind")
+        + (f"; {other} differ from records made on another kind of CPU" if other else ""),
+        file=sys.stderr,
+    )
+    cli.write_json(
+        cache / "check.json",
+        {
+            "episodes_per_point": args.check,
+            "agents": args.agents,
+            "points": results,
+            "not_replayed": [{"point": p, "why": why} for p, why in skipped],
+            "wall_s": stats.get("wall_s"),
+            "cpus": stats.get("cpus"),
+            "backend": args.backend,
+            "provenance": provenance(),
+        },
+    )
+    if failure:
+        print(f"{PROG}: {failure}", file=sys.stderr)
+    return 1 if bad or failure else 0
+
+
+def _progress(quiet: bool):
+    """The per-job progress printer: timestamped lines on stderr, or none."""
+    if quiet:
+        return lambda text: None
+    return lambda text: print(f"{time.strftime('%H:%M:%S')} {text}", file=sys.stderr, flush=True)
 
 
 def _clock(seconds: float) -> str:
