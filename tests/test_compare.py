@@ -680,6 +680,34 @@ def test_agent_narrows_the_run_to_one_agent_and_the_report_keeps_the_rest(
     assert "unknown --agent 'e2f' (did you mean 'e2e'?)" in capsys.readouterr().err
 
 
+def test_seed_and_env_narrow_the_run_like_agent(tmp_path, monkeypatch, capsys):
+    """--seed and --env (repeatable) narrow the jobs run, with --agent, and
+    --retrain then trains only the series they leave; an unknown seed or
+    environment is a one-line usage error."""
+    from hier_agents.compare.__main__ import main
+
+    path = e2e_spec(tmp_path)
+    spec = load(path)
+    planned = jobs_mod.plan(spec)
+    ran: list = []
+    monkeypatch.setattr("hier_agents.compare.backends.job_process", _fake_job(planned, ran))
+    assert main([str(path), "--quiet", "--cpus", "1", "--agent", "e2e", "--seed", "1"]) == 0
+    assert ran and {j.inputs["seed"] for j in ran} == {1}
+    assert {j.point["agent"] for j in ran} == {"e2e"}
+    ran.clear()
+    args = [str(path), "--quiet", "--cpus", "1", "--agent", "e2e", "--seed", "0", "--retrain"]
+    assert main(args + ["--env", "mujoban/level1"]) == 0
+    assert {(j.kind, j.inputs["seed"]) for j in ran} == {("train", 0), ("eval", 0)}
+    for flags, message in (
+        (["--seed", "5"], "--seed 5: the spec runs seeds 0, 1"),
+        (["--env", "mujoban/levl1"], "unknown --env 'mujoban/levl1' (did you mean"),
+    ):
+        with pytest.raises(SystemExit) as stop:
+            main([str(path), *flags])
+        assert stop.value.code == 2
+        assert message in capsys.readouterr().err
+
+
 def test_an_evaluation_runs_once_its_checkpoint_is_on_disk(tmp_path, monkeypatch):
     """Budget 200's checkpoint is there (an earlier, shorter run), 400's is
     not, and the training fails: the evaluations at 200 run, those at 400

@@ -5,6 +5,7 @@
     python -m hier_agents.compare experiments/mujoban.toml --reevaluate   # every evaluation again
     python -m hier_agents.compare experiments/mujoban.toml --agent "random, held 10" --reevaluate
     python -m hier_agents.compare experiments/mujoban.toml --check 2  # replay 2 episodes a point
+    python -m hier_agents.compare SPEC --agent LABEL --seed 0 --env mujoban/level1 --retrain
     python -m hier_agents.compare experiments/mujoban.toml --backend ray --ray-address auto
 
 The spec (`hier_agents.compare.spec`) names environments, agents (modular

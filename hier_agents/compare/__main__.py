@@ -71,6 +71,26 @@ def build_parser() -> cli.Parser:
         "report every agent the cache holds",
     )
     add(
+        "--env",
+        dest="envs",
+        action="append",
+        default=None,
+        metavar="NAME",
+        help="run only the jobs on this environment of the spec (repeatable; with --agent "
+        "and --seed, narrowed by those too); --plan, --retrain, --reevaluate and --check "
+        "then apply to it alone",
+    )
+    add(
+        "--seed",
+        dest="seeds",
+        type=int,
+        action="append",
+        default=None,
+        metavar="SEED",
+        help="run only the jobs of this seed of the spec (repeatable; with --agent, of "
+        "those agents); --plan, --retrain, --reevaluate and --check then apply to it alone",
+    )
+    add(
         "--retrain",
         action="store_true",
         help="train every series of the spec again from zero (its run directory is removed "
@@ -113,7 +133,7 @@ def _main(argv=None) -> int:
     spec = load(args.spec)
     cache = args.cache or spec.cache
     planned = jobs_mod.plan(spec)
-    selected = _selected(spec, planned, args.agents)
+    selected = _selected(spec, planned, args.agents, args.seeds, args.envs)
     if args.only is not None:
         cli.choice("--only", args.only, ("train", "eval"))
     if args.report_only and (args.retrain or args.reevaluate):
@@ -155,17 +175,38 @@ def _main(argv=None) -> int:
     return 0
 
 
-def _selected(spec, planned, labels: list[str] | None) -> list:
-    """The jobs of the agents ``labels`` (``--agent``; None: every job).
+def _selected(
+    spec,
+    planned,
+    labels: list[str] | None,
+    seeds: list[int] | None = None,
+    env_names: list[str] | None = None,
+) -> list:
+    """The jobs of the agents ``labels`` (``--agent``), of the ``seeds``
+    (``--seed``) and on the environments ``env_names`` (``--env``); None:
+    every agent, seed, environment.
 
     Raises:
-      UsageError: a label no agent of the spec has, with the closest one.
+      UsageError: a label, seed or environment the spec does not have (with
+        the closest label or environment, or its seeds).
     """
-    if not labels:
-        return planned
-    for label in labels:
+    for label in labels or ():
         cli.choice("--agent", label, [agent.label for agent in spec.agents])
-    return [job for job in planned if job.point["agent"] in labels]
+    for name in env_names or ():
+        cli.choice("--env", name, sorted({job.inputs["env"] for job in planned}))
+    spec_seeds = sorted({job.inputs["seed"] for job in planned})
+    for seed in seeds or ():
+        if seed not in spec_seeds:
+            raise cli.UsageError(
+                f"--seed {seed}: the spec runs seeds {', '.join(map(str, spec_seeds))}"
+            )
+    return [
+        job
+        for job in planned
+        if (not labels or job.point["agent"] in labels)
+        and (not seeds or job.inputs["seed"] in seeds)
+        and (not env_names or job.inputs["env"] in env_names)
+    ]
 
 
 def _fresh(planned, args) -> set[str]:
