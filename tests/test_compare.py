@@ -24,7 +24,7 @@ from physics_planning.cli import UsageError
 from hier_agents import provenance
 from hier_agents.compare import jobs as jobs_mod
 from hier_agents.modular import components
-from hier_agents.compare import report
+from hier_agents.compare import plot, report
 from hier_agents.compare import trainers as trainers_mod
 from hier_agents.compare.backends import run_jobs
 from hier_agents.compare.spec import load
@@ -985,7 +985,7 @@ def test_points_carry_per_seed_values_means_and_intervals(tmp_path):
     assert {c["agent"] for c in costs} == {"modular", "random 10"}
     table = report.format_table(spec, pts, costs)
     assert "mujoban/level1" in table and "random 10" in table
-    report.plot(spec, pts, tmp_path / "p.png")
+    plot.plot(spec, pts, tmp_path / "p.png")
     assert (tmp_path / "p.png").stat().st_size > 1000
 
 
@@ -1075,7 +1075,7 @@ def test_board_points_score_games_a_win_one_a_draw_half_a_loss_zero(tmp_path):
     markdown = report.format_markdown(spec.envs, pts, [])
     assert markdown[0].startswith("| environment | agent | training frames | game score, mean")
     assert "| 17/58/25 (8 unfinished) |" in markdown[2] and markdown[1].count("---") == 10
-    report.plot(spec, pts, tmp_path / "p.png", [agg])
+    plot.plot(spec, pts, tmp_path / "p.png", [agg])
     assert (tmp_path / "p.png").stat().st_size > 1000
 
 
@@ -1153,7 +1153,7 @@ def test_iqm_intervals_are_stratified_by_seed_and_aggregates_span_environments(t
     table = report.format_table(spec, pts, [], aggs)
     assert table.splitlines()[0] == f"success %: {report.STATISTICS}"
     assert f"all environments ({report.AGGREGATE}):" in table
-    report.plot(spec, pts, tmp_path / "p.png", aggs)
+    plot.plot(spec, pts, tmp_path / "p.png", aggs)
     assert (tmp_path / "p.png").stat().st_size > 1000
 
 

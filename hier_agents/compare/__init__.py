@@ -20,7 +20,8 @@ environment family's metric, MuJoBan's success or the board games' game
 score, and their intervals, aggregates across environments, per-seed values, CPU
 hours, provenance), ``comparison.txt`` (the table) and ``comparison.png``
 (learning curves, one panel per environment and one for the aggregate)
-into the cache folder (`hier_agents.compare.report`, `hier_agents.stats`).
+into the cache folder (`hier_agents.compare.report`, `hier_agents.compare.plot`,
+`hier_agents.stats`).
 
 Finished jobs are cached by a key of their inputs: a killed experiment
 continues where it stopped, an extended one runs only its new jobs, and a
@@ -40,4 +41,4 @@ there is more than one). To run jobs again after a change that matters,
 delete their records, ``CACHE/jobs/KEY.json`` (``--plan`` lists the keys).
 """
 
-__all__ = ["jobs", "spec", "backends", "report", "trainers", "migrate", "check"]
+__all__ = ["jobs", "spec", "backends", "report", "trainers", "migrate", "check", "plot"]

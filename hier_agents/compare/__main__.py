@@ -425,7 +425,7 @@ def _write_outputs(cache: Path, content, table, spec, results, args) -> None:
     """Writes comparison.txt, comparison.png and comparison.json into
     ``cache`` (the JSON last: it marks them done), unless they already hold
     ``content``; ``results``: the points and the aggregates."""
-    from hier_agents.compare import report
+    from hier_agents.compare import plot
     from hier_agents.provenance import provenance
 
     out = cache / "comparison.json"
@@ -443,7 +443,7 @@ def _write_outputs(cache: Path, content, table, spec, results, args) -> None:
     else:
         outputs[0].parent.mkdir(parents=True, exist_ok=True)
         outputs[0].write_text(table + "\n")
-        report.plot(spec, results[0], outputs[1], results[1], use_iqm=args.iqm)
+        plot.plot(spec, results[0], outputs[1], results[1], use_iqm=args.iqm)
         cli.write_json(out, {**content, "provenance": provenance()})  # last: marks them done
         print(f"wrote {out}, comparison.txt and comparison.png", file=sys.stderr)
 
