@@ -567,3 +567,69 @@ def test_forget_history_drops_what_is_carried_between_subgoals():
     )
     assert (skill._contact.backoffs, skill._contact.backing) == (0, False)
     assert skill._legs == []
+
+
+@pytest.mark.parametrize("pegs", [False, True])
+def test_a_walk_through_several_cells_rolls_on_through_each_one(pegs):
+    """The path follower does not stop at the cells it passes: rounding the
+    block of walls (8 cells, 3 corners), the walker passes within half a
+    cell of every cell but the last at 0.8 m/s or more (a stop at a cell
+    would be below 0.3), and reaches 3 m/s on the straight."""
+    env = make_env(WALL_BETWEEN, pegs=pegs)
+    timestep = env.reset()
+    state = estimate(env.task)
+    moves = ("U", "U", "R", "R", "R", "R", "D", "D")
+    cells = [replay(state, moves[: k + 1]).player for k in range(len(moves))]
+    centres = [env.task.cell_to_world(*cell) for cell in cells]
+    nearest = [(math.inf, 0.0)] * len(cells)  # per cell: (closest distance, speed there)
+
+    def note(ts, _):
+        x, y = env.task.walker_position()
+        speed = float(np.linalg.norm(env.task.walker_velocity()))
+        for k, (cx, cy) in enumerate(centres):
+            d = math.hypot(x - cx, y - cy)
+            if d < nearest[k][0]:
+                nearest[k] = (d, speed)
+
+    oracle = OracleEstimator(env)
+    oracle.reset(env.description(), timestep)
+    skill = BallSkill()
+    subgoal = Subgoal(action=moves, state=replay(state, moves))
+    run_option(env, oracle, skill, subgoal, timestep, t_abs=300, on_step=note)
+    assert skill.status is Status.SUCCESS, skill.failure_reason
+    passed = nearest[:-1]
+    assert all(d < 0.5 for d, _ in passed), passed
+    assert min(speed for _, speed in passed) >= 0.8, passed
+    assert max(speed for _, speed in passed) >= 3.0, passed
+
+
+def test_the_time_planners_estimate_is_within_15_percent_of_the_steps_taken():
+    """The execution-time planner's estimate of its first plan's control
+    steps (`abstract_planners.sokoban_time.estimate_steps`) against the steps
+    the agent takes to solve the level (oracle estimates), on the first 4
+    shipped medium Boxoban levels with pegs: within 15% on each (0.95-1.05
+    when written)."""
+    from abstract_planners.sokoban_time import estimate_steps, plan_features
+    from envs.mujoban.levels import BOXOBAN_DIR, read_levels
+    from hier_agents.boundary import BoundaryEnv
+    from hier_agents.modular.components import resolve
+    from hier_agents.run import run
+
+    name, path = "mujoban/level5-pegs", BOXOBAN_DIR / "medium-valid-000.txt"
+    levels = read_levels(path)[:4]
+    probe = envs.load(name, levels=str(path), **envs.no_cameras(name))
+    try:
+        description = BoundaryEnv(probe).description()
+    finally:
+        probe.close()
+    planner = resolve("planner", "mujoban", "sokoban-solver:time").factory(description, 0)
+    estimates = []
+    for level in levels:
+        start = SokobanState.from_level(level)
+        found = planner.search(start)
+        assert found.solved
+        estimates.append(estimate_steps(plan_features(start, found.moves)))
+    played = run(name, len(levels), 0, levels=str(path), estimator="oracle", progress=False)
+    for estimated, row in zip(estimates, played["rows"]):
+        assert row["solved"], row
+        assert 0.85 <= row["steps"] / estimated <= 1.15, (row["steps"], estimated)
