@@ -399,6 +399,34 @@ def physical_limit(results: Path) -> list[str]:
     return lines
 
 
+@table("compare-check")
+def compare_check(results: Path) -> list[str]:
+    """The shipped comparisons' records replayed from their shipped
+    checkpoints (``python -m hier_agents.compare SPEC --check N``,
+    ``results/compare/NAME/check.json``), one row per comparison."""
+    lines = [
+        "| comparison | episodes per point | points replayed | agree | differ (records of this "
+        "CPU kind) | differ (records of another CPU kind) | failed | not replayed | wall time "
+        "| CPUs |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+    ]
+    for name in ("mujoban", "boards"):
+        d = _load(results / "compare" / name / "check.json")
+        pts = d["points"]
+        differ = sum(1 for p in pts if p.get("differences") and not p["other_cpu"])
+        other = sum(1 for p in pts if p.get("differences") and p["other_cpu"])
+        failed = sum(1 for p in pts if "error" in p)
+        agree = len(pts) - differ - other - failed
+        minutes, seconds = divmod(round(d["wall_s"]), 60)
+        lines.append(
+            f"| `experiments/{name}.toml` | {d['episodes_per_point']} | {len(pts)} "
+            f"({sum(p['episodes'] for p in pts)} episodes) | {agree} | {differ} | {other} "
+            f"| {failed} | {len(d['not_replayed'])} | {minutes} min {seconds:02d} s "
+            f"| {d['cpus']} |"
+        )
+    return lines
+
+
 @table("board-physics")
 def board_physics(results: Path) -> list[str]:
     """The board games' raw physics under cheaper solver settings

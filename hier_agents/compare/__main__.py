@@ -358,6 +358,8 @@ def _check(selected, cache: Path, args) -> int:
         {
             "episodes_per_point": args.check,
             "agents": args.agents,
+            "seeds": args.seeds,
+            "envs": args.envs,
             "points": results,
             "not_replayed": [{"point": p, "why": why} for p, why in skipped],
             "wall_s": stats.get("wall_s"),
