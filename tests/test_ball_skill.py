@@ -633,3 +633,15 @@ def test_the_time_planners_estimate_is_within_15_percent_of_the_steps_taken():
     for estimated, row in zip(estimates, played["rows"]):
         assert row["solved"], row
         assert 0.85 <= row["steps"] / estimated <= 1.15, (row["steps"], estimated)
+
+
+def test_the_ball_component_takes_config_changes_as_its_argument():
+    """``--skill ball:KEY=VALUE,...`` builds the skill with those `BallConfig`
+    fields changed (the rest the defaults); the bare name is the default."""
+    from hier_agents.modular.components import resolve
+
+    table = "skill", "mujoban"
+    skill = resolve(*table, "ball:push_speed=2,chain=False").factory(None, 0)
+    assert skill.config == BallConfig(push_speed=2.0, chain=False)
+    assert isinstance(skill.config.push_speed, float)
+    assert resolve(*table, "ball").factory(None, 0).config == BallConfig()

@@ -156,6 +156,28 @@ def _load_arm_policy(path):
     load_policy(path, FEATURES)
 
 
+def _ball_config(text: str):
+    """``KEY=VALUE[,KEY=VALUE...]`` as a `skills.ball.BallConfig` with those
+    fields changed; ValueError naming the problem (an unknown field, with the
+    closest one, or a value of the wrong type)."""
+    from physics_planning.cli import key_values
+    from skills.ball import BallConfig
+
+    items = [item for item in text.split(",") if item]
+    if not items:
+        raise ValueError("got no KEY=VALUE")
+    overrides = key_values(items, "ball", BallConfig.field_names())
+    try:
+        return BallConfig().replace(**overrides)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{text!r}: {exc}") from None
+
+
+_BALL_CONFIG = Parameter(
+    "KEY=VALUE,...",
+    "changes to the skill's BallConfig fields, comma-separated (e.g. push_speed=2.0)",
+    _ball_config,
+)
 _SIMULATIONS = Parameter("N", "tree simulations per move, an integer >= 1", _int_in(1))
 _GNUGO_LEVEL = Parameter("LEVEL", "GNU Go's strength, an integer 1..10", _int_in(1, 10))
 _DEPTH = Parameter("D", "plies searched, an integer >= 1", _int_in(1))
@@ -243,10 +265,11 @@ def _alphabeta(description, seed, arg=4):
     return AlphaBetaPlanner(arg, seed=seed)
 
 
-def _ball(description, seed):
+@_takes(_BALL_CONFIG)
+def _ball(description, seed, arg=None):
     from skills.ball import BallSkill
 
-    return BallSkill()
+    return BallSkill(arg)
 
 
 @_takes(_BALL_POLICY)
