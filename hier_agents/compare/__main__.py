@@ -107,9 +107,10 @@ def build_parser() -> cli.Parser:
         type=cli.positive_int,
         default=None,
         metavar="EPISODES",
-        help="replay the first EPISODES episodes of every point's stored evaluation (trained "
-        "agents from their kept checkpoints) and compare them, field by field, with the "
-        "record; trains nothing, writes CACHE/check.json, exit status 1 if any differs",
+        help="replay the first EPISODES episodes (at most its first shard's) of every point's "
+        "stored evaluation (trained agents from their kept checkpoints) and compare them, "
+        "field by field, with the record; trains nothing, writes CACHE/check.json, exit "
+        "status 1 if any differs",
     )
     add(
         "--iqm",
