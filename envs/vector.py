@@ -72,6 +72,7 @@ from __future__ import annotations
 import itertools
 import numbers
 import os
+import threading
 from concurrent.futures import ThreadPoolExecutor, wait
 from typing import Any, Sequence
 
@@ -120,11 +121,13 @@ class PhysicsPool:
 
     def __init__(self, threads: int):
         self.threads = threads
-        self._workers = (
-            ThreadPoolExecutor(threads - 1, thread_name_prefix="envs-physics")
-            if threads > 1
-            else None
-        )
+        self._workers = None
+        if threads > 1:
+            self._workers = ThreadPoolExecutor(threads - 1, thread_name_prefix="envs-physics")
+            # The executor starts threads lazily and reuses an idle one: tasks that
+            # wait for each other make it start all of them now.
+            started = threading.Barrier(threads - 1)
+            wait([self._workers.submit(started.wait) for _ in range(threads - 1)])
 
     def advance(self, batch: Sequence[Environment]) -> list:
         """Each environment's ``_advance()`` result (bool) or the exception it
